@@ -1,0 +1,212 @@
+"""Closed-form pieces and event location shared by the plant solvers.
+
+Every plant in dfwb is, between events, a set of coordinates obeying
+
+    x'' = -lam x' + a + b cos(omega t + phi)        (lam >= 0)
+
+with a constant input folded into ``a``. :class:`Motion` gives its exact
+solution, written with the phi-functions of exponential integrators so that
+it stays accurate for lam -> 0 and for short pieces. :class:`Drive` locates
+the instants where the force crosses a level analytically, and
+:func:`first_root` finds the first zero of a smooth function from a bound on
+its second derivative, so that no zero is ever stepped over.
+
+Plain Python (``math``, ``cmath``) only: this module runs inside the FMUs.
+"""
+
+import cmath
+import math
+
+EPS = 2.220446049250313e-16
+TWO_PI = 2.0 * math.pi
+
+
+def phi_real(k, y):
+    """phi_k(-y) = sum_n (-y)^n / (n + k)!, for y >= 0 (k = 1, 2, 3)."""
+    if y < 0.5:
+        term = 1.0 / math.factorial(k)
+        total = term
+        n = 0
+        while abs(term) > 1e-18 * abs(total):
+            n += 1
+            term *= -y / (n + k)
+            total += term
+        return total
+    value = -math.expm1(-y) / y  # phi_1
+    for j in range(1, k):
+        value = (1.0 / math.factorial(j) - value) / y  # phi_{j+1}(-y)
+    return value
+
+
+def phi1_complex(z):
+    """(exp(z) - 1) / z, exact in the limit z -> 0."""
+    if abs(z) < 0.5:
+        term = 1.0 + 0j
+        total = term
+        n = 1
+        while abs(term) > 1e-18:
+            n += 1
+            term *= z / n
+            total += term
+        return total
+    return (cmath.exp(z) - 1.0) / z
+
+
+def exp_integral(mu, t0, t1):
+    """Integral of exp(i mu s) ds from t0 to t1, exact for any real mu."""
+    tau = t1 - t0
+    return cmath.exp(1j * mu * t0) * tau * phi1_complex(1j * mu * tau)
+
+
+class Drive:
+    """The force u(t) = f + F cos(omega t + phi) acting on a plant.
+
+    ``f`` is the importer's input, held over a communication step; ``F``,
+    ``omega``, ``phi`` describe the built-in harmonic excitation.
+    """
+
+    __slots__ = ("f", "F", "omega", "phi")
+
+    def __init__(self, f, F, omega, phi):
+        if F < 0.0:  # a negative amplitude is a phase shift of pi
+            F, phi = -F, phi + math.pi
+        self.f, self.F, self.omega, self.phi = f, F, omega, phi
+
+    def u(self, t):
+        return self.f + self.F * math.cos(self.omega * t + self.phi)
+
+    def du(self, t):
+        return -self.F * self.omega * math.sin(self.omega * t + self.phi)
+
+    def crossing(self, t0, level, rising):
+        """First t > t0 where u crosses ``level`` upwards (or downwards).
+
+        Tangency is no crossing. Returns inf when u never crosses the level.
+        """
+        if self.F == 0.0:
+            return math.inf
+        r = (level - self.f) / self.F
+        if not -1.0 < r < 1.0:
+            return math.inf
+        theta_c = -math.acos(r) if rising else math.acos(r)
+        theta0 = self.omega * t0 + self.phi
+        n = math.ceil((theta0 - theta_c) / TWO_PI)
+        t = (theta_c + TWO_PI * n - self.phi) / self.omega
+        while t <= t0:
+            n += 1
+            t = (theta_c + TWO_PI * n - self.phi) / self.omega
+        return t
+
+
+class Motion:
+    """Exact solution of x'' = -lam x' + a + b cos(omega t + phi) from (t0, x0, v0).
+
+    Used for a mass under a constant plus harmonic force (lam = 0), a mass
+    with viscous damping (lam = B / M), a relative coordinate, or a body at
+    rest (a = b = 0, v0 = 0).
+    """
+
+    __slots__ = ("t0", "x0", "v0", "lam", "a", "b", "omega", "phi", "_P")
+
+    def __init__(self, t0, x0, v0, lam, a, b, omega, phi):
+        self.t0, self.x0, self.v0 = t0, x0, v0
+        self.lam, self.a, self.b, self.omega, self.phi = lam, a, b, omega, phi
+        # particular harmonic response of the velocity: Re{P exp(i theta)}
+        self._P = b / complex(lam, omega) * cmath.exp(1j * (omega * t0 + phi))
+
+    def state(self, t):
+        """Position and velocity at t >= t0."""
+        tau = t - self.t0
+        lam, w = self.lam, self.omega
+        p1 = phi_real(1, lam * tau)
+        decay = math.exp(-lam * tau)
+        e = cmath.exp(1j * w * tau)
+        v = self.v0 * decay + self.a * tau * p1 + (self._P * (e - decay)).real
+        x = (self.x0 + self.v0 * tau * p1 + self.a * tau * tau * phi_real(2, lam * tau)
+             + (self._P * (tau * phi1_complex(1j * w * tau) - tau * p1)).real)
+        return x, v
+
+    def acceleration(self, t, v):
+        return -self.lam * v + self.a + self.b * math.cos(self.omega * t + self.phi)
+
+    def curvature_bound(self):
+        """Bound on |v''| over [t0, inf): ``K`` for velocity zero searches."""
+        lam, P = self.lam, abs(self._P)
+        return lam * lam * (abs(self.v0) + P) + lam * abs(self.a) + P * self.omega ** 2
+
+    def integral(self, t):
+        """Integral of x from t0 to t."""
+        tau = t - self.t0
+        lam, w = self.lam, self.omega
+        harmonic = (tau * phi1_complex(1j * w * tau) - tau) / (1j * w) - tau * tau * phi_real(2, lam * tau)
+        return (self.x0 * tau + self.v0 * tau * tau * phi_real(2, lam * tau)
+                + self.a * tau ** 3 * phi_real(3, lam * tau) + (self._P * harmonic).real)
+
+    def fourier(self, t, nu, x1, v1):
+        """Integral of x(s) exp(-i nu s) from t0 to t (nu > 0), given x, v at t.
+
+        Integration by parts through the equation of motion: exact, with an
+        absolute error of a few ulp of the state's scale however short the piece.
+        """
+        e0 = cmath.exp(-1j * nu * self.t0)
+        e1 = cmath.exp(-1j * nu * t)
+        s0 = exp_integral(-nu, self.t0, t)
+        c = 0.5 * (cmath.exp(1j * self.phi) * exp_integral(self.omega - nu, self.t0, t)
+                   + cmath.exp(-1j * self.phi) * exp_integral(-self.omega - nu, self.t0, t))
+        j = (self.a * s0 + self.b * c - (v1 * e1 - self.v0 * e0)) / complex(self.lam, nu)
+        return (j - (x1 * e1 - self.x0 * e0)) / (1j * nu)
+
+
+def first_root(fun, a, b, K):
+    """First t in (a, b] where g(t) <= 0, given g(a) > 0 and |g''| <= K on [a, b].
+
+    ``fun(t)`` returns (g, g'). Intervals are cleared by rigorous bounds
+    (positive lower bound, or g increasing) and split otherwise, so a zero
+    can never hide between two samples; a strictly decreasing interval with
+    a sign change is refined by safeguarded Newton to machine precision.
+    Returns None when g stays positive (grazes below rounding are ignored).
+    """
+    ga, dga = fun(a)
+    if ga <= 0.0:
+        return a
+    pending = [(b,) + tuple(fun(b))]
+    while pending:
+        b, gb, dgb = pending[-1]
+        span = b - a
+        mean_slope = 0.5 * (dga + dgb)
+        if gb <= 0.0 and mean_slope + 0.5 * K * span < 0.0:
+            return _refine(fun, a, b, ga, dga)
+        if gb > 0.0 and (min(ga, gb) - 0.125 * K * span * span > 0.0
+                         or mean_slope - 0.5 * K * span >= 0.0):
+            pending.pop()
+            a, ga, dga = b, gb, dgb
+            continue
+        m = a + 0.5 * span
+        if not a < m < b:  # interval at machine resolution
+            if gb <= 0.0:
+                return b
+            pending.pop()
+            a, ga, dga = b, gb, dgb
+            continue
+        pending.append((m,) + tuple(fun(m)))
+    return None
+
+
+def _refine(fun, lo, hi, g_lo, dg_lo):
+    """Zero of a strictly decreasing g on [lo, hi], g(lo) > 0 >= g(hi)."""
+    t = lo - g_lo / dg_lo if dg_lo < 0.0 else 0.5 * (lo + hi)
+    for _ in range(200):
+        if not lo < t < hi:
+            t = 0.5 * (lo + hi)
+            if not lo < t < hi:
+                return hi  # bracket at machine resolution
+        g, dg = fun(t)
+        if g > 0.0:
+            lo = t
+        else:
+            hi = t
+        nxt = t - g / dg if dg < 0.0 else 0.5 * (lo + hi)
+        if abs(nxt - t) <= 2.0 * EPS * abs(t):
+            return min(max(nxt, lo), hi)
+        t = nxt
+    return hi

@@ -1,0 +1,133 @@
+"""Mass with Coulomb, viscous and static friction, integrated exactly.
+
+    M x'' + Ff = u(t),   u = f + F cos(omega t + phi)
+
+Sliding (|v| > Dv): Ff = Fc sgn(v) + B v. With Dv = 0 (the default, CVS
+model) the mass sticks at v = 0 while |u| <= Fs and breaks away in the
+direction of u when |u| > Fs. With Dv > 0 (Karnopp's model) the band
+|v| <= Dv has Ff = sat(u, Fs): the velocity is held while |u| <= Fs and is
+pushed through the band by u - Fs sgn(u) otherwise.
+
+Modes: hold (v constant, |v| <= Dv), push +-1 (inside the band, |u| > Fs),
+slide +-1. Break-away and release are analytic crossings of the force;
+stops (v reaching the band) are first zeros of the closed-form velocity.
+"""
+
+from .exact import Motion
+from .piecewise import PiecewisePlant, Search, check
+
+HOLD, SLIDE, PUSH = "hold", "slide", "push"
+
+
+class FrictionMass(PiecewisePlant):
+    """Exact solver of the friction mass; the output is the position x."""
+
+    def __init__(self, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, F=0.0, omega=1.0, phi=0.0,
+                 x0=0.0, v0=0.0, f=0.0, harmonics=10):
+        check("M", M, M > 0.0, "M must be > 0 (kg)")
+        check("B", B, B >= 0.0, "B must be >= 0 (N.s/m)")
+        check("Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")
+        check("Fs", Fs, Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
+        check("Dv", Dv, Dv >= 0.0, "Dv must be >= 0 (m/s)")
+        check("x0", x0, True, "x0 must be a finite number (m)")
+        check("v0", v0, True, "v0 must be a finite number (m/s)")
+        super().__init__(F, omega, phi, f, harmonics)
+        self.M, self.B, self.Fc, self.Fs, self.Dv = M, B, Fc, Fs, Dv
+        self.edge_force = Fc + B * Dv  # friction just outside the band
+        self.mode, self.direction = HOLD, 0
+        self._start(0.0, x0, v0)
+
+    # -- outputs ---------------------------------------------------------
+    def output(self):
+        """x, v, friction force Ff and mode (0 stick or band, +-1 sliding) at self.t."""
+        x, v = self._output.state(self.t)
+        acc = self._output.acceleration(self.t, v)
+        ff = self.drive.u(self.t) - self.M * acc
+        return x, v, ff, self.direction if self.mode == SLIDE else 0
+
+    # -- pieces ------------------------------------------------------------
+    def _motion(self, t, x, v, lam, force):
+        d = self.drive
+        return Motion(t, x, v, lam, force / self.M, d.F / self.M, d.omega, d.phi)
+
+    def _start(self, t, x, v):
+        """Choose the mode from the state and the force at t."""
+        if abs(v) > self.Dv:
+            self._slide(t, x, v, 1 if v > 0.0 else -1, departing=False)
+            return
+        u = self.drive.u(t)
+        if v >= self.Dv and u > max(self.Fs, self.edge_force):
+            self._slide(t, x, self.Dv, 1, departing=True)
+        elif v <= -self.Dv and u < -max(self.Fs, self.edge_force):
+            self._slide(t, x, -self.Dv, -1, departing=True)
+        elif u > self.Fs and v < self.Dv:
+            self._push(t, x, v, 1)
+        elif u < -self.Fs and v > -self.Dv:
+            self._push(t, x, v, -1)
+        else:
+            self._hold(t, x, v)
+
+    def _hold(self, t, x, v):
+        """Velocity held inside the band (stick when Dv = 0) while |u| is small."""
+        self.mode, self.direction = HOLD, 0
+        up = max(self.Fs, self.edge_force) if v >= self.Dv else self.Fs
+        down = max(self.Fs, self.edge_force) if v <= -self.Dv else self.Fs
+        t_up = self.drive.crossing(t, up, rising=True)
+        t_down = self.drive.crossing(t, -down, rising=False)
+        kind, t_ev = ("break+", t_up) if t_up <= t_down else ("break-", t_down)
+        self._begin(t, Motion(t, x, v, 0.0, 0.0, 0.0, self.drive.omega, self.drive.phi), t_ev, kind)
+
+    def _push(self, t, x, v, s):
+        """Inside the band with |u| > Fs: friction Fs opposes u, v moves towards s * Dv."""
+        self.mode, self.direction = PUSH, s
+        motion = self._motion(t, x, v, 0.0, self.drive.f - s * self.Fs)
+        t_release = self.drive.crossing(t, s * self.Fs, rising=s < 0)
+
+        def gap_to_edge(tt):
+            _, vv = motion.state(tt)
+            return self.Dv - s * vv, -s * motion.acceleration(tt, vv)
+
+        search = Search(gap_to_edge, motion.curvature_bound(), t, "edge")
+        self._begin(t, motion, t_release, "release", [search])
+
+    def _slide(self, t, x, v, s, departing):
+        """Sliding in direction s until the velocity falls back to the band."""
+        self.mode, self.direction = SLIDE, s
+        motion = self._motion(t, x, v, self.B / self.M, self.drive.f - s * self.Fc)
+        # Leaving the band edge, s*v - Dv > 0 is proven while s*u > Fc + B Dv.
+        t_from = self.drive.crossing(t, s * self.edge_force, rising=s < 0) if departing else t
+
+        def speed_above_band(tt):
+            _, vv = motion.state(tt)
+            return s * vv - self.Dv, s * motion.acceleration(tt, vv)
+
+        search = Search(speed_above_band, motion.curvature_bound(), t_from, "band")
+        self._begin(t, motion, searches=[search])
+
+    # -- events --------------------------------------------------------------
+    def _fire(self, t, kind):
+        self._close_piece(t)
+        x, v = self._output.state(t)
+        s = self.direction
+        if kind == "break+" or kind == "break-":
+            s = 1 if kind == "break+" else -1
+            if s * v >= self.Dv:
+                self._slide(t, x, s * self.Dv, s, departing=True)
+            else:
+                self._push(t, x, v, s)
+        elif kind == "release":
+            self._hold(t, x, v)
+        elif kind == "edge":
+            if s * self.drive.u(t) > self.edge_force:
+                self._slide(t, x, s * self.Dv, s, departing=True)
+            else:
+                self._hold(t, x, s * self.Dv)
+        else:  # "band": the sliding velocity reached the band edge
+            self._start(t, x, s * self.Dv)
+        return True
+
+    def _restart(self, t):
+        x, v = self._output.state(t)
+        if self.mode == SLIDE and abs(v) <= self.Dv:
+            v = self.direction * self.Dv
+        self._start(t, x, v)

@@ -1,0 +1,152 @@
+"""Event-driven exact integration: the machinery shared by the three plants.
+
+A plant is a sequence of *pieces*. A piece holds the closed-form motion of
+the plant's output (a :class:`~exact.Motion`) and knows its next event: an
+analytic instant (the force crossing a level) or the first zero of a
+function searched with :func:`~exact.first_root`. Searches run lazily in
+chunks anchored at the start of the piece, never at the communication
+points, so the events and the result do not depend on how an importer steps.
+
+The running Fourier integrals of the output, ``I_k(t) = int_0^t y(s)
+exp(-i k omega s) ds`` for k = 0..harmonics (k = 0: the plain integral), are
+accumulated piece by piece in closed form; a describing function needs only
+their values at two instants.
+"""
+
+import math
+
+from .exact import TWO_PI, Drive, first_root
+
+EVENTS_PER_PERIOD_LIMIT = 100_000
+
+
+class PlantError(ValueError):
+    """A parameter, input or step the plant cannot accept."""
+
+
+def check(name, value, ok, allowed):
+    """Raise PlantError naming the value and the allowed range unless ``ok``."""
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and ok):
+        raise PlantError(f"{name} = {value!r} is out of range: {allowed}")
+
+
+class Search:
+    """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from."""
+
+    __slots__ = ("fun", "K", "t_from", "kind")
+
+    def __init__(self, fun, K, t_from, kind):
+        self.fun, self.K, self.t_from, self.kind = fun, K, t_from, kind
+
+
+class PiecewisePlant:
+    """Base class: advance through events exactly and keep the Fourier integrals."""
+
+    def __init__(self, F, omega, phi, f, harmonics):
+        check("F", F, True, "F must be a finite number (N)")
+        check("omega", omega, omega > 0.0, "omega must be > 0 (rad/s)")
+        check("phi", phi, True, "phi must be a finite number (rad)")
+        check("f", f, True, "the input f must be a finite number (N)")
+        check("harmonics", harmonics, harmonics == int(harmonics) and 0 <= harmonics <= 10,
+              "harmonics must be an integer in 0..10")
+        self.drive = Drive(f, F, omega, phi)
+        self.period = TWO_PI / omega
+        self.harmonics = int(harmonics)
+        self.t = 0.0
+        self.events = 0
+        self._integrals = [0j] * (self.harmonics + 1)
+
+    # -- pieces ---------------------------------------------------------
+    def _begin(self, t, output, analytic=math.inf, analytic_kind=None, searches=()):
+        """Start a piece at t with the output's motion and its event sources."""
+        self._t_piece = t
+        self._output = output
+        self._analytic = analytic
+        self._analytic_kind = analytic_kind
+        self._set_searches(t, searches)
+
+    def _set_searches(self, t, searches):
+        self._searches = list(searches)
+        self._searched = t
+        self._found = None
+
+    def _chunk_end(self, t):
+        """End of the search chunk containing t: a grid anchored at the piece start."""
+        width = self.period / 8.0
+        n = math.floor((t - self._t_piece) / width) + 1
+        end = self._t_piece + n * width
+        return end if end > t else t + width
+
+    def _next_event(self, t_end):
+        """(time, kind) of the piece's next event if it is <= t_end, else None."""
+        while self._found is None and self._searched < min(self._analytic, t_end):
+            a = self._searched
+            b = min(self._chunk_end(a), self._analytic)
+            for s in self._searches:
+                lo = max(a, s.t_from)
+                if lo < b:
+                    root = first_root(s.fun, lo, b, s.K)
+                    if root is not None and (self._found is None or root < self._found[0]):
+                        self._found = (root, s.kind)
+            self._searched = b
+        event = self._found
+        if event is None or self._analytic <= event[0]:
+            event = (self._analytic, self._analytic_kind)
+        return event if event[0] <= t_end else None
+
+    def _close_piece(self, t):
+        """Add the piece's Fourier integrals from its start to t."""
+        for k, value in enumerate(self._piece_integrals(t)):
+            self._integrals[k] += value
+
+    def _piece_integrals(self, t):
+        out = self._output
+        if t <= out.t0:
+            return [0j] * (self.harmonics + 1)
+        x, v = out.state(t)
+        w = self.drive.omega
+        return [complex(out.integral(t))] + [out.fourier(t, k * w, x, v)
+                                             for k in range(1, self.harmonics + 1)]
+
+    # -- stepping ---------------------------------------------------------
+    def advance(self, t_end):
+        """Integrate exactly from self.t to t_end, firing every event on the way."""
+        check("t_end", t_end, t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + (t_end - self.t) / self.period)
+        fired = 0
+        while True:
+            event = self._next_event(t_end)
+            if event is None:
+                break
+            t_event, kind = event
+            fired += 1
+            if fired > limit:
+                raise PlantError(
+                    f"more than {EVENTS_PER_PERIOD_LIMIT} events per period between t = {self.t!r} "
+                    f"and t = {t_event!r} (last event: {kind}); the motion chatters below the "
+                    f"plant's resolution")
+            if self._fire(t_event, kind):
+                self.events += 1
+        self.t = t_end
+
+    def _fire(self, t, kind):
+        """Apply an event; a piece that ends must call _close_piece first.
+
+        Returns True when the event changes the motion (it is counted)."""
+        raise NotImplementedError
+
+    def _restart(self, t):
+        """Start a new piece at t from the current state (input change)."""
+        raise NotImplementedError
+
+    def set_input(self, f):
+        """Set the input force, held constant until the next change."""
+        check("f", f, True, "the input f must be a finite number (N)")
+        if f != self.drive.f:
+            self._close_piece(self.t)
+            self.drive = Drive(f, self.drive.F, self.drive.omega, self.drive.phi)
+            self._restart(self.t)
+
+    def integrals(self):
+        """Running integrals I_k(t) = int_0^t y exp(-i k omega s) ds, k = 0..harmonics."""
+        return [acc + piece for acc, piece in zip(self._integrals, self._piece_integrals(self.t))]

@@ -1,0 +1,107 @@
+"""A mass followed by the geometric backlash element, integrated exactly.
+
+M x'' = u(t) gives the input x of a backlash (play) element of slope k and
+total width h: y / k stays within [x - h/2, x + h/2] and moves only when x
+drags it. Engagement (x reaching y/k +- h/2) is a first zero of the
+closed-form position; disengagement is the velocity reversal, a first zero
+of the closed-form velocity. The output is y; it starts centred, y = k x0.
+"""
+
+from .exact import Motion
+from .piecewise import PiecewisePlant, Search, check
+
+
+class StaticBacklash(PiecewisePlant):
+    """Exact solver of mass + backlash; the output is the backlash output y."""
+
+    def __init__(self, M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0, phi=0.0, x0=0.0, v0=0.0,
+                 f=0.0, harmonics=10):
+        check("M", M, M > 0.0, "M must be > 0 (kg)")
+        check("k", k, k > 0.0, "k must be > 0")
+        check("h", h, h > 0.0, "h must be > 0 (m)")
+        check("x0", x0, True, "x0 must be a finite number (m)")
+        check("v0", v0, True, "v0 must be a finite number (m/s)")
+        super().__init__(F, omega, phi, f, harmonics)
+        self.M, self.k, self.h = M, k, h
+        self.engaged = 0
+        self._free(0.0, x0, v0, k * x0, leaving=0)
+
+    def output(self):
+        """x, v, y at self.t."""
+        x, v = self._mass.state(self.t)
+        y, _ = self._output.state(self.t)
+        return x, v, y
+
+    def _mass_motion(self, t, x, v):
+        d = self.drive
+        return Motion(t, x, v, 0.0, d.f / self.M, d.F / self.M, d.omega, d.phi)
+
+    def _free(self, t, x, v, y, leaving):
+        """y held; x moves inside the play. ``leaving``: the edge just left (+-1)."""
+        self.engaged = 0
+        self._leaving = leaving
+        self._y = y
+        self._mass = mass = self._mass_motion(t, x, v)
+        output = Motion(t, y, 0.0, 0.0, 0.0, 0.0, self.drive.omega, self.drive.phi)
+        self._begin(t, output, searches=self._edge_searches(t, skip=leaving))
+        if leaving:
+            # x cannot return to the edge it left before -s*v falls back to zero.
+            def away(tt):
+                _, vv = mass.state(tt)
+                return -leaving * vv, -leaving * mass.acceleration(tt, vv)
+
+            t_from = t if -leaving * v > 0.0 else self.drive.crossing(t, 0.0, rising=leaving > 0)
+            self._searches.append(Search(away, mass.curvature_bound(), t_from, "apex"))
+
+    def _edge_searches(self, t, skip=0):
+        mass, y = self._mass, self._y
+        K = abs(mass.a) + abs(mass.b)
+        searches = []
+        for s in (1, -1):
+            if s == skip:
+                continue
+            edge = y / self.k + s * 0.5 * self.h
+
+            def distance(tt, s=s, edge=edge):
+                xx, vv = mass.state(tt)
+                return s * (edge - xx), -s * vv
+
+            searches.append(Search(distance, K, t, s))
+        return searches
+
+    def _engage(self, t, x, v, s):
+        """x drags y: y = k (x - s h/2) until the velocity reverses."""
+        self.engaged = s
+        self._mass = mass = self._mass_motion(t, x, v)
+        shift = s * 0.5 * self.h
+        k = self.k
+        output = Motion(t, k * (x - shift), k * v, 0.0, k * mass.a, k * mass.b, mass.omega, mass.phi)
+
+        def speed(tt):
+            _, vv = mass.state(tt)
+            return s * vv, s * mass.acceleration(tt, vv)
+
+        t_from = self.drive.crossing(t, 0.0, rising=s < 0) if v == 0.0 else t
+        self._begin(t, output, searches=[Search(speed, mass.curvature_bound(), t_from, "reverse")])
+
+    def _fire(self, t, kind):
+        if kind == "apex":
+            self._leaving = 0
+            self._set_searches(t, self._edge_searches(t))
+            return False
+        x, v = self._mass.state(t)
+        self._close_piece(t)
+        if kind == "reverse":
+            s = self.engaged
+            self._free(t, x, 0.0, self.k * (x - s * 0.5 * self.h), leaving=s)
+        else:
+            s = kind
+            self._engage(t, self._y / self.k + s * 0.5 * self.h, v, s)
+        return True
+
+    def _restart(self, t):
+        x, v = self._mass.state(t)
+        if self.engaged:
+            self._engage(t, x, v, self.engaged)
+        else:
+            self._free(t, x, v, self._y, leaving=self._leaving)
