@@ -1,0 +1,224 @@
+"""FMI 2.0 co-simulation facades (pythonfmu) over the exact plant solvers.
+
+Each facade declares its variables once (name, unit, description), hands
+the parameters to its solver at the end of initialisation and advances the
+solver in ``do_step``. Bad parameters, inputs or steps are reported through
+the FMI logger with status error, and the call fails: an importer sees an
+error status, never NaN outputs.
+"""
+
+import math
+
+from pythonfmu import DefaultExperiment, Fmi2Slave, Integer, Real
+from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
+
+from .backlash import TwoMassBacklash as _TwoMassBacklash
+from .friction import FrictionMass as _FrictionMass
+from .piecewise import PlantError
+from .static_backlash import StaticBacklash as _StaticBacklash
+
+MAX_HARMONIC = 10
+EXCITATION = (
+    ("F", 0.0, "N", "amplitude of the built-in excitation F cos(omega t + phi)"),
+    ("omega", 1.0, "rad/s", "angular frequency of the built-in excitation (> 0)"),
+    ("phi", 0.0, "rad", "phase of the built-in excitation"),
+)
+
+
+_PINNED = []
+
+
+def pin(namespace):
+    """Hold one more reference to an FMU script's globals.
+
+    pythonfmu 0.7.0's C++ loader re-executes the script at each
+    fmi2Instantiate with the module's dict as globals and then releases that
+    borrowed dict once too often; without this extra reference the second
+    instance in a process finds a freed module. The generated script calls
+    ``pin(globals())`` on every execution, which balances the release.
+    """
+    _PINNED.append(namespace)
+
+
+class StepRefused(RuntimeError):
+    """Raised inside the FMU so that the importer gets an error status."""
+
+
+class PlantFMU(Fmi2Slave):
+    """Common facade: parameters, the input f, outputs and Fourier integrals."""
+
+    solver_class = None
+    parameters = ()  # (name, default, unit, description)
+    outputs = ()  # (name, unit, description, is_integer)
+    output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.author = "dfwb"
+        self.description = self.__class__.__doc__.strip().splitlines()[0]
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
+        self.solver = None
+        self._values = {}
+        for name, default, _unit, description in self.parameters + EXCITATION:
+            setattr(self, name, float(default))
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                        variability=Fmi2Variability.fixed, description=description))
+        self.harmonics = MAX_HARMONIC
+        self.register_variable(Integer(
+            "harmonics", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+            description="number of harmonics k whose running Fourier integrals are computed (0..10)"))
+        self.f = 0.0
+        self.register_variable(Real("f", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                                    description="input force, added to the built-in excitation"))
+        for name, _unit, description, is_integer in self.all_outputs():
+            kind = Integer if is_integer else Real
+            variability = Fmi2Variability.discrete if is_integer else Fmi2Variability.continuous
+            self.register_variable(kind(name, causality=Fmi2Causality.output, variability=variability,
+                                        description=description,
+                                        getter=lambda name=name: self._values.get(name, 0)))
+
+    # -- declarations used by the builder ------------------------------------
+    @classmethod
+    def all_outputs(cls):
+        signal, unit = cls.output_signal
+        fourier = []
+        for k in range(MAX_HARMONIC + 1):
+            fourier.append((f"Ic{k}", f"{unit}.s", f"running integral of {signal}(t) cos({k} omega t) dt from 0", False))
+            fourier.append((f"Is{k}", f"{unit}.s", f"running integral of {signal}(t) sin({k} omega t) dt from 0", False))
+        events = ("events", None, "number of events (mode changes, impacts) so far", True)
+        return tuple(cls.outputs) + (events,) + tuple(fourier)
+
+    @classmethod
+    def units(cls):
+        """Unit of every Real variable that has one."""
+        table = {name: unit for name, _d, unit, _desc in cls.parameters + EXCITATION if unit}
+        table["f"] = "N"
+        table.update({name: unit for name, unit, _d, is_int in cls.all_outputs() if unit and not is_int})
+        return table
+
+    # -- FMI ------------------------------------------------------------------
+    def _fail(self, message):
+        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
+        raise StepRefused(message)
+
+    def exit_initialization_mode(self):
+        kwargs = {name: getattr(self, name) for name, *_ in self.parameters + EXCITATION}
+        try:
+            self.solver = self.solver_class(f=self.f, harmonics=self.harmonics, **self.solver_kwargs(kwargs))
+        except PlantError as error:
+            self._fail(f"invalid parameter: {error}")
+        self._refresh()
+
+    def solver_kwargs(self, kwargs):
+        return kwargs
+
+    def do_step(self, current_time, step_size):
+        solver = self.solver
+        if solver is None:
+            self._fail("doStep called before initialisation")
+        if not (math.isfinite(step_size) and step_size > 0.0):
+            self._fail(f"communication step {step_size!r} at t = {current_time!r}: it must be > 0 and finite")
+        if abs(current_time - solver.t) > 1e-9 * max(1.0, abs(solver.t)):
+            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {solver.t!r}")
+        try:
+            solver.set_input(self.f)
+            solver.advance(max(current_time + step_size, solver.t))
+        except PlantError as error:
+            self._fail(f"step from t = {current_time!r} refused: {error}")
+        self._refresh()
+        return True
+
+    def _refresh(self):
+        values = self._values
+        values.update(zip((name for name, *_ in self.outputs), self.output_values()))
+        values["events"] = self.solver.events
+        for k, integral in enumerate(self.solver.integrals()):
+            values[f"Ic{k}"] = integral.real
+            values[f"Is{k}"] = -integral.imag
+
+    def output_values(self):
+        raise NotImplementedError
+
+
+class FrictionMass(PlantFMU):
+    """Mass with Coulomb, viscous and static friction (exact stick-slip), force input f."""
+
+    solver_class = _FrictionMass
+    parameters = (
+        ("M", 1.0, "kg", "mass (> 0)"),
+        ("B", 0.5, "N.s/m", "viscous friction coefficient (>= 0)"),
+        ("Fc", 5.0, "N", "Coulomb friction force (>= 0)"),
+        ("Fs", 7.0, "N", "static friction force (>= Fc)"),
+        ("Dv", 0.0, "m/s", "Karnopp velocity band (0: exact stick at v = 0)"),
+        ("x0", 0.0, "m", "initial position"),
+        ("v0", 0.0, "m/s", "initial velocity"),
+    )
+    outputs = (
+        ("x", "m", "position", False),
+        ("v", "m/s", "velocity", False),
+        ("Ff", "N", "friction force", False),
+        ("mode", None, "0 stick (or inside the Karnopp band), +1/-1 sliding", True),
+    )
+
+    def output_values(self):
+        return self.solver.output()
+
+
+class TwoMassBacklash(PlantFMU):
+    """Two masses with a clearance h and impacts of restitution eps, force input f on M2."""
+
+    solver_class = _TwoMassBacklash
+    output_signal = ("x1", "m")
+    parameters = (
+        ("M1", 1.0, "kg", "mass 1, the output side (> 0)"),
+        ("M2", 1.0, "kg", "mass 2, driven by the force (> 0)"),
+        ("h", 0.1, "m", "clearance (> 0)"),
+        ("eps", 0.5, None, "coefficient of restitution, in [0, 1]"),
+        ("x1_0", 0.0, "m", "initial position of M1"),
+        ("v1_0", 0.0, "m/s", "initial velocity of M1"),
+        ("v2_0", 0.0, "m/s", "initial velocity of M2"),
+        ("gap0", -1.0, "m", "initial gap x2 - x1, in [0, h]; -1 (default): h/2"),
+    )
+    outputs = (
+        ("x1", "m", "position of M1", False),
+        ("v1", "m/s", "velocity of M1", False),
+        ("x2", "m", "position of M2", False),
+        ("v2", "m/s", "velocity of M2", False),
+        ("gap", "m", "gap x2 - x1, in [0, h]", False),
+        ("contact", None, "0 free, 1 in contact at gap 0, 2 in contact at gap h", True),
+        ("impacts", None, "number of impacts so far", True),
+    )
+
+    def solver_kwargs(self, kwargs):
+        if kwargs["gap0"] == -1.0:  # the start value: centred, whatever h is
+            kwargs["gap0"] = None
+        return kwargs
+
+    def output_values(self):
+        return self.solver.output() + (self.solver.contact, self.solver.impacts)
+
+
+class StaticBacklash(PlantFMU):
+    """Mass M driven by the force, followed by a backlash element of slope k and width h."""
+
+    solver_class = _StaticBacklash
+    output_signal = ("y", "m")
+    parameters = (
+        ("M", 2.0, "kg", "mass (> 0)"),
+        ("k", 1.0, None, "slope of the backlash element (> 0)"),
+        ("h", 0.1, "m", "total width of the dead band (> 0)"),
+        ("x0", 0.0, "m", "initial position"),
+        ("v0", 0.0, "m/s", "initial velocity"),
+    )
+    outputs = (
+        ("x", "m", "position of the mass (backlash input)", False),
+        ("v", "m/s", "velocity of the mass", False),
+        ("y", "m", "backlash output", False),
+        ("engaged", None, "0 inside the play, +1/-1 engaged and dragging y", True),
+    )
+
+    def output_values(self):
+        return self.solver.output() + (self.solver.engaged,)
+
+
+FACADES = (FrictionMass, TwoMassBacklash, StaticBacklash)
