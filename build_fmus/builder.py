@@ -14,6 +14,7 @@ An FMU whose recorded hash matches the sources is not rebuilt.
 """
 
 import hashlib
+import os
 import shutil
 import tempfile
 import uuid
@@ -112,7 +113,7 @@ def build_one(model, out_dir, digest):
         script = tmp / f"{model.__name__}_{digest}.py"
         script.write_text(SCRIPT.format(model=model.__name__, package=package))
         raw = FmuBuilder.build_FMU(script, dest=tmp / "raw", project_files=[stage])
-        partial = dest.with_suffix(".fmu.partial")
+        partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")  # concurrent builds never mix
         with zipfile.ZipFile(raw) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
             for item in source.infolist():
                 data = source.read(item.filename)

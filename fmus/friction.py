@@ -50,22 +50,32 @@ class FrictionMass(PiecewisePlant):
         d = self.drive
         return Motion(t, x, v, lam, force / self.M, d.F / self.M, d.omega, d.phi)
 
-    def _start(self, t, x, v):
-        """Choose the mode from the state and the force at t."""
-        if abs(v) > self.Dv:
+    def _start(self, t, x, v, at_edge=0):
+        """Choose the mode from the state and the force at t.
+
+        ``at_edge`` = s when v has just reached the band edge s * Dv (up to
+        rounding). The state stays continuous across the switch: a slide
+        leaving v = 0 (Dv = 0) keeps the computed v rather than a snapped 0.
+        """
+        Dv = self.Dv
+        if not at_edge and abs(v) > Dv:
             self._slide(t, x, v, 1 if v > 0.0 else -1, departing=False)
             return
         u = self.drive.u(t)
-        if v >= self.Dv and u > max(self.Fs, self.edge_force):
-            self._slide(t, x, self.Dv, 1, departing=True)
-        elif v <= -self.Dv and u < -max(self.Fs, self.edge_force):
-            self._slide(t, x, -self.Dv, -1, departing=True)
-        elif u > self.Fs and v < self.Dv:
+        point_band = Dv == 0.0 and at_edge != 0  # both edges are v = 0
+        upper = at_edge == 1 or v >= Dv or point_band
+        lower = at_edge == -1 or v <= -Dv or point_band
+        breakaway = max(self.Fs, self.edge_force)
+        if upper and u > breakaway:
+            self._slide(t, x, v if Dv == 0.0 else Dv, 1, departing=True)
+        elif lower and u < -breakaway:
+            self._slide(t, x, v if Dv == 0.0 else -Dv, -1, departing=True)
+        elif u > self.Fs and not upper:
             self._push(t, x, v, 1)
-        elif u < -self.Fs and v > -self.Dv:
+        elif u < -self.Fs and not lower:
             self._push(t, x, v, -1)
         else:
-            self._hold(t, x, v)
+            self._hold(t, x, at_edge * Dv if at_edge else v)
 
     def _hold(self, t, x, v):
         """Velocity held inside the band (stick when Dv = 0) while |u| is small."""
@@ -117,17 +127,16 @@ class FrictionMass(PiecewisePlant):
                 self._push(t, x, v, s)
         elif kind == "release":
             self._hold(t, x, v)
-        elif kind == "edge":
+        elif kind == "edge":  # pushed through the band to its edge s * Dv (Dv > 0)
             if s * self.drive.u(t) > self.edge_force:
                 self._slide(t, x, s * self.Dv, s, departing=True)
             else:
                 self._hold(t, x, s * self.Dv)
         else:  # "band": the sliding velocity reached the band edge
-            self._start(t, x, s * self.Dv)
+            self._start(t, x, v, at_edge=s)
         return True
 
     def _restart(self, t):
         x, v = self._output.state(t)
-        if self.mode == SLIDE and abs(v) <= self.Dv:
-            v = self.direction * self.Dv
-        self._start(t, x, v)
+        at_edge = self.direction if self.mode == SLIDE and abs(v) <= self.Dv else 0
+        self._start(t, x, v, at_edge)

@@ -54,6 +54,7 @@ class PiecewisePlant:
         self.harmonics = int(harmonics)
         self.t = 0.0
         self.events = 0
+        self.event_log = None  # set to a list to record (time, kind) of every event
         self._integrals = [0j] * (self.harmonics + 1)
 
     # -- pieces ---------------------------------------------------------
@@ -127,6 +128,8 @@ class PiecewisePlant:
                     f"plant's resolution")
             if self._fire(t_event, kind):
                 self.events += 1
+                if self.event_log is not None:
+                    self.event_log.append((t_event, kind))
         self.t = t_end
 
     def _fire(self, t, kind):

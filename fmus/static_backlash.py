@@ -81,7 +81,7 @@ class StaticBacklash(PiecewisePlant):
             _, vv = mass.state(tt)
             return s * vv, s * mass.acceleration(tt, vv)
 
-        t_from = self.drive.crossing(t, 0.0, rising=s < 0) if v == 0.0 else t
+        t_from = t if s * v > 0.0 else self.drive.crossing(t, 0.0, rising=s < 0)
         self._begin(t, output, searches=[Search(speed, mass.curvature_bound(), t_from, "reverse")])
 
     def _fire(self, t, kind):
@@ -91,12 +91,12 @@ class StaticBacklash(PiecewisePlant):
             return False
         x, v = self._mass.state(t)
         self._close_piece(t)
+        # x and v stay as computed (no snapping): the mass's motion is continuous
         if kind == "reverse":
             s = self.engaged
-            self._free(t, x, 0.0, self.k * (x - s * 0.5 * self.h), leaving=s)
+            self._free(t, x, v, self.k * (x - s * 0.5 * self.h), leaving=s)
         else:
-            s = kind
-            self._engage(t, self._y / self.k + s * 0.5 * self.h, v, s)
+            self._engage(t, x, v, kind)
         return True
 
     def _restart(self, t):
