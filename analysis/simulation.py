@@ -76,7 +76,7 @@ def simulate(fmu_path, stop_time, output_interval, start_values=None, outputs=No
         own = [m for m in messages if "Fatal py exception" not in m]
         reasons = "; ".join(own or messages) or "no message from the FMU"
         raise FMUError(f"{name}: {error} ({reasons})") from None
-    reached = result["time"][-1] if len(result) else float("nan")
+    reached = float(result["time"][-1]) if len(result) else float("nan")
     if not reached >= stop_time - 1e-9 * max(1.0, abs(stop_time)):
         reasons = "; ".join(messages) or "the FMU discarded a step without a message"
         raise FMUError(f"{name}: the simulation stopped at t = {reached!r} before "

@@ -1,0 +1,188 @@
+"""The FMUs as an importer sees them: compliance, step independence, errors, loading, builds."""
+
+import math
+import zipfile
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+from fmpy.fmi1 import calloc, free
+from fmpy.validation import validate_fmu
+
+from dfwb.build_fmus import builder
+from dfwb.fmus import FrictionMass, StaticBacklash, TwoMassBacklash
+from dfwb.simulation import FMUError, simulate, sine_input, unpacked
+
+MODELS = ["FrictionMass", "TwoMassBacklash", "StaticBacklash"]
+_KEEP_ALIVE = []  # instances abandoned after a fatal status, and their callbacks
+EXCITED = {  # model: (start values, stop time, outputs)
+    "FrictionMass": ({"F": 10.0, "omega": 1.0}, 20.0, ["x", "v", "Ff", "Ic1", "Is1"]),
+    "TwoMassBacklash": ({"F": 50.0, "omega": 20.0, "eps": 0.5}, 2.0, ["x1", "v1", "x2", "v2", "gap", "Ic1"]),
+    "StaticBacklash": ({"F": 50.0, "omega": 20.0}, 2.0, ["x", "y", "Ic1", "Is1"]),
+}
+SOLVERS = {"FrictionMass": FrictionMass, "TwoMassBacklash": TwoMassBacklash, "StaticBacklash": StaticBacklash}
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_fmpy_validate_finds_no_problem(fmus, model):
+    assert validate_fmu(str(fmus[model])) == []
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_every_variable_is_described_and_dimensioned(fmus, model):
+    description = fmpy.read_model_description(str(fmus[model]))
+    assert description.defaultExperiment is not None
+    assert description.coSimulation.modelIdentifier == model
+    dimensionless = {"eps", "k", "harmonics", "mode", "contact", "impacts", "events", "engaged"}
+    for variable in description.modelVariables:
+        assert variable.description, variable.name
+        if variable.name not in dimensionless:
+            assert variable.unit, variable.name
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_result_does_not_depend_on_the_communication_step(fmus, model):
+    start, stop, outputs = EXCITED[model]
+    coarse = simulate(fmus[model], stop, stop / 20, start, outputs)
+    fine = simulate(fmus[model], stop, stop / 2000, start, outputs)
+    fine = fine[::100]
+    assert np.allclose(coarse["time"], fine["time"], rtol=0, atol=1e-12)
+    for name in outputs:
+        scale = np.max(np.abs(fine[name]))
+        assert np.max(np.abs(coarse[name] - fine[name])) <= 1e-9 * scale, name
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_fmu_runs_the_solver_exactly(fmus, model):
+    """What fmpy reads from the FMU is, bit for bit, what the solver computes in-process."""
+    start, stop, outputs = EXCITED[model]
+    result = simulate(fmus[model], stop, stop / 50, start, outputs)
+    solver = SOLVERS[model](**start)
+    first = outputs[0]
+    for row in result[1:]:
+        solver.advance(row["time"])
+        assert row[first] == solver.output()[0]
+
+
+def test_sampled_input_converges_to_the_built_in_excitation(fmus):
+    """fmpy holding a sampled sine over each step: error falls as the sampling gets finer."""
+    start, stop, _ = EXCITED["StaticBacklash"]
+    exact = simulate(fmus["StaticBacklash"], stop, 2 * math.pi / 20 / 1024, start, ["y"])
+    errors = []
+    for samples in (32, 128, 512):
+        table = sine_input(start["F"], start["omega"], stop, samples)
+        held = simulate(fmus["StaticBacklash"], stop, 2 * math.pi / 20 / samples, {"omega": 20.0}, ["y"], input=table)
+        errors.append(np.max(np.abs(np.interp(held["time"], exact["time"], exact["y"]) - held["y"])))
+    assert errors[0] > errors[1] > errors[2]
+
+
+@pytest.mark.parametrize("model, values, message", [
+    ("FrictionMass", {"M": 0.0}, "M = 0.0 is out of range"),
+    ("FrictionMass", {"B": -1.0}, "B = -1.0 is out of range"),
+    ("FrictionMass", {"Fs": 1.0}, "Fs = 1.0 is out of range: Fs must be >= Fc"),
+    ("TwoMassBacklash", {"h": 0.0}, "h = 0.0 is out of range"),
+    ("TwoMassBacklash", {"eps": 1.5}, "eps = 1.5 is out of range: eps must be in \\[0, 1\\]"),
+    ("TwoMassBacklash", {"eps": -0.5}, "eps = -0.5 is out of range"),
+    ("TwoMassBacklash", {"gap0": 0.3}, "gap0 = 0.3 is out of range"),
+    ("StaticBacklash", {"h": -0.1}, "h = -0.1 is out of range"),
+    ("StaticBacklash", {"omega": 0.0}, "omega = 0.0 is out of range"),
+])
+def test_bad_parameter_is_an_error_naming_it(fmus, model, values, message):
+    with pytest.raises(FMUError, match=f"{model}: .*{message}"):
+        simulate(fmus[model], 1.0, 0.1, values)
+
+
+def test_nan_input_is_an_error_with_its_time(fmus):
+    table = sine_input(10.0, 1.0, 2.0, 16)
+    table["f"][5] = np.nan
+    with pytest.raises(FMUError, match=r"FrictionMass: .*t = 1\.96.*f = nan is out of range"):
+        simulate(fmus["FrictionMass"], 2.0, 2 * math.pi / 16, {"omega": 1.0}, ["x"], input=table)
+
+
+@pytest.mark.parametrize("step", [0.0, -0.1, math.nan])
+def test_zero_negative_or_nan_step_is_refused_by_the_fmu(fmus, step):
+    """The FMU itself (not only our wrapper) refuses a bad step, with a message."""
+    directory, description = unpacked(fmus["FrictionMass"])
+    messages = []
+
+    def log(_env, _instance, status, _category, message):
+        messages.append((status, message.decode()))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=directory,
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName="step")
+    fmu.instantiate(loggingOn=True, callbacks=callbacks)
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    fmu.doStep(0.0, 0.1)
+    with pytest.raises(Exception, match="fmi2DoStep failed"):
+        fmu.doStep(0.1, step)
+    # No fmi2FreeInstance after a fatal status: pythonfmu 0.7.0 has already released
+    # the instance's Python objects and would release them twice (a crash). fmpy's
+    # simulate_fmu abandons the instance the same way.
+    _KEEP_ALIVE.append((fmu, callbacks))
+    assert (3, f"FrictionMass: communication step {step!r} at t = 0.1: it must be > 0 and finite") in messages
+
+
+def test_truncated_result_is_an_error(tmp_path):
+    """An FMU that discards a step: fmpy stops quietly, simulate() must raise."""
+    from pythonfmu.builder import FmuBuilder
+
+    script = tmp_path / "Quitter.py"
+    script.write_text(
+        "from pythonfmu import Fmi2Slave, Real, Fmi2Causality\n"
+        "class Quitter(Fmi2Slave):\n"
+        "    def __init__(self, **kw):\n"
+        "        super().__init__(**kw)\n"
+        "        self.y = 0.0\n"
+        "        self.register_variable(Real('y', causality=Fmi2Causality.output))\n"
+        "    def do_step(self, t, dt):\n"
+        "        self.y = t\n"
+        "        return t < 0.5\n")
+    fmu = FmuBuilder.build_FMU(script, dest=tmp_path)
+    with pytest.raises(FMUError, match=r"Quitter: the simulation stopped at t = 0\.[56].* before stop_time = 1\.0"):
+        simulate(fmu, 1.0, 0.1)
+
+
+def test_all_fmus_load_together_in_any_order_and_repeatedly(fmus):
+    """pythonfmu instantiation must survive many instances of several FMUs in one process."""
+    reference = {model: simulate(fmus[model], 0.2, 0.01, EXCITED[model][0], EXCITED[model][2][:1])
+                 for model in MODELS}
+    for order in (MODELS, MODELS[::-1], MODELS[1:] + MODELS[:1]) * 4:
+        for model in order:
+            again = simulate(fmus[model], 0.2, 0.01, EXCITED[model][0], EXCITED[model][2][:1])
+            assert np.array_equal(again, reference[model])
+
+
+def test_fmus_bundle_their_code_under_a_source_hash(fmus):
+    digest = builder.source_hash()
+    for model in MODELS:
+        with zipfile.ZipFile(fmus[model]) as archive:
+            names = archive.namelist()
+            assert f"resources/dfwb_fmus_{digest}/friction.py" in names
+            assert archive.read("resources/slavemodule.txt").decode() == f"{model}_{digest}"
+        assert builder.recorded_hash(fmus[model]) == digest
+
+
+def test_build_skips_unchanged_fmus_and_hash_follows_sources(tmp_path, monkeypatch):
+    messages = []
+    first = builder.build_all(tmp_path, report=messages.append)
+    stamps = [path.stat().st_mtime_ns for path in first]
+    builder.build_all(tmp_path, report=messages.append)
+    assert [path.stat().st_mtime_ns for path in first] == stamps
+    assert sum("up to date" in message for message in messages) == 3
+
+    sources = tmp_path / "sources"
+    sources.mkdir()
+    for path in builder.FMUS_DIR.glob("*.py"):
+        (sources / path.name).write_bytes(path.read_bytes())
+    monkeypatch.setattr(builder, "FMUS_DIR", sources)
+    before = builder.source_hash()
+    (sources / "exact.py").write_text((sources / "exact.py").read_text() + "\n# changed\n")
+    assert builder.source_hash() != before
