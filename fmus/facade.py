@@ -59,6 +59,7 @@ class PlantFMU(Fmi2Slave):
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
         self.solver = None
         self._values = {}
+        self._fourier = None
         for name, default, _unit, description in self.parameters + EXCITATION:
             setattr(self, name, float(default))
             self.register_variable(Real(name, causality=Fmi2Causality.parameter,
@@ -73,9 +74,9 @@ class PlantFMU(Fmi2Slave):
         for name, _unit, description, is_integer in self.all_outputs():
             kind = Integer if is_integer else Real
             variability = Fmi2Variability.discrete if is_integer else Fmi2Variability.continuous
+            getter = self._fourier_getter(name) if name[:2] in ("Ic", "Is") else self._values_getter(name)
             self.register_variable(kind(name, causality=Fmi2Causality.output, variability=variability,
-                                        description=description,
-                                        getter=lambda name=name: self._values.get(name, 0)))
+                                        description=description, getter=getter))
 
     # -- declarations used by the builder ------------------------------------
     @classmethod
@@ -128,13 +129,25 @@ class PlantFMU(Fmi2Slave):
         self._refresh()
         return True
 
+    def _values_getter(self, name):
+        return lambda: self._values.get(name, 0)
+
+    def _fourier_getter(self, name):
+        """Fourier integrals are computed when first read after a step, not at every step."""
+        def get():
+            if self._fourier is None and self.solver is not None:
+                self._fourier = {}
+                for k, integral in enumerate(self.solver.integrals()):
+                    self._fourier[f"Ic{k}"] = integral.real
+                    self._fourier[f"Is{k}"] = -integral.imag
+            return (self._fourier or {}).get(name, 0.0)
+        return get
+
     def _refresh(self):
         values = self._values
         values.update(zip((name for name, *_ in self.outputs), self.output_values()))
         values["events"] = self.solver.events
-        for k, integral in enumerate(self.solver.integrals()):
-            values[f"Ic{k}"] = integral.real
-            values[f"Is{k}"] = -integral.imag
+        self._fourier = None
 
     def output_values(self):
         raise NotImplementedError

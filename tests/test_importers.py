@@ -1,0 +1,64 @@
+"""fmpy and libcosim (libcosimpy), two independent FMI importers, give the same results.
+
+The plants are exact event-driven solvers, so on the same communication grid
+both importers must agree to round-off; a difference would mean that an FMU
+depends on one importer's reading of the FMI standard.
+"""
+
+import numpy as np
+import pytest
+
+from dfwb.simulation import simulate
+
+try:  # dfwb.cosim imports libcosimpy and loads its shared library
+    from dfwb.cosim import simulate_cosim, simulate_cosim_together
+except (ImportError, OSError) as error:
+    pytest.skip(f"libcosimpy cannot be imported: {error}", allow_module_level=True)
+
+# model: (start values, real outputs, integer outputs, stop time, step)
+CASES = {
+    "FrictionMass": (dict(F=10.0, omega=1.0), ["x", "v", "Ff", "Ic1", "Is1"], ["mode", "events"], 20.0, 0.1),
+    "TwoMassBacklash": (dict(F=50.0, omega=20.0, eps=0.5), ["x1", "v1", "x2", "v2", "gap", "Ic1", "Is1"],
+                        ["contact", "impacts", "events"], 1.0, 0.005),
+    "StaticBacklash": (dict(F=50.0, omega=20.0), ["x", "y", "Ic1"], ["engaged", "events"], 1.0, 0.005),
+}
+RTOL = 1e-12  # relative to the largest magnitude of the output
+ATOL = 1e-15
+
+
+def assert_close(expected, actual, names):
+    """Each column within RTOL of its largest magnitude (at least ATOL); report the worst point."""
+    assert len(actual) == len(expected), f"{len(actual)} rows, expected {len(expected)}"
+    for name in ["time", *names]:
+        tolerance = max(RTOL * np.max(np.abs(expected[name])), ATOL)
+        error = np.abs(actual[name] - expected[name])
+        worst = int(np.argmax(error))
+        assert error[worst] <= tolerance, (
+            f"{name} differs by {error[worst]:.3g} (tolerance {tolerance:.3g}) at t = {expected['time'][worst]}: "
+            f"{actual[name][worst]!r} instead of {expected[name][worst]!r}")
+
+
+@pytest.mark.parametrize("model", list(CASES))
+def test_libcosim_matches_fmpy(fmus, model):
+    start_values, reals, integers, stop_time, step = CASES[model]
+    expected = simulate(fmus[model], stop_time, step, start_values=start_values, outputs=reals + integers)
+    actual = simulate_cosim(fmus[model], stop_time, step, start_values=start_values, outputs=reals + integers)
+    assert actual.dtype.names == expected.dtype.names
+    assert len(actual) == round(stop_time / step) + 1 and actual["time"][0] == 0.0
+    assert_close(expected, actual, reals)
+    for name in integers:  # counts and modes: exactly equal
+        np.testing.assert_array_equal(actual[name], expected[name], err_msg=name)
+
+
+def test_three_fmus_in_one_execution(fmus):
+    """One system, three slaves stepping together: each gives what it gives alone (bit for bit)."""
+    stop_time, step = 1.0, 0.005
+    runs = [(fmus[model], start_values, reals + integers)
+            for model, (start_values, reals, integers, _stop, _step) in CASES.items()]
+    together = simulate_cosim_together(runs, stop_time, step)
+    assert len(together) == len(runs)
+    for (path, start_values, outputs), result in zip(runs, together):
+        alone = simulate_cosim(path, stop_time, step, start_values=start_values, outputs=outputs)
+        assert result.dtype == alone.dtype
+        for name in alone.dtype.names:
+            np.testing.assert_array_equal(result[name], alone[name], err_msg=f"{path.stem}: {name}")
