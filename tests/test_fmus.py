@@ -186,3 +186,24 @@ def test_build_skips_unchanged_fmus_and_hash_follows_sources(tmp_path, monkeypat
     before = builder.source_hash()
     (sources / "exact.py").write_text((sources / "exact.py").read_text() + "\n# changed\n")
     assert builder.source_hash() != before
+
+
+def test_fmus_from_different_sources_never_share_code(fmus, tmp_path, monkeypatch):
+    """An FMU built from changed sources runs its own code beside the current one."""
+    sources = tmp_path / "sources"
+    sources.mkdir()
+    for path in builder.FMUS_DIR.glob("*.py"):
+        (sources / path.name).write_bytes(path.read_bytes())
+    friction = sources / "friction.py"
+    original = "return x, v, ff, self.direction if self.mode == SLIDE else 0"
+    assert original in friction.read_text()
+    friction.write_text(friction.read_text().replace(original, original.replace("x, v,", "x + 1.0, v,", 1)))
+    monkeypatch.setattr(builder, "FMUS_DIR", sources)
+    changed = builder.build_one(builder.facade.FrictionMass, tmp_path, builder.source_hash())
+
+    start = {"F": 10.0, "omega": 1.0}
+    current = simulate(fmus["FrictionMass"], 5.0, 0.5, start, ["x"])
+    other = simulate(changed, 5.0, 0.5, start, ["x"])
+    again = simulate(fmus["FrictionMass"], 5.0, 0.5, start, ["x"])
+    assert np.array_equal(other["x"], current["x"] + 1.0)
+    assert np.array_equal(again["x"], current["x"])
