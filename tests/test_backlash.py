@@ -116,3 +116,12 @@ def test_upper_contact_and_release():
 def test_bad_parameters_are_refused_with_their_name(kwargs, name):
     with pytest.raises(PlantError, match=rf"^{name} = .* is out of range"):
         TwoMassBacklash(**kwargs)
+
+
+def test_chattering_beyond_the_event_limit_is_an_error_not_a_hang(monkeypatch):
+    from dfwb.fmus import piecewise
+
+    monkeypatch.setattr(piecewise, "EVENTS_PER_PERIOD_LIMIT", 5)
+    plant = TwoMassBacklash(eps=0.9, f=-10.0)  # a Zeno accumulation of ~130 impacts
+    with pytest.raises(PlantError, match="more than 5 events per period between t = 0.0 and t = "):
+        plant.advance(1.0)
