@@ -75,7 +75,8 @@ class TwoMassBacklash(PiecewisePlant):
             w = -self.eps * w
             self.impacts += 1
         u = self.drive.u(t)
-        if sigma * u > 0.0 and (w == 0.0 or 0.5 * w * w * self.M2 / abs(u) <= self.tol_h):
+        pressing = self.drive.above(t, 0.0) if sigma > 0 else self.drive.below(t, 0.0)
+        if pressing and (w == 0.0 or 0.5 * w * w * self.M2 <= self.tol_h * abs(u)):
             v_common = v1 + self.M2 * w / (self.M1 + self.M2)  # momentum kept
             self._contact(t, x1, v_common, side)
         else:

@@ -78,6 +78,30 @@ class Drive:
     def du(self, t):
         return -self.F * self.omega * math.sin(self.omega * t + self.phi)
 
+    def _rounding(self, theta, level):
+        """Rounding of u - level at phase theta (a phase carries |theta| ulp)."""
+        return 8.0 * EPS * (abs(self.f) + self.F * (1.0 + abs(theta)) + abs(level))
+
+    def above(self, t, level):
+        """Whether u > level just after t.
+
+        Where u(t) equals the level within rounding (a mode switch found at
+        the very instant u crosses it) the trend decides, not the rounding.
+        """
+        d, theta = self.u(t) - level, self.omega * t + self.phi
+        if abs(d) > self._rounding(theta, level):
+            return d > 0.0
+        slope = -math.sin(theta)
+        return slope > 0.0 if abs(slope) > 1e-12 else -math.cos(theta) > 0.0
+
+    def below(self, t, level):
+        """Whether u < level just after t (see :meth:`above`)."""
+        d, theta = self.u(t) - level, self.omega * t + self.phi
+        if abs(d) > self._rounding(theta, level):
+            return d < 0.0
+        slope = -math.sin(theta)
+        return slope < 0.0 if abs(slope) > 1e-12 else -math.cos(theta) < 0.0
+
     def crossing(self, t0, level, rising):
         """First t > t0 where u crosses ``level`` upwards (or downwards).
 
@@ -142,19 +166,39 @@ class Motion:
         return (self.x0 * tau + self.v0 * tau * tau * phi_real(2, lam * tau)
                 + self.a * tau ** 3 * phi_real(3, lam * tau) + (self._P * harmonic).real)
 
-    def fourier(self, t, nu, x1, v1):
-        """Integral of x(s) exp(-i nu s) from t0 to t (nu > 0), given x, v at t.
+    def fourier(self, t, harmonics, x1, v1):
+        """[int_{t0}^{t} x(s) exp(-i k omega s) ds for k = 1..harmonics], given x, v at t.
 
         Integration by parts through the equation of motion: exact, with an
-        absolute error of a few ulp of the state's scale however short the piece.
+        absolute error of a few ulp of the state's scale however short the
+        piece. Every exponential is a power of exp(i omega t0) or
+        exp(i omega t1), so all harmonics cost a few complex products each.
         """
-        e0 = cmath.exp(-1j * nu * self.t0)
-        e1 = cmath.exp(-1j * nu * t)
-        s0 = exp_integral(-nu, self.t0, t)
-        c = 0.5 * (cmath.exp(1j * self.phi) * exp_integral(self.omega - nu, self.t0, t)
-                   + cmath.exp(-1j * self.phi) * exp_integral(-self.omega - nu, self.t0, t))
-        j = (self.a * s0 + self.b * c - (v1 * e1 - self.v0 * e0)) / complex(self.lam, nu)
-        return (j - (x1 * e1 - self.x0 * e0)) / (1j * nu)
+        w, tau = self.omega, t - self.t0
+        z0, z1 = cmath.exp(1j * w * self.t0), cmath.exp(1j * w * t)
+        p0, p1 = [1.0 + 0j], [1.0 + 0j]  # z0**m, z1**m for m = 0..harmonics + 1
+        for _ in range(harmonics + 1):
+            p0.append(p0[-1] * z0)
+            p1.append(p1[-1] * z1)
+        rot = cmath.exp(1j * self.phi)
+        a, b, lam, x0, v0 = self.a, self.b, self.lam, self.x0, self.v0
+
+        def integral_of_power(m):  # int exp(i m w s) ds from t0 to t
+            if m == 0:
+                return tau
+            if m > 0:
+                return (p1[m] - p0[m]) / (1j * m * w)
+            return (p1[-m].conjugate() - p0[-m].conjugate()) / (1j * m * w)
+
+        out = []
+        for k in range(1, harmonics + 1):
+            e0, e1 = p0[k].conjugate(), p1[k].conjugate()  # exp(-i k w t0), exp(-i k w t)
+            nu = k * w
+            s0 = (e1 - e0) / (-1j * nu)
+            c = 0.5 * (rot * integral_of_power(1 - k) + rot.conjugate() * integral_of_power(-1 - k))
+            j = (a * s0 + b * c - (v1 * e1 - v0 * e0)) / complex(lam, nu)
+            out.append((j - (x1 * e1 - x0 * e0)) / (1j * nu))
+        return out
 
 
 def first_root(fun, a, b, K):

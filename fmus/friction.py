@@ -61,18 +61,18 @@ class FrictionMass(PiecewisePlant):
         if not at_edge and abs(v) > Dv:
             self._slide(t, x, v, 1 if v > 0.0 else -1, departing=False)
             return
-        u = self.drive.u(t)
+        d = self.drive
         point_band = Dv == 0.0 and at_edge != 0  # both edges are v = 0
         upper = at_edge == 1 or v >= Dv or point_band
         lower = at_edge == -1 or v <= -Dv or point_band
         breakaway = max(self.Fs, self.edge_force)
-        if upper and u > breakaway:
+        if upper and d.above(t, breakaway):
             self._slide(t, x, v if Dv == 0.0 else Dv, 1, departing=True)
-        elif lower and u < -breakaway:
+        elif lower and d.below(t, -breakaway):
             self._slide(t, x, v if Dv == 0.0 else -Dv, -1, departing=True)
-        elif u > self.Fs and not upper:
+        elif not upper and d.above(t, self.Fs):
             self._push(t, x, v, 1)
-        elif u < -self.Fs and not lower:
+        elif not lower and d.below(t, -self.Fs):
             self._push(t, x, v, -1)
         else:
             self._hold(t, x, at_edge * Dv if at_edge else v)
@@ -125,10 +125,11 @@ class FrictionMass(PiecewisePlant):
                 self._slide(t, x, s * self.Dv, s, departing=True)
             else:
                 self._push(t, x, v, s)
-        elif kind == "release":
-            self._hold(t, x, v)
+        elif kind == "release":  # |u| falls to Fs: hold, or (Fs = 0) a push the other way
+            self._start(t, x, v)
         elif kind == "edge":  # pushed through the band to its edge s * Dv (Dv > 0)
-            if s * self.drive.u(t) > self.edge_force:
+            edge = s * self.edge_force
+            if self.drive.above(t, edge) if s > 0 else self.drive.below(t, edge):
                 self._slide(t, x, s * self.Dv, s, departing=True)
             else:
                 self._hold(t, x, s * self.Dv)

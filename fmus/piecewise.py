@@ -105,9 +105,7 @@ class PiecewisePlant:
         if t <= out.t0:
             return [0j] * (self.harmonics + 1)
         x, v = out.state(t)
-        w = self.drive.omega
-        return [complex(out.integral(t))] + [out.fourier(t, k * w, x, v)
-                                             for k in range(1, self.harmonics + 1)]
+        return [complex(out.integral(t))] + out.fourier(t, self.harmonics, x, v)
 
     # -- stepping ---------------------------------------------------------
     def advance(self, t_end):

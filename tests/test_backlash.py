@@ -17,7 +17,7 @@ def impulse(plant, t):
     return d.f * t + d.F / d.omega * (math.sin(d.omega * t + d.phi) - math.sin(d.phi))
 
 
-@settings(max_examples=40, deadline=None)
+@settings(deadline=None)
 @given(M1=st.floats(0.05, 20), M2=st.floats(0.05, 20), h=st.floats(1e-3, 1.0), eps=st.floats(0, 1),
        F=st.floats(0, 100), w=st.floats(1, 60), f=st.floats(-20, 20), v1=st.floats(-1, 1), v2=st.floats(-1, 1))
 def test_momentum_balance_and_clearance(M1, M2, h, eps, F, w, f, v1, v2):

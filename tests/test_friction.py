@@ -90,7 +90,7 @@ def test_break_away_exactly_where_force_exceeds_static_friction():
         assert abs(plant.drive.u(t)) == pytest.approx(7.0, rel=1e-12)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(deadline=None)
 @given(M=st.floats(0.1, 10), B=st.floats(0, 5), Fc=st.floats(0, 10), dFs=st.floats(0, 5),
        F=st.floats(0, 60), w=st.floats(0.1, 20), f=st.floats(-10, 10),
        Dv=st.sampled_from([0.0, 1e-6, 1e-3, 0.1]))
