@@ -171,33 +171,27 @@ class Motion:
 
         Integration by parts through the equation of motion: exact, with an
         absolute error of a few ulp of the state's scale however short the
-        piece. Every exponential is a power of exp(i omega t0) or
-        exp(i omega t1), so all harmonics cost a few complex products each.
+        piece. Every exponential is a power of exp(-i omega t0) or
+        exp(-i omega t), so all harmonics cost a few complex products each.
         """
-        w, tau = self.omega, t - self.t0
-        z0, z1 = cmath.exp(1j * w * self.t0), cmath.exp(1j * w * t)
-        p0, p1 = [1.0 + 0j], [1.0 + 0j]  # z0**m, z1**m for m = 0..harmonics + 1
-        for _ in range(harmonics + 1):
-            p0.append(p0[-1] * z0)
-            p1.append(p1[-1] * z1)
-        rot = cmath.exp(1j * self.phi)
+        w, t0 = self.omega, self.t0
+        z0, z1 = cmath.exp(-1j * w * t0), cmath.exp(-1j * w * t)
+        half_rot = 0.5 * cmath.exp(1j * self.phi)
+        half_rot_c = half_rot.conjugate()
         a, b, lam, x0, v0 = self.a, self.b, self.lam, self.x0, self.v0
-
-        def integral_of_power(m):  # int exp(i m w s) ds from t0 to t
-            if m == 0:
-                return tau
-            if m > 0:
-                return (p1[m] - p0[m]) / (1j * m * w)
-            return (p1[-m].conjugate() - p0[-m].conjugate()) / (1j * m * w)
-
+        below = t - t0  # int exp(-i (k - 1) w s) ds, for k = 1
+        e0, e1 = z0, z1  # exp(-i k w t0), exp(-i k w t)
         out = []
         for k in range(1, harmonics + 1):
-            e0, e1 = p0[k].conjugate(), p1[k].conjugate()  # exp(-i k w t0), exp(-i k w t)
             nu = k * w
-            s0 = (e1 - e0) / (-1j * nu)
-            c = 0.5 * (rot * integral_of_power(1 - k) + rot.conjugate() * integral_of_power(-1 - k))
+            n0, n1 = e0 * z0, e1 * z1  # power k + 1
+            s0 = (e1 - e0) / (-1j * nu)  # int exp(-i k w s) ds
+            above = (n1 - n0) / (-1j * (nu + w))  # int exp(-i (k + 1) w s) ds
+            # int cos(w s + phi) exp(-i k w s) ds
+            c = half_rot * below + half_rot_c * above
             j = (a * s0 + b * c - (v1 * e1 - v0 * e0)) / complex(lam, nu)
             out.append((j - (x1 * e1 - x0 * e0)) / (1j * nu))
+            below, e0, e1 = s0, n0, n1
         return out
 
 
