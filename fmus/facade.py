@@ -110,7 +110,9 @@ class PlantFMU(Fmi2Slave):
             self._fail(f"invalid parameter: {error}")
         self._refresh()
 
-    def solver_kwargs(self, kwargs):
+    @classmethod
+    def solver_kwargs(cls, kwargs):
+        """The solver's keyword arguments from the FMU's parameter values."""
         return kwargs
 
     def do_step(self, current_time, step_size):
@@ -202,7 +204,8 @@ class TwoMassBacklash(PlantFMU):
         ("impacts", None, "number of impacts so far", True),
     )
 
-    def solver_kwargs(self, kwargs):
+    @classmethod
+    def solver_kwargs(cls, kwargs):
         if kwargs["gap0"] == -1.0:  # the start value: centred, whatever h is
             kwargs["gap0"] = None
         return kwargs

@@ -1,0 +1,240 @@
+"""Describing functions N(F, w) of the plant FMUs, by the convention of MODELS.md.
+
+The plant starts at rest and is driven by ``F cos(w t)``. Instead of a long
+fixed transient, the engine reads the plant's state at whole periods (the
+Poincare section) and stops as soon as it repeats, with a period of 1 to 4
+forcing periods; N is then exact from one orbit, ``N = X1 / F`` with
+``X1 = (2 / T) int x exp(-j w t) dt`` taken from the FMU's exactly integrated
+Fourier outputs (two reads per period, no sampling). When the section
+converges geometrically but slowly (a lightly damped linear mode), an
+Aitken-Steffensen step extrapolates the fixed point and one shooting period
+from it confirms the orbit. A response that does not repeat within
+``max_periods`` (quasi-periodic or chaotic) gets the average over its last 20
+periods, flagged ``periodic = False``.
+
+Examples
+--------
+>>> from dfwb.describing import DFEngine
+>>> engine = DFEngine("friction")
+>>> result = engine.point(F=10.0, omega=1.0)
+>>> result.periodic, result.periods, round(result.N.real, 9), round(result.N.imag, 9)
+(True, 2, -0.235053392, -0.297987542)
+"""
+
+import math
+import time
+from dataclasses import dataclass, field
+
+from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
+from .session import FMUSession
+from dfwb.fmus.piecewise import PlantError
+
+HARMONICS = 10
+AVERAGE_PERIODS = 20
+MAX_LAG = 4
+SECTION_RTOL = 1e-11
+DRIVES = ("internal", "input")
+NEVER_ENGAGED = {
+    "backlash": "the masses never touch: x1 stays at rest, N = 0",
+    "static-backlash": "the backlash never engages (X <= h/2): N = 0",
+}
+
+
+@dataclass
+class DFResult:
+    """One describing-function point."""
+
+    plant: str
+    F: float
+    omega: float
+    params: dict
+    N: complex
+    harmonics: list  # |X_k|, k = 0..10
+    periodic: bool
+    periods: int  # forcing periods simulated, shooting included
+    seconds: float
+    drive: str = "internal"
+    note: str = ""
+    orbit_periods: int = 1  # the orbit's period in forcing periods (1: harmonic response)
+    X: list = field(default_factory=list, repr=False)  # complex X_k, k = 0..10
+
+    @property
+    def minus_inverse(self):
+        """-1/N, or None where N = 0 (no engagement)."""
+        return None if self.N == 0 else -1.0 / self.N
+
+    def as_dict(self):
+        inverse = self.minus_inverse
+        return {
+            "plant": self.plant, "F": self.F, "omega": self.omega, "params": dict(self.params),
+            "drive": self.drive, "N_re": self.N.real, "N_im": self.N.imag,
+            "minus_inv_N_re": None if inverse is None else inverse.real,
+            "minus_inv_N_im": None if inverse is None else inverse.imag,
+            "periodic": self.periodic, "periods": self.periods, "orbit_periods": self.orbit_periods,
+            "harmonics": list(self.harmonics), "seconds": self.seconds, "note": self.note,
+        }
+
+
+def check_point(F, omega):
+    """Raise PlantError unless F > 0 and omega > 0 are finite."""
+    for name, value in (("F", F), ("omega", omega)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
+            raise PlantError(f"{name} = {value!r} is out of range: {name} must be a finite number > 0")
+
+
+class DFEngine:
+    """DF points of one plant, computed through its FMU with fmpy.
+
+    Parameters
+    ----------
+    plant : {"friction", "backlash", "static-backlash"}
+    fmu_dir : path, optional
+        Where the FMUs are (built there if missing or stale).
+    drive : {"internal", "input"}
+        ``internal``: the FMU's built-in excitation, exact. ``input``: the
+        sine is sampled at the start of each communication step and fed into
+        the input ``f``, held over the step, as any FMI master would.
+    samples_per_period : int
+        Communication steps per period with ``drive="input"``.
+    max_periods : int
+        Periods simulated before a response is declared not periodic.
+    """
+
+    def __init__(self, plant, fmu_dir=DEFAULT_FMU_DIR, drive="internal", samples_per_period=64, max_periods=400):
+        self.plant = find_plant(plant)
+        if drive not in DRIVES:
+            raise PlantError(f"drive {drive!r} is not allowed (allowed: {', '.join(DRIVES)})")
+        if not (isinstance(samples_per_period, int) and samples_per_period >= 4):
+            raise PlantError(f"samples_per_period = {samples_per_period!r} is out of range: an integer >= 4")
+        self.drive = drive
+        self.samples = samples_per_period if drive == "input" else 1
+        self.max_periods = max_periods
+        path = fmu_path(self.plant, fmu_dir)
+        self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
+        self._fourier = [f"I{part}{k}" for k in range(HARMONICS + 1) for part in "cs"]
+        self._counter = "impacts" if plant == "backlash" else "events"
+
+    # -- one point ----------------------------------------------------------------
+    def point(self, F, omega, params=None):
+        """The DFResult of the plant at force amplitude F and frequency omega."""
+        started = time.perf_counter()
+        check_point(F, omega)
+        params = self.plant.check(params or {})
+        mass = self.plant.mass(params)
+        h = dict(self.plant.defaults(), **params).get("h", 0.0)
+        scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
+                  for name in self.plant.section]
+        base = dict(params, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0, harmonics=HARMONICS)
+        result = _Search(self, F, omega, base, scales).run()
+        result.plant, result.params, result.drive = self.plant.name, params, self.drive
+        result.seconds = time.perf_counter() - started
+        return result
+
+    # -- periods of one run ------------------------------------------------------------
+    def _run(self, session, F, omega, values):
+        """Yield ((section, modes), X_k list, engagement count): at t = 0 (X None), then each period."""
+        session.start(values)
+        period = 2 * math.pi / omega
+        step = period / self.samples
+        previous = self._integrals(session)
+        yield self._section(session), None, 0
+        while True:
+            t0 = session.time
+            for i in range(self.samples):
+                inputs = {"f": F * math.cos(omega * (t0 + i * step))} if self.drive == "input" else None
+                session.step(step, inputs)
+            current = self._integrals(session)
+            width = session.time - t0
+            X = [(current[0] - previous[0]) / width] + [
+                2.0 * (current[k] - previous[k]) / width for k in range(1, HARMONICS + 1)]
+            previous = current
+            yield self._section(session), X, session.integers([self._counter])[0]
+
+    def _section(self, session):
+        return (tuple(session.reals(self.plant.section)), tuple(session.integers(self.plant.modes)))
+
+    def _integrals(self, session):
+        values = session.reals(self._fourier)
+        return [complex(values[2 * k], -values[2 * k + 1]) for k in range(HARMONICS + 1)]
+
+
+class _Search:
+    """The search for the periodic steady state of one point."""
+
+    def __init__(self, engine, F, omega, base, scales):
+        self.engine, self.F, self.omega, self.base, self.scales = engine, F, omega, base, scales
+        self.periods = 0
+
+    def close(self, a, b):
+        (sa, ma), (sb, mb) = a, b
+        return ma == mb and all(abs(x - y) <= SECTION_RTOL * (abs(x) + s) for x, y, s in zip(sa, sb, self.scales))
+
+    def result(self, X, periodic, orbit, note=""):
+        N = X[1] / self.F
+        return DFResult(plant="", F=self.F, omega=self.omega, params={}, N=N, harmonics=[abs(x) for x in X],
+                        periodic=periodic, periods=self.periods, seconds=0.0, note=note, orbit_periods=orbit, X=X)
+
+    def run(self):
+        engine = self.engine
+        runs = engine._run(engine._sessions[0], self.F, self.omega, self.base)
+        sections, spectra = [next(runs)[0]], []
+        shots = 0
+        while True:
+            section, X, count = next(runs)
+            self.periods += 1
+            sections.append(section)
+            spectra.append(X)
+            for lag in range(1, MAX_LAG + 1):
+                if len(sections) > lag and self.close(section, sections[-1 - lag]):
+                    return self.finish(spectra[-lag:], True, lag, count)
+            if len(spectra) >= engine.max_periods:
+                return self.finish(spectra[-AVERAGE_PERIODS:], False, 1, count,
+                                   f"not periodic after {len(spectra)} periods: average of the last {AVERAGE_PERIODS}")
+            start = self.extrapolate(sections)
+            if start is not None and shots < 5:
+                shots += 1
+                shot_runs = engine._run(engine._sessions[1], self.F, self.omega, dict(self.base, **start))
+                origin = next(shot_runs)[0]
+                returned, X_shot, shot_count = next(shot_runs)
+                self.periods += 1
+                if self.close(returned, origin):
+                    return self.finish([X_shot], True, 1, shot_count, "periodic orbit confirmed by shooting")
+                # not yet: the shooting run, closer to the orbit, becomes the trajectory
+                runs = shot_runs
+                engine._sessions.reverse()
+                sections, spectra = [origin, returned], [X_shot]
+
+    def finish(self, spectra, periodic, orbit, count, note=""):
+        X = [sum(column) / len(spectra) for column in zip(*spectra)]
+        never = NEVER_ENGAGED.get(self.engine.plant.name)
+        if never and count == 0:  # the output is exactly constant: its harmonics are exactly 0
+            X, note = [X[0]] + [0j] * HARMONICS, never
+        return self.result(X, periodic, orbit, note)
+
+    def extrapolate(self, sections):
+        """Aitken-Steffensen start parameters from a geometric tail of sections, or None."""
+        initial = self.engine.plant.initial
+        if not initial or len(sections) < 4:
+            return None
+        (s0, m0), (s1, m1), (s2, m2) = sections[-3:]
+        if not m0 == m1 == m2:
+            return None
+        d1 = [(b - a) / s for a, b, s in zip(s0, s1, self.scales)]
+        d2 = [(b - a) / s for a, b, s in zip(s1, s2, self.scales)]
+        norm1 = sum(x * x for x in d1)
+        norm2 = sum(x * x for x in d2)
+        if norm1 == 0.0 or norm2 == 0.0:
+            return None
+        r = sum(x * y for x, y in zip(d1, d2)) / norm1
+        residual = sum((y - r * x) ** 2 for x, y in zip(d1, d2))
+        if not (-0.999 < r < 0.999) or residual > 1e-6 * norm2:
+            return None  # not (yet) a clean geometric tail
+        if math.log(SECTION_RTOL / math.sqrt(norm2)) / math.log(abs(r)) < 3:
+            return None  # plain iteration converges within a few periods anyway
+        target = tuple(b + (b - a) * r / (1.0 - r) for a, b in zip(s1, s2))
+        values = dict(zip(self.engine.plant.section, target))
+        params = {initial[name]: values[name] for name in self.engine.plant.section if name in initial}
+        if "gap0" in params:
+            h = dict(self.engine.plant.defaults(), **self.base).get("h")
+            params["gap0"] = min(max(params["gap0"], 0.0), h)
+        return params

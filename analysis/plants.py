@@ -1,0 +1,80 @@
+"""The plants the workbench knows: names, FMUs, outputs, Poincare states, parameters.
+
+A plant is named on the command line (``friction``, ``backlash``,
+``static-backlash``) and maps to one FMU. Its parameters are checked here,
+with the exact solver's own validation, before any FMU is touched, so a bad
+value becomes one clear line instead of an FMU failing mid-sweep.
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from dfwb.fmus import facade
+from dfwb.fmus.piecewise import PlantError
+
+DEFAULT_FMU_DIR = Path("build/fmus")
+RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
+
+
+@dataclass(frozen=True)
+class Plant:
+    name: str
+    model: type  # the FMI facade class
+    output: str  # the signal whose DF is taken
+    section: tuple  # continuous Poincare state, read at whole periods
+    modes: tuple  # discrete Poincare state
+    initial: dict  # Poincare state name -> the parameter that sets it at t = 0 (shooting)
+
+    @property
+    def fmu_name(self):
+        return self.model.__name__
+
+    def defaults(self):
+        return {name: default for name, default, *_ in self.model.parameters}
+
+    def check(self, params):
+        """Validated {name: float}; raises PlantError naming the value and what is allowed."""
+        allowed = sorted(self.defaults())
+        values = {}
+        for name, value in params.items():
+            if name in RESERVED:
+                raise PlantError(f"{name} is set by the describing-function engine, not by --set "
+                                 f"(allowed: {', '.join(allowed)})")
+            if name not in allowed:
+                raise PlantError(f"unknown parameter {name!r} for plant {self.name} (allowed: {', '.join(allowed)})")
+            try:
+                values[name] = float(value)
+            except (TypeError, ValueError):
+                raise PlantError(f"{name} = {value!r} is not a number") from None
+        kwargs = dict(self.defaults(), **values)
+        self.model.solver_class(F=1.0, omega=1.0, **self.model.solver_kwargs(kwargs))  # the solver's own range checks
+        return values
+
+    def mass(self, params):
+        """Total mass moved by the force (sets the amplitude scales)."""
+        merged = dict(self.defaults(), **params)
+        return merged.get("M", merged.get("M1", 0.0) + merged.get("M2", 0.0))
+
+
+PLANTS = {
+    "friction": Plant("friction", facade.FrictionMass, "x", ("x", "v"), ("mode",), {"x": "x0", "v": "v0"}),
+    "backlash": Plant("backlash", facade.TwoMassBacklash, "x1", ("x1", "v1", "gap", "v2"), ("contact",),
+                      {"x1": "x1_0", "v1": "v1_0", "gap": "gap0", "v2": "v2_0"}),
+    "static-backlash": Plant("static-backlash", facade.StaticBacklash, "y", ("x", "v", "y"), ("engaged",), {}),
+}
+
+
+def plant(name):
+    """The Plant called ``name``, or PlantError listing the known ones."""
+    try:
+        return PLANTS[name]
+    except KeyError:
+        raise PlantError(f"unknown plant {name!r} (allowed: {', '.join(PLANTS)})") from None
+
+
+def fmu_path(plant_, fmu_dir=DEFAULT_FMU_DIR):
+    """Path of a plant's FMU, building it first if it is missing or stale."""
+    from dfwb.build_fmus import build_all
+
+    paths = build_all(fmu_dir, report=lambda message: None)
+    return {path.stem: path for path in paths}[plant_.fmu_name]
