@@ -100,7 +100,7 @@ class DFEngine:
         Periods simulated before a response is declared not periodic.
     """
 
-    def __init__(self, plant, fmu_dir=DEFAULT_FMU_DIR, drive="internal", samples_per_period=64, max_periods=400):
+    def __init__(self, plant, fmu_dir=DEFAULT_FMU_DIR, drive="internal", samples_per_period=64, max_periods=150):
         self.plant = find_plant(plant)
         if drive not in DRIVES:
             raise PlantError(f"drive {drive!r} is not allowed (allowed: {', '.join(DRIVES)})")

@@ -1,0 +1,178 @@
+"""Sweeps of describing functions over F x omega x plant parameters, in parallel, resumable.
+
+Every finished point is appended to ``results.csv`` at once (flushed and
+synced), so an interrupted sweep loses at most the points in flight; the
+next run with the same definition skips what the CSV already holds.
+``results.json`` (the complete list, complex N and -1/N as pairs) is
+rewritten atomically as the sweep goes and at its end. The definition
+is kept in ``sweep.json``: resuming a different sweep into the same folder is
+refused rather than mixed.
+"""
+
+import concurrent.futures as futures
+import csv
+import itertools
+import json
+import multiprocessing
+import os
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from .describing import HARMONICS, DFEngine, check_point
+from .plants import DEFAULT_FMU_DIR, plant as find_plant
+from dfwb.fmus.piecewise import PlantError
+
+COLUMNS = (["plant", "F", "omega", "params", "drive", "N_re", "N_im", "minus_inv_N_re", "minus_inv_N_im",
+            "periodic", "periods", "orbit_periods", "seconds", "note"]
+           + [f"X{k}" for k in range(HARMONICS + 1)])
+
+
+def grid(Fs, omegas, params=None, grid_params=None):
+    """The sweep's points, F the outer loop: [(F, omega, {name: value})]."""
+    grid_params = grid_params or {}
+    names = sorted(grid_params)
+    combos = [dict(zip(names, values)) for values in itertools.product(*(grid_params[n] for n in names))]
+    return [(F, omega, dict(params or {}, **combo)) for F in Fs for combo in combos for omega in omegas]
+
+
+def key(F, omega, params):
+    return (repr(float(F)), repr(float(omega)), json.dumps(params, sort_keys=True))
+
+
+def row(result):
+    """A CSV row of a DF result, as text exactly as the CSV holds it (floats round-trip)."""
+    data = result.as_dict()
+    data["params"] = json.dumps(data["params"], sort_keys=True)
+    for k, value in enumerate(data.pop("harmonics")):
+        data[f"X{k}"] = value
+    return {name: "" if data[name] is None else str(data[name]) for name in COLUMNS}
+
+
+def read_rows(path):
+    """Rows already in a results CSV; a last line cut short by an interruption is dropped."""
+    if not path.exists():
+        return []
+    text = path.read_text()
+    if text and not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+        path.write_text(text)
+    return list(csv.DictReader(text.splitlines()))
+
+
+def as_json(rows):
+    def number(value):
+        return None if value == "" else float(value)
+
+    out = []
+    for r in rows:
+        out.append({
+            "plant": r["plant"], "F": float(r["F"]), "omega": float(r["omega"]), "params": json.loads(r["params"]),
+            "drive": r["drive"], "N": [float(r["N_re"]), float(r["N_im"])],
+            "minus_inv_N": None if number(r["minus_inv_N_re"]) is None
+            else [number(r["minus_inv_N_re"]), number(r["minus_inv_N_im"])],
+            "periodic": r["periodic"] == "True", "periods": int(r["periods"]),
+            "orbit_periods": int(r["orbit_periods"]), "seconds": float(r["seconds"]), "note": r["note"],
+            "harmonics": [float(r[f"X{k}"]) for k in range(HARMONICS + 1)],
+        })
+    return out
+
+
+def write_atomic(path, text):
+    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    partial.write_text(text)
+    partial.replace(path)
+
+
+_ENGINE = None
+
+
+def _init_worker(plant, fmu_dir, drive, samples):
+    global _ENGINE
+    _ENGINE = DFEngine(plant, fmu_dir, drive, samples)
+
+
+def _compute(points):
+    return [row(_ENGINE.point(F, omega, params)) for F, omega, params in points]
+
+
+def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=64,
+              fmu_dir=DEFAULT_FMU_DIR, progress=True, resume=True):
+    """Compute every point not yet in ``out_dir``; return all rows in grid order.
+
+    Parameters
+    ----------
+    plant : str
+    points : list of (F, omega, params)
+        Usually from :func:`grid`.
+    out_dir : path
+        Gets ``results.csv``, ``results.json`` and ``sweep.json``.
+    jobs : int, optional
+        Worker processes (default: all cores); 1 computes in this process.
+    """
+    spec = find_plant(plant)
+    for F, omega, params in points:  # everything is checked before anything runs
+        check_point(F, omega)
+        spec.check(params)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    definition = {"plant": plant, "drive": drive, "samples_per_period": samples_per_period if drive == "input" else None,
+                  "points": [[F, omega, params] for F, omega, params in points]}
+    stored = out_dir / "sweep.json"
+    csv_path = out_dir / "results.csv"
+    if resume and stored.exists() and json.loads(stored.read_text()) != definition:
+        raise PlantError(f"{out_dir} holds a different sweep (see {stored}); use another folder or --no-resume")
+    if not resume:
+        csv_path.unlink(missing_ok=True)
+    write_atomic(stored, json.dumps(definition, indent=1))
+
+    done = {key(float(r["F"]), float(r["omega"]), json.loads(r["params"])): r for r in read_rows(csv_path)}
+    pending = [p for p in points if key(*p) not in done]
+    jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+    new_file = not csv_path.exists()
+    with open(csv_path, "a", newline="") as handle, \
+            tqdm(total=len(points), initial=len(points) - len(pending), unit="pt", disable=not progress,
+                 desc=f"{plant} DF") as bar:
+        writer = csv.DictWriter(handle, fieldnames=COLUMNS)
+        if new_file:
+            writer.writeheader()
+        last_json = time.monotonic()
+
+        def record(rows):
+            nonlocal last_json
+            for r in rows:
+                writer.writerow(r)
+                done[key(float(r["F"]), float(r["omega"]), json.loads(r["params"]))] = r
+            handle.flush()
+            os.fsync(handle.fileno())
+            bar.update(len(rows))
+            if time.monotonic() - last_json > 5.0:
+                _write_json(out_dir, points, done)
+                last_json = time.monotonic()
+
+        if jobs == 1:
+            _init_worker(plant, fmu_dir, drive, samples_per_period)
+            for point in pending:
+                record(_compute([point]))
+        else:
+            size = max(1, min(16, len(pending) // (jobs * 4)))
+            chunks = [pending[i:i + size] for i in range(0, len(pending), size)]
+            context = multiprocessing.get_context("spawn")
+            with futures.ProcessPoolExecutor(jobs, context, _init_worker,
+                                             (plant, fmu_dir, drive, samples_per_period)) as pool:
+                waiting = [pool.submit(_compute, chunk) for chunk in chunks]
+                try:
+                    for future in futures.as_completed(waiting):
+                        record(future.result())
+                except BaseException:
+                    for future in waiting:
+                        future.cancel()
+                    raise
+    return _write_json(out_dir, points, done)
+
+
+def _write_json(out_dir, points, done):
+    rows = [done[key(*p)] for p in points if key(*p) in done]
+    write_atomic(Path(out_dir) / "results.json", json.dumps(as_json(rows), indent=1))
+    return rows
