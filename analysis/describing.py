@@ -125,7 +125,7 @@ class DFEngine:
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
                   for name in self.plant.section]
         base = dict(params, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0, harmonics=HARMONICS)
-        result = _Search(self, F, omega, base, scales).run()
+        result = _Search(self, F, omega, base, scales, self.plant.translation(params)).run()
         result.plant, result.params, result.drive = self.plant.name, params, self.drive
         result.seconds = time.perf_counter() - started
         return result
@@ -161,13 +161,29 @@ class DFEngine:
 class _Search:
     """The search for the periodic steady state of one point."""
 
-    def __init__(self, engine, F, omega, base, scales):
+    def __init__(self, engine, F, omega, base, scales, shifts):
         self.engine, self.F, self.omega, self.base, self.scales = engine, F, omega, base, scales
+        self.shifts = shifts
         self.periods = 0
 
-    def close(self, a, b):
+    def drift(self, a, b):
+        """The translation taking section b to section a, or None if they differ otherwise.
+
+        A repeat up to a translation is a periodic orbit of the plant (its
+        forces ignore absolute position); a steady drift arises when a sampled
+        input gives a free mass a mean velocity.
+        """
         (sa, ma), (sb, mb) = a, b
-        return ma == mb and all(abs(x - y) <= SECTION_RTOL * (abs(x) + s) for x, y, s in zip(sa, sb, self.scales))
+        if ma != mb:
+            return None
+        d = sa[0] - sb[0]  # the first component is a position that moves by 1 m per metre
+        for x, y, s, shift in zip(sa, sb, self.scales, self.shifts):
+            if abs(x - shift * d - y) > SECTION_RTOL * (abs(x) + s):
+                return None
+        return d if abs(d) > SECTION_RTOL * (abs(sa[0]) + self.scales[0]) else 0.0
+
+    def close(self, a, b):
+        return self.drift(a, b) == 0.0
 
     def result(self, X, periodic, orbit, note=""):
         N = X[1] / self.F
@@ -185,8 +201,10 @@ class _Search:
             sections.append(section)
             spectra.append(X)
             for lag in range(1, MAX_LAG + 1):
-                if len(sections) > lag and self.close(section, sections[-1 - lag]):
-                    return self.finish(spectra[-lag:], True, lag, count)
+                if len(sections) > lag:
+                    d = self.drift(section, sections[-1 - lag])
+                    if d is not None:
+                        return self.finish(spectra[-lag:], True, lag, count, drift=d / lag)
             if len(spectra) >= engine.max_periods:
                 return self.finish(spectra[-AVERAGE_PERIODS:], False, 1, count,
                                    f"not periodic after {len(spectra)} periods: average of the last {AVERAGE_PERIODS}")
@@ -204,8 +222,13 @@ class _Search:
                 engine._sessions.reverse()
                 sections, spectra = [origin, returned], [X_shot]
 
-    def finish(self, spectra, periodic, orbit, count, note=""):
+    def finish(self, spectra, periodic, orbit, count, note="", drift=0.0):
         X = [sum(column) / len(spectra) for column in zip(*spectra)]
+        if drift:
+            # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
+            c = drift * self.omega / (2 * math.pi)
+            X = [X[0] - drift / 2] + [X[k] - 2j * c / (k * self.omega) for k in range(1, HARMONICS + 1)]
+            note = f"periodic up to a drift of {drift:.3g} m per period (a free mass under a sampled input); removed"
         never = NEVER_ENGAGED.get(self.engine.plant.name)
         if never and count == 0:  # the output is exactly constant: its harmonics are exactly 0
             X, note = [X[0]] + [0j] * HARMONICS, never

@@ -24,6 +24,12 @@ class Plant:
     section: tuple  # continuous Poincare state, read at whole periods
     modes: tuple  # discrete Poincare state
     initial: dict  # Poincare state name -> the parameter that sets it at t = 0 (shooting)
+    shifts: dict  # how each section component moves when the plant is translated by 1 m
+
+    def translation(self, params):
+        """Per section component, its change under a translation of the plant by 1 m."""
+        slope = dict(self.defaults(), **params).get("k", 1.0)
+        return tuple(slope if self.shifts.get(name) == "k" else self.shifts.get(name, 0.0) for name in self.section)
 
     @property
     def fmu_name(self):
@@ -56,11 +62,15 @@ class Plant:
         return merged.get("M", merged.get("M1", 0.0) + merged.get("M2", 0.0))
 
 
+# The plants are invariant under a translation of all positions (forces depend on
+# velocities and relative positions only): "shifts" says how each section component moves.
 PLANTS = {
-    "friction": Plant("friction", facade.FrictionMass, "x", ("x", "v"), ("mode",), {"x": "x0", "v": "v0"}),
+    "friction": Plant("friction", facade.FrictionMass, "x", ("x", "v"), ("mode",), {"x": "x0", "v": "v0"},
+                      {"x": 1.0}),
     "backlash": Plant("backlash", facade.TwoMassBacklash, "x1", ("x1", "v1", "gap", "v2"), ("contact",),
-                      {"x1": "x1_0", "v1": "v1_0", "gap": "gap0", "v2": "v2_0"}),
-    "static-backlash": Plant("static-backlash", facade.StaticBacklash, "y", ("x", "v", "y"), ("engaged",), {}),
+                      {"x1": "x1_0", "v1": "v1_0", "gap": "gap0", "v2": "v2_0"}, {"x1": 1.0}),
+    "static-backlash": Plant("static-backlash", facade.StaticBacklash, "y", ("x", "v", "y"), ("engaged",), {},
+                             {"x": 1.0, "y": "k"}),
 }
 
 

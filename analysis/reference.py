@@ -328,6 +328,29 @@ class _BacklashRun:
             self.first_step = 0.125 * 2.0 * wrel * self.M2 / abs(u)
         self.mode = "free"
 
+    def _boundary_event(self):
+        """Handle an event that fell exactly on the period boundary, missed by the previous solve.
+
+        solve_ivp only sees sign changes inside a step, so an impact or a release due at
+        t = n T is invisible from both sides; it is applied here, at tau = 0, and only here
+        (inside a period every event is handled where it is found).
+        """
+        if self.mode == "free":
+            g = self.y[2] - self.y[0]
+            gdot = self.y[3] - self.y[1]
+            if g <= 0.0 and gdot < 0.0:
+                self._impact(0.0, 0.0)
+                return True
+            if g >= self.h and gdot > 0.0:
+                self._impact(0.0, self.h)
+                return True
+        elif not self._pressing(self.mode, self.u(0.0)) and self.u(0.0) != 0.0:
+            self._snap(self.mode)
+            self.y[3] = self.y[1]
+            self.mode = "free"
+            return True
+        return False
+
     def period(self):
         """Advance one period; returns (X_k of this period, max |v|, sampled (tau, x1) or None)."""
         T = self.T
@@ -340,16 +363,9 @@ class _BacklashRun:
             count += 1
             if count > _MAX_EVENTS:
                 raise RuntimeError("backlash: too many events in one period (Zeno not resolved?)")
+            if tau == 0.0 and self._boundary_event():
+                continue
             if self.mode == "free":
-                g = self.y[2] - self.y[0]
-                gdot = self.y[3] - self.y[1]
-                # an impact that fell on the period boundary, or a touch with no progress
-                if g <= 0.0 and (gdot < 0.0 or (gdot == 0.0 and self.u(tau) < 0.0)):
-                    self._impact(tau, 0.0)
-                    continue
-                if g >= self.h and (gdot > 0.0 or (gdot == 0.0 and self.u(tau) > 0.0)):
-                    self._impact(tau, self.h)
-                    continue
                 rhs, events = self._free_rhs, self._free_events
             else:
                 rhs, events = self._contact_rhs, self._contact_events[self.mode]

@@ -1,0 +1,115 @@
+"""The DF engine against closed forms, python-control, and its own conventions."""
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+from dfwb.closed_forms import backlash_df, static_backlash_plant_df, validity_frequencies
+from dfwb.describing import DFEngine
+from dfwb.fmus import PlantError
+
+
+@pytest.fixture(scope="module")
+def friction(fmus):
+    return DFEngine("friction")
+
+
+@pytest.fixture(scope="module")
+def static(fmus):
+    return DFEngine("static-backlash")
+
+
+@pytest.fixture(scope="module")
+def backlash(fmus):
+    return DFEngine("backlash")
+
+
+@pytest.mark.parametrize("omega", [0.01, 0.1, 1.0, 10.0, 100.0, 1000.0])
+def test_linear_limit_is_exact(friction, omega):
+    """Fc = Fs = 0: -1/N = M w^2 - j B w (MODELS.md's check for any implementation), to 1e-10."""
+    result = friction.point(10.0, omega, {"Fc": 0.0, "Fs": 0.0})
+    assert result.periodic
+    assert result.minus_inverse == pytest.approx(omega ** 2 - 0.5j * omega, rel=1e-10)
+
+
+@pytest.mark.parametrize("F, omega", [(50.0, 20.0), (50.0, 10.0), (10.0, 5.0), (60.0, 30.0), (5.0, 2.0)])
+def test_static_backlash_equals_its_closed_form(static, F, omega):
+    result = static.point(F, omega)
+    assert result.N == pytest.approx(complex(static_backlash_plant_df(F, omega)), rel=1e-8)
+
+
+@pytest.mark.parametrize("X", [0.0500001, 0.051, 0.07, 0.1, 0.5, 10.0])
+def test_backlash_closed_form_equals_python_control(X):
+    assert complex(backlash_df(X, k=1.0, h=0.1)) == pytest.approx(
+        ct.friction_backlash_nonlinearity(0.1).describing_function(X), rel=1e-12, abs=1e-15)
+
+
+def test_backlash_that_never_engages_gives_zero_and_says_so(static, backlash):
+    quiet = static.point(1.0, 20.0)  # X = 1 / 800 < h / 2
+    assert quiet.N == 0 and quiet.minus_inverse is None and "never engages" in quiet.note
+    apart = backlash.point(0.01, 50.0)  # M2 swings 4e-6 m inside a 0.05 m half clearance
+    assert apart.N == 0 and apart.minus_inverse is None and "never touch" in apart.note
+    assert apart.as_dict()["minus_inv_N_re"] is None
+
+
+def test_stick_slip_point_repeats_after_the_first_stick(friction):
+    result = friction.point(10.0, 1.0)
+    assert result.periodic and result.periods <= 3 and result.orbit_periods == 1
+    assert len(result.harmonics) == 11 and result.harmonics[2] < 1e-12 * result.harmonics[1]  # odd symmetry
+
+
+def test_higher_force_is_closer_to_linear(friction):
+    """Paper, Fig. 4: the higher F, the closer -1/N to the linear case, especially the real part."""
+    linear = 1.0 - 0.5j
+    errors = [abs(friction.point(F, 1.0).minus_inverse - linear) for F in (10.0, 20.0, 50.0)]
+    assert errors[0] > errors[1] > errors[2]
+
+
+def test_chaotic_response_is_flagged_and_averaged(backlash):
+    """Fig. 11's second case (F = 50, w = 40, eps = 0.2) is the paper's chaotic one."""
+    result = backlash.point(50.0, 40.0, {"eps": 0.2})
+    if result.periodic:
+        pytest.skip(f"settles to a {result.orbit_periods}-period orbit with these settings")
+    assert "average of the last 20" in result.note and math.isfinite(abs(result.N))
+
+
+def test_input_drive_converges_to_the_exact_drive(fmus):
+    """The master-sampled sine (held per step) has an O(1/N) error (about 3/N: the hold delays
+    the input by half a step), its free-mass drift removed."""
+    exact = DFEngine("static-backlash").point(50.0, 20.0).N
+    errors = [abs(DFEngine("static-backlash", drive="input", samples_per_period=n).point(50.0, 20.0).N - exact)
+              / abs(exact) for n in (16, 64, 256)]
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 0.02
+    assert all(error * n < 4.0 for error, n in zip(errors, (16, 64, 256)))
+
+
+def test_validity_frequencies():
+    w = validity_frequencies(50.0, M2=1.0, h=0.1, eps=0.5)
+    assert w["w_J"] == pytest.approx(math.sqrt(500.0))
+    assert w["w_L"] == pytest.approx(2 * math.sqrt(500.0))
+    assert w["w_C"] == pytest.approx((1000.0 ** 2 * 0.5 ** 5) ** 0.25)
+    assert w["w_C"] < w["w_J"] < w["w_L"]
+
+
+@pytest.mark.parametrize("F, omega, params, text", [
+    (0.0, 1.0, {}, "F = 0.0 is out of range"),
+    (1.0, -1.0, {}, "omega = -1.0 is out of range"),
+    (math.nan, 1.0, {}, "F = nan is out of range"),
+    (1.0, 1.0, {"Fs": 1.0}, "Fs = 1.0 is out of range"),
+    (1.0, 1.0, {"nope": 1.0}, "unknown parameter 'nope'"),
+    (1.0, 1.0, {"omega": 2.0}, "omega is set by the describing-function engine"),
+])
+def test_bad_points_are_refused(friction, F, omega, params, text):
+    with pytest.raises(PlantError, match=text):
+        friction.point(F, omega, params)
+
+
+def test_results_serialise_with_the_documented_fields(friction):
+    data = friction.point(20.0, 2.0).as_dict()
+    for name in ("plant", "F", "omega", "params", "N_re", "N_im", "periodic", "periods", "harmonics", "seconds"):
+        assert name in data
+    assert isinstance(data["periodic"], bool) and isinstance(data["periods"], int)
+    assert np.all(np.isfinite(data["harmonics"])) and len(data["harmonics"]) == 11
