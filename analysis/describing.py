@@ -205,9 +205,10 @@ class _Search:
                     d = self.drift(section, sections[-1 - lag])
                     if d is not None:
                         return self.finish(spectra[-lag:], True, lag, count, drift=d / lag)
-            if len(spectra) >= engine.max_periods:
+            if self.periods >= engine.max_periods:
                 return self.finish(spectra[-AVERAGE_PERIODS:], False, 1, count,
-                                   f"not periodic after {len(spectra)} periods: average of the last {AVERAGE_PERIODS}")
+                                   f"not periodic after {self.periods} periods: average of the last "
+                                   f"{min(AVERAGE_PERIODS, len(spectra))}")
             start = self.extrapolate(sections)
             if start is not None and shots < 5:
                 shots += 1

@@ -1,0 +1,118 @@
+"""The command line: dfwb df's JSON contract, one-line errors, and resumable sweeps."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from dfwb.cli import main
+from dfwb.sweep import grid, run_sweep
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    return code, capsys.readouterr()
+
+
+def test_df_json_has_one_object_per_point_F_outer(fmus, capsys):
+    code, out = run_cli(capsys, "df", "friction", "--F", "10", "20", "--omega", "1", "2", "--json")
+    assert code == 0
+    results = json.loads(out.out)
+    assert [(r["F"], r["omega"]) for r in results] == [(10.0, 1.0), (10.0, 2.0), (20.0, 1.0), (20.0, 2.0)]
+    for r in results:
+        assert r["plant"] == "friction" and r["params"] == {}
+        assert isinstance(r["periodic"], bool) and isinstance(r["periods"], int)
+        assert len(r["harmonics"]) == 11 and r["seconds"] > 0
+        assert complex(r["N_re"], r["N_im"]) != 0
+
+
+def test_df_set_and_table(fmus, capsys):
+    code, out = run_cli(capsys, "df", "backlash", "--F", "50", "--omega", "20", "--set", "eps=0.2", "h=0.1")
+    assert code == 0
+    lines = out.out.strip().splitlines()
+    assert lines[0].split()[:4] == ["F", "omega", "Re", "N"] and len(lines) == 2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["df", "friction", "--F", "0", "--omega", "1"], "F = 0.0 is out of range"),
+    (["df", "friction", "--F", "1", "--omega", "-2"], "omega = -2.0 is out of range"),
+    (["df", "friction", "--F", "nan", "--omega", "1"], "F = nan is out of range"),
+    (["df", "backlash", "--F", "1", "--omega", "1", "--set", "eps=2"], "eps = 2.0 is out of range"),
+    (["df", "backlash", "--F", "1", "--omega", "1", "--set", "mass=2"], "unknown parameter 'mass'"),
+    (["df", "friction", "--F", "1", "--omega", "1", "--set", "Fs"], "expected NAME=VALUE"),
+    (["df", "gearbox", "--F", "1", "--omega", "1"], "invalid choice: 'gearbox'"),
+    (["df", "friction", "--F", "1"], "give --omega"),
+])
+def test_bad_input_is_one_line_and_exit_code_2(capsys, argv, message):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert message in err[-1]
+    assert all("Traceback" not in line for line in err)
+
+
+def test_bad_sweep_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    with pytest.raises(SystemExit):
+        main(["sweep", "friction", "--F", "10", "-1", "--omega", "1", "--out", str(out)])
+    assert not out.exists()
+
+
+def test_sweep_resumes_and_recomputes_nothing(fmus, tmp_path):
+    points = grid([10.0, 20.0], [0.5, 1.0, 2.0], grid_params={"B": [0.5, 1.0]})
+    assert len(points) == 12
+    first = run_sweep("friction", points, tmp_path, jobs=1, progress=False)
+    assert [(float(r["F"]), float(r["omega"]), json.loads(r["params"])) for r in first] == points
+    # an interruption: 5 rows kept, the 6th cut in the middle
+    csv_path = tmp_path / "results.csv"
+    lines = csv_path.read_text().splitlines(keepends=True)
+    csv_path.write_text("".join(lines[:6]) + lines[6][:20])
+    again = run_sweep("friction", points, tmp_path, jobs=1, progress=False)
+    assert [r["N_re"] for r in again] == [r["N_re"] for r in first]
+    assert [r["seconds"] for r in again[:5]] == [r["seconds"] for r in first[:5]]  # kept, not recomputed
+    assert len(json.loads((tmp_path / "results.json").read_text())) == 12
+
+
+def test_parallel_sweep_equals_serial(fmus, tmp_path):
+    points = grid([30.0, 50.0], [15.0, 25.0], grid_params={"eps": [0.2, 0.8]})
+    serial = run_sweep("backlash", points, tmp_path / "serial", jobs=1, progress=False)
+    parallel = run_sweep("backlash", points, tmp_path / "parallel", jobs=2, progress=False)
+    assert [(r["N_re"], r["N_im"], r["periodic"]) for r in serial] == \
+        [(r["N_re"], r["N_im"], r["periodic"]) for r in parallel]
+
+
+def test_a_different_sweep_is_not_mixed_into_a_folder(fmus, tmp_path):
+    run_sweep("friction", grid([10.0], [1.0]), tmp_path, jobs=1, progress=False)
+    with pytest.raises(ValueError, match="holds a different sweep"):
+        run_sweep("friction", grid([10.0], [2.0]), tmp_path, jobs=1, progress=False)
+
+
+def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path):
+    """SIGKILL in the middle of a sweep: every finished point survives; the rerun completes it."""
+    out = tmp_path / "killed"
+    argv = [sys.executable, "-m", "dfwb.cli", "sweep", "friction", "--F", "10", "30", "50",
+            "--omega-log", "0.05", "5", "20", "--out", str(out), "--jobs", "1", "--quiet"]
+    process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    csv_path = out / "results.csv"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if csv_path.exists() and len(csv_path.read_text().splitlines()) >= 6:
+            break
+        time.sleep(0.005)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    with open(csv_path) as handle:
+        kept = list(csv.DictReader(handle))
+    assert 5 <= len(kept) < 60
+    finished = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    assert finished.returncode == 0, finished.stderr
+    with open(csv_path) as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 60
+    assert rows[: len(kept)] == kept
