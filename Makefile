@@ -21,6 +21,7 @@ fmus: $(VENV)/.base
 
 demo: fmus
 	$(BIN)/dfwb demo --out out
+	$(BIN)/dfwb paper --out out/paper
 
 test: $(VENV)/.test
 	$(BIN)/python -m pytest -q

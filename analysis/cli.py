@@ -100,6 +100,13 @@ def cmd_sweep(args):
     return 0
 
 
+def cmd_paper(args):
+    from .paper import run_paper
+
+    run_paper(args.out, args.jobs, args.fmus, progress=not args.quiet)
+    return 0
+
+
 def cmd_demo(args):
     from .demo import run_demo
 
@@ -143,6 +150,13 @@ def parser():
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
+
+    paper = commands.add_parser("paper", help="reproduce the paper's figures 3-6 and 8-12 and write report.md")
+    paper.add_argument("--out", type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")
+    paper.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    paper.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+    paper.add_argument("--quiet", action="store_true", help="no progress bars")
+    paper.set_defaults(run=cmd_paper)
 
     demo = commands.add_parser("demo", help="drive each FMU with a sine through fmpy and plot the response")
     demo.add_argument("--out", type=Path, default=Path("out"), help="output folder (default: %(default)s)")

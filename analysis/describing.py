@@ -34,9 +34,9 @@ AVERAGE_PERIODS = 20
 MAX_LAG = 4
 SECTION_RTOL = 1e-11
 DRIVES = ("internal", "input")
-NEVER_ENGAGED = {
-    "backlash": "the masses never touch: x1 stays at rest, N = 0",
-    "static-backlash": "the backlash never engages (X <= h/2): N = 0",
+NEVER_ENGAGED = {  # the output is constant on an orbit without engagement
+    "backlash": "the masses do not touch in the steady state: x1 is constant, N = 0",
+    "static-backlash": "the backlash does not engage in the steady state (X <= h/2): N = 0",
 }
 
 
@@ -193,22 +193,24 @@ class _Search:
     def run(self):
         engine = self.engine
         runs = engine._run(engine._sessions[0], self.F, self.omega, self.base)
-        sections, spectra = [next(runs)[0]], []
+        origin, _, count = next(runs)
+        sections, spectra, counts = [origin], [], [count]
         shots = 0
         while True:
             section, X, count = next(runs)
             self.periods += 1
             sections.append(section)
             spectra.append(X)
+            counts.append(count)
             for lag in range(1, MAX_LAG + 1):
                 if len(sections) > lag:
                     d = self.drift(section, sections[-1 - lag])
                     if d is not None:
-                        return self.finish(spectra[-lag:], True, lag, count, drift=d / lag)
+                        return self.finish(spectra[-lag:], True, lag, count - counts[-1 - lag], drift=d / lag)
             if self.periods >= engine.max_periods:
-                return self.finish(spectra[-AVERAGE_PERIODS:], False, 1, count,
-                                   f"not periodic after {self.periods} periods: average of the last "
-                                   f"{min(AVERAGE_PERIODS, len(spectra))}")
+                n = min(AVERAGE_PERIODS, len(spectra))
+                return self.finish(spectra[-n:], False, 1, count - counts[-1 - n],
+                                   f"not periodic after {self.periods} periods: average of the last {n}")
             start = self.extrapolate(sections)
             if start is not None and shots < 5:
                 shots += 1
@@ -221,9 +223,10 @@ class _Search:
                 # not yet: the shooting run, closer to the orbit, becomes the trajectory
                 runs = shot_runs
                 engine._sessions.reverse()
-                sections, spectra = [origin, returned], [X_shot]
+                sections, spectra, counts = [origin, returned], [X_shot], [0, shot_count]
 
-    def finish(self, spectra, periodic, orbit, count, note="", drift=0.0):
+    def finish(self, spectra, periodic, orbit, engagements, note="", drift=0.0):
+        """The result from the orbit's spectra; ``engagements``: impacts or events within the orbit."""
         X = [sum(column) / len(spectra) for column in zip(*spectra)]
         if drift:
             # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
@@ -231,7 +234,9 @@ class _Search:
             X = [X[0] - drift / 2] + [X[k] - 2j * c / (k * self.omega) for k in range(1, HARMONICS + 1)]
             note = f"periodic up to a drift of {drift:.3g} m per period (a free mass under a sampled input); removed"
         never = NEVER_ENGAGED.get(self.engine.plant.name)
-        if never and count == 0:  # the output is exactly constant: its harmonics are exactly 0
+        # No engagement in the orbit, or only grazes (x touching the edge at its extremum)
+        # that move the output by rounding: the output is constant, its harmonics are 0.
+        if never and (engagements == 0 or abs(X[1]) <= 1e-12 * self.scales[0]):
             X, note = [X[0]] + [0j] * HARMONICS, never
         return self.result(X, periodic, orbit, note)
 

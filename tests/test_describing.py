@@ -48,10 +48,20 @@ def test_backlash_closed_form_equals_python_control(X):
 
 def test_backlash_that_never_engages_gives_zero_and_says_so(static, backlash):
     quiet = static.point(1.0, 20.0)  # X = 1 / 800 < h / 2
-    assert quiet.N == 0 and quiet.minus_inverse is None and "never engages" in quiet.note
+    assert quiet.N == 0 and quiet.minus_inverse is None and "does not engage" in quiet.note
     apart = backlash.point(0.01, 50.0)  # M2 swings 4e-6 m inside a 0.05 m half clearance
-    assert apart.N == 0 and apart.minus_inverse is None and "never touch" in apart.note
+    assert apart.N == 0 and apart.minus_inverse is None and "do not touch" in apart.note
     assert apart.as_dict()["minus_inv_N_re"] is None
+
+
+@pytest.mark.parametrize("omega", [23.0, 25.0, 30.0])
+def test_static_backlash_engaged_only_in_the_transient_gives_zero(static, omega):
+    """h/4 < X < h/2: x (from rest, mean X) drags y once, then swings inside the play: N = 0."""
+    X = 50.0 / (2.0 * omega ** 2)
+    assert 0.025 < X < 0.05
+    result = static.point(50.0, omega)
+    assert result.N == 0 and "does not engage" in result.note
+    assert complex(static_backlash_plant_df(50.0, omega)) == 0
 
 
 def test_stick_slip_point_repeats_after_the_first_stick(friction):

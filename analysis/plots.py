@@ -1,0 +1,84 @@
+"""Plot helpers for describing functions: Nyquist loci, Bode-like magnitudes, harmonic maps."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def minus_inverse(rows):
+    """(omega, -1/N) arrays of sweep rows with N != 0, sorted by omega."""
+    data = sorted((r["omega"], r["minus_inv_N"]) for r in rows if r["minus_inv_N"] is not None)
+    omega = np.array([w for w, _ in data])
+    values = np.array([complex(*v) for _, v in data])
+    return omega, values
+
+
+def nyquist(ax, curves, marks=(), label_marks=True):
+    """-1/N loci: ``curves`` is [(label, rows, style)], marks are omegas shown as dots."""
+    for label, rows, style in curves:
+        omega, values = minus_inverse(rows)
+        if len(values) == 0:
+            continue
+        line, = ax.plot(values.real, values.imag, label=label, **style)
+        for mark in marks:
+            hits = np.flatnonzero(np.isclose(omega, mark, rtol=1e-9))
+            if len(hits):
+                point = values[hits[0]]
+                ax.plot(point.real, point.imag, "o", ms=3, color=line.get_color())
+                if label_marks:
+                    ax.annotate(f"{mark:g}", (point.real, point.imag), fontsize=6, xytext=(2, 2),
+                                textcoords="offset points", color=line.get_color())
+    ax.set_xlabel("Re{-1/N}")
+    ax.set_ylabel("Im{-1/N}")
+    ax.grid(alpha=0.3)
+
+
+def re_im_loglog(axes, curves):
+    """|Re{-1/N}| and |Im{-1/N}| against omega on two log-log axes."""
+    for label, rows, style in curves:
+        omega, values = minus_inverse(rows)
+        axes[0].loglog(omega, np.abs(values.real), label=label, **style)
+        axes[1].loglog(omega, np.abs(values.imag), label=label, **style)
+    axes[0].set_ylabel("|Re{-1/N}|")
+    axes[1].set_ylabel("|Im{-1/N}|")
+    for ax in axes:
+        ax.set_xlabel("omega [rad/s]")
+        ax.grid(alpha=0.3, which="both")
+
+
+def harmonic_map(ax, rows, title):
+    """log10 |X_k| over (omega, k), k = 0..10: where the harmonics live."""
+    rows = sorted(rows, key=lambda r: r["omega"])
+    omega = np.array([r["omega"] for r in rows])
+    amplitudes = np.array([r["harmonics"] for r in rows]).T
+    with np.errstate(divide="ignore"):
+        levels = np.log10(np.maximum(amplitudes, 1e-300))
+    top = np.max(levels)
+    mesh = ax.pcolormesh(omega, np.arange(amplitudes.shape[0]), levels, shading="nearest",
+                         vmin=top - 8, vmax=top, cmap="viridis")
+    ax.set_xscale("log")
+    ax.set_xlabel("omega [rad/s]")
+    ax.set_ylabel("harmonic k")
+    ax.set_title(title, fontsize=9)
+    return mesh
+
+
+def vertical_marks(ax, frequencies):
+    """Dashed verticals at named frequencies (e.g. w_C, w_J, w_L)."""
+    for name, value in frequencies.items():
+        ax.axvline(value, ls=":", lw=0.8, color="gray")
+        ax.annotate(name, (value, 1.0), xycoords=("data", "axes fraction"), fontsize=7, color="gray",
+                    xytext=(2, -10), textcoords="offset points")
+
+
+def save(figure, out_dir, name):
+    """PNG and SVG of a figure; returns the PNG path."""
+    if figure.get_layout_engine() is None:
+        figure.tight_layout()
+    png = out_dir / f"{name}.png"
+    figure.savefig(png, dpi=120)
+    figure.savefig(out_dir / f"{name}.svg")
+    plt.close(figure)
+    return png
