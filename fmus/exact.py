@@ -142,11 +142,13 @@ class Motion:
         """Position and velocity at t >= t0."""
         tau = t - self.t0
         lam, w = self.lam, self.omega
-        p1 = phi_real(1, lam * tau)
-        decay = math.exp(-lam * tau)
+        if lam == 0.0:  # undamped (free flight, contact, stick): phi_k(0) = 1/k!
+            p1, p2, decay = 1.0, 0.5, 1.0
+        else:
+            p1, p2, decay = phi_real(1, lam * tau), phi_real(2, lam * tau), math.exp(-lam * tau)
         e = cmath.exp(1j * w * tau)
         v = self.v0 * decay + self.a * tau * p1 + (self._P * (e - decay)).real
-        x = (self.x0 + self.v0 * tau * p1 + self.a * tau * tau * phi_real(2, lam * tau)
+        x = (self.x0 + self.v0 * tau * p1 + self.a * tau * tau * p2
              + (self._P * (tau * phi1_complex(1j * w * tau) - tau * p1)).real)
         return x, v
 
