@@ -185,6 +185,28 @@ class _Search:
     def close(self, a, b):
         return self.drift(a, b) == 0.0
 
+    def orbit(self, sections, lag):
+        """The drift per orbit if the last section closes an orbit of ``lag`` periods, else None.
+
+        A multi-period orbit must differ from one period to the next (a period-1
+        orbit approached with alternating steps would repeat every 2 periods
+        first); a drift must be steady (the same over the previous orbit), or be
+        below 1e-9 of the scale (a position still converging, not drifting).
+        """
+        if len(sections) <= lag:
+            return None
+        d = self.drift(sections[-1], sections[-1 - lag])
+        if d is None:
+            return None
+        if lag > 1:
+            (now, _), (before, _) = sections[-1], sections[-2]
+            if all(abs(x - y) <= 1e-6 * (abs(x) + s) for x, y, s in zip(now, before, self.scales)):
+                return None
+        if d == 0.0 or abs(d) <= 1e-9 * (abs(sections[-1][0][0]) + self.scales[0]):
+            return 0.0
+        previous = self.drift(sections[-2], sections[-2 - lag]) if len(sections) > lag + 1 else None
+        return d if previous is not None and abs(previous - d) <= 1e-6 * abs(d) else None
+
     def result(self, X, periodic, orbit, note=""):
         N = X[1] / self.F
         return DFResult(plant="", F=self.F, omega=self.omega, params={}, N=N, harmonics=[abs(x) for x in X],
@@ -203,10 +225,9 @@ class _Search:
             spectra.append(X)
             counts.append(count)
             for lag in range(1, MAX_LAG + 1):
-                if len(sections) > lag:
-                    d = self.drift(section, sections[-1 - lag])
-                    if d is not None:
-                        return self.finish(spectra[-lag:], True, lag, count - counts[-1 - lag], drift=d / lag)
+                d = self.orbit(sections, lag)
+                if d is not None:
+                    return self.finish(spectra[-lag:], True, lag, count - counts[-1 - lag], drift=d / lag)
             if self.periods >= engine.max_periods:
                 n = min(AVERAGE_PERIODS, len(spectra))
                 return self.finish(spectra[-n:], False, 1, count - counts[-1 - n],
@@ -232,7 +253,7 @@ class _Search:
             # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
             c = drift * self.omega / (2 * math.pi)
             X = [X[0] - drift / 2] + [X[k] - 2j * c / (k * self.omega) for k in range(1, HARMONICS + 1)]
-            note = f"periodic up to a drift of {drift:.3g} m per period (a free mass under a sampled input); removed"
+            note = f"periodic up to a steady drift of {drift:.3g} m per period (removed from the harmonics)"
         never = NEVER_ENGAGED.get(self.engine.plant.name)
         # No engagement in the orbit, or only grazes (x touching the edge at its extremum)
         # that move the output by rounding: the output is constant, its harmonics are 0.

@@ -64,6 +64,17 @@ def test_static_backlash_engaged_only_in_the_transient_gives_zero(static, omega)
     assert complex(static_backlash_plant_df(50.0, omega)) == 0
 
 
+def test_alternating_approach_is_a_one_period_orbit(backlash):
+    """A multiplier near -1 repeats every 2 periods before every period; it is still period 1."""
+    result = backlash.point(50.0, 30.0, {"eps": 0.9})
+    assert result.periodic and result.orbit_periods == 1
+
+
+def test_converging_position_is_not_called_a_drift(friction):
+    result = friction.point(30.0, 1.0)
+    assert result.periodic and "drift" not in result.note
+
+
 def test_stick_slip_point_repeats_after_the_first_stick(friction):
     result = friction.point(10.0, 1.0)
     assert result.periodic and result.periods <= 3 and result.orbit_periods == 1
