@@ -111,15 +111,18 @@ class DFEngine:
         self.max_periods = max_periods
         path = fmu_path(self.plant, fmu_dir)
         self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
-        self._fourier = [f"I{part}{k}" for k in range(HARMONICS + 1) for part in "cs"]
-        self._counter = "impacts" if plant == "backlash" else "events"
+        fourier = [f"I{part}{k}" for k in range(HARMONICS + 1) for part in "cs"]
+        counter = "impacts" if plant == "backlash" else "events"
+        self._valid = {}
+        self._real_names = list(self.plant.section) + fourier
+        self._integer_names = list(self.plant.modes) + [counter]
 
     # -- one point ----------------------------------------------------------------
     def point(self, F, omega, params=None):
         """The DFResult of the plant at force amplitude F and frequency omega."""
         started = time.perf_counter()
         check_point(F, omega)
-        params = self.plant.check(params or {})
+        params = self._checked(params or {})
         mass = self.plant.mass(params)
         h = dict(self.plant.defaults(), **params).get("h", 0.0)
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
@@ -130,32 +133,40 @@ class DFEngine:
         result.seconds = time.perf_counter() - started
         return result
 
+    def _checked(self, params):
+        """Validated parameters, checked once per distinct set (a sweep repeats them)."""
+        key = tuple(sorted(params.items()))
+        if key not in self._valid:
+            self._valid[key] = self.plant.check(params)
+        return dict(self._valid[key])
+
     # -- periods of one run ------------------------------------------------------------
     def _run(self, session, F, omega, values):
         """Yield ((section, modes), X_k list, engagement count): at t = 0 (X None), then each period."""
         session.start(values)
         period = 2 * math.pi / omega
         step = period / self.samples
-        previous = self._integrals(session)
-        yield self._section(session), None, 0
+        section, previous, count = self._read(session)
+        yield section, None, count
         while True:
             t0 = session.time
             for i in range(self.samples):
                 inputs = {"f": F * math.cos(omega * (t0 + i * step))} if self.drive == "input" else None
                 session.step(step, inputs)
-            current = self._integrals(session)
+            section, current, count = self._read(session)
             width = session.time - t0
             X = [(current[0] - previous[0]) / width] + [
                 2.0 * (current[k] - previous[k]) / width for k in range(1, HARMONICS + 1)]
             previous = current
-            yield self._section(session), X, session.integers([self._counter])[0]
+            yield section, X, count
 
-    def _section(self, session):
-        return (tuple(session.reals(self.plant.section)), tuple(session.integers(self.plant.modes)))
-
-    def _integrals(self, session):
-        values = session.reals(self._fourier)
-        return [complex(values[2 * k], -values[2 * k + 1]) for k in range(HARMONICS + 1)]
+    def _read(self, session):
+        """((section, modes), running Fourier integrals I_k, engagement count): two FMI calls."""
+        n = len(self.plant.section)
+        reals = session.reals(self._real_names)
+        integers = session.integers(self._integer_names)
+        integrals = [complex(reals[n + 2 * k], -reals[n + 2 * k + 1]) for k in range(HARMONICS + 1)]
+        return (tuple(reals[:n]), tuple(integers[:-1])), integrals, integers[-1]
 
 
 class _Search:

@@ -20,7 +20,6 @@ from .simulation import FMUError, unpacked
 _ABANDONED = []  # failed instances stay referenced for the life of the process
 _COUNTER = itertools.count()
 
-
 class FMUSession:
     """A reusable co-simulation instance of one FMU."""
 

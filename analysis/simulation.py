@@ -7,8 +7,11 @@ errors, and raises :class:`FMUError` naming the FMU, the time and the reason
 when a call fails or the result ends before ``stop_time``.
 """
 
+import atexit
+import ctypes
 import functools
 import hashlib
+import os
 import tempfile
 from pathlib import Path
 
@@ -21,6 +24,34 @@ STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
 class FMUError(RuntimeError):
     """An FMU refused a call or a step; the message says which, when and why."""
+
+
+@atexit.register
+def release_pythonfmu_states():
+    """Empty every loaded pythonfmu library's Python state before the process exits.
+
+    A pythonfmu 0.7.0 binary can never be unloaded (a thread pins it), and at
+    exit its C++ static ``shared_ptr<PyState>`` is destroyed before the
+    library's destructor assigns to it again: a use-after-free that corrupts
+    the heap in some runs ("corrupted double-linked list"). Calling the
+    exported ``finalizePythonInterpreter`` while Python is alive empties that
+    pointer first (in a Python host the state owns nothing else), whichever
+    importer loaded the FMU (fmpy, a session, libcosim).
+    """
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = {line.split(None, 5)[-1].strip().removesuffix(" (deleted)") for line in maps
+                     if "/binaries/linux64/" in line and ".so" in line}
+    except OSError:
+        return
+    for path in paths:
+        try:
+            library = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
+        except OSError:
+            continue
+        release = getattr(library, "finalizePythonInterpreter", None)
+        if release is not None:
+            release()
 
 
 @functools.lru_cache(maxsize=None)

@@ -23,6 +23,8 @@ TWO_PI = 2.0 * math.pi
 
 def phi_real(k, y):
     """phi_k(-y) = sum_n (-y)^n / (n + k)!, for y >= 0 (k = 1, 2, 3)."""
+    if k == 1 and y > 0.0:
+        return -math.expm1(-y) / y  # expm1 keeps every digit
     if y < 0.5:
         term = 1.0 / math.factorial(k)
         total = term
@@ -38,24 +40,12 @@ def phi_real(k, y):
     return value
 
 
-def phi1_complex(z):
-    """(exp(z) - 1) / z, exact in the limit z -> 0."""
-    if abs(z) < 0.5:
-        term = 1.0 + 0j
-        total = term
-        n = 1
-        while abs(term) > 1e-18:
-            n += 1
-            term *= z / n
-            total += term
-        return total
-    return (cmath.exp(z) - 1.0) / z
-
-
-def exp_integral(mu, t0, t1):
-    """Integral of exp(i mu s) ds from t0 to t1, exact for any real mu."""
-    tau = t1 - t0
-    return cmath.exp(1j * mu * t0) * tau * phi1_complex(1j * mu * tau)
+def phi1_imaginary(y):
+    """(exp(i y) - 1) / (i y) = sin(y)/y + i 2 sin(y/2)^2 / y: no cancellation, exact as y -> 0."""
+    if y == 0.0:
+        return 1.0 + 0j
+    half = math.sin(0.5 * y)
+    return complex(math.sin(y) / y, 2.0 * half * half / y)
 
 
 class Drive:
@@ -149,7 +139,7 @@ class Motion:
         e = cmath.exp(1j * w * tau)
         v = self.v0 * decay + self.a * tau * p1 + (self._P * (e - decay)).real
         x = (self.x0 + self.v0 * tau * p1 + self.a * tau * tau * p2
-             + (self._P * (tau * phi1_complex(1j * w * tau) - tau * p1)).real)
+             + (self._P * (tau * phi1_imaginary(w * tau) - tau * p1)).real)
         return x, v
 
     def acceleration(self, t, v):
@@ -164,7 +154,7 @@ class Motion:
         """Integral of x from t0 to t."""
         tau = t - self.t0
         lam, w = self.lam, self.omega
-        harmonic = (tau * phi1_complex(1j * w * tau) - tau) / (1j * w) - tau * tau * phi_real(2, lam * tau)
+        harmonic = (tau * phi1_imaginary(w * tau) - tau) / (1j * w) - tau * tau * phi_real(2, lam * tau)
         return (self.x0 * tau + self.v0 * tau * tau * phi_real(2, lam * tau)
                 + self.a * tau ** 3 * phi_real(3, lam * tau) + (self._P * harmonic).real)
 

@@ -52,6 +52,11 @@ class PlantFMU(Fmi2Slave):
     outputs = ()  # (name, unit, description, is_integer)
     output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls._layout = cls.layout()
+        cls._settable = frozenset(name for name, _kind, causality, *_ in cls._layout if causality != "output")
+
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.author = "dfwb"
@@ -60,23 +65,74 @@ class PlantFMU(Fmi2Slave):
         self.solver = None
         self._values = {}
         self._fourier = None
-        for name, default, _unit, description in self.parameters + EXCITATION:
+        for name, default, *_ in self.parameters + EXCITATION:
             setattr(self, name, float(default))
-            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
-                                        variability=Fmi2Variability.fixed, description=description))
         self.harmonics = MAX_HARMONIC
-        self.register_variable(Integer(
-            "harmonics", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-            description="number of harmonics k whose running Fourier integrals are computed (0..10)"))
         self.f = 0.0
-        self.register_variable(Real("f", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
-                                    description="input force, added to the built-in excitation"))
-        for name, _unit, description, is_integer in self.all_outputs():
-            kind = Integer if is_integer else Real
-            variability = Fmi2Variability.discrete if is_integer else Fmi2Variability.continuous
-            getter = self._fourier_getter(name) if name[:2] in ("Ic", "Is") else self._values_getter(name)
-            self.register_variable(kind(name, causality=Fmi2Causality.output, variability=variability,
-                                        description=description, getter=getter))
+
+    # -- variables -------------------------------------------------------------
+    # fmi2Reset creates a new instance, so instances are cheap: the variables are
+    # a per-class table served by get_/set_real and get_/set_integer, and pythonfmu's
+    # variable objects are made only when a model description is written.
+    @classmethod
+    def layout(cls):
+        """[(name, 'Real' or 'Integer', causality, variability, description)] in value-reference order."""
+        table = [(name, "Real", "parameter", "fixed", description)
+                 for name, _default, _unit, description in cls.parameters + EXCITATION]
+        table.append(("harmonics", "Integer", "parameter", "fixed",
+                      "number of harmonics k whose running Fourier integrals are computed (0..10)"))
+        table.append(("f", "Real", "input", "continuous", "input force, added to the built-in excitation"))
+        for name, _unit, description, is_integer in cls.all_outputs():
+            table.append((name, "Integer" if is_integer else "Real", "output",
+                          "discrete" if is_integer else "continuous", description))
+        return table
+
+    def to_xml(self, model_options=dict()):
+        if not self.vars:
+            for name, kind, causality, variability, description in self.layout():
+                self.register_variable((Integer if kind == "Integer" else Real)(
+                    name, causality=Fmi2Causality[causality], variability=Fmi2Variability[variability],
+                    description=description, getter=lambda name=name: self._value(name)))
+        return super().to_xml(model_options)
+
+    def _value(self, name):
+        if name in self._settable:
+            return getattr(self, name)
+        if name[:2] in ("Ic", "Is"):
+            if self._fourier is None and self.solver is not None:
+                self._fourier = {}
+                for k, integral in enumerate(self.solver.integrals()):
+                    self._fourier[f"Ic{k}"] = integral.real
+                    self._fourier[f"Is{k}"] = -integral.imag
+            return (self._fourier or {}).get(name, 0.0)
+        return self._values.get(name, 0)
+
+    def _names(self, vrs, kind):
+        table = self._layout
+        names = []
+        for vr in vrs:
+            if not 0 <= vr < len(table) or table[vr][1] != kind:
+                raise TypeError(f"Variable with valueReference={vr} is not of type {kind}!")
+            names.append(table[vr][0])
+        return names
+
+    def get_real(self, vrs):
+        return [float(self._value(name)) for name in self._names(vrs, "Real")]
+
+    def get_integer(self, vrs):
+        return [int(self._value(name)) for name in self._names(vrs, "Integer")]
+
+    def _set(self, vrs, values, kind, convert):
+        for name, value in zip(self._names(vrs, kind), values):
+            if name not in self._settable:
+                raise TypeError(f"{name} is an output and cannot be set")
+            setattr(self, name, convert(value))
+
+    def set_real(self, vrs, values):
+        self._set(vrs, values, "Real", float)
+
+    def set_integer(self, vrs, values):
+        self._set(vrs, values, "Integer", int)
 
     # -- declarations used by the builder ------------------------------------
     @classmethod
@@ -130,20 +186,6 @@ class PlantFMU(Fmi2Slave):
             self._fail(f"step from t = {current_time!r} refused: {error}")
         self._refresh()
         return True
-
-    def _values_getter(self, name):
-        return lambda: self._values.get(name, 0)
-
-    def _fourier_getter(self, name):
-        """Fourier integrals are computed when first read after a step, not at every step."""
-        def get():
-            if self._fourier is None and self.solver is not None:
-                self._fourier = {}
-                for k, integral in enumerate(self.solver.integrals()):
-                    self._fourier[f"Ic{k}"] = integral.real
-                    self._fourier[f"Is{k}"] = -integral.imag
-            return (self._fourier or {}).get(name, 0.0)
-        return get
 
     def _refresh(self):
         values = self._values
