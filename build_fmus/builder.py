@@ -86,8 +86,9 @@ def finish_model_description(xml_bytes, model, digest):
     for name in used:
         unit = ET.SubElement(definitions, "Unit", name=name)
         ET.SubElement(unit, "BaseUnit", {k: str(v) for k, v in BASE_UNITS[name].items()})
-    position = list(root).index(root.find("CoSimulation")) + 1
-    root.insert(position, definitions)
+    if used:  # the schema wants at least one Unit in a UnitDefinitions
+        position = list(root).index(root.find("CoSimulation")) + 1
+        root.insert(position, definitions)
     structure = root.find("ModelStructure")
     for child in list(structure):
         structure.remove(child)

@@ -14,7 +14,9 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 
 from .backlash import TwoMassBacklash as _TwoMassBacklash
 from .friction import FrictionMass as _FrictionMass
-from .piecewise import PlantError
+from .linear_system import MAX_ORDER as _MAX_ORDER
+from .linear_system import LinearSystem as _LinearSystem
+from .piecewise import PlantError, check
 from .static_backlash import StaticBacklash as _StaticBacklash
 
 MAX_HARMONIC = 10
@@ -279,4 +281,89 @@ class StaticBacklash(PlantFMU):
         return self.solver.output() + (self.solver.engaged,)
 
 
-FACADES = (FrictionMass, TwoMassBacklash, StaticBacklash)
+class LinearSystem(Fmi2Slave):
+    """Linear transfer function G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an), exact for a held input u."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.author = "dfwb"
+        self.description = self.__class__.__doc__.strip().splitlines()[0]
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
+        self.solver = None
+        self.order = 1  # defaults: G(s) = 1 / (s + 1)
+        for i in range(_MAX_ORDER + 1):
+            setattr(self, f"b{i}", 1.0 if i == 1 else 0.0)
+        for i in range(1, _MAX_ORDER + 1):
+            setattr(self, f"a{i}", 1.0 if i == 1 else 0.0)
+        self.u = 0.0
+        fixed = dict(causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
+        self.register_variable(Integer(
+            "order", description=f"order n of G(s), the degree of its denominator (1..{_MAX_ORDER})", **fixed))
+        for i in range(_MAX_ORDER + 1):
+            self.register_variable(Real(f"b{i}", description=(
+                f"numerator coefficient of s^(n-{i}), n = order" if i else "numerator coefficient of s^n, n = order")
+                + ("" if i == 0 else f"; must be 0 when order < {i}"), **fixed))
+        for i in range(1, _MAX_ORDER + 1):
+            self.register_variable(Real(f"a{i}", description=(
+                f"denominator coefficient of s^(n-{i}), n = order (the coefficient of s^n is 1); "
+                f"must be 0 when order < {i}"), **fixed))
+        self.register_variable(Real("u", causality=Fmi2Causality.input, variability=Fmi2Variability.continuous,
+                                    description="input u, held constant over each communication step"))
+        self.register_variable(Real("y", causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                                    description="output y = C x + D u of G(s) at the current time",
+                                    getter=self._output))
+
+    @classmethod
+    def units(cls):
+        """Every variable is dimensionless (the builder's unit pass)."""
+        return {}
+
+    def _fail(self, message):
+        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
+        raise StepRefused(message)
+
+    def _make_solver(self):
+        """The solver from the parameters; PlantError names a bad one."""
+        order = self.order
+        check("order", order, order == int(order) and 1 <= order <= _MAX_ORDER,
+              f"the order must be an integer in 1..{_MAX_ORDER}")
+        for i in range(order + 1, _MAX_ORDER + 1):
+            for name in (f"b{i}", f"a{i}"):
+                value = getattr(self, name)
+                check(name, value, value == 0.0, f"{name} is above the order {order} and must be 0")
+        return _LinearSystem([getattr(self, f"b{i}") for i in range(order + 1)],
+                             [getattr(self, f"a{i}") for i in range(1, order + 1)])
+
+    def _output(self):
+        """y with the input as it is now (D u is a direct feedthrough); never NaN."""
+        solver = self.solver
+        if solver is None:  # initialisation mode: zero state, the parameters as set so far
+            try:
+                solver = self._make_solver()
+            except PlantError:
+                return 0.0
+        return solver.output(self.u if math.isfinite(self.u) else None)
+
+    def exit_initialization_mode(self):
+        try:
+            self.solver = self._make_solver()
+        except PlantError as error:
+            self._fail(f"invalid parameter: {error}")
+
+    def do_step(self, current_time, step_size):
+        solver = self.solver
+        if solver is None:
+            self._fail("doStep called before initialisation")
+        if not (math.isfinite(step_size) and step_size > 0.0):
+            self._fail(f"communication step {step_size!r} at t = {current_time!r}: it must be > 0 and finite")
+        if not (abs(current_time - solver.t) <= 1e-9 * max(1.0, abs(solver.t))):
+            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {solver.t!r}")
+        try:
+            solver.set_input(self.u)
+            solver.advance(max(current_time + step_size, solver.t))
+        except PlantError as error:
+            self._fail(f"step from t = {current_time!r} refused: {error}")
+        return True
+
+
+FACADES = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem)

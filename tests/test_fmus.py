@@ -176,7 +176,7 @@ def test_build_skips_unchanged_fmus_and_hash_follows_sources(tmp_path, monkeypat
     stamps = [path.stat().st_mtime_ns for path in first]
     builder.build_all(tmp_path, report=messages.append)
     assert [path.stat().st_mtime_ns for path in first] == stamps
-    assert sum("up to date" in message for message in messages) == 3
+    assert sum("up to date" in message for message in messages) == len(builder.facade.FACADES)
 
     sources = tmp_path / "sources"
     sources.mkdir()
