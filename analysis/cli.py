@@ -100,6 +100,54 @@ def cmd_sweep(args):
     return 0
 
 
+def cmd_limit_cycle(args):
+    from .limit_cycles import check_range, search
+    from .plants import plant
+    from .transfer import from_coefficients, parse_transfer_function
+
+    if (args.G is None) == (args.num is None):
+        raise InputError("give the controller either as --G EXPR or as --num ... --den ...")
+    G = parse_transfer_function(args.G) if args.G is not None else from_coefficients(args.num, args.den or [])
+    params = plant(args.plant).check(_assignments(args.set, "--set"))
+    F_range = check_range("--F-range", args.F_range)
+    omega_range = check_range("--omega-range", args.omega_range)
+    from .describing import DFEngine
+
+    engine = DFEngine(args.plant, args.fmus)
+    cycles, F_grid, omega_grid, N_grid = search(args.plant, G, params, F_range, omega_range, engine=engine,
+                                                progress=not args.json)
+    report = {"plant": args.plant, "G": {"num": [float(c) for c in G.num[0][0]],
+                                         "den": [float(c) for c in G.den[0][0]]},
+              "params": params, "predictions": [c.as_dict() for c in cycles]}
+    runs = []
+    if args.verify:
+        from .closed_loop import verify
+
+        report["verification"] = []
+        for cycle in cycles:
+            outcome, run = verify(args.plant, G, cycle, params, args.samples_per_period, fmu_dir=args.fmus)
+            report["verification"].append(outcome)
+            runs.append((cycle, run))
+    if args.plot:
+        from .plots import limit_cycle_figure
+
+        limit_cycle_figure(Path(args.plot), G, F_grid, omega_grid, N_grid, cycles, runs)
+    if args.json:
+        json.dump(report, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        print(f"{len(cycles)} limit cycle(s) of {args.plant} under G(s) in F {F_range}, omega {omega_range}")
+        for i, c in enumerate(cycles):
+            line = (f"  F = {c.F:.8g} N, omega = {c.omega:.8g} rad/s, period {c.period:.6g} s, amplitude "
+                    f"{c.amplitude_x:.6g}, {'stable' if c.stable else 'unstable'}, distortion {c.distortion:.3g}")
+            if args.verify:
+                v = report["verification"][i]
+                line += (f"\n    judge: {'settled' if v['settled'] else 'NOT settled'} at F = {v['F']:.6g}, "
+                         f"omega = {v['omega']:.6g} (errors {v['rel_error_F']:.2%}, {v['rel_error_omega']:.2%})")
+            print(line)
+    return 0
+
+
 def cmd_paper(args):
     from .paper import run_paper
 
@@ -150,6 +198,24 @@ def parser():
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
+
+    cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
+    cycle.add_argument("plant", choices=PLANT_NAMES, help="the plant")
+    cycle.add_argument("--G", help="controller as an expression in s, e.g. '100*(s+1)/(s+10)'")
+    cycle.add_argument("--num", type=float, nargs="+", help="controller numerator coefficients, highest power first")
+    cycle.add_argument("--den", type=float, nargs="+", help="controller denominator coefficients")
+    cycle.add_argument("--set", nargs="+", metavar="NAME=VALUE", help="plant parameters")
+    cycle.add_argument("--F-range", type=float, nargs=2, default=(0.1, 1000.0), metavar=("LO", "HI"),
+                       help="force amplitudes searched [N] (default: %(default)s)")
+    cycle.add_argument("--omega-range", type=float, nargs=2, default=(0.05, 100.0), metavar=("LO", "HI"),
+                       help="frequencies searched [rad/s] (default: %(default)s)")
+    cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
+    cycle.add_argument("--samples-per-period", type=int, default=512,
+                       help="co-simulation steps per predicted period with --verify (default: %(default)s)")
+    cycle.add_argument("--plot", help="write the Nyquist (and time-response) figure to this PNG")
+    cycle.add_argument("--json", action="store_true", help="print one JSON object")
+    cycle.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+    cycle.set_defaults(run=cmd_limit_cycle)
 
     paper = commands.add_parser("paper", help="reproduce the paper's figures 3-6 and 8-12 and write report.md")
     paper.add_argument("--out", type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")

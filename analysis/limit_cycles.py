@@ -118,14 +118,13 @@ class _Balance:
         return None
 
 
-def coarse_map(engine, G, params, F_grid, omega_grid, progress=False):
-    """R on the grid: an array [len(F_grid), len(omega_grid)] of complex."""
-    R = np.empty((len(F_grid), len(omega_grid)), dtype=complex)
+def df_map(engine, params, F_grid, omega_grid, progress=False):
+    """N on the grid: an array [len(F_grid), len(omega_grid)] of complex."""
+    N = np.empty((len(F_grid), len(omega_grid)), dtype=complex)
     points = [(i, j) for i in range(len(F_grid)) for j in range(len(omega_grid))]
     for i, j in tqdm(points, disable=not progress, unit="pt", desc="DF map"):
-        result = engine.point(F_grid[i], omega_grid[j], params)
-        R[i, j] = 1.0 + complex(G(1j * omega_grid[j])) * result.N
-    return R
+        N[i, j] = engine.point(F_grid[i], omega_grid[j], params).N
+    return N
 
 
 def candidates(R):
@@ -143,6 +142,14 @@ def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0
             engine=None, progress=False):
     """Every limit cycle of ``plant`` under the controller ``G`` in the given ranges.
 
+    See :func:`search`, which also returns the DF map."""
+    return search(plant, G, params, F_range, omega_range, n_F, n_omega, engine, progress)[0]
+
+
+def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
+           engine=None, progress=False):
+    """(cycles, F_grid, omega_grid, N_grid): the limit cycles and the DF map they were found on.
+
     Parameters
     ----------
     plant : {"friction", "backlash", "static-backlash"}
@@ -156,7 +163,7 @@ def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0
 
     Returns
     -------
-    list of Cycle, sorted by F (empty when there is none: a valid answer)
+    list of Cycle, sorted by F (empty when there is none: a valid answer), and the map
     """
     G = check_transfer_function(G)
     F_lo, F_hi = check_range("F range", F_range)
@@ -165,7 +172,8 @@ def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0
     params = engine.plant.check(params or {})
     check_point(F_lo, w_lo)
     F_grid, omega_grid = np.geomspace(F_lo, F_hi, n_F), np.geomspace(w_lo, w_hi, n_omega)
-    R = coarse_map(engine, G, params, F_grid, omega_grid, progress)
+    N_grid = df_map(engine, params, F_grid, omega_grid, progress)
+    R = 1.0 + np.array([complex(G(1j * w)) for w in omega_grid]) * N_grid
     balance = _Balance(engine, G, params)
     bounds = (math.log(F_lo), math.log(F_hi), math.log(w_lo), math.log(w_hi))
     cycles = []
@@ -183,4 +191,4 @@ def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0
         cycles.append(Cycle(F=result.F, omega=result.omega, N=result.N, amplitude_x=abs(result.N) * result.F,
                             distortion=math.sqrt(sum(x * x for x in X[2:])) / X[1] if X[1] else math.inf,
                             stable=loeb > 0, loeb=loeb, residual=abs(residual), periodic=result.periodic))
-    return sorted(cycles, key=lambda c: c.F)
+    return sorted(cycles, key=lambda c: c.F), F_grid, omega_grid, N_grid

@@ -82,3 +82,50 @@ def save(figure, out_dir, name):
     figure.savefig(out_dir / f"{name}.svg")
     plt.close(figure)
     return png
+
+
+def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=()):
+    """Nyquist plane (G(jw), -1/N(F, w) for several F, the predicted cycles) and the judge's runs."""
+    panels = 2 if runs else 1
+    figure, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 5), squeeze=False)
+    ax = axes[0][0]
+    fine = np.geomspace(omega_grid[0], omega_grid[-1], 600)
+    Gjw = np.array([complex(G(1j * w)) for w in fine])
+    ax.plot(Gjw.real, Gjw.imag, "k", lw=2, label="G(jw)")
+    rows = np.unique(np.linspace(0, len(F_grid) - 1, 6).astype(int))
+    for i in rows:
+        N = N_grid[i]
+        keep = N != 0
+        inverse = -1.0 / N[keep]
+        ax.plot(inverse.real, inverse.imag, lw=1, label=f"-1/N, F = {F_grid[i]:.3g} N")
+    for c in cycles:
+        point = -1.0 / c.N
+        ax.plot(point.real, point.imag, "o", ms=8, mfc="r" if c.stable else "w", mec="r",
+                label=f"{'stable' if c.stable else 'unstable'}: F = {c.F:.4g} N, w = {c.omega:.4g} rad/s")
+    span = max([abs(-1.0 / c.N) for c in cycles] + [1.0])
+    ax.set_xlim(-3 * span, 3 * span)
+    ax.set_ylim(-3 * span, 3 * span)
+    ax.set_xlabel("Re")
+    ax.set_ylabel("Im")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title("G(jw) and -1/N(F, w): limit cycles where they meet at the same w", fontsize=9)
+    if runs:
+        ax = axes[0][1]
+        for (cycle, run) in runs:
+            line, = ax.plot(run.time, run.position, lw=0.8, label=f"closed loop, predicted w = {cycle.omega:.4g}")
+            tail = run.position[len(run.position) // 2:]
+            centre = 0.5 * (tail.max() + tail.min())
+            for sign in (1, -1):
+                ax.axhline(centre + sign * cycle.amplitude_x, ls="--", lw=0.8, color=line.get_color())
+            end = run.time[-1]
+            for k in range(1, 4):
+                ax.axvline(end - k * cycle.period, ls=":", lw=0.6, color=line.get_color())
+        longest = max(cycle.period for cycle, _ in runs)
+        ax.set_xlim(max(run.time[-1] for _, run in runs) - 6 * longest, max(run.time[-1] for _, run in runs))
+        ax.set_xlabel("t [s] (the last 6 periods)")
+        ax.set_ylabel("plant output")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        ax.set_title("the judge: co-simulation; dashed: predicted amplitude, dotted: predicted period", fontsize=9)
+    return save(figure, path.parent, path.stem)
