@@ -148,6 +148,13 @@ def cmd_limit_cycle(args):
     return 0
 
 
+def cmd_examples(args):
+    from .examples import run_examples
+
+    run_examples(args.out, args.samples_per_period)
+    return 0
+
+
 def cmd_paper(args):
     from .paper import run_paper
 
@@ -216,6 +223,12 @@ def parser():
     cycle.add_argument("--json", action="store_true", help="print one JSON object")
     cycle.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
     cycle.set_defaults(run=cmd_limit_cycle)
+
+    examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
+    examples.add_argument("--out", type=Path, default=Path("out/examples"), help="output folder (default: %(default)s)")
+    examples.add_argument("--samples-per-period", type=int, default=512,
+                          help="co-simulation steps per predicted period (default: %(default)s)")
+    examples.set_defaults(run=cmd_examples)
 
     paper = commands.add_parser("paper", help="reproduce the paper's figures 3-6 and 8-12 and write report.md")
     paper.add_argument("--out", type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")

@@ -122,3 +122,11 @@ def test_cli_bad_input_is_one_line_exit_2(capsys, argv, message):
         main(["limit-cycle", "backlash"] + argv)
     assert stop.value.code == 2
     assert message in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_two_mass_backlash_example_has_a_stable_cycle_at_eps_02(fmus):
+    cycles = predict("backlash", parse_transfer_function("200*(s+2)/(s+20)"), {"eps": 0.2},
+                     F_range=(0.01, 100), omega_range=(0.1, 60))
+    (c,) = cycles
+    assert c.stable and c.periodic and c.residual < 1e-8
+    assert c.F == pytest.approx(2.11872, rel=1e-4) and c.omega == pytest.approx(7.52788, rel=1e-4)

@@ -1,0 +1,80 @@
+"""The shipped limit-cycle examples: predicted, judged by co-simulation, plotted.
+
+1. PID position control of the friction mass: integral action and static
+   friction make the mass hunt (a stable cycle, and an unstable one above it).
+2. A lead compensator around the static backlash: the amplitude-only case,
+   cross-checked against python-control in the tests.
+3. The same kind of lead around the two-mass backlash with impacts, for
+   eps = 0.2 and eps = 0.8.
+
+``dfwb examples [--out DIR]`` writes ``example_<name>.png`` and ``examples.md``.
+"""
+
+import json
+from pathlib import Path
+
+from .closed_loop import START, measure, run_loop, verify
+from .describing import DFEngine
+from .limit_cycles import search
+from .plots import limit_cycle_figure
+from .transfer import parse_transfer_function
+
+CONVERGENCE = (128, 256, 512, 1024, 2048)  # steps per predicted period
+EXAMPLES = [  # name, plant, G, params, F range, omega range
+    ("friction_pid", "friction", "20 + 100/s + 2*s/(0.1*s+1)", {}, (7.0001, 300.0), (0.05, 50.0)),
+    ("static_backlash_lead", "static-backlash", "20*(s+2)/(s+20)", {}, (0.01, 100.0), (0.1, 50.0)),
+    ("backlash_lead_eps02", "backlash", "200*(s+2)/(s+20)", {"eps": 0.2}, (0.01, 100.0), (0.1, 60.0)),
+    ("backlash_lead_eps08", "backlash", "200*(s+2)/(s+20)", {"eps": 0.8}, (0.01, 100.0), (0.1, 60.0)),
+]
+
+
+def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
+    """Predict, verify and plot every example; return the path of examples.md."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lines = ["# Limit-cycle examples", "",
+             "Predicted by harmonic balance on the exact DF (Newton, Loeb's criterion for stability), judged by "
+             f"co-simulating plant FMU + LinearSystem.fmu at {samples_per_period} steps per predicted period, from "
+             "the predicted amplitude and from 1.5 times it.", "",
+             "| example | G(s) | params | F [N] | w [rad/s] | amplitude | stable | distortion | judge F | judge w "
+             "| error F | error w | settled (near, perturbed) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    results = {}
+    for name, plant, text, params, F_range, omega_range in EXAMPLES:
+        G = parse_transfer_function(text)
+        cycles, F_grid, omega_grid, N_grid = search(plant, G, params, F_range, omega_range, engine=DFEngine(plant))
+        runs, checks = [], []
+        for cycle in cycles:
+            outcome, run = verify(plant, G, cycle, params, samples_per_period)
+            runs.append((cycle, run))
+            checks.append(outcome)
+            lines.append(f"| {name} | {text} | {json.dumps(params)} | {cycle.F:.6g} | {cycle.omega:.6g} | "
+                         f"{cycle.amplitude_x:.4g} | {cycle.stable} | {cycle.distortion:.3g} | {outcome['F']:.4g} | "
+                         f"{outcome['omega']:.4g} | {outcome['rel_error_F']:.1%} | {outcome['rel_error_omega']:.1%} | "
+                         f"{outcome['settled']}, {outcome['perturbed']['settled']} |")
+        if not cycles:
+            lines.append(f"| {name} | {text} | {json.dumps(params)} | no cycle | | | | | | | | | |")
+        png = limit_cycle_figure(out_dir / f"example_{name}.png", G, F_grid, omega_grid, N_grid, cycles, runs)
+        results[name] = {"predictions": [c.as_dict() for c in cycles], "verification": checks, "cycles": cycles}
+        report(f"{png}: {len(cycles)} cycle(s)")
+    lines += ["", "## Convergence of the judge as the communication step shrinks", "",
+              "The co-simulation holds each signal over a step (a delay of half a step on average); its error "
+              "vanishes with the step. Stable cycles, near start, measured F and w:", "",
+              "| example | steps per period | F [N] | w [rad/s] | settled |", "|---|---|---|---|---|"]
+    for name, plant, text, params, *_ in EXAMPLES:
+        for cycle in (c for c in results[name]["cycles"] if c.stable):
+            for samples in CONVERGENCE:
+                run = run_loop(plant, parse_transfer_function(text), params, cycle.period / samples,
+                               40 * cycle.period, {START[plant]: cycle.amplitude_x})
+                found = measure(run, rtol=5e-3)
+                lines.append(f"| {name} | {samples} | {found.F:.5g} | {found.omega:.5g} | {found.settled} |")
+            lines.append(f"| {name} | prediction | {cycle.F:.5g} | {cycle.omega:.5g} | |")
+    lines += ["", "An unstable cycle is not expected to be reproduced: the judge's runs leave it (to the stable "
+              "cycle or to rest). Where no cycle is listed, none was found in the ranges; for eps = 0.8 the "
+              "only sign change of 1 + G N lies where the plant's response is not periodic.", ""]
+    lines += [f"![{name}](example_{name}.png)" for name, *_ in EXAMPLES]
+    for entry in results.values():
+        entry.pop("cycles")
+    (out_dir / "examples.json").write_text(json.dumps(results, indent=1))
+    path = out_dir / "examples.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
