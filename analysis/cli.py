@@ -7,7 +7,6 @@ anything is computed or written.
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 

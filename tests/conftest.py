@@ -4,9 +4,13 @@ import os
 from pathlib import Path
 
 import pytest
+from fmpy.fmi1 import calloc, free
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from hypothesis import settings
 
 from dfwb.build_fmus import build_all
+from dfwb.simulation import unpacked
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -21,3 +25,33 @@ def fmus():
     """{model name: path} of the three plant FMUs, built into build/fmus if stale."""
     paths = build_all(ROOT / "build" / "fmus", report=lambda message: None)
     return {path.stem: path for path in paths}
+
+
+_KEEP_ALIVE = []  # raw instances are never freed: after a fatal status pythonfmu 0.7.0 would free twice
+
+
+@pytest.fixture
+def raw_fmu(fmus):
+    """make(model) -> (instance initialised at t = 0 through fmpy's raw FMI 2.0 API, its log messages)."""
+
+    def make(model):
+        directory, description = unpacked(fmus[model])
+        messages = []
+
+        def log(_env, _instance, status, _category, text):
+            messages.append((status, text.decode()))
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(log)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        fmu = FMU2Slave(guid=description.guid, unzipDirectory=directory,
+                        modelIdentifier=description.coSimulation.modelIdentifier, instanceName="raw")
+        fmu.instantiate(loggingOn=True, callbacks=callbacks)
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        _KEEP_ALIVE.append((fmu, callbacks))
+        return fmu, messages
+
+    return make

@@ -26,7 +26,6 @@ no virtualenv, no PATH); the FMU finds its own code and its copy of
 pythonfmu in its resources/ folder.
 """
 
-import os
 import shutil
 import subprocess
 import sys

@@ -6,18 +6,14 @@ from decimal import Decimal, localcontext
 import fmpy
 import numpy as np
 import pytest
-from fmpy.fmi1 import calloc, free
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.validation import validate_fmu
 from scipy import signal
 
 from dfwb.fmus import LinearSystem, PlantError
 from dfwb.fmus.linear_system import expm
-from dfwb.simulation import FMUError, simulate, sine_input, unpacked
+from dfwb.simulation import FMUError, simulate, sine_input
 
 EPS = 2.0 ** -52
-_KEEP_ALIVE = []  # instances abandoned after a fatal status, and their callbacks
 
 
 def normalized(num, den):
@@ -244,26 +240,9 @@ def test_nan_input_is_an_error_with_its_time(fmus):
     (0.1, math.nan, "communication step nan at t = 0.1: it must be > 0 and finite"),
     (0.5, 0.1, "doStep at t = 0.5, but the FMU is at t = 0.1"),
 ])
-def test_bad_step_is_refused_by_the_fmu(fmus, time, step, message):
-    directory, description = unpacked(fmus["LinearSystem"])
-    messages = []
-
-    def log(_env, _instance, status, _category, text):
-        messages.append((status, text.decode()))
-
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(log)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    fmu = FMU2Slave(guid=description.guid, unzipDirectory=directory,
-                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName="step")
-    fmu.instantiate(loggingOn=True, callbacks=callbacks)
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
+def test_bad_step_is_refused_by_the_fmu(raw_fmu, time, step, message):
+    fmu, messages = raw_fmu("LinearSystem")
     fmu.doStep(0.0, 0.1)
     with pytest.raises(Exception, match="fmi2DoStep failed"):
         fmu.doStep(time, step)
-    # no fmi2FreeInstance after a fatal status (see tests/test_fmus.py)
-    _KEEP_ALIVE.append((fmu, callbacks))
     assert (3, f"LinearSystem: {message}") in messages
