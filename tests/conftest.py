@@ -1,4 +1,4 @@
-"""Shared fixtures: the FMUs, built once per test session from the current sources."""
+"""Shared fixtures: the FMUs (plants and controller), built once per test session from the current sources."""
 
 import os
 from pathlib import Path
@@ -22,7 +22,7 @@ settings.load_profile(os.environ.get("DFWB_HYPOTHESIS", "default"))
 
 @pytest.fixture(scope="session")
 def fmus():
-    """{model name: path} of the three plant FMUs, built into build/fmus if stale."""
+    """{model name: path} of every FMU the project builds, built into build/fmus if stale."""
     paths = build_all(ROOT / "build" / "fmus", report=lambda message: None)
     return {path.stem: path for path in paths}
 
