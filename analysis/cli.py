@@ -172,7 +172,7 @@ def parser():
     top = argparse.ArgumentParser(prog="dfwb", description="Describing-function workbench for friction and backlash.")
     commands = top.add_subparsers(dest="command", required=True)
 
-    build = commands.add_parser("build", help="build the plant FMUs (skips those whose sources are unchanged)")
+    build = commands.add_parser("build", help="build the FMUs, plants and controller (skips those whose sources are unchanged)")
     build.add_argument("--out", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default: %(default)s)")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.set_defaults(run=cmd_build)
