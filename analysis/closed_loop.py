@@ -65,7 +65,7 @@ def run_loop(plant, G, params=None, step=1e-3, stop_time=10.0, initial=None, fmu
     spec = find_plant(plant)
     values = spec.check(dict(params or {}, **(initial or {})))
     plant_session, controller_session = sessions or (
-        FMUSession(fmu_path(spec, fmu_dir)), FMUSession(fmu_path_of(CONTROLLER, fmu_dir)))
+        FMUSession(fmu_path(spec, fmu_dir)), FMUSession(fmu_path(CONTROLLER, fmu_dir)))
     plant_session.start(dict(values, F=0.0))
     controller_session.start(controller_values(G))
     n = int(round(stop_time / step))
@@ -80,12 +80,6 @@ def run_loop(plant, G, params=None, step=1e-3, stop_time=10.0, initial=None, fmu
         plant_session.step(step, {"f": force[k]})  # then set the inputs and step both
         controller_session.step(step, {"u": position[k]})
     return LoopRun(time, position, force, step)
-
-
-def fmu_path_of(model, fmu_dir=DEFAULT_FMU_DIR):
-    from dfwb.build_fmus import build_all
-
-    return {path.stem: path for path in build_all(fmu_dir, report=lambda message: None)}[model]
 
 
 def measure(run, periods=10, rtol=1e-3):
@@ -150,7 +144,7 @@ def verify(plant, G, cycle, params=None, samples_per_period=512, periods=60, per
     """
     step = cycle.period / samples_per_period
     spec = find_plant(plant)
-    sessions = (FMUSession(fmu_path(spec, fmu_dir)), FMUSession(fmu_path_of(CONTROLLER, fmu_dir)))
+    sessions = (FMUSession(fmu_path(spec, fmu_dir)), FMUSession(fmu_path(CONTROLLER, fmu_dir)))
     runs, trajectories = [], []
     for scale in (1.0, 1.0 + perturbation):
         run = run_loop(plant, G, params, step, periods * cycle.period,

@@ -39,7 +39,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 
-from .closed_loop import CONTROLLER, LoopRun, controller_values, fmu_path_of
+from .closed_loop import CONTROLLER, LoopRun, controller_values
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from .transfer import check_transfer_function, parse_transfer_function
 
@@ -93,7 +93,7 @@ def write_osp_system(folder, plant, G, params=None, initial=None, step=1e-3, fmu
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     sources = {}
-    fmus = {PLANT_INSTANCE: fmu_path(spec, fmu_dir), CONTROLLER_INSTANCE: fmu_path_of(CONTROLLER, fmu_dir)}
+    fmus = {PLANT_INSTANCE: fmu_path(spec, fmu_dir), CONTROLLER_INSTANCE: fmu_path(CONTROLLER, fmu_dir)}
     for name, path in fmus.items():
         if not (folder / path.name).exists() or not (folder / path.name).samefile(path):
             shutil.copyfile(path, folder / path.name)

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import plots
 from .closed_forms import static_backlash_plant_df, validity_frequencies
-from .plants import DEFAULT_FMU_DIR, PLANTS, fmu_path
+from .plants import DEFAULT_FMU_DIR, fmu_path
 from .simulation import simulate
 from .sweep import grid, run_sweep
 
@@ -333,8 +333,7 @@ def run_paper(out_dir="out/paper", jobs=None, fmu_dir=DEFAULT_FMU_DIR, progress=
     started = time.perf_counter()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    fmus = {name: fmu_path(PLANTS[p], fmu_dir) for name, p in
-            (("FrictionMass", "friction"), ("TwoMassBacklash", "backlash"), ("StaticBacklash", "static-backlash"))}
+    fmus = {name: fmu_path(name, fmu_dir) for name in ("FrictionMass", "TwoMassBacklash", "StaticBacklash")}
     data = {}
     for name, (plant, points) in DATASETS.items():
         run_sweep(plant, points, out_dir / "data" / name, jobs=jobs, fmu_dir=fmu_dir, progress=progress)

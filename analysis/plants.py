@@ -82,9 +82,9 @@ def plant(name):
         raise PlantError(f"unknown plant {name!r} (allowed: {', '.join(PLANTS)})") from None
 
 
-def fmu_path(plant_, fmu_dir=DEFAULT_FMU_DIR):
-    """Path of a plant's FMU, building it first if it is missing or stale."""
+def fmu_path(model, fmu_dir=DEFAULT_FMU_DIR):
+    """Path of an FMU (a Plant, or a model name like "LinearSystem"), built first if missing or stale."""
     from dfwb.build_fmus import build_all
 
     paths = build_all(fmu_dir, report=lambda message: None)
-    return {path.stem: path for path in paths}[plant_.fmu_name]
+    return {path.stem: path for path in paths}[model.fmu_name if isinstance(model, Plant) else model]

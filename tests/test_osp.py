@@ -21,7 +21,7 @@ import control
 import numpy as np
 import pytest
 
-from dfwb.closed_loop import controller_values, fmu_path_of, run_loop
+from dfwb.closed_loop import controller_values, run_loop
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import fmu_path, plant as find_plant
 from dfwb.session import FMUSession
@@ -106,7 +106,7 @@ def test_with_libcosims_clock_our_master_gives_libcosims_run_bit_for_bit(plant, 
     theirs = run_osp(xml_path, stop_time, step)
     step_ns = round(step * 1e9)
     sessions = (NanosecondClock(fmu_path(find_plant(plant), fmu_dir), step_ns),
-                NanosecondClock(fmu_path_of("LinearSystem", fmu_dir), step_ns))
+                NanosecondClock(fmu_path("LinearSystem", fmu_dir), step_ns))
     ours = run_loop(plant, G, step=step, stop_time=stop_time, initial=initial, sessions=sessions)
     np.testing.assert_array_equal(theirs.position, ours.position)
     np.testing.assert_array_equal(theirs.force, ours.force)
