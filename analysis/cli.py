@@ -154,6 +154,28 @@ def cmd_examples(args):
     return 0
 
 
+def cmd_bench(args):
+    from .bench import run_bench
+
+    path = run_bench(args.out, quick=args.quick)
+    print(f"{path} written")
+    return 0
+
+
+def cmd_stress(args):
+    from .stress import run_stress
+
+    outcome = run_stress(quick=args.quick, progress=not args.json)
+    if args.json:
+        json.dump(outcome, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        print(f"{outcome['cases']} cases, {outcome['failed']} failed, {outcome['seconds']:.1f} s")
+        for failure in outcome["failures"]:
+            print(f"  {failure['case']}: {failure['check']} ({failure.get('detail', '')})")
+    return 0 if outcome["failed"] == 0 else 1
+
+
 def cmd_paper(args):
     from .paper import run_paper
 
@@ -228,6 +250,16 @@ def parser():
     examples.add_argument("--samples-per-period", type=int, default=512,
                           help="co-simulation steps per predicted period (default: %(default)s)")
     examples.set_defaults(run=cmd_examples)
+
+    bench = commands.add_parser("bench", help="run time against error of every method (Pareto plots, bench.md)")
+    bench.add_argument("--quick", action="store_true", help="the quick set (under 3 minutes)")
+    bench.add_argument("--out", type=Path, default=Path("out/bench"), help="output folder (default: %(default)s)")
+    bench.set_defaults(run=cmd_bench)
+
+    stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")
+    stress.add_argument("--quick", action="store_true", help="the quick set (at least 50 cases, under 2 minutes)")
+    stress.add_argument("--json", action="store_true", help="print one JSON object (cases, failed, failures)")
+    stress.set_defaults(run=cmd_stress)
 
     paper = commands.add_parser("paper", help="reproduce the paper's figures 3-6 and 8-12 and write report.md")
     paper.add_argument("--out", type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")

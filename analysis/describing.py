@@ -21,12 +21,14 @@ Examples
 (True, 2, -0.235053392, -0.297987542)
 """
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
 
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from .session import FMUSession
+from dfwb.fmus import facade
 from dfwb.fmus.piecewise import PlantError
 
 HARMONICS = 10
@@ -98,10 +100,16 @@ class DFEngine:
         Communication steps per period with ``drive="input"``.
     max_periods : int
         Periods simulated before a response is declared not periodic.
+    model : str, optional
+        Another FMI facade of the same plant interface, by class name (the
+        benchmark's fixed-step baselines).
     """
 
-    def __init__(self, plant, fmu_dir=DEFAULT_FMU_DIR, drive="internal", samples_per_period=64, max_periods=150):
+    def __init__(self, plant, fmu_dir=DEFAULT_FMU_DIR, drive="internal", samples_per_period=64, max_periods=150,
+                 model=None):
         self.plant = find_plant(plant)
+        if model is not None:  # another FMU of the same plant interface (e.g. a fixed-step baseline)
+            self.plant = dataclasses.replace(self.plant, model=getattr(facade, model))
         if drive not in DRIVES:
             raise PlantError(f"drive {drive!r} is not allowed (allowed: {', '.join(DRIVES)})")
         if not (isinstance(samples_per_period, int) and samples_per_period >= 4):

@@ -1,0 +1,240 @@
+"""dfwb bench: run time against error of every way to get a DF point, measured side by side.
+
+For each plant and benchmark point, each method and setting computes N(F, w)
+repeatedly, interleaved with the others (so all see the same machine load);
+the median time and the relative error against a tight reference are
+recorded. Methods:
+
+- ``fmu-exact``: this project's FMU with its built-in excitation;
+- ``fmu-input``: the same FMU driven by a sampled sine held over each step;
+- ``fmu-karnopp``: the friction FMU with Karnopp's band Dv (the paper's way);
+- ``fmu-fixedstep``: naive fixed-step FMUs (semi-implicit Euler inside doStep);
+- ``scipy-<method>``: ``solve_ivp`` with event functions (``dfwb.reference``;
+  for the static backlash the mass ODE on a dense grid and the play operator).
+
+The reference: scipy DOP853 at rtol 1e-12 (friction, backlash), the closed
+form (static backlash). Outputs: ``bench.csv`` (plant, method, setting, F,
+omega, eps, error, seconds), ``pareto_<plant>.png`` and ``bench.md``, plus
+how the cost grows with the periods to steady state and with a sweep's size
+and processes.
+"""
+
+import csv
+import math
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from . import plots
+from .closed_forms import static_backlash_plant_df
+from .describing import DFEngine
+from .reference import describing_function_reference
+from .sweep import grid, run_sweep
+
+POINTS = {  # plant: [(F, omega, eps or None)]
+    "quick": {
+        "friction": [(10.0, 1.0, None), (30.0, 5.0, None)],
+        "backlash": [(50.0, 20.0, 0.5), (30.0, 25.0, 0.2)],
+        "static-backlash": [(50.0, 20.0, None)],
+    },
+    "full": {
+        "friction": [(10.0, 1.0, None), (30.0, 1.0, None), (50.0, 0.5, None), (20.0, 5.0, None), (10.0, 0.1, None)],
+        "backlash": [(50.0, 20.0, 0.5), (50.0, 20.0, 0.8), (50.0, 40.0, 0.2), (30.0, 25.0, 0.2), (50.0, 15.0, 0.1)],
+        "static-backlash": [(50.0, 20.0, None), (50.0, 10.0, None), (5.0, 2.0, None)],
+    },
+}
+NAIVE = {"friction": "NaiveFrictionMass", "backlash": "NaiveTwoMassBacklash", "static-backlash": "NaiveStaticBacklash"}
+SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
+
+
+def static_backlash_scipy(F, omega, method, rtol, M=2.0, k=1.0, h=0.1, samples=2048):
+    """What a user would write: the mass ODE by solve_ivp, the play operator on a dense grid, trapezoid."""
+    T = 2 * math.pi / omega
+    sol = solve_ivp(lambda t, y: [y[1], F * math.cos(omega * t) / M], (0.0, 2 * T), [0.0, 0.0], method=method,
+                    rtol=rtol, atol=rtol * F / (M * omega ** 2), dense_output=True)
+    t = np.linspace(0.0, 2 * T, 2 * samples + 1)
+    x = sol.sol(t)[0]
+    y, out = 0.0, np.empty_like(x)
+    for i, xi in enumerate(x):
+        y = min(max(y, k * (xi - h / 2)), k * (xi + h / 2))
+        out[i] = y
+    second = slice(samples, None)
+    X1 = 2.0 / T * np.trapezoid(out[second] * np.exp(-1j * omega * t[second]), t[second])
+    return X1 / F
+
+
+class Method:
+    """One method at one setting: ``run(F, omega, eps) -> N``."""
+
+    def __init__(self, plant, name, setting, run):
+        self.plant, self.name, self.setting, self.run = plant, name, setting, run
+
+
+def methods(plant, quick):
+    """Every (method, setting) of a plant, fastest engines created once."""
+    eps_params = (lambda eps: {"eps": eps} if eps is not None else {})
+    out = []
+    exact = DFEngine(plant)
+    out.append(Method(plant, "fmu-exact", "", lambda F, w, e: exact.point(F, w, eps_params(e)).N))
+    for n in ((8, 32, 128, 512) if quick else (8, 16, 32, 64, 128, 256, 512, 1024)):
+        engine = DFEngine(plant, drive="input", samples_per_period=n)
+        out.append(Method(plant, "fmu-input", f"{n}/period",
+                          lambda F, w, e, engine=engine: engine.point(F, w, eps_params(e)).N))
+    if plant == "friction":
+        for dv in (1e-1, 1e-2, 1e-3, 1e-4):
+            out.append(Method(plant, "fmu-karnopp", f"Dv={dv:g}",
+                              lambda F, w, e, dv=dv: exact.point(F, w, {"Dv": dv}).N))
+    try:
+        naive = DFEngine(plant, model=NAIVE[plant], max_periods=60)
+    except (AttributeError, KeyError):
+        naive = None  # the fixed-step FMUs are not built
+    if naive is not None:
+        for per in ((100, 1000) if quick else (100, 300, 1000, 3000)):
+            out.append(Method(plant, "fmu-fixedstep", f"{per} steps/period",
+                              lambda F, w, e, per=per: naive.point(F, w, dict(eps_params(e), dt=2 * math.pi / w / per)).N))
+    rtols = (1e-3, 1e-6, 1e-9) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+    for method in SCIPY_METHODS:
+        for rtol in rtols:
+            if method == "Radau" and rtol < 1e-8:
+                continue  # minutes per point: a user would not go there either
+            if plant == "static-backlash":
+                run = (lambda F, w, e, m=method, r=rtol: static_backlash_scipy(F, w, m, r))
+            else:
+                run = (lambda F, w, e, m=method, r=rtol: describing_function_reference(
+                    plant, F, w, method=m, rtol=r, **eps_params(e))["N"])
+            out.append(Method(plant, f"scipy-{method}", f"rtol={rtol:g}", run))
+    return out
+
+
+def reference(plant, F, omega, eps):
+    if plant == "static-backlash":
+        return complex(static_backlash_plant_df(F, omega))
+    extra = {"eps": eps} if eps is not None else {}
+    return describing_function_reference(plant, F, omega, method="DOP853", rtol=1e-12, **extra)["N"]
+
+
+def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
+    """Measure every method at every point; write bench.csv, pareto_*.png, bench.md."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    repeats = repeats or (3 if quick else 5)
+    rows = []
+    started = time.perf_counter()
+    for plant, points in POINTS["quick" if quick else "full"].items():
+        candidates = methods(plant, quick)
+        for F, omega, eps in points:
+            truth = reference(plant, F, omega, eps)
+            times = {id(m): [] for m in candidates}
+            values = {}
+            for _ in range(repeats):  # interleaved: every method once per round
+                for m in candidates:
+                    if times[id(m)] and sum(times[id(m)]) > 2.0:
+                        continue  # slow settings: one or two runs are a fair median already
+                    t0 = time.perf_counter()
+                    values[id(m)] = m.run(F, omega, eps)
+                    times[id(m)].append(time.perf_counter() - t0)
+            for m in candidates:
+                error = abs(values[id(m)] - truth) / abs(truth) if truth != 0 else abs(values[id(m)])
+                rows.append({"plant": plant, "method": m.name, "setting": m.setting, "F": F, "omega": omega,
+                             "eps": "" if eps is None else eps, "error": error,
+                             "seconds": statistics.median(times[id(m)])})
+            report(f"{plant} F={F:g} w={omega:g}{'' if eps is None else f' eps={eps:g}'}: "
+                   f"{len(candidates)} methods ({time.perf_counter() - started:.0f} s so far)")
+    with open(out_dir / "bench.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    for plant in POINTS["quick" if quick else "full"]:
+        pareto(out_dir, plant, [r for r in rows if r["plant"] == plant])
+    growth = cost_growth(quick)
+    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started))
+    return out_dir / "bench.md"
+
+
+def pareto(out_dir, plant, rows):
+    points = sorted({(r["F"], r["omega"], r["eps"]) for r in rows})
+    figure, axes = plots.plt.subplots(1, len(points), figsize=(5.5 * len(points), 4.5), squeeze=False)
+    for ax, (F, omega, eps) in zip(axes[0], points):
+        here = [r for r in rows if (r["F"], r["omega"], r["eps"]) == (F, omega, eps)]
+        for method in dict.fromkeys(r["method"] for r in here):
+            mine = sorted((r for r in here if r["method"] == method), key=lambda r: r["seconds"])
+            style = {"lw": 2.5, "marker": "*", "ms": 12, "color": "k"} if method == "fmu-exact" else {"marker": "o"}
+            ax.loglog([r["seconds"] for r in mine], [max(r["error"], 1e-17) for r in mine], label=method, **style)
+        ax.set_xlabel("seconds per DF point (median)")
+        ax.set_ylabel("relative error of N")
+        ax.set_title(f"{plant}: F = {F:g}, w = {omega:g}" + (f", eps = {eps:g}" if eps != "" else ""), fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+    axes[0][0].legend(fontsize=7)
+    plots.save(figure, out_dir, f"pareto_{plant}")
+
+
+def speed_ratios(rows):
+    """Per point: fmu-exact against the fastest other method at equal or better error."""
+    lines = []
+    for key in dict.fromkeys((r["plant"], r["F"], r["omega"], r["eps"]) for r in rows):
+        here = [r for r in rows if (r["plant"], r["F"], r["omega"], r["eps"]) == key]
+        exact = next(r for r in here if r["method"] == "fmu-exact")
+        rivals = [r for r in here if r["method"] != "fmu-exact" and r["error"] <= max(exact["error"], 1e-14)]
+        label = f"{key[0]} F = {key[1]:g}, w = {key[2]:g}" + (f", eps = {key[3]:g}" if key[3] != "" else "")
+        if rivals:
+            best = min(rivals, key=lambda r: r["seconds"])
+            lines.append(f"| {label} | {exact['seconds'] * 1e3:.3g} ms, {exact['error']:.1e} | {best['method']} "
+                         f"{best['setting']}: {best['seconds'] * 1e3:.3g} ms, {best['error']:.1e} | "
+                         f"{best['seconds'] / exact['seconds']:.0f}x |")
+        else:
+            closest = min((r for r in here if r["method"] != "fmu-exact"), key=lambda r: r["error"])
+            lines.append(f"| {label} | {exact['seconds'] * 1e3:.3g} ms, {exact['error']:.1e} | none reaches it; "
+                         f"the most accurate, {closest['method']} {closest['setting']}: "
+                         f"{closest['seconds'] * 1e3:.3g} ms, {closest['error']:.1e} | "
+                         f"> {closest['seconds'] / exact['seconds']:.0f}x |")
+    return lines
+
+
+def cost_growth(quick):
+    """DF time against the periods to steady state; sweep time against grid size and processes."""
+    engine = DFEngine("backlash")
+    by_periods = []
+    for eps in (0.1, 0.3, 0.5, 0.7, 0.9):
+        for omega in (20.0, 30.0):
+            r = engine.point(50.0, omega, {"eps": eps})
+            by_periods.append((r.periods, r.seconds))
+    periods, seconds = np.array(by_periods, dtype=float).T
+    slope, intercept = np.polyfit(periods, seconds, 1)
+    sweeps = []
+    sizes = (16, 64) if quick else (16, 64, 256)
+    for size in sizes:
+        points = grid([10.0, 30.0], list(np.geomspace(0.2, 5.0, size // 2)))
+        for jobs in (1, 2):
+            with tempfile.TemporaryDirectory() as tmp:
+                t0 = time.perf_counter()
+                run_sweep("friction", points, tmp, jobs=jobs, progress=False)
+                sweeps.append((size, jobs, time.perf_counter() - t0))
+    return {"per_period": slope, "fixed": intercept, "points": by_periods, "sweeps": sweeps}
+
+
+def summary(rows, growth, quick, seconds):
+    text = ["# Run time against error", "",
+            f"{'Quick' if quick else 'Full'} set, measured in {seconds:.0f} s on this machine (2 shared cores): every "
+            "method timed interleaved with the others, medians of repeats; errors of N against scipy DOP853 at rtol "
+            "1e-12 (friction, backlash; itself good to ~1e-10) or the closed form (static backlash).", "",
+            "## fmu-exact against the fastest method at equal or better error", "",
+            "| point | fmu-exact | fastest other at equal or better error | ratio |", "|---|---|---|---|"]
+    text += speed_ratios(rows)
+    text += ["", "Pareto plots: " + ", ".join(f"![{p}](pareto_{p}.png)" for p in dict.fromkeys(r["plant"] for r in rows)),
+             "", "## How the cost grows", "",
+             f"DF time against periods to steady state (backlash, F = 50 N, 10 points): "
+             f"{growth['per_period'] * 1e3:.3f} ms per period + {growth['fixed'] * 1e3:.2f} ms "
+             f"(periods: {sorted(int(p) for p, _ in growth['points'])}).", "",
+             "| sweep points | processes | seconds |", "|---|---|---|"]
+    text += [f"| {size} | {jobs} | {t:.2f} |" for size, jobs, t in growth["sweeps"]]
+    text += ["", "Process start-up (a spawned worker imports numpy and fmpy and loads the FMU) costs about a "
+             "second, so two processes pay off only from a few hundred milliseconds of work on.", "",
+             "## Every measurement", "", "| plant | method | setting | F | w | eps | error | seconds |",
+             "|---|---|---|---|---|---|---|---|"]
+    text += [f"| {r['plant']} | {r['method']} | {r['setting']} | {r['F']:g} | {r['omega']:g} | {r['eps']} | "
+             f"{r['error']:.2e} | {r['seconds']:.3g} |" for r in rows]
+    return "\n".join(text) + "\n"
