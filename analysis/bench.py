@@ -88,14 +88,10 @@ def methods(plant, quick):
         for dv in (1e-1, 1e-2, 1e-3, 1e-4):
             out.append(Method(plant, "fmu-karnopp", f"Dv={dv:g}",
                               lambda F, w, e, dv=dv: exact.point(F, w, {"Dv": dv}).N))
-    try:
-        naive = DFEngine(plant, model=NAIVE[plant], max_periods=60)
-    except (AttributeError, KeyError):
-        naive = None  # the fixed-step FMUs are not built
-    if naive is not None:
-        for per in ((100, 1000) if quick else (100, 300, 1000, 3000)):
-            out.append(Method(plant, "fmu-fixedstep", f"{per} steps/period",
-                              lambda F, w, e, per=per: naive.point(F, w, dict(eps_params(e), dt=2 * math.pi / w / per)).N))
+    naive = DFEngine(plant, model=NAIVE[plant], max_periods=60)
+    for per in ((100, 1000) if quick else (100, 300, 1000, 3000)):
+        out.append(Method(plant, "fmu-fixedstep", f"{per} steps/period",
+                          lambda F, w, e, per=per: naive.point(F, w, dict(eps_params(e), dt=2 * math.pi / w / per)).N))
     rtols = (1e-3, 1e-6, 1e-9) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
     for method in SCIPY_METHODS:
         for rtol in rtols:

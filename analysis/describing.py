@@ -109,7 +109,12 @@ class DFEngine:
                  model=None):
         self.plant = find_plant(plant)
         if model is not None:  # another FMU of the same plant interface (e.g. a fixed-step baseline)
-            self.plant = dataclasses.replace(self.plant, model=getattr(facade, model))
+            variants = [m for m in facade.FACADES if issubclass(m, self.plant.model)]
+            chosen = [m for m in variants if m.__name__ == model]
+            if not chosen:
+                raise PlantError(f"model {model!r} is not an FMU of plant {plant} "
+                                 f"(allowed: {', '.join(m.__name__ for m in variants)})")
+            self.plant = dataclasses.replace(self.plant, model=chosen[0])
         if drive not in DRIVES:
             raise PlantError(f"drive {drive!r} is not allowed (allowed: {', '.join(DRIVES)})")
         if not (isinstance(samples_per_period, int) and samples_per_period >= 4):

@@ -16,6 +16,9 @@ from .backlash import TwoMassBacklash as _TwoMassBacklash
 from .friction import FrictionMass as _FrictionMass
 from .linear_system import MAX_ORDER as _MAX_ORDER
 from .linear_system import LinearSystem as _LinearSystem
+from .naive import NaiveFrictionMass as _NaiveFrictionMass
+from .naive import NaiveStaticBacklash as _NaiveStaticBacklash
+from .naive import NaiveTwoMassBacklash as _NaiveTwoMassBacklash
 from .piecewise import PlantError, check
 from .static_backlash import StaticBacklash as _StaticBacklash
 
@@ -366,4 +369,49 @@ class LinearSystem(Fmi2Slave):
         return True
 
 
-FACADES = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem)
+# -- naive fixed-step baselines ----------------------------------------------------
+# The same plants integrated the way typical pythonfmu examples do: semi-implicit
+# Euler with a fixed internal step dt inside doStep (fmus/naive.py). They exist as
+# the ``fmu-fixedstep`` method of the benchmark, to measure what exactness buys;
+# their results carry a first-order error in dt and are not for analysis. Same
+# variables as the exact FMUs plus the parameter dt, so any importer (and the DF
+# engine) can use either.
+DT_PARAMETER = ("dt", 1e-3, "s", "internal fixed step of the naive integrator (> 0)")
+
+
+class NaiveFrictionMass(FrictionMass):
+    """Friction mass by naive fixed-step semi-implicit Euler (Karnopp band): a benchmark baseline, not for analysis.
+
+    The ``fmu-fixedstep`` comparison method: the exact FrictionMass's
+    variables plus ``dt``; Karnopp's stick band is max(Dv, Fs dt / M).
+    """
+
+    solver_class = _NaiveFrictionMass
+    parameters = FrictionMass.parameters + (DT_PARAMETER,)
+
+
+class NaiveTwoMassBacklash(TwoMassBacklash):
+    """Two-mass backlash by naive fixed-step semi-implicit Euler (clamped gap): a benchmark baseline, not for analysis.
+
+    The ``fmu-fixedstep`` comparison method: the exact TwoMassBacklash's
+    variables plus ``dt``; impacts are detected after the step that crosses
+    a wall.
+    """
+
+    solver_class = _NaiveTwoMassBacklash
+    parameters = TwoMassBacklash.parameters + (DT_PARAMETER,)
+
+
+class NaiveStaticBacklash(StaticBacklash):
+    """Mass and backlash by naive fixed-step semi-implicit Euler: a benchmark baseline, not for analysis.
+
+    The ``fmu-fixedstep`` comparison method: the exact StaticBacklash's
+    variables plus ``dt``; the play operator acts once per internal step.
+    """
+
+    solver_class = _NaiveStaticBacklash
+    parameters = StaticBacklash.parameters + (DT_PARAMETER,)
+
+
+FACADES = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem,
+           NaiveFrictionMass, NaiveTwoMassBacklash, NaiveStaticBacklash)
