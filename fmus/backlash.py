@@ -1,16 +1,18 @@
 """Two masses with a clearance and impacts, integrated exactly.
 
 M2 carries the force u = f + F cos(omega t + phi); M1 is free. The gap
-g = x2 - x1 stays in [0, h]. Between impacts M1 x1'' = 0, M2 x2'' = u, so the
-gap is a closed-form :class:`~exact.Motion` and impacts are its first zeros
-at 0 and h. An impact follows Newton's law with restitution eps (momentum
-conserved). When u presses the masses together and the next bounce would
-rise less than ``tol_h`` (a 1e-12 fraction of h), the accumulation of impacts
-is complete for all purposes: the masses move together, (M1 + M2) x'' = u,
-until u turns to pull them apart (an analytic crossing of zero).
-
-The state is (x1, v1, g, w = g'), so the gap never suffers the cancellation
-of x2 - x1 when the masses have drifted far.
+g = x2 - x1 stays in [0, h]. The state is the centre of mass (x_cm, v_cm)
+and the relative motion (g, w = g'): the centre of mass obeys
+(M1 + M2) x_cm'' = u in every mode, a single closed form that impacts never
+touch, so momentum is conserved exactly by construction; between impacts
+g'' = u / M2, so impacts are first zeros of the closed-form gap at 0 and h.
+An impact follows Newton's law with restitution eps: w -> -eps w. When u
+presses the masses together and the next bounce would rise less than
+``tol_h`` (a 1e-12 fraction of h), the accumulation of impacts is complete
+for all purposes: the masses move together (w = 0) until u turns to pull
+them apart (an analytic crossing of zero). Neither the gap nor the momentum
+suffers the cancellation of x2 - x1 or M1 v1 + M2 v2 when the masses have
+drifted far or their masses differ by orders of magnitude.
 """
 
 from .exact import Motion
@@ -25,71 +27,82 @@ class TwoMassBacklash(PiecewisePlant):
 
     def __init__(self, M1=1.0, M2=1.0, h=0.1, eps=0.5, F=0.0, omega=1.0, phi=0.0,
                  x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, f=0.0, harmonics=10):
-        check("M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")
-        check("M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")
-        check("h", h, h > 0.0, "h must be > 0 (m)")
-        check("eps", eps, 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
+        check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
+        check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
+        check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
+        check("eps", eps, lambda: 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
         if gap0 is None:
             gap0 = 0.5 * h
-        check("gap0", gap0, 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m)")
+        check("gap0", gap0, lambda: 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m)")
         for name, value in (("x1_0", x1_0), ("v1_0", v1_0), ("v2_0", v2_0)):
             check(name, value, True, f"{name} must be a finite number")
         super().__init__(F, omega, phi, f, harmonics)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
+        self.total = M1 + M2
+        self.r1, self.r2 = M1 / self.total, M2 / self.total  # x1 = x_cm - r2 g, x2 = x_cm + r1 g
         self.tol_h = 1e-12 * h
         self.impacts = 0
         self.contact = FREE
         self._departing = 0
-        self._start(0.0, x1_0, v1_0, gap0, v2_0 - v1_0)
+        self._centre(0.0, x1_0 + self.r2 * gap0, self.r1 * v1_0 + self.r2 * v2_0)
+        self._start(0.0, gap0, v2_0 - v1_0)
 
     # -- state -------------------------------------------------------------
-    def state(self, t=None):
-        """(x1, v1, g, w) at t (default: the current time)."""
-        t = self.t if t is None else t
-        x1, v1 = self._output.state(t)
+    def _centre(self, t, x_cm, v_cm):
+        d = self.drive
+        self._cm = Motion(t, x_cm, v_cm, 0.0, d.f / self.total, d.F / self.total, d.omega, d.phi)
+
+    def relative(self, t):
+        """(g, w) at t."""
         if self.contact == FREE:
-            g, w = self._gap.state(t)
-        else:
-            g, w = (0.0 if self.contact == LOWER else self.h), 0.0
-        return x1, v1, g, w
+            return self._gap.state(t)
+        return (0.0 if self.contact == LOWER else self.h), 0.0
 
     def output(self):
-        """x1, v1, x2, v2, gap at self.t."""
-        x1, v1, g, w = self.state()
-        return x1, v1, x1 + g, v1 + w, g
+        """x1, v1, x2, v2, gap at self.t (x1, v1 as integrated into the Fourier outputs)."""
+        x1, v1 = self._output.state(self.t)
+        g, w = self.relative(self.t)
+        if self.contact != FREE:  # riding together: one closed form for both
+            return x1, v1, x1 + g, v1, g
+        x_cm, v_cm = self._cm.state(self.t)
+        return x1, v1, x_cm + self.r1 * g, v_cm + self.r1 * w, g
 
     # -- pieces -------------------------------------------------------------
-    def _start(self, t, x1, v1, g, w):
+    def _start(self, t, g, w):
         if g <= 0.0:
-            self._at_boundary(t, x1, v1, LOWER, w)
+            self._at_boundary(t, LOWER, w)
         elif g >= self.h:
-            self._at_boundary(t, x1, v1, UPPER, w)
+            self._at_boundary(t, UPPER, w)
         else:
-            self._free(t, x1, v1, g, w, departing=0)
+            self._free(t, g, w, departing=0)
 
-    def _at_boundary(self, t, x1, v1, side, w):
+    def _at_boundary(self, t, side, w):
         """Impact (if closing), then contact or a flight away from the boundary."""
         sigma = SIDE[side]
         if sigma * w > 0.0:
-            v1 += self.M2 * (1.0 + self.eps) * w / (self.M1 + self.M2)
             w = -self.eps * w
             self.impacts += 1
         u = self.drive.u(t)
         pressing = self.drive.above(t, 0.0) if sigma > 0 else self.drive.below(t, 0.0)
-        if pressing and (w == 0.0 or 0.5 * w * w * self.M2 <= self.tol_h * abs(u)):
-            v_common = v1 + self.M2 * w / (self.M1 + self.M2)  # momentum kept
-            self._contact(t, x1, v_common, side)
+        pulling = self.drive.below(t, 0.0) if sigma > 0 else self.drive.above(t, 0.0)
+        if (w == 0.0 and not pulling) or (pressing and 0.5 * w * w * self.M2 <= self.tol_h * abs(u)):
+            self._contact(t, side)
         else:
-            self._free(t, x1, v1, 0.0 if side == LOWER else self.h, w, departing=sigma)
+            self._free(t, 0.0 if side == LOWER else self.h, w, departing=sigma)
 
-    def _free(self, t, x1, v1, g, w, departing):
+    def _output_motion(self, t, g, w, a, b):
+        """x1's closed form from t: free (a = b = 0) or riding with the centre of mass."""
+        x_cm, v_cm = self._cm.state(t)
+        d = self.drive
+        return Motion(t, x_cm - self.r2 * g, v_cm - self.r2 * w, 0.0, a, b, d.omega, d.phi)
+
+    def _free(self, t, g, w, departing):
         """Flight; ``departing`` = sigma of the boundary just left (0: none)."""
         d = self.drive
         self.contact = FREE
         self._departing = departing
         self._gap = gap = Motion(t, g, w, 0.0, d.f / self.M2, d.F / self.M2, d.omega, d.phi)
-        output = Motion(t, x1, v1, 0.0, 0.0, 0.0, d.omega, d.phi)
-        self._begin(t, output, searches=self._boundary_searches(t, skip=departing))
+        self._begin(t, self._output_motion(t, g, w, 0.0, 0.0), searches=self._boundary_searches(t, skip=departing))
         if departing:
             # The gap cannot return to the boundary it left before the
             # separation speed -sigma*w falls to zero: search that apex first.
@@ -120,13 +133,13 @@ class TwoMassBacklash(PiecewisePlant):
             searches.append(Search(below_upper, K, t, UPPER))
         return searches
 
-    def _contact(self, t, x1, v, side):
+    def _contact(self, t, side):
         """The masses move together until u stops pressing them into the boundary."""
         d = self.drive
         self.contact = side
         self._departing = 0
-        total = self.M1 + self.M2
-        output = Motion(t, x1, v, 0.0, d.f / total, d.F / total, d.omega, d.phi)
+        wall = 0.0 if side == LOWER else self.h
+        output = self._output_motion(t, wall, 0.0, d.f / self.total, d.F / self.total)
         t_release = d.crossing(t, 0.0, rising=SIDE[side] < 0)
         self._begin(t, output, t_release, "release")
 
@@ -136,20 +149,24 @@ class TwoMassBacklash(PiecewisePlant):
             self._departing = 0
             self._set_searches(t, self._boundary_searches(t))
             return False
-        x1, v1, g, w = self.state(t)
+        g, w = self.relative(t)
         self._close_piece(t)
         if kind == "release":
             side = self.contact
-            self._free(t, x1, v1, 0.0 if side == LOWER else self.h, 0.0, departing=SIDE[side])
+            self._free(t, 0.0 if side == LOWER else self.h, 0.0, departing=SIDE[side])
         else:
-            self._at_boundary(t, x1, v1, kind, w)
+            self._at_boundary(t, kind, w)
         return True
 
     def _restart(self, t):
-        x1, v1, g, w = self.state(t)
+        g, w = self.relative(t)
+        self._centre(t, *self._cm.state(t))  # the new input changes the centre's closed form
         if self.contact != FREE:
-            self._at_boundary(t, x1, v1, self.contact, 0.0)
+            self._at_boundary(t, self.contact, 0.0)
+        elif self._departing and -self._departing * w <= 0.0:
+            # still at the wall it was leaving (no separation speed yet): the new force decides
+            self._at_boundary(t, LOWER if self._departing < 0 else UPPER, w)
         elif self._departing:
-            self._free(t, x1, v1, g, w, departing=self._departing)
+            self._free(t, g, w, departing=self._departing)
         else:
-            self._start(t, x1, v1, g, w)
+            self._start(t, g, w)

@@ -79,15 +79,15 @@ class Drive:
         the very instant u crosses it) the trend decides, not the rounding.
         """
         d, theta = self.u(t) - level, self.omega * t + self.phi
-        if abs(d) > self._rounding(theta, level):
-            return d > 0.0
+        if self.F == 0.0 or abs(d) > self._rounding(theta, level):
+            return d > 0.0  # a constant force has no trend: equal is not above
         slope = -math.sin(theta)
         return slope > 0.0 if abs(slope) > 1e-12 else -math.cos(theta) > 0.0
 
     def below(self, t, level):
         """Whether u < level just after t (see :meth:`above`)."""
         d, theta = self.u(t) - level, self.omega * t + self.phi
-        if abs(d) > self._rounding(theta, level):
+        if self.F == 0.0 or abs(d) > self._rounding(theta, level):
             return d < 0.0
         slope = -math.sin(theta)
         return slope < 0.0 if abs(slope) > 1e-12 else -math.cos(theta) < 0.0

@@ -328,12 +328,12 @@ class LinearSystem(Fmi2Slave):
     def _make_solver(self):
         """The solver from the parameters; PlantError names a bad one."""
         order = self.order
-        check("order", order, order == int(order) and 1 <= order <= _MAX_ORDER,
+        check("order", order, lambda: order == int(order) and 1 <= order <= _MAX_ORDER,
               f"the order must be an integer in 1..{_MAX_ORDER}")
         for i in range(order + 1, _MAX_ORDER + 1):
             for name in (f"b{i}", f"a{i}"):
                 value = getattr(self, name)
-                check(name, value, value == 0.0, f"{name} is above the order {order} and must be 0")
+                check(name, value, lambda: value == 0.0, f"{name} is above the order {order} and must be 0")
         return _LinearSystem([getattr(self, f"b{i}") for i in range(order + 1)],
                              [getattr(self, f"a{i}") for i in range(1, order + 1)])
 

@@ -24,11 +24,11 @@ class FrictionMass(PiecewisePlant):
 
     def __init__(self, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, F=0.0, omega=1.0, phi=0.0,
                  x0=0.0, v0=0.0, f=0.0, harmonics=10):
-        check("M", M, M > 0.0, "M must be > 0 (kg)")
-        check("B", B, B >= 0.0, "B must be >= 0 (N.s/m)")
-        check("Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")
-        check("Fs", Fs, Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
-        check("Dv", Dv, Dv >= 0.0, "Dv must be >= 0 (m/s)")
+        check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
+        check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
+        check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
+        check("Fs", Fs, lambda: Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
+        check("Dv", Dv, lambda: Dv >= 0.0, "Dv must be >= 0 (m/s)")
         check("x0", x0, True, "x0 must be a finite number (m)")
         check("v0", v0, True, "v0 must be a finite number (m/s)")
         super().__init__(F, omega, phi, f, harmonics)

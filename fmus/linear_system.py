@@ -84,7 +84,7 @@ class LinearSystem:
     def __init__(self, b, a):
         a, b = list(a), list(b)
         n = len(a)
-        check("order", n, 1 <= n <= MAX_ORDER,
+        check("order", n, lambda: 1 <= n <= MAX_ORDER,
               f"the order (the number of denominator coefficients a1..an) must be an integer in 1..{MAX_ORDER}")
         check("number of numerator coefficients", len(b), len(b) == n + 1,
               f"an order-{n} G(s) needs {n + 1} numerator coefficients b0..b{n}")
@@ -137,7 +137,7 @@ class LinearSystem:
 
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end with the input held."""
-        check("t_end", t_end, t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
         h = t_end - self.t
         if h > 0.0:
             Phi, Gamma = self.transition(h)

@@ -25,8 +25,13 @@ class PlantError(ValueError):
 
 
 def check(name, value, ok, allowed):
-    """Raise PlantError naming the value and the allowed range unless ``ok``."""
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and ok):
+    """Raise PlantError naming the value and the allowed range unless it is a finite number and ``ok``.
+
+    ``ok`` is True or a function of no argument, called only once the value is
+    known to be a finite number (so a condition never fails on None or text).
+    """
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            and (ok() if callable(ok) else ok)):
         raise PlantError(f"{name} = {value!r} is out of range: {allowed}")
 
 
@@ -44,10 +49,10 @@ class PiecewisePlant:
 
     def __init__(self, F, omega, phi, f, harmonics):
         check("F", F, True, "F must be a finite number (N)")
-        check("omega", omega, omega > 0.0, "omega must be > 0 (rad/s)")
+        check("omega", omega, lambda: omega > 0.0, "omega must be > 0 (rad/s)")
         check("phi", phi, True, "phi must be a finite number (rad)")
         check("f", f, True, "the input f must be a finite number (N)")
-        check("harmonics", harmonics, harmonics == int(harmonics) and 0 <= harmonics <= 10,
+        check("harmonics", harmonics, lambda: harmonics == int(harmonics) and 0 <= harmonics <= 10,
               "harmonics must be an integer in 0..10")
         self.drive = Drive(f, F, omega, phi)
         self.period = TWO_PI / omega
@@ -110,7 +115,7 @@ class PiecewisePlant:
     # -- stepping ---------------------------------------------------------
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end, firing every event on the way."""
-        check("t_end", t_end, t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
         limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + (t_end - self.t) / self.period)
         fired = 0
         while True:

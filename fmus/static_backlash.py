@@ -16,9 +16,9 @@ class StaticBacklash(PiecewisePlant):
 
     def __init__(self, M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0, phi=0.0, x0=0.0, v0=0.0,
                  f=0.0, harmonics=10):
-        check("M", M, M > 0.0, "M must be > 0 (kg)")
-        check("k", k, k > 0.0, "k must be > 0")
-        check("h", h, h > 0.0, "h must be > 0 (m)")
+        check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
+        check("k", k, lambda: k > 0.0, "k must be > 0")
+        check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
         check("x0", x0, True, "x0 must be a finite number (m)")
         check("v0", v0, True, "v0 must be a finite number (m/s)")
         super().__init__(F, omega, phi, f, harmonics)
@@ -101,7 +101,18 @@ class StaticBacklash(PiecewisePlant):
 
     def _restart(self, t):
         x, v = self._mass.state(t)
-        if self.engaged:
-            self._engage(t, x, v, self.engaged)
+        s = self.engaged
+        d = self.drive
+        def pushing(edge):  # the new force drives x into that edge just after t
+            return d.above(t, 0.0) if edge > 0 else d.below(t, 0.0)
+
+        if s and s * v <= 0.0 and not pushing(s):
+            # at rest on the edge with the new force not pushing on: it lets go of y
+            self._free(t, x, v, self._output.state(t)[0], leaving=s)
+        elif s:
+            self._engage(t, x, v, s)
+        elif self._leaving and -self._leaving * v <= 0.0 and pushing(self._leaving):
+            # still on the edge it was leaving, and the new force pushes back: it drags y again
+            self._engage(t, x, v, self._leaving)
         else:
             self._free(t, x, v, self._y, leaving=self._leaving)
