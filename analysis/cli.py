@@ -165,7 +165,9 @@ def cmd_bench(args):
 def cmd_stress(args):
     from .stress import run_stress
 
-    outcome = run_stress(quick=args.quick, progress=not args.json)
+    if not 1 <= args.part <= args.parts:
+        raise InputError(f"--part {args.part} of --parts {args.parts}: expected 1 <= PART <= PARTS")
+    outcome = run_stress(quick=args.quick, progress=not args.json, part=args.part - 1, parts=args.parts)
     if args.json:
         json.dump(outcome, sys.stdout, indent=1)
         sys.stdout.write("\n")
@@ -259,6 +261,8 @@ def parser():
     stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")
     stress.add_argument("--quick", action="store_true", help="the quick set (at least 50 cases, under 2 minutes)")
     stress.add_argument("--json", action="store_true", help="print one JSON object (cases, failed, failures)")
+    stress.add_argument("--part", type=int, default=1, help="run only this piece of the set (default: %(default)s)")
+    stress.add_argument("--parts", type=int, default=1, help="split the set into this many pieces (default: 1)")
     stress.set_defaults(run=cmd_stress)
 
     paper = commands.add_parser("paper", help="reproduce the paper's figures 3-6 and 8-12 and write report.md")
