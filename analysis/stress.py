@@ -67,8 +67,8 @@ the second dominates only for long horizons, where phase rounding is real.
 The quadrature checks add Gauss-Legendre's error, below 1e-14 relative on
 the subintervals used (at most period/16 and between events, 16 nodes).
 
-Cases (``quick``: about 390, of which about 110 invalid inputs; ~30 s on
-this two-core machine): every restitution eps in
+Cases (``quick``: 370, of which 113 invalid inputs; ~25 s on this
+two-core machine): every restitution eps in
 {0, 1e-9, 0.5, 1 - 1e-9, 1}; h from 1e-9 to 10 m, F from 1e-6 to 1e6 N,
 w from 1e-4 to 1e4 rad/s, masses from 1e-6 to 1e6 kg (the other parameters
 chosen so the case stays in the regime it probes: for the backlash the
@@ -78,9 +78,10 @@ Fs exactly at the force's peak, a constant force equal to +-Fs; steps from
 (a sampled sine, step patterns that stop, reverse and press again, and
 random runs of values with exact zeros, repeats and +-Fs, as a controller
 feeds them); seeded random parameters (``random.Random(seed)``,
-reproducible); invalid parameters. The full set (``quick=False``, about
-1200 cases, ~10 min) adds more random cases, every eps on every axis and
-1e5-period horizons; ``part``/``parts`` split it for CI.
+reproducible); invalid parameters. The full set (``quick=False``, 1076
+cases, ~10 min on one core, ~5 min as 4 parts on two cores) adds more
+random cases, every eps on every axis and 1e5-period horizons;
+``part``/``parts`` split it for CI.
 """
 
 import cmath
