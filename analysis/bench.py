@@ -118,23 +118,31 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     repeats = repeats or (3 if quick else 5)
-    rows = []
+    rows, failures = [], []
     started = time.perf_counter()
     for plant, points in POINTS["quick" if quick else "full"].items():
         candidates = methods(plant, quick)
         for F, omega, eps in points:
             truth = reference(plant, F, omega, eps)
             times = {id(m): [] for m in candidates}
-            values = {}
+            values, failed = {}, {}
             for _ in range(repeats):  # interleaved: every method once per round
                 for m in candidates:
-                    if times[id(m)] and sum(times[id(m)]) > 2.0:
-                        continue  # slow settings: one or two runs are a fair median already
+                    if id(m) in failed or (times[id(m)] and sum(times[id(m)]) > 2.0):
+                        continue  # failed, or slow: one or two runs are a fair median already
                     t0 = time.perf_counter()
-                    values[id(m)] = m.run(F, omega, eps)
+                    try:
+                        values[id(m)] = m.run(F, omega, eps)
+                    except (RuntimeError, ValueError, ArithmeticError) as error:  # the method gave up
+                        failed[id(m)] = f"{type(error).__name__}: {error}"
                     times[id(m)].append(time.perf_counter() - t0)
             for m in candidates:
-                error = abs(values[id(m)] - truth) / abs(truth) if truth != 0 else abs(values[id(m)])
+                if id(m) in failed:
+                    error = math.inf
+                    failures.append(f"{plant} F = {F:g}, w = {omega:g}" + (f", eps = {eps:g}" if eps is not None else "")
+                                    + f": {m.name} {m.setting} failed ({failed[id(m)]})")
+                else:
+                    error = abs(values[id(m)] - truth) / abs(truth) if truth != 0 else abs(values[id(m)])
                 rows.append({"plant": plant, "method": m.name, "setting": m.setting, "F": F, "omega": omega,
                              "eps": "" if eps is None else eps, "error": error,
                              "seconds": statistics.median(times[id(m)])})
@@ -147,7 +155,7 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
     for plant in POINTS["quick" if quick else "full"]:
         pareto(out_dir, plant, [r for r in rows if r["plant"] == plant])
     growth = cost_growth(quick)
-    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started))
+    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started, failures))
     return out_dir / "bench.md"
 
 
@@ -157,7 +165,8 @@ def pareto(out_dir, plant, rows):
     for ax, (F, omega, eps) in zip(axes[0], points):
         here = [r for r in rows if (r["F"], r["omega"], r["eps"]) == (F, omega, eps)]
         for method in dict.fromkeys(r["method"] for r in here):
-            mine = sorted((r for r in here if r["method"] == method), key=lambda r: r["seconds"])
+            mine = sorted((r for r in here if r["method"] == method and math.isfinite(r["error"])),
+                          key=lambda r: r["seconds"])
             style = {"lw": 2.5, "marker": "*", "ms": 12, "color": "k"} if method == "fmu-exact" else {"marker": "o"}
             ax.loglog([r["seconds"] for r in mine], [max(r["error"], 1e-17) for r in mine], label=method, **style)
         ax.set_xlabel("seconds per DF point (median)")
@@ -212,7 +221,7 @@ def cost_growth(quick):
     return {"per_period": slope, "fixed": intercept, "points": by_periods, "sweeps": sweeps}
 
 
-def summary(rows, growth, quick, seconds):
+def summary(rows, growth, quick, seconds, failures=()):
     text = ["# Run time against error", "",
             f"{'Quick' if quick else 'Full'} set, measured in {seconds:.0f} s on this machine (2 shared cores): every "
             "method timed interleaved with the others, medians of repeats; errors of N against scipy DOP853 at rtol "
@@ -227,6 +236,8 @@ def summary(rows, growth, quick, seconds):
              f"(periods: {sorted(int(p) for p, _ in growth['points'])}).", "",
              "| sweep points | processes | seconds |", "|---|---|---|"]
     text += [f"| {size} | {jobs} | {t:.2f} |" for size, jobs, t in growth["sweeps"]]
+    if failures:
+        text += ["", "## Methods that gave up", "", "Recorded with an infinite error:", ""] + [f"- {f}" for f in failures]
     text += ["", "Process start-up (a spawned worker imports numpy and fmpy and loads the FMU) costs about a "
              "second, so two processes pay off only from a few hundred milliseconds of work on.", "",
              "## Every measurement", "", "| plant | method | setting | F | w | eps | error | seconds |",
