@@ -113,19 +113,23 @@ def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=()):
     if runs:
         ax = axes[0][1]
         for (cycle, run) in runs:
-            line, = ax.plot(run.time, run.position, lw=0.8, label=f"closed loop, predicted w = {cycle.omega:.4g}")
             tail = run.position[len(run.position) // 2:]
-            centre = 0.5 * (tail.max() + tail.min())
-            for sign in (1, -1):
-                ax.axhline(centre + sign * cycle.amplitude_x, ls="--", lw=0.8, color=line.get_color())
+            centre = 0.5 * (tail.max() + tail.min()) if np.all(np.isfinite(tail)) else 0.0
+            relative = (run.position - centre) / cycle.amplitude_x
+            kind = "stable" if cycle.stable else "unstable"
+            line, = ax.plot(run.time, relative, lw=0.8, label=f"from the {kind} cycle (w = {cycle.omega:.4g})")
             end = run.time[-1]
             for k in range(1, 4):
                 ax.axvline(end - k * cycle.period, ls=":", lw=0.6, color=line.get_color())
+        for sign in (1, -1):
+            ax.axhline(sign, ls="--", lw=0.8, color="k")
         longest = max(cycle.period for cycle, _ in runs)
         ax.set_xlim(max(run.time[-1] for _, run in runs) - 6 * longest, max(run.time[-1] for _, run in runs))
+        ax.set_ylim(-3, 3)
         ax.set_xlabel("t [s] (the last 6 periods)")
-        ax.set_ylabel("plant output")
+        ax.set_ylabel("plant output / predicted amplitude")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-        ax.set_title("the judge: co-simulation; dashed: predicted amplitude, dotted: predicted period", fontsize=9)
+        ax.set_title("the judge: co-simulation; dashed: predicted amplitude, dotted: predicted period\n"
+                     "(a run that leaves its cycle, as from an unstable one, runs off the plot)", fontsize=9)
     return save(figure, path.parent, path.stem)
