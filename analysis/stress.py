@@ -181,8 +181,8 @@ def _pattern(plant, params, segments, dt, note):
     return Case(plant, dict(params), times, stepping, inputs, note, input_form=form)
 
 
-def _friction_cases(rng, quick):
-    cases = []
+def _adder(plant, cases):
+    """add(params, ...) -> Case: a case of ``plant`` on a uniform grid (or given ``times``), appended to ``cases``."""
 
     def add(params, n_periods=10, per_period=32, note="", times=None, inputs=None, **kw):
         p = dict(params)
@@ -190,9 +190,17 @@ def _friction_cases(rng, quick):
             times, stepping = _periods(p, n_periods, per_period)
         else:
             times, stepping = times
-        case = Case("friction", p, times, stepping, inputs, note, **kw)
+        case = Case(plant, p, times, stepping, inputs, note, **kw)
         cases.append(case)
         return case
+
+    return add
+
+
+def _friction_cases(rng, quick):
+    cases = []
+
+    add = _adder("friction", cases)
 
     base = dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=10.0, omega=1.0)
     add(base, note="baseline Fs=Fc, B=0")
@@ -289,15 +297,7 @@ def _backlash_params(M1, M2, F, w, ratio):
 def _backlash_cases(rng, quick):
     cases = []
 
-    def add(params, n_periods=10, per_period=32, note="", times=None, **kw):
-        p = dict(params)
-        if times is None:
-            times, stepping = _periods(p, n_periods, per_period)
-        else:
-            times, stepping = times
-        case = Case("backlash", p, times, stepping, note=note, **kw)
-        cases.append(case)
-        return case
+    add = _adder("backlash", cases)
 
     base = dict(M1=1.0, M2=1.0, h=0.1, F=50.0, omega=20.0)
     for eps in EPS_VALUES:
@@ -384,15 +384,7 @@ def _random_backlash(rng, i):
 def _static_cases(rng, quick):
     cases = []
 
-    def add(params, n_periods=10, per_period=32, note="", times=None, **kw):
-        p = dict(params)
-        if times is None:
-            times, stepping = _periods(p, n_periods, per_period)
-        else:
-            times, stepping = times
-        case = Case("static", p, times, stepping, note=note, **kw)
-        cases.append(case)
-        return case
+    add = _adder("static", cases)
 
     def amp(M, F, w, ratio, k=1.0):  # h from X / h, X = F / (M w^2)
         return dict(M=M, k=k, h=F / (M * w * w * ratio), F=F, omega=w)
