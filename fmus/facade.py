@@ -49,7 +49,47 @@ class StepRefused(RuntimeError):
     """Raised inside the FMU so that the importer gets an error status."""
 
 
-class PlantFMU(Fmi2Slave):
+class SolverFMU(Fmi2Slave):
+    """What every dfwb FMU shares: metadata, errors through the FMI logger, a checked doStep.
+
+    A subclass creates ``self.solver`` at the end of initialisation; doStep
+    hands it the input named ``input_name``, held over the step.
+    """
+
+    input_name = "f"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.author = "dfwb"
+        self.description = self.__class__.__doc__.strip().splitlines()[0]
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
+        self.solver = None
+
+    def _fail(self, message):
+        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
+        raise StepRefused(message)
+
+    def do_step(self, current_time, step_size):
+        solver = self.solver
+        if solver is None:
+            self._fail("doStep called before initialisation")
+        if not (math.isfinite(step_size) and step_size > 0.0):
+            self._fail(f"communication step {step_size!r} at t = {current_time!r}: it must be > 0 and finite")
+        if not (abs(current_time - solver.t) <= 1e-9 * max(1.0, abs(solver.t))):  # NaN refused too
+            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {solver.t!r}")
+        try:
+            solver.set_input(getattr(self, self.input_name))
+            solver.advance(max(current_time + step_size, solver.t))
+        except PlantError as error:
+            self._fail(f"step from t = {current_time!r} refused: {error}")
+        self._refresh()
+        return True
+
+    def _refresh(self):
+        """Update cached outputs after a step (nothing to cache by default)."""
+
+
+class PlantFMU(SolverFMU):
     """Common facade: parameters, the input f, outputs and Fourier integrals."""
 
     solver_class = None
@@ -64,10 +104,6 @@ class PlantFMU(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.author = "dfwb"
-        self.description = self.__class__.__doc__.strip().splitlines()[0]
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
-        self.solver = None
         self._values = {}
         self._fourier = None
         for name, default, *_ in self.parameters + EXCITATION:
@@ -159,10 +195,6 @@ class PlantFMU(Fmi2Slave):
         return table
 
     # -- FMI ------------------------------------------------------------------
-    def _fail(self, message):
-        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
-        raise StepRefused(message)
-
     def exit_initialization_mode(self):
         kwargs = {name: getattr(self, name) for name, *_ in self.parameters + EXCITATION}
         try:
@@ -175,22 +207,6 @@ class PlantFMU(Fmi2Slave):
     def solver_kwargs(cls, kwargs):
         """The solver's keyword arguments from the FMU's parameter values."""
         return kwargs
-
-    def do_step(self, current_time, step_size):
-        solver = self.solver
-        if solver is None:
-            self._fail("doStep called before initialisation")
-        if not (math.isfinite(step_size) and step_size > 0.0):
-            self._fail(f"communication step {step_size!r} at t = {current_time!r}: it must be > 0 and finite")
-        if abs(current_time - solver.t) > 1e-9 * max(1.0, abs(solver.t)):
-            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {solver.t!r}")
-        try:
-            solver.set_input(self.f)
-            solver.advance(max(current_time + step_size, solver.t))
-        except PlantError as error:
-            self._fail(f"step from t = {current_time!r} refused: {error}")
-        self._refresh()
-        return True
 
     def _refresh(self):
         values = self._values
@@ -284,15 +300,13 @@ class StaticBacklash(PlantFMU):
         return self.solver.output() + (self.solver.engaged,)
 
 
-class LinearSystem(Fmi2Slave):
+class LinearSystem(SolverFMU):
     """Linear transfer function G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an), exact for a held input u."""
+
+    input_name = "u"
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.author = "dfwb"
-        self.description = self.__class__.__doc__.strip().splitlines()[0]
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
-        self.solver = None
         self.order = 1  # defaults: G(s) = 1 / (s + 1)
         for i in range(_MAX_ORDER + 1):
             setattr(self, f"b{i}", 1.0 if i == 1 else 0.0)
@@ -320,10 +334,6 @@ class LinearSystem(Fmi2Slave):
     def units(cls):
         """Every variable is dimensionless (the builder's unit pass)."""
         return {}
-
-    def _fail(self, message):
-        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
-        raise StepRefused(message)
 
     def _make_solver(self):
         """The solver from the parameters; PlantError names a bad one."""
@@ -353,20 +363,6 @@ class LinearSystem(Fmi2Slave):
         except PlantError as error:
             self._fail(f"invalid parameter: {error}")
 
-    def do_step(self, current_time, step_size):
-        solver = self.solver
-        if solver is None:
-            self._fail("doStep called before initialisation")
-        if not (math.isfinite(step_size) and step_size > 0.0):
-            self._fail(f"communication step {step_size!r} at t = {current_time!r}: it must be > 0 and finite")
-        if not (abs(current_time - solver.t) <= 1e-9 * max(1.0, abs(solver.t))):
-            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {solver.t!r}")
-        try:
-            solver.set_input(self.u)
-            solver.advance(max(current_time + step_size, solver.t))
-        except PlantError as error:
-            self._fail(f"step from t = {current_time!r} refused: {error}")
-        return True
 
 
 # -- naive fixed-step baselines ----------------------------------------------------

@@ -184,3 +184,10 @@ def test_fmus_from_different_sources_never_share_code(fmus, tmp_path, monkeypatc
     again = simulate(fmus["FrictionMass"], 5.0, 0.5, start, ["x"])
     assert np.array_equal(other["x"], current["x"] + 1.0)
     assert np.array_equal(again["x"], current["x"])
+
+
+def test_nan_communication_time_is_refused_by_the_fmu(raw_fmu):
+    fmu, messages = raw_fmu("FrictionMass")
+    with pytest.raises(Exception, match="fmi2DoStep failed"):
+        fmu.doStep(math.nan, 0.1)
+    assert (3, "FrictionMass: doStep at t = nan, but the FMU is at t = 0.0") in messages
