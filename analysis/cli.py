@@ -178,10 +178,30 @@ def cmd_stress(args):
     return 0 if outcome["failed"] == 0 else 1
 
 
+def _cache(args):
+    return False if args.no_cache else (args.cache or True)
+
+
+def cmd_run(args):
+    from .runner import run_scene
+
+    for path in args.scenes:
+        single = len(args.scenes) == 1 and args.out
+        out = args.out if single else (args.out or Path("out/scenes")) / path.stem
+        o = run_scene(path, out, args.jobs, args.dask, _cache(args), args.fmus, progress=not args.quiet)
+        if o.up_to_date:
+            print(f"{o.out_dir}/summary.md: up to date ({o.points} points, {len(o.figures)} figure(s)), "
+                  f"{o.seconds:.2f} s")
+        else:
+            print(f"{o.out_dir}/summary.md: {o.points} points ({o.computed} computed, {o.cache_hits} cached, "
+                  f"{o.resumed} resumed), {len(o.figures)} figure(s), {o.seconds:.1f} s")
+    return 0
+
+
 def cmd_paper(args):
     from .paper import run_paper
 
-    run_paper(args.out, args.jobs, args.fmus, progress=not args.quiet)
+    run_paper(args.out, args.jobs, args.fmus, progress=not args.quiet, cache=_cache(args), dask=args.dask)
     return 0
 
 
@@ -265,11 +285,27 @@ def parser():
     stress.add_argument("--parts", type=int, default=1, help="split the set into this many pieces (default: 1)")
     stress.set_defaults(run=cmd_stress)
 
-    paper = commands.add_parser("paper", help="reproduce the paper's figures 3-6 and 8-12 and write report.md")
+    def scene_options(command):
+        command.add_argument("--jobs", type=int, default=None,
+                             help="worker processes, or Dask workers with --dask local (default: all cores)")
+        command.add_argument("--dask", metavar="ADDRESS|local",
+                             help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
+        command.add_argument("--cache", type=Path, metavar="DIR",
+                             help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
+        command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+        command.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+        command.add_argument("--quiet", action="store_true", help="no progress display")
+
+    run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
+    run.add_argument("scenes", type=Path, nargs="+", metavar="SCENE.toml", help="scene file(s), e.g. scenes/*.toml")
+    run.add_argument("--out", type=Path, help="output folder (default: out/scenes/<scene>; with several scenes, "
+                                              "one subfolder each)")
+    scene_options(run)
+    run.set_defaults(run=cmd_run)
+
+    paper = commands.add_parser("paper", help="run the paper's scenes (figures 3-6, 8-12) and write report.md")
     paper.add_argument("--out", type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")
-    paper.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
-    paper.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
-    paper.add_argument("--quiet", action="store_true", help="no progress bars")
+    scene_options(paper)
     paper.set_defaults(run=cmd_paper)
 
     demo = commands.add_parser("demo", help="drive each FMU with a sine through fmpy and plot the response")
@@ -286,7 +322,7 @@ def main(argv=None):
     args = top.parse_args(argv)
     try:
         return args.run(args)
-    except (InputError, PlantError, ValueError) as error:
+    except (InputError, PlantError, ValueError, RuntimeError) as error:
         top.exit(2, f"dfwb {args.command}: error: {error}\n")
     except KeyboardInterrupt:
         top.exit(130, f"dfwb {args.command}: interrupted\n")

@@ -51,7 +51,7 @@ class DFResult:
     omega: float
     params: dict
     N: complex
-    harmonics: list  # |X_k|, k = 0..10
+    harmonics: list  # |X_k|, k = 0..10 (0..1 for an engine with harmonics=1)
     periodic: bool
     periods: int  # forcing periods simulated, shooting included
     seconds: float
@@ -75,6 +75,14 @@ class DFResult:
             "periodic": self.periodic, "periods": self.periods, "orbit_periods": self.orbit_periods,
             "harmonics": list(self.harmonics), "seconds": self.seconds, "note": self.note,
         }
+
+    @classmethod
+    def from_dict(cls, data):
+        """The result back from :meth:`as_dict` (complex X_k are not kept there)."""
+        return cls(plant=data["plant"], F=data["F"], omega=data["omega"], params=dict(data["params"]),
+                   N=complex(data["N_re"], data["N_im"]), harmonics=list(data["harmonics"]),
+                   periodic=data["periodic"], periods=data["periods"], seconds=data["seconds"],
+                   drive=data["drive"], note=data["note"], orbit_periods=data["orbit_periods"])
 
 
 def check_point(F, omega):
@@ -103,10 +111,16 @@ class DFEngine:
     model : str, optional
         Another FMI facade of the same plant interface, by class name (the
         benchmark's fixed-step baselines).
+    harmonics : int
+        Harmonics X_0..X_harmonics recorded (1 to 10). The FMU integrates only
+        those, so a DF-only study (1) does less work per event.
+    fmu : path, optional
+        The FMU file itself, used as given (e.g. one shipped to a Dask worker);
+        by default the plant's FMU in ``fmu_dir``.
     """
 
     def __init__(self, plant, fmu_dir=DEFAULT_FMU_DIR, drive="internal", samples_per_period=64, max_periods=150,
-                 model=None):
+                 model=None, harmonics=HARMONICS, fmu=None):
         self.plant = find_plant(plant)
         if model is not None:  # another FMU of the same plant interface (e.g. a fixed-step baseline)
             variants = [m for m in facade.FACADES if issubclass(m, self.plant.model)]
@@ -119,12 +133,15 @@ class DFEngine:
             raise PlantError(f"drive {drive!r} is not allowed (allowed: {', '.join(DRIVES)})")
         if not (isinstance(samples_per_period, int) and samples_per_period >= 4):
             raise PlantError(f"samples_per_period = {samples_per_period!r} is out of range: an integer >= 4")
+        if not (isinstance(harmonics, int) and 1 <= harmonics <= HARMONICS):
+            raise PlantError(f"harmonics = {harmonics!r} is out of range: an integer from 1 to {HARMONICS}")
         self.drive = drive
+        self.harmonics = harmonics
         self.samples = samples_per_period if drive == "input" else 1
         self.max_periods = max_periods
-        path = fmu_path(self.plant, fmu_dir)
+        path = fmu if fmu is not None else fmu_path(self.plant, fmu_dir)
         self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
-        fourier = [f"I{part}{k}" for k in range(HARMONICS + 1) for part in "cs"]
+        fourier = [f"I{part}{k}" for k in range(harmonics + 1) for part in "cs"]
         counter = "impacts" if plant == "backlash" else "events"
         self._valid = {}
         self._real_names = list(self.plant.section) + fourier
@@ -140,7 +157,8 @@ class DFEngine:
         h = dict(self.plant.defaults(), **params).get("h", 0.0)
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
                   for name in self.plant.section]
-        base = dict(params, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0, harmonics=HARMONICS)
+        base = dict(params, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0,
+                    harmonics=self.harmonics)
         result = _Search(self, F, omega, base, scales, self.plant.translation(params)).run()
         result.plant, result.params, result.drive = self.plant.name, params, self.drive
         result.seconds = time.perf_counter() - started
@@ -169,7 +187,7 @@ class DFEngine:
             section, current, count = self._read(session)
             width = session.time - t0
             X = [(current[0] - previous[0]) / width] + [
-                2.0 * (current[k] - previous[k]) / width for k in range(1, HARMONICS + 1)]
+                2.0 * (current[k] - previous[k]) / width for k in range(1, self.harmonics + 1)]
             previous = current
             yield section, X, count
 
@@ -178,7 +196,7 @@ class DFEngine:
         n = len(self.plant.section)
         reals = session.reals(self._real_names)
         integers = session.integers(self._integer_names)
-        integrals = [complex(reals[n + 2 * k], -reals[n + 2 * k + 1]) for k in range(HARMONICS + 1)]
+        integrals = [complex(reals[n + 2 * k], -reals[n + 2 * k + 1]) for k in range(self.harmonics + 1)]
         return (tuple(reals[:n]), tuple(integers[:-1])), integrals, integers[-1]
 
 
@@ -276,13 +294,13 @@ class _Search:
         if drift:
             # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
             c = drift * self.omega / (2 * math.pi)
-            X = [X[0] - drift / 2] + [X[k] - 2j * c / (k * self.omega) for k in range(1, HARMONICS + 1)]
+            X = [X[0] - drift / 2] + [X[k] - 2j * c / (k * self.omega) for k in range(1, len(X))]
             note = f"periodic up to a steady drift of {drift:.3g} m per period (removed from the harmonics)"
         never = NEVER_ENGAGED.get(self.engine.plant.name)
         # No engagement in the orbit, or only grazes (x touching the edge at its extremum)
         # that move the output by rounding: the output is constant, its harmonics are 0.
         if never and (engagements == 0 or abs(X[1]) <= 1e-12 * self.scales[0]):
-            X, note = [X[0]] + [0j] * HARMONICS, never
+            X, note = [X[0]] + [0j] * (len(X) - 1), never
         return self.result(X, periodic, orbit, note)
 
     def extrapolate(self, sections):

@@ -1,42 +1,32 @@
 """Reproduce the figures of Barbosa, Machado and Ferreira (2003) and write a report.
 
-``dfwb paper`` computes every dataset as a resumable sweep under
-``OUT/data/<name>/`` (so a second run only redraws), draws figures 3-6 and
-8-12 of MODELS.md with the paper's axes, parameters and labels as
-``figNN_*.png`` and ``.svg``, and writes ``report.md``: the figures, the
-validity frequencies, the DF values behind each figure, and what the
-data say about each statement of the paper, measured, not asserted.
+Each figure is a scene, ``scenes/figNN_*.toml``: its DF series and time
+traces, and a figure of kind ``paper``. ``dfwb paper`` runs those scenes
+(:mod:`dfwb.runner`, so shared points are computed once and a second run
+only redraws from the cache), draws figures 3-6 and 8-12 of MODELS.md with
+the paper's axes, parameters and labels, and writes ``report.md``: the
+figures, the validity frequencies, the DF values behind each figure, and
+what the data say about each statement of the paper, measured, not asserted.
 """
 
 import json
 import time
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from . import plots
 from .closed_forms import static_backlash_plant_df, validity_frequencies
-from .plants import DEFAULT_FMU_DIR, fmu_path
-from .simulation import simulate
-from .sweep import grid, run_sweep
+from .plants import DEFAULT_FMU_DIR
+from .scene import PAPER_FIGURES as FIGURES
 
 FRICTION_F = [10.0, 20.0, 30.0, 40.0, 50.0]
 FRICTION_MARKS = [30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0]
-OMEGA_FRICTION = sorted(set(np.round(np.geomspace(1e-2, 1e2, 41), 12)) | set(FRICTION_MARKS))
 BACKLASH_MARKS = [15.0, 20.0, 25.0, 30.0, 35.0, 40.0]
-OMEGA_BACKLASH = sorted(set(np.round(np.geomspace(1.0, 100.0, 41), 12)) | set(BACKLASH_MARKS))
 EPS_FIG8 = [0.1, 0.3, 0.5, 0.7, 0.9]
 EPS_FIG9 = [0.2, 0.8]
 KARNOPP_DV = [1e-2, 1e-3]
-
-DATASETS = {  # name: (plant, points)
-    "friction": ("friction", grid(FRICTION_F, OMEGA_FRICTION)),
-    "friction_linear": ("friction", grid([10.0], OMEGA_FRICTION, {"Fc": 0.0, "Fs": 0.0})),
-    "friction_karnopp": ("friction", grid([10.0], OMEGA_FRICTION, grid_params={"Dv": KARNOPP_DV})),
-    "backlash_F50": ("backlash", grid([50.0], OMEGA_BACKLASH, grid_params={"eps": sorted(EPS_FIG8 + EPS_FIG9)})),
-    "backlash_F": ("backlash", grid(FRICTION_F[:-1], OMEGA_BACKLASH, grid_params={"eps": EPS_FIG9})),
-    "static": ("static-backlash", grid([50.0], OMEGA_BACKLASH)),
-}
 
 
 def select(rows, F=None, **params):
@@ -65,14 +55,14 @@ def distortion(row):
 
 
 class Paper:
-    """The figures and the report; ``data`` maps dataset names to sweep rows."""
+    """The figures and their report sections; ``data``: series name -> rows, ``traces``: name -> columns."""
 
-    def __init__(self, out_dir, data, fmus):
-        self.out, self.data, self.fmus = Path(out_dir), data, fmus
-        self.sections = []  # (title, markdown) of the report
+    def __init__(self, out_dir, data, traces):
+        self.out, self.data, self.traces = Path(out_dir), data, traces
+        self.sections = []  # (title, png, markdown) of the report
 
     def add(self, title, png, text):
-        self.sections.append((title, f"![{title}]({png.name})\n\n{text}\n"))
+        self.sections.append((title, png, text))
 
     # -- friction ----------------------------------------------------------------
     def fig03(self):
@@ -132,9 +122,8 @@ class Paper:
         figure, ax = plots.plt.subplots(figsize=(7, 4))
         omega = 0.5
         for F, scale in ((10.0, 1.0), (50.0, 0.1)):
-            result = simulate(self.fmus["FrictionMass"], 95.0, 0.02, {"F": F, "omega": omega}, ["x"])
-            keep = result["time"] >= 65.0
-            ax.plot(result["time"][keep], scale * result["x"][keep],
+            trace = self.traces[f"friction_F{F:g}"]
+            ax.plot(trace["time"], scale * np.array(trace["x"]),
                     label=f"F = {F:g} N" + (" (x 1/10)" if scale != 1.0 else ""))
         ax.set_xlabel("t [s]")
         ax.set_ylabel("x(t) [m]")
@@ -227,10 +216,8 @@ class Paper:
         figure, axes = plots.plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
         notes, chaotic = [], []
         for ax, (omega, eps) in zip(axes, ((20.0, 0.8), (40.0, 0.2))):
-            result = simulate(self.fmus["TwoMassBacklash"], 2.1, 0.0002, {"F": 50.0, "omega": omega, "eps": eps},
-                              ["v1"])
-            keep = result["time"] >= 1.65
-            ax.plot(result["time"][keep], result["v1"][keep], lw=1)
+            trace = self.traces[f"backlash_w{omega:g}_eps{eps * 10:02.0f}"]
+            ax.plot(trace["time"], trace["v1"], lw=1)
             ax.set_ylabel("dx1/dt [m/s]")
             ax.set_title(f"Fig. 11: F = 50 N, w = {omega:g} rad/s, eps = {eps:g}", fontsize=9)
             ax.grid(alpha=0.3)
@@ -308,41 +295,56 @@ class Paper:
                 f"w = {omega[i]:.3g} and {omega[i + 1]:.3g} rad/s (a factor {np.exp(ratios[i]):.2g}); "
                 f"the paper's w_J = {w_J:.3g} rad/s: a jump near w_J {verdict(near)}.")
 
-    def write_report(self, seconds):
-        rows = ["| F [N] | eps | w_C | w_J | w_L |", "|---|---|---|---|---|"]
-        for F in FRICTION_F:
-            for eps in sorted(set(EPS_FIG8 + EPS_FIG9)):
-                w = validity_frequencies(F, eps=eps)
-                rows.append(f"| {F:g} | {eps:g} | {w['w_C']:.3g} | {w['w_J']:.3g} | {w['w_L']:.3g} |")
-        text = ["# The paper, reproduced", "",
-                "Barbosa, Machado and Ferreira, *Describing function analysis of mechanical systems with nonlinear "
-                "friction and backlash phenomena* (IFAC 2003), recomputed by dfwb with exact event-driven FMUs "
-                "(friction: exact stick, CVS model; Karnopp's band shown on Fig. 4). Convention: input F cos(w t) "
-                "from rest, N = X1 / F of the periodic steady state (MODELS.md).", "",
-                f"Computed in {seconds:.1f} s. Data: `data/<dataset>/results.csv` and `.json`.", "",
-                "## Validity frequencies of the dynamic backlash (M2 = 1 kg, h = 0.1 m)", "",
-                "w_C = [(2F/(M2 h))^2 (1 - eps)^5]^(1/4) < w < w_L = 2 (F/(M2 h))^(1/2), jump near "
-                "w_J = (F/(M2 h))^(1/2), in rad/s:", ""] + rows + [""]
-        for title, body in self.sections:
-            text += [f"## {title}", "", body]
-        (self.out / "report.md").write_text("\n".join(text))
 
 
-def run_paper(out_dir="out/paper", jobs=None, fmu_dir=DEFAULT_FMU_DIR, progress=True, report=print):
-    """Compute the datasets (resumable), draw every figure and write report.md."""
+def write_report(out_dir, sections, seconds):
+    """report.md: the validity frequencies, then each figure with what the data say."""
+    out_dir = Path(out_dir)
+    rows = ["| F [N] | eps | w_C | w_J | w_L |", "|---|---|---|---|---|"]
+    for F in FRICTION_F:
+        for eps in sorted(set(EPS_FIG8 + EPS_FIG9)):
+            w = validity_frequencies(F, eps=eps)
+            rows.append(f"| {F:g} | {eps:g} | {w['w_C']:.3g} | {w['w_J']:.3g} | {w['w_L']:.3g} |")
+    text = ["# The paper, reproduced", "",
+            "Barbosa, Machado and Ferreira, *Describing function analysis of mechanical systems with nonlinear "
+            "friction and backlash phenomena* (IFAC 2003), recomputed by dfwb with exact event-driven FMUs "
+            "(friction: exact stick, CVS model; Karnopp's band shown on Fig. 4). Convention: input F cos(w t) "
+            "from rest, N = X1 / F of the periodic steady state (MODELS.md).", "",
+            f"Computed in {seconds:.1f} s from the scenes `scenes/fig*.toml`. Data, figures and a summary of each "
+            "scene: `<scene>/results.csv`, `results.json`, `summary.md`.", "",
+            "## Validity frequencies of the dynamic backlash (M2 = 1 kg, h = 0.1 m)", "",
+            "w_C = [(2F/(M2 h))^2 (1 - eps)^5]^(1/4) < w < w_L = 2 (F/(M2 h))^(1/2), jump near "
+            "w_J = (F/(M2 h))^(1/2), in rad/s:", ""] + rows + [""]
+    for title, png, body in sections:
+        text += [f"## {title}", "", f"![{title}]({png.relative_to(out_dir).as_posix()})", "", body, ""]
+    path = out_dir / "report.md"
+    path.write_text("\n".join(text))
+    return path
+
+
+def paper_scenes():
+    """The shipped scenes of the paper's figures: those that record harmonics first (their points then
+    serve the DF-only scenes from the cache), then in figure order."""
+    from .scene import load_scene
+
+    paths = [Path(str(path)) for path in resources.files("dfwb.scenes").iterdir()
+             if path.name.startswith("fig") and path.name.endswith(".toml")]
+    return sorted(paths, key=lambda path: (not load_scene(path).needs_harmonics, path.name))
+
+
+def run_paper(out_dir="out/paper", jobs=None, fmu_dir=DEFAULT_FMU_DIR, progress=True, report=print, cache=True,
+              dask=None):
+    """Run every paper scene into ``out_dir/<scene>/`` and write ``out_dir/report.md``."""
+    from .runner import run_scene
+
     started = time.perf_counter()
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fmus = {name: fmu_path(name, fmu_dir) for name in ("FrictionMass", "TwoMassBacklash", "StaticBacklash")}
-    data = {}
-    for name, (plant, points) in DATASETS.items():
-        run_sweep(plant, points, out_dir / "data" / name, jobs=jobs, fmu_dir=fmu_dir, progress=progress)
-        data[name] = json.loads((out_dir / "data" / name / "results.json").read_text())
-    paper = Paper(out_dir, data, fmus)
-    for figure in (paper.fig03, paper.fig04, paper.fig05, paper.fig06, paper.fig08, paper.fig09,
-                   paper.fig10, paper.fig11, paper.fig12):
-        figure()
+    sections = []
+    for scene in paper_scenes():
+        outcome = run_scene(scene, out_dir / scene.stem, jobs, dask, cache, fmu_dir, progress)
+        sections += outcome.sections
+    sections.sort(key=lambda section: section[1].name)  # figure order
     seconds = time.perf_counter() - started
-    paper.write_report(seconds)
-    report(f"{out_dir}/report.md and {len(paper.sections)} figures written in {seconds:.1f} s")
-    return out_dir / "report.md"
+    path = write_report(out_dir, sections, seconds)
+    report(f"{path} and {len(sections)} figures written in {seconds:.1f} s")
+    return path

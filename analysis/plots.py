@@ -1,5 +1,8 @@
 """Plot helpers for describing functions: Nyquist loci, Bode-like magnitudes, harmonic maps."""
 
+import json
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -77,11 +80,68 @@ def save(figure, out_dir, name):
     """PNG and SVG of a figure; returns the PNG path."""
     if figure.get_layout_engine() is None:
         figure.tight_layout()
-    png = out_dir / f"{name}.png"
-    figure.savefig(png, dpi=120)
-    figure.savefig(out_dir / f"{name}.svg")
+    for kind in ("png", "svg"):  # atomically: an interrupted run never leaves half a figure
+        partial = out_dir / f".{name}.{kind}.partial"
+        figure.savefig(partial, dpi=120, format=kind)
+        partial.replace(out_dir / f"{name}.{kind}")
     plt.close(figure)
-    return png
+    return out_dir / f"{name}.png"
+
+
+def curves_of(data, names):
+    """[(label, rows, style)]: one curve per series, force and parameter set (the frequency varies)."""
+    curves = []
+    for name in names:
+        groups = {}
+        for r in data[name]:
+            groups.setdefault((r["F"], json.dumps(r["params"], sort_keys=True)), []).append(r)
+        for (F, params), rows in groups.items():
+            extra = ", ".join(f"{k} = {v:g}" for k, v in json.loads(params).items())
+            label = f"{name}: F = {F:g} N" + (f", {extra}" if extra else "")
+            curves.append((label, rows, {}))
+    return curves
+
+
+def scene_figure(out_dir, figure, data, traces, scene):
+    """A scene's figure of kind nyquist, re_im, harmonics or trace; returns the PNG path."""
+    title = figure.title or f"{scene.title}: {figure.name}"
+    if figure.kind == "trace":
+        outputs = sorted({o for name in figure.series for o in traces[name] if o != "time"})
+        fig, axes = plt.subplots(len(outputs), 1, figsize=(7, 2.6 * len(outputs)), sharex=True, squeeze=False)
+        for ax, output in zip(axes[:, 0], outputs):
+            for name in figure.series:
+                if output in traces[name]:
+                    ax.plot(traces[name]["time"], traces[name][output], lw=1, label=name)
+            ax.set_ylabel(output)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[0, 0].set_title(title, fontsize=9)
+        ax = axes[0, 0]
+    elif figure.kind == "harmonics":
+        curves = curves_of(data, figure.series)
+        fig, axes = plt.subplots(1, len(curves), figsize=(5 * len(curves), 4), squeeze=False, layout="constrained")
+        for ax, (label, rows, _) in zip(axes[0], curves):
+            mesh = harmonic_map(ax, rows, label)
+        fig.colorbar(mesh, ax=axes[0].tolist(), label="log10 |X_k|")
+        fig.suptitle(title, fontsize=9)
+        ax = axes[0, 0]
+    elif figure.kind == "re_im":
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+        re_im_loglog(axes, curves_of(data, figure.series))
+        axes[0].legend(fontsize=7)
+        axes[0].set_title(title, fontsize=9)
+        ax = axes[0]
+    else:
+        fig, ax = plt.subplots(figsize=(6.5, 5))
+        nyquist(ax, curves_of(data, figure.series), figure.marks)
+        ax.legend(fontsize=7)
+        ax.set_title(title, fontsize=9)
+    if figure.xlim:
+        ax.set_xlim(*figure.xlim)
+    if figure.ylim:
+        ax.set_ylim(*figure.ylim)
+    return save(fig, Path(out_dir), figure.name)
 
 
 def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=()):

@@ -9,19 +9,18 @@ is kept in ``sweep.json``: resuming a different sweep into the same folder is
 refused rather than mixed.
 """
 
-import concurrent.futures as futures
 import csv
 import itertools
 import json
-import multiprocessing
 import os
 import time
 from pathlib import Path
 
 from tqdm import tqdm
 
-from .describing import HARMONICS, DFEngine, check_point
-from .plants import DEFAULT_FMU_DIR, plant as find_plant
+from .describing import HARMONICS, check_point
+from .executor import Chunk, Executor, chunked
+from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from dfwb.fmus.piecewise import PlantError
 
 COLUMNS = (["plant", "F", "omega", "params", "drive", "N_re", "N_im", "minus_inv_N_re", "minus_inv_N_im",
@@ -41,13 +40,13 @@ def key(F, omega, params):
     return (repr(float(F)), repr(float(omega)), json.dumps(params, sort_keys=True))
 
 
-def row(result):
-    """A CSV row of a DF result, as text exactly as the CSV holds it (floats round-trip)."""
-    data = result.as_dict()
+def row(data):
+    """A CSV row of a DF result's as_dict(), as text exactly as the CSV holds it (floats round-trip)."""
+    data = dict(data)
     data["params"] = json.dumps(data["params"], sort_keys=True)
     for k, value in enumerate(data.pop("harmonics")):
         data[f"X{k}"] = value
-    return {name: "" if data[name] is None else str(data[name]) for name in COLUMNS}
+    return {name: "" if data.get(name) is None else str(data[name]) for name in COLUMNS}
 
 
 def read_rows(path):
@@ -61,40 +60,39 @@ def read_rows(path):
     return list(csv.DictReader(text.splitlines()))
 
 
-def as_json(rows):
+def parse_row(r):
+    """The DF result's as_dict() back from its CSV row."""
     def number(value):
         return None if value == "" else float(value)
 
-    out = []
-    for r in rows:
-        out.append({
-            "plant": r["plant"], "F": float(r["F"]), "omega": float(r["omega"]), "params": json.loads(r["params"]),
-            "drive": r["drive"], "N": [float(r["N_re"]), float(r["N_im"])],
-            "minus_inv_N": None if number(r["minus_inv_N_re"]) is None
-            else [number(r["minus_inv_N_re"]), number(r["minus_inv_N_im"])],
+    return {"plant": r["plant"], "F": float(r["F"]), "omega": float(r["omega"]), "params": json.loads(r["params"]),
+            "drive": r["drive"], "N_re": float(r["N_re"]), "N_im": float(r["N_im"]),
+            "minus_inv_N_re": number(r["minus_inv_N_re"]), "minus_inv_N_im": number(r["minus_inv_N_im"]),
             "periodic": r["periodic"] == "True", "periods": int(r["periods"]),
             "orbit_periods": int(r["orbit_periods"]), "seconds": float(r["seconds"]), "note": r["note"],
-            "harmonics": [float(r[f"X{k}"]) for k in range(HARMONICS + 1)],
-        })
+            "harmonics": [float(r[f"X{k}"]) for k in range(HARMONICS + 1) if r[f"X{k}"] != ""]}
+
+
+def json_form(result):
+    """An as_dict() for results.json: complex N and -1/N as [re, im] pairs."""
+    out = {name: result[name] for name in ("plant", "F", "omega", "params", "drive")}
+    out["N"] = [result["N_re"], result["N_im"]]
+    out["minus_inv_N"] = (None if result["minus_inv_N_re"] is None
+                          else [result["minus_inv_N_re"], result["minus_inv_N_im"]])
+    out.update({name: result[name] for name in ("periodic", "periods", "orbit_periods", "seconds", "note",
+                                                 "harmonics")})
     return out
+
+
+def as_json(rows):
+    """results.json entries of CSV rows."""
+    return [json_form(parse_row(r)) for r in rows]
 
 
 def write_atomic(path, text):
     partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
     partial.write_text(text)
     partial.replace(path)
-
-
-_ENGINE = None
-
-
-def _init_worker(plant, fmu_dir, drive, samples):
-    global _ENGINE
-    _ENGINE = DFEngine(plant, fmu_dir, drive, samples)
-
-
-def _compute(points):
-    return [row(_ENGINE.point(F, omega, params)) for F, omega, params in points]
 
 
 def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=64,
@@ -151,24 +149,11 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
                 _write_json(out_dir, points, done)
                 last_json = time.monotonic()
 
-        if jobs == 1:
-            _init_worker(plant, fmu_dir, drive, samples_per_period)
-            for point in pending:
-                record(_compute([point]))
-        else:
-            size = max(1, min(16, len(pending) // (jobs * 4)))
-            chunks = [pending[i:i + size] for i in range(0, len(pending), size)]
-            context = multiprocessing.get_context("spawn")
-            with futures.ProcessPoolExecutor(jobs, context, _init_worker,
-                                             (plant, fmu_dir, drive, samples_per_period)) as pool:
-                waiting = [pool.submit(_compute, chunk) for chunk in chunks]
-                try:
-                    for future in futures.as_completed(waiting):
-                        record(future.result())
-                except BaseException:
-                    for future in waiting:
-                        future.cancel()
-                    raise
+        settings = (("drive", drive), ("samples_per_period", samples_per_period))
+        fmu = str(fmu_path(spec, fmu_dir))
+        with Executor(jobs) as executor:
+            for _chunk, results in executor.run(Chunk(plant, fmu, settings, c) for c in chunked(pending, jobs)):
+                record([row(r) for r in results])
     return _write_json(out_dir, points, done)
 
 

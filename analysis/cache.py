@@ -1,0 +1,103 @@
+"""A content-addressed cache of computed results (DF points, traces, limit cycles).
+
+An entry's key is the SHA-256 of everything that determines its value: the
+kind of result, the FMU's content hash, the engine's source revision, the
+complete parameter set (defaults filled in, so ``eps = 0.5`` given or
+defaulted is the same point), the point and the engine settings. A second
+run of a scene, or another scene sharing points, finds them here; a changed
+parameter gives new keys for exactly the affected points.
+
+Each entry is one JSON file, written atomically, that repeats its key
+document and carries a checksum of its value. An entry that does not parse,
+whose format, key or checksum does not match, is counted as rejected and
+recomputed: a corrupt cache, or one from another version, is never trusted.
+
+The cache lives in ``$XDG_CACHE_HOME/dfwb``, else ``~/.cache/dfwb``.
+
+Examples
+--------
+>>> import tempfile
+>>> cache = Cache(tempfile.mkdtemp())
+>>> cache.get({"kind": "demo", "x": 1.0}) is None
+True
+>>> cache.put({"kind": "demo", "x": 1.0}, {"y": 2.0})
+>>> cache.get({"kind": "demo", "x": 1.0}), cache.hits, cache.rejected
+({'y': 2.0}, 1, 0)
+"""
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+FORMAT = 1
+
+
+def default_dir():
+    """``$XDG_CACHE_HOME/dfwb``, else ``~/.cache/dfwb``."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "dfwb"
+
+
+def canonical(document):
+    """The one JSON text of a document (sorted keys, floats as repr: they round-trip)."""
+    return json.dumps(document, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def digest(document):
+    return hashlib.sha256(canonical(document).encode()).hexdigest()
+
+
+class Cache:
+    """Entries under ``directory/v<FORMAT>/<2 hex>/<sha256>.json``; counts hits, misses and rejects."""
+
+    def __init__(self, directory=None):
+        self.root = Path(directory) if directory is not None else default_dir()
+        self.dir = self.root / f"v{FORMAT}"
+        self.hits = self.misses = self.rejected = 0
+
+    def _path(self, key):
+        name = digest(key)
+        return self.dir / name[:2] / f"{name}.json"
+
+    def get(self, key):
+        """The value stored under ``key``, or None (missing, corrupt or not this version's)."""
+        path = self._path(key)
+        try:
+            entry = json.loads(path.read_bytes())
+            valid = (isinstance(entry, dict) and entry.get("format") == FORMAT
+                     and entry.get("key") == json.loads(canonical(key))
+                     and entry.get("sha256") == digest(entry.get("value")))
+        except FileNotFoundError:
+            self.misses += 1
+            return None
+        except (OSError, ValueError, TypeError):
+            valid = False
+        if not valid:
+            self.rejected += 1
+            return None
+        self.hits += 1
+        return entry["value"]
+
+    def put(self, key, value):
+        """Store ``value`` (JSON-able, finite floats) under ``key``, atomically."""
+        path = self._path(key)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        entry = {"format": FORMAT, "key": key, "sha256": digest(value), "value": value}
+        partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+        partial.write_text(canonical(entry))
+        partial.replace(path)
+
+
+class NoCache:
+    """``--no-cache``: remembers nothing, finds nothing."""
+
+    root = None
+    hits = misses = rejected = 0
+
+    def get(self, key):
+        self.misses += 1
+        return None
+
+    def put(self, key, value):
+        pass

@@ -1,0 +1,151 @@
+"""Where DF points are computed: in this process, in local processes, or on a Dask cluster.
+
+Work goes out in chunks of points of one plant with one engine setting;
+results come back as each chunk finishes, in any order, so the caller can
+record them at once. The three backends give identical results (the
+computation is deterministic; only the ``seconds`` field differs):
+
+- ``jobs=1``: this process (no start-up cost, easiest to debug);
+- default: a pool of spawned local processes, one engine per plant each;
+- ``dask="local"`` starts a ``distributed.LocalCluster``; ``dask="tcp://host:8786"``
+  uses a running scheduler. The FMU files are shipped to the workers (scattered
+  once, written to each worker's temporary directory under their SHA-256), so
+  a worker needs dfwb installed but neither the FMUs nor a build.
+"""
+
+import concurrent.futures as futures
+import hashlib
+import multiprocessing
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from .describing import DFEngine
+
+_ENGINES = {}  # per worker process: (plant, settings, FMU file) -> DFEngine
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Points [(F, omega, params)] of one plant, one FMU and one engine setting."""
+
+    plant: str
+    fmu: str  # path of the FMU file where it was built
+    settings: tuple  # sorted (name, value) pairs for DFEngine: drive, samples_per_period, max_periods, harmonics
+    points: tuple
+
+
+def compute(chunk, fmu_data=None):
+    """The as_dict() of every point of a chunk; ``fmu_data``: the FMU's bytes, shipped to a remote worker."""
+    path = _materialize(chunk.fmu, fmu_data) if fmu_data is not None else chunk.fmu
+    key = (chunk.plant, chunk.settings, str(path))
+    if key not in _ENGINES:
+        _ENGINES[key] = DFEngine(chunk.plant, fmu=path, **dict(chunk.settings))
+    engine = _ENGINES[key]
+    return [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
+
+
+def _materialize(original, data):
+    """A local copy of shipped FMU bytes, named by their hash (written once per worker machine)."""
+    digest = hashlib.sha256(data).hexdigest()
+    path = Path(tempfile.gettempdir()) / "dfwb-fmus" / digest[:16] / Path(original).name
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+        partial.write_bytes(data)
+        partial.replace(path)
+    return path
+
+
+def chunked(points, jobs, largest=16):
+    """Chunks small enough to balance ``jobs`` workers, large enough to amortise a round trip."""
+    size = max(1, min(largest, len(points) // (max(jobs, 1) * 4)))
+    return [tuple(points[i:i + size]) for i in range(0, len(points), size)]
+
+
+class Executor:
+    """Runs chunks; use as a context manager. ``jobs``: workers (default: all cores)."""
+
+    def __init__(self, jobs=None, dask=None):
+        self.jobs = max(1, jobs or os.cpu_count() or 1)
+        self.dask = dask
+        self._pool = self._client = self._cluster = None
+        self._shipped = {}
+
+    @property
+    def name(self):
+        if self.dask:
+            return f"dask ({self.dask})"
+        return "this process" if self.jobs == 1 else f"{self.jobs} local processes"
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._pool = self._client = self._cluster = None
+
+    def run(self, chunks):
+        """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest."""
+        chunks = list(chunks)
+        if not chunks:
+            return
+        if self.dask:
+            yield from self._run_dask(chunks)
+        elif self.jobs == 1 or len(chunks) == 1:
+            for chunk in chunks:
+                yield chunk, compute(chunk)
+        else:
+            if self._pool is None:
+                self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
+                                                         multiprocessing.get_context("spawn"))
+            waiting = {self._pool.submit(compute, chunk): chunk for chunk in chunks}
+            try:
+                for future in futures.as_completed(waiting):
+                    yield waiting[future], future.result()
+            finally:
+                for future in waiting:
+                    future.cancel()
+
+    # -- Dask ------------------------------------------------------------------------
+    def client(self):
+        """The dask.distributed client (a LocalCluster of ``jobs`` single-threaded workers for "local")."""
+        if self._client is None:
+            try:
+                from distributed import Client, LocalCluster
+            except ImportError:
+                raise RuntimeError("--dask needs dask.distributed: pip install 'dfwb[dask]'") from None
+            if self.dask == "local":
+                self._cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                             dashboard_address=None)
+                self._client = Client(self._cluster)
+            else:
+                try:
+                    self._client = Client(self.dask, timeout="20s")
+                except (OSError, TimeoutError, ValueError) as error:
+                    raise RuntimeError(f"cannot reach the Dask scheduler {self.dask!r}: {error}") from None
+        return self._client
+
+    def _run_dask(self, chunks):
+        from distributed import as_completed
+
+        client = self.client()
+        for path in {chunk.fmu for chunk in chunks}:
+            if path not in self._shipped:
+                self._shipped[path] = client.scatter(Path(path).read_bytes(), broadcast=True)
+        waiting = {client.submit(compute, chunk, self._shipped[chunk.fmu], pure=False): chunk for chunk in chunks}
+        try:
+            for future in as_completed(waiting):
+                yield waiting[future], future.result()
+        finally:
+            for future in waiting:
+                future.cancel()

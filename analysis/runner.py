@@ -1,0 +1,503 @@
+"""``dfwb run SCENE.toml``: compute what a scene needs, and nothing else, then write its results.
+
+Work is skipped at every level:
+
+- each DF point is looked up first in the output folder (an interrupted run
+  resumes), then in the content-addressed cache (:mod:`dfwb.cache`); only the
+  rest is computed, on local processes or a Dask cluster (:mod:`dfwb.executor`);
+- the engine integrates only X_0 and X_1 unless harmonics are asked for, steps
+  one forcing period at a time (exact with the FMU's own excitation) and stops
+  at the periodic steady state;
+- time traces, limit cycles and figures exist only when the scene names them;
+  traces and the judge's co-simulations are cached as well.
+
+Every computed point is appended to ``results.csv`` at once (flushed and
+synced) and stored in the cache, so an interruption loses only the points in
+flight. The final ``results.csv``, ``results.json``, ``traces/*.csv``, the
+figures and ``summary.md`` are each written atomically.
+"""
+
+import csv
+import hashlib
+import io
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .cache import Cache, NoCache, digest
+from .describing import HARMONICS, DFEngine, DFResult
+from .executor import Chunk, Executor, chunked
+from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
+from .scene import Point, Scene, load_scene
+from .sweep import COLUMNS, json_form, parse_row, read_rows, row, write_atomic
+
+ENGINE_SOURCES = ("describing.py", "session.py", "simulation.py", "closed_loop.py", "limit_cycles.py")
+OUTPUT_SOURCES = ("runner.py", "scene.py", "sweep.py", "plots.py", "paper.py", "closed_forms.py")
+MANIFEST = "manifest.json"
+RUN_COLUMNS = ["series", "key"] + COLUMNS
+SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results.csv)
+
+
+def source_revision(names):
+    here = Path(__file__).parent
+    return hashlib.sha256(b"".join((here / name).read_bytes() for name in names)).hexdigest()[:16]
+
+
+def engine_revision():
+    """Hash of the analysis code a cached result depends on (a changed engine never reuses old results)."""
+    return source_revision(ENGINE_SOURCES)
+
+
+def fmu_revision(path):
+    """The source hash the FMU was built from (its content is a function of it)."""
+    from dfwb.build_fmus.builder import recorded_hash
+
+    return recorded_hash(path) or hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@dataclass
+class Outcome:
+    """What a run did: counts, time, where the results are, and the paper's report sections."""
+
+    out_dir: Path
+    points: int = 0
+    computed: int = 0
+    cache_hits: int = 0
+    resumed: int = 0
+    rejected: int = 0
+    up_to_date: bool = False  # the folder already held this scene's results: nothing was done
+    seconds: float = 0.0
+    figures: list = field(default_factory=list)
+    sections: list = field(default_factory=list)  # (title, png path, markdown) of paper figures
+
+
+class _Points:
+    """The scene's DF points by key: resumed from the folder, found in the cache, or computed."""
+
+    def __init__(self, run, settings):
+        self.run, self.settings = run, settings  # settings: sorted (name, value) for DFEngine
+        self.harmonics = dict(settings)["harmonics"]
+
+    def key(self, plant, F, omega, params, harmonics=None):
+        spec = find_plant(plant)
+        full = {name: float(value) for name, value in dict(spec.defaults(), **params).items()}
+        engine = dict(self.settings, harmonics=harmonics or self.harmonics)
+        if engine["drive"] == "internal":
+            engine.pop("samples_per_period")
+        return {"kind": "df", "model": spec.fmu_name, "fmu": self.run.revisions[plant], "engine": self.run.engine,
+                "settings": engine, "params": full, "F": float(F), "omega": float(omega)}
+
+    def lookup(self, key):
+        """A cached value, also from an entry with more harmonics (N is the same to the last bit)."""
+        value = self.run.cache.get(key)
+        if value is None and key["settings"]["harmonics"] < HARMONICS:
+            value = self.run.cache.get(dict(key, settings=dict(key["settings"], harmonics=HARMONICS)))
+            if value is not None:
+                value = dict(value, harmonics=value["harmonics"][: key["settings"]["harmonics"] + 1])
+        return value
+
+
+class SceneRun:
+    """One run of one scene; see :func:`run_scene`."""
+
+    def __init__(self, scene, out_dir, executor, cache, fmu_dir, progress):
+        self.scene, self.out, self.executor, self.cache = scene, Path(out_dir), executor, cache
+        self.fmu_dir, self.progress = fmu_dir, progress
+        self.engine = engine_revision()
+        plants = {item.plant for group in (scene.series, scene.trace, scene.limit_cycle) for item in group}
+        self.fmus = {plant: fmu_path(find_plant(plant), fmu_dir) for plant in sorted(plants)}
+        self.revisions = {plant: fmu_revision(path) for plant, path in self.fmus.items()}
+        self.values = {}  # digest -> as_dict() of every DF point known in this run
+        self.outcome = Outcome(self.out)
+        self._checked = {}
+        self.map_rows = []  # CSV rows of the limit cycles' DF maps
+
+    def check(self, plant, params):
+        """The plant's validated parameters (checked once per distinct set)."""
+        key = (plant, tuple(sorted(params.items())))
+        if key not in self._checked:
+            self._checked[key] = find_plant(plant).check(params)
+        return dict(self._checked[key])
+
+    # -- DF points ----------------------------------------------------------------------
+    def settings(self, harmonics):
+        e = self.scene.engine
+        return (("drive", e.drive), ("harmonics", harmonics), ("max_periods", e.max_periods),
+                ("samples_per_period", e.samples_per_period))
+
+    def compute_points(self, points, table, display, label):
+        """Make ``self.values`` hold every (plant, F, omega, params) of ``points``; append new ones to the CSV."""
+        keys = {}
+        for plant, F, omega, params in points:
+            key = table.key(plant, F, omega, params)
+            keys.setdefault(digest(key), (key, plant, F, omega, params))
+        resumed = {r["key"]: r for r in read_rows(self.out / "results.csv")} if self.out.exists() else {}
+        pending, hits, old = [], 0, 0
+        for name, (key, plant, F, omega, params) in keys.items():
+            if name in self.values:
+                continue
+            if name in resumed:
+                self.values[name] = parse_row(resumed[name])
+                old += 1
+                continue
+            value = table.lookup(key)
+            if value is not None:
+                self.values[name] = value
+                hits += 1
+            else:
+                pending.append((name, key, plant, F, omega, params))
+        self.outcome.cache_hits += hits
+        self.outcome.resumed += old
+        task = display.add(label, len(keys), len(keys) - len(pending), hits)
+        by_chunk = {}
+        chunks = []
+        for plant in sorted({p[2] for p in pending}):
+            mine = [p for p in pending if p[2] == plant]
+            for part in chunked(mine, self.executor.jobs):
+                chunk = Chunk(plant, str(self.fmus[plant]), table.settings, tuple((p[3], p[4], p[5]) for p in part))
+                by_chunk[id(chunk)] = part
+                chunks.append(chunk)
+        self.out.mkdir(parents=True, exist_ok=True)
+        csv_path = self.out / "results.csv"
+        new_file = not csv_path.exists()
+        with open(csv_path, "a", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=RUN_COLUMNS)
+            if new_file:
+                writer.writeheader()
+            for chunk, results in self.executor.run(chunks):
+                for (name, key, *_), value in zip(by_chunk[id(chunk)], results):
+                    self.cache.put(key, value)
+                    self.values[name] = value
+                    writer.writerow(dict(row(value), series="", key=name))
+                handle.flush()
+                self.outcome.computed += len(results)
+                display.advance(task, len(results))
+        return {name: entry[0] for name, entry in keys.items()}
+
+    def value(self, table, plant, F, omega, params):
+        return self.values[digest(table.key(plant, F, omega, params))]
+
+    def series_rows(self, table):
+        """{series name: [as_json row]} in the scene's order, params as the scene gives them."""
+        data = {s.name: [] for s in self.scene.series}
+        csv_rows = []
+        for p in self.scene.points():
+            params = self.check(p.plant, p.params)
+            value = dict(self.value(table, p.plant, p.F, p.omega, params), params=params)
+            csv_rows.append(dict(row(value), series=p.series, key=digest(table.key(p.plant, p.F, p.omega, params))))
+            data[p.series].append(json_form(value))
+        return data, csv_rows
+
+    # -- traces ---------------------------------------------------------------------------
+    def traces(self, display):
+        from .simulation import simulate
+
+        out = {}
+        task = display.add("traces", len(self.scene.trace), 0, 0) if self.scene.trace else None
+        for trace in self.scene.trace:
+            spec = find_plant(trace.plant)
+            params = self.check(trace.plant, trace.params)
+            key = {"kind": "trace", "model": spec.fmu_name, "fmu": self.revisions[trace.plant], "engine": self.engine,
+                   "params": {n: float(v) for n, v in dict(spec.defaults(), **params).items()}, "F": trace.F,
+                   "omega": trace.omega, "start": trace.start, "stop": trace.stop, "step": trace.step,
+                   "outputs": trace.outputs}
+            value = self.cache.get(key)
+            if value is None:
+                result = simulate(self.fmus[trace.plant], trace.stop, trace.step,
+                                  dict(params, F=trace.F, omega=trace.omega), trace.outputs)
+                keep = result["time"] >= trace.start - 1e-9 * trace.step
+                value = {name: result[name][keep].astype(float).tolist() for name in ["time"] + trace.outputs}
+                self.cache.put(key, value)
+            else:
+                self.outcome.cache_hits += 1
+            out[trace.name] = value
+            display.advance(task, 1)
+        return out
+
+    # -- limit cycles ---------------------------------------------------------------------
+    def limit_cycles(self, display):
+        from .closed_loop import LoopRun, verify
+        from .limit_cycles import search
+
+        results = {}
+        table = _Points(self, self.settings(HARMONICS))
+        for lc in self.scene.limit_cycle:
+            G = lc.transfer_function()
+            params = self.check(lc.plant, lc.params)
+            F_grid = np.geomspace(*lc.F_range, lc.n_F)
+            omega_grid = np.geomspace(*lc.omega_range, lc.n_omega)
+            grid = [(lc.plant, F, w, params) for F in F_grid for w in omega_grid]
+            keys = self.compute_points(grid, table, display, f"{lc.name}: DF map")
+            self.map_rows += [dict(row(self.values[name]), series=lc.name, key=name) for name in keys]
+            engine = _CachedEngine(self, table, lc.plant)
+            cycles, F_grid, omega_grid, N_grid = search(lc.plant, G, params, lc.F_range, lc.omega_range, lc.n_F,
+                                                        lc.n_omega, engine=engine)
+            self.outcome.computed += engine.computed
+            checks, runs = [], []
+            if lc.verify:
+                task = display.add(f"{lc.name}: co-simulation judge", len(cycles), 0, 0)
+                controller = fmu_path("LinearSystem", self.fmu_dir)
+                for cycle in cycles:
+                    key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)],
+                           "engine": self.engine, "plant": lc.plant, "params": params,
+                           "G": [G.num[0][0].tolist(), G.den[0][0].tolist()], "cycle": [cycle.F, cycle.omega,
+                                                                                         cycle.amplitude_x],
+                           "samples_per_period": lc.samples_per_period}
+                    value = self.cache.get(key)
+                    if value is None:
+                        outcome, run = verify(lc.plant, G, cycle, params, lc.samples_per_period, fmu_dir=self.fmu_dir)
+                        tail = run.time >= run.time[-1] - 10 * cycle.period  # what the figure shows
+                        value = {"outcome": outcome, "run": {"time": run.time[tail].tolist(),
+                                                             "position": run.position[tail].tolist(),
+                                                             "force": run.force[tail].tolist(), "step": run.step}}
+                        self.cache.put(key, _finite(value))
+                    else:
+                        self.outcome.cache_hits += 1
+                    checks.append(value["outcome"])
+                    run = value["run"]
+                    runs.append((cycle, LoopRun(np.array(run["time"]), np.array(run["position"]),
+                                                np.array(run["force"]), run["step"])))
+                    display.advance(task, 1)
+            results[lc.name] = {"G": G, "cycles": cycles, "verification": checks, "runs": runs,
+                                "F_grid": F_grid, "omega_grid": omega_grid, "N_grid": N_grid}
+        return results
+
+    # -- everything -------------------------------------------------------------------------
+    def fingerprint(self, table, points):
+        """A digest of everything the outputs depend on: the scene, every point's key, the code."""
+        keys = [digest(table.key(plant, F, omega, params)) for plant, F, omega, params in points]
+        return digest({"scene": self.scene.model_dump(mode="json"), "points": keys, "fmus": self.revisions,
+                       "engine": self.engine, "outputs": source_revision(OUTPUT_SOURCES)})
+
+    def up_to_date(self, fingerprint):
+        """The stored outcome if the folder holds exactly this run's outputs, else None."""
+        try:
+            manifest = json.loads((self.out / MANIFEST).read_text())
+            if manifest["fingerprint"] != fingerprint:
+                return None
+            stored = manifest["outcome"]
+            files = [self.out / name for name in manifest["files"]]
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        if not all(path.exists() for path in files):
+            return None
+        return Outcome(self.out, points=stored["points"], up_to_date=True,
+                       figures=[self.out / name for name in stored["figures"]],
+                       sections=[(title, self.out / png, text) for title, png, text in stored["sections"]])
+
+    def write_manifest(self, fingerprint):
+        o = self.outcome
+        files = sorted(path.relative_to(self.out).as_posix() for path in self.out.rglob("*")
+                       if path.is_file() and not path.name.startswith(".") and path.name != MANIFEST)
+        document = {"fingerprint": fingerprint, "files": files,
+                    "outcome": {"points": o.points, "figures": [p.name for p in o.figures],
+                                "sections": [(title, png.name, text) for title, png, text in o.sections]}}
+        write_atomic(self.out / MANIFEST, json.dumps(document, indent=1))
+
+    def run(self):
+        started = time.perf_counter()
+        scene = self.scene
+        table = _Points(self, self.settings(HARMONICS if scene.needs_harmonics else 1))
+        points = [(p.plant, p.F, p.omega, self.check(p.plant, p.params)) for p in scene.points()]
+        fingerprint = self.fingerprint(table, points)
+        done = self.up_to_date(fingerprint)
+        if done is not None:
+            done.seconds = time.perf_counter() - started
+            return done
+        with _Display(self.progress, scene.title) as display:
+            self.compute_points(points, table, display, "DF points")
+            traces = self.traces(display)
+            cycles = self.limit_cycles(display)
+        data, csv_rows = self.series_rows(table)
+        self.outcome.points = len(self.values)
+        self.outcome.rejected = self.cache.rejected
+        self.write_results(data, csv_rows, traces, cycles)
+        self.draw(data, traces, cycles)
+        self.outcome.seconds = time.perf_counter() - started
+        self.write_summary(data, cycles)
+        self.write_manifest(fingerprint)
+        return self.outcome
+
+    def write_results(self, data, csv_rows, traces, cycles):
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=RUN_COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(csv_rows + self.map_rows)
+        write_atomic(self.out / "results.csv", buffer.getvalue())
+        if traces:
+            (self.out / "traces").mkdir(exist_ok=True)
+        for name, columns in traces.items():
+            buffer = io.StringIO()
+            writer = csv.writer(buffer, lineterminator="\n")
+            writer.writerow(list(columns))
+            writer.writerows(zip(*(map(repr, values) for values in columns.values())))
+            write_atomic(self.out / "traces" / f"{name}.csv", buffer.getvalue())
+        document = {"title": self.scene.title, "series": data,
+                    "traces": {name: f"traces/{name}.csv" for name in traces},
+                    "limit_cycles": {name: _finite({"predictions": [c.as_dict() for c in r["cycles"]],
+                                                    "verification": r["verification"]})
+                                     for name, r in cycles.items()}}
+        write_atomic(self.out / "results.json", json.dumps(document, indent=1))
+
+    def draw(self, data, traces, cycles):
+        from . import plots
+        from .paper import FIGURES, Paper
+
+        paper = Paper(self.out, data, traces)
+        for figure in self.scene.figure:
+            if figure.kind == "paper":
+                before = len(paper.sections)
+                getattr(paper, figure.paper)()
+                self.outcome.sections += paper.sections[before:]
+                self.outcome.figures += [self.out / f"{FIGURES[figure.paper].file}.png"]
+            elif figure.kind == "limit_cycle":
+                for name in figure.series:
+                    r = cycles[name]
+                    path = plots.limit_cycle_figure(self.out / f"{figure.name}_{name}.png", r["G"], r["F_grid"],
+                                                    r["omega_grid"], r["N_grid"], r["cycles"], r["runs"])
+                    self.outcome.figures.append(path)
+            else:
+                self.outcome.figures.append(plots.scene_figure(self.out, figure, data, traces, self.scene))
+
+    def write_summary(self, data, cycles):
+        o, scene = self.outcome, self.scene
+        lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
+        lines += [f"{o.points} DF points: {o.computed} computed on {self.executor.name}, {o.cache_hits} from the "
+                  f"cache, {o.resumed} resumed from this folder"
+                  + (f", {o.rejected} cache entries rejected (corrupt or another version) and recomputed"
+                     if o.rejected else "") + f"; {o.seconds:.2f} s. Cache: {self.cache.root or 'off'}.", "",
+                  "Results: `results.csv` (one row per point) and `results.json`"
+                  + (", time traces in `traces/`." if scene.trace else "."), ""]
+        for title, png, text in o.sections:
+            lines += [f"## {title}", "", f"![{title}]({png.name})", "", text, ""]
+        shown = {png.name for _, png, _ in o.sections}
+        lines += [f"![{path.stem}]({path.name})" for path in o.figures if path.name not in shown]
+        for name, rows in data.items():
+            lines += ["", f"## Series {name}", "", "| F [N] | params | w [rad/s] | N | -1/N | periodic | note |",
+                      "|---|---|---|---|---|---|---|"]
+            step = max(1, math.ceil(len(rows) / SUMMARY_ROWS))
+            for r in rows[::step]:
+                N = complex(*r["N"])
+                inverse = "-" if r["minus_inv_N"] is None else f"{complex(*r['minus_inv_N']):.6g}"
+                lines.append(f"| {r['F']:g} | {json.dumps(r['params'], sort_keys=True)} | {r['omega']:.6g} | "
+                             f"{N:.6g} | {inverse} | {r['periodic']} | {r['note']} |")
+            if step > 1:
+                lines.append(f"\nEvery {step}th of {len(rows)} points; all are in `results.csv`.")
+        for name, r in cycles.items():
+            lines += ["", f"## Limit cycles: {name}", "", "| F [N] | w [rad/s] | amplitude | stable | distortion "
+                      "| judge F | judge w | settled |", "|---|---|---|---|---|---|---|---|"]
+            for i, c in enumerate(r["cycles"]):
+                v = r["verification"][i] if r["verification"] else None
+                judged = (f"{v['F']:.4g} | {v['omega']:.4g} | {v['settled']}" if v else "- | - | not asked")
+                lines.append(f"| {c.F:.6g} | {c.omega:.6g} | {c.amplitude_x:.4g} | {c.stable} | {c.distortion:.3g} "
+                             f"| {judged} |")
+            if not r["cycles"]:
+                lines.append("| no cycle in the ranges | | | | | | | |")
+        write_atomic(self.out / "summary.md", "\n".join(lines) + "\n")
+
+
+class _CachedEngine:
+    """The DFEngine interface over the run's known points, the cache, then a local engine."""
+
+    def __init__(self, run, table, plant):
+        self.run, self.table, self.plant = run, table, find_plant(plant)
+        self._engine = None
+        self.computed = 0
+
+    def point(self, F, omega, params=None):
+        params = self.run.check(self.plant.name, params or {})
+        key = self.table.key(self.plant.name, F, omega, params)
+        name = digest(key)
+        value = self.run.values.get(name) or self.table.lookup(key)
+        if value is None:
+            if self._engine is None:
+                self._engine = DFEngine(self.plant.name, fmu=self.run.fmus[self.plant.name],
+                                        **dict(self.table.settings))
+            value = self._engine.point(F, omega, params).as_dict()
+            self.run.cache.put(key, value)
+            self.computed += 1
+        self.run.values[name] = value
+        return DFResult.from_dict(dict(value, params=params))
+
+
+class _Display:
+    """A rich progress display: points done, cache hits, time left (silent when off)."""
+
+    def __init__(self, enabled, title):
+        self.enabled, self.title = enabled, title
+        self.progress = None
+
+    def __enter__(self):
+        if self.enabled:
+            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                                       TimeRemainingColumn)
+
+            self.progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                                     TextColumn("[cyan]{task.fields[hits]} cached"), TimeElapsedColumn(),
+                                     TextColumn("left"), TimeRemainingColumn())
+            self.progress.console.print(f"[bold]{self.title}")
+            self.progress.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.progress is not None:
+            self.progress.stop()
+
+    def add(self, label, total, done, hits):
+        if self.progress is None:
+            return None
+        return self.progress.add_task(label, total=total, completed=done, hits=hits)
+
+    def advance(self, task, n):
+        if task is not None:
+            self.progress.advance(task, n)
+
+
+def _finite(document):
+    """JSON-safe: infinities and NaN become None."""
+    if isinstance(document, float):
+        return document if math.isfinite(document) else None
+    if isinstance(document, dict):
+        return {k: _finite(v) for k, v in document.items()}
+    if isinstance(document, (list, tuple)):
+        return [_finite(v) for v in document]
+    return document
+
+
+def open_cache(cache):
+    """``cache``: True (the user's cache directory), a path, or False/None (off)."""
+    if cache is True:
+        return Cache()
+    return Cache(cache) if cache else NoCache()
+
+
+def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=DEFAULT_FMU_DIR, progress=True):
+    """Run a scene (a path or a :class:`~dfwb.scene.Scene`); return an :class:`Outcome`.
+
+    Parameters
+    ----------
+    scene : path or Scene
+    out_dir : path, optional
+        Default ``out/scenes/<file stem>``.
+    jobs : int, optional
+        Local worker processes, or Dask workers with ``dask="local"`` (default: all cores).
+    dask : str, optional
+        ``"local"`` or the address of a dask.distributed scheduler.
+    cache : bool or path
+        True: ``$XDG_CACHE_HOME/dfwb`` (else ``~/.cache/dfwb``); a path; False: no cache.
+    """
+    if not isinstance(scene, Scene):
+        path = Path(scene)
+        scene = load_scene(path)
+        out_dir = out_dir or Path("out/scenes") / path.stem
+    if out_dir is None:
+        raise ValueError("out_dir is required when the scene is not a file")
+    with Executor(jobs, dask) as executor:
+        return SceneRun(scene, out_dir, executor, open_cache(cache), fmu_dir, progress).run()
+
+
+__all__ = ["run_scene", "Outcome", "Point", "engine_revision"]

@@ -1,0 +1,368 @@
+"""Scene files: one study declared in TOML, validated before anything runs.
+
+A scene says which plant and parameters, which excitation grid and which
+results: DF points (``[[series]]``), time traces (``[[trace]]``), limit
+cycles against a G(s) (``[[limit_cycle]]``) and figures (``[[figure]]``).
+Everything is checked when the file is read (types, unknown keys, plant
+parameter ranges through the solvers' own checks, grids, G(s), references
+between sections), and a problem is one :class:`SceneError` naming the file,
+the key and what is allowed. The schema is written with pydantic, which
+gives typed, nested models and the path of every bad value.
+
+Examples
+--------
+>>> scene = parse_scene('''
+... title = "friction at two forces"
+... [[series]]
+... name = "friction"
+... plant = "friction"
+... F = [10, 50]
+... omega = {log = [0.1, 10, 3]}
+... ''', "example.toml")
+>>> [(p.F, p.omega) for p in scene.points()][:3]
+[(10.0, 0.1), (10.0, 1.0), (10.0, 10.0)]
+>>> parse_scene('title = "t"\\n[[series]]\\nname = "a"\\nplant = "friction"\\nF = [1]\\nomega = [1]\\n'
+...             'params = {Fs = -1}', "bad.toml")
+Traceback (most recent call last):
+...
+dfwb.scene.SceneError: bad.toml: series[0]: Fs = -1.0 is out of range: Fs >= 0 (allowed: a finite number >= 0)
+"""
+
+import itertools
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Literal, Optional
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .plants import plant as find_plant
+from dfwb.fmus.piecewise import PlantError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+PlantName = Literal["friction", "backlash", "static-backlash"]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)]
+FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper")
+MAX_POINTS = 200_000
+MAX_SAMPLES = 2_000_000
+
+
+@dataclass(frozen=True)
+class PaperFigure:
+    """What a paper figure draws from: series and traces of its scene, by name."""
+
+    file: str
+    series: tuple
+    traces: tuple = ()
+    harmonics: bool = False
+
+
+PAPER_FIGURES = {  # the paper's figures (dfwb.paper draws them), by id
+    "fig03": PaperFigure("fig03_friction_nyquist", ("friction", "friction_linear")),
+    "fig04": PaperFigure("fig04_friction_re_im", ("friction", "friction_linear", "friction_karnopp")),
+    "fig05": PaperFigure("fig05_friction_time", (), ("friction_F10", "friction_F50")),
+    "fig06": PaperFigure("fig06_friction_harmonics", ("friction",), harmonics=True),
+    "fig08": PaperFigure("fig08_backlash_nyquist_eps", ("backlash_F50",)),
+    "fig09": PaperFigure("fig09_backlash_nyquist_F", ("backlash_F", "backlash_F50")),
+    "fig10": PaperFigure("fig10_backlash_re_im", ("static", "backlash_F50")),
+    "fig11": PaperFigure("fig11_backlash_velocity", ("backlash_F50",), ("backlash_w20_eps08", "backlash_w40_eps02")),
+    "fig12": PaperFigure("fig12_backlash_harmonics", ("backlash_F50",), harmonics=True),
+}
+
+
+class SceneError(ValueError):
+    """A scene that cannot run: one line naming the file, the key and what is allowed."""
+
+
+class Strict(BaseModel):
+    """No unknown keys, no silent conversions (an integer is a float, text is not)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data):
+        if isinstance(data, dict):
+            unknown = [key for key in data if key not in cls.model_fields]
+            if unknown:
+                raise ValueError(f"unknown key {unknown[0]!r} (allowed: {', '.join(cls.model_fields)})")
+        return data
+
+
+def _check_plant(plant, params):
+    """Raise ValueError (pydantic's way) with the solver's message for a bad parameter set."""
+    try:
+        return find_plant(plant).check(params)
+    except PlantError as error:
+        raise ValueError(str(error)) from None
+
+
+class Frequencies(Strict):
+    """Frequencies [rad/s]: ``[w1, w2, ...]`` or ``{log = [lo, hi, n], values = [...]}``, merged and sorted."""
+
+    log: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = None  # [lo, hi, n]
+    values: list[Positive] = []
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_list(cls, data):
+        return {"values": data} if isinstance(data, list) else data
+
+    @model_validator(mode="after")
+    def _not_empty(self):
+        if self.log is not None and not (self.log[0] < self.log[1] and self.log[2] == int(self.log[2])
+                                         and 2 <= self.log[2] <= 100_000):
+            raise ValueError(f"log = {self.log}: expected [lo, hi, n] with 0 < lo < hi and an integer 2 <= n <= 100000")
+        if self.log is None and not self.values:
+            raise ValueError("the frequency grid is empty: give values = [...] or log = [lo, hi, n]")
+        return self
+
+    def grid(self):
+        spaced = np.round(np.geomspace(self.log[0], self.log[1], int(self.log[2])), 12).tolist() if self.log else []
+        return sorted(set(spaced) | set(self.values))
+
+
+class Series(Strict):
+    """DF points of one plant over F x omega x the gridded parameters."""
+
+    name: Name
+    plant: PlantName
+    params: dict[str, Finite] = {}
+    grid: dict[str, Annotated[list[Finite], Field(min_length=1)]] = {}
+    F: Annotated[list[Positive], Field(min_length=1)]
+    omega: Frequencies
+
+    @model_validator(mode="after")
+    def _plant_accepts(self):
+        both = set(self.params) & set(self.grid)
+        if both:
+            raise ValueError(f"{sorted(both)[0]!r} is both in params and in grid: give it in one of them")
+        for combo in self.combos():
+            _check_plant(self.plant, combo)
+        return self
+
+    def combos(self):
+        """The parameter sets: params plus each combination of the grid."""
+        names = sorted(self.grid)
+        return [dict(self.params, **dict(zip(names, values)))
+                for values in itertools.product(*(self.grid[n] for n in names))]
+
+
+class Trace(Strict):
+    """A time response to F cos(omega t) from rest, sampled every ``step`` on [start, stop]."""
+
+    name: Name
+    plant: PlantName
+    params: dict[str, Finite] = {}
+    F: Positive
+    omega: Positive
+    start: NonNegative = 0.0
+    stop: Positive
+    step: Positive
+    outputs: Annotated[list[str], Field(min_length=1)]
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        _check_plant(self.plant, self.params)
+        if not self.start < self.stop:
+            raise ValueError(f"start = {self.start:g} must be < stop = {self.stop:g}")
+        if self.stop / self.step > MAX_SAMPLES:
+            raise ValueError(f"stop / step = {self.stop / self.step:.3g} samples: at most {MAX_SAMPLES:g}")
+        known = [name for name, *_ in find_plant(self.plant).model.all_outputs()]
+        for name in self.outputs:
+            if name not in known:
+                raise ValueError(f"output {name!r} is not an output of plant {self.plant} "
+                                 f"(allowed: {', '.join(known)})")
+        return self
+
+
+class LimitCycle(Strict):
+    """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation."""
+
+    name: Name
+    plant: PlantName
+    params: dict[str, Finite] = {}
+    G: Optional[str] = None
+    num: Optional[list[Finite]] = None
+    den: Optional[list[Finite]] = None
+    F_range: Annotated[list[Positive], Field(min_length=2, max_length=2)]
+    omega_range: Annotated[list[Positive], Field(min_length=2, max_length=2)]
+    n_F: Annotated[int, Field(ge=2, le=1000)] = 16
+    n_omega: Annotated[int, Field(ge=2, le=1000)] = 48
+    verify: bool = False
+    samples_per_period: Annotated[int, Field(ge=16, le=100_000)] = 512
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        _check_plant(self.plant, self.params)
+        for key in ("F_range", "omega_range"):
+            lo, hi = getattr(self, key)
+            if not lo < hi:
+                raise ValueError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
+        self.transfer_function()
+        return self
+
+    def transfer_function(self):
+        """G(s) as a python-control TransferFunction (ValueError naming the problem)."""
+        from .transfer import from_coefficients, parse_transfer_function
+
+        if (self.G is None) == (self.num is None and self.den is None):
+            raise ValueError("give the controller either as G = \"...\" or as num = [...] and den = [...]")
+        if self.G is not None:
+            return parse_transfer_function(self.G)
+        return from_coefficients(self.num or [], self.den or [])
+
+
+class Figure(Strict):
+    """A figure of the scene's results."""
+
+    name: Name
+    kind: Literal["nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper"]
+    series: list[str] = []  # names of series, traces or limit cycles, by kind
+    title: str = ""
+    marks: list[Positive] = []  # frequencies marked on -1/N curves
+    xlim: Optional[Annotated[list[Finite], Field(min_length=2, max_length=2)]] = None
+    ylim: Optional[Annotated[list[Finite], Field(min_length=2, max_length=2)]] = None
+    paper: Optional[str] = None  # kind = "paper": the paper's figure, e.g. "fig03"
+
+
+class Engine(Strict):
+    """Settings of the DF engine (see :class:`dfwb.describing.DFEngine`)."""
+
+    drive: Literal["internal", "input"] = "internal"
+    samples_per_period: Annotated[int, Field(ge=4, le=100_000)] = 64
+    max_periods: Annotated[int, Field(ge=25, le=100_000)] = 150
+
+
+@dataclass(frozen=True)
+class Point:
+    """One DF point of a series."""
+
+    series: str
+    plant: str
+    F: float
+    omega: float
+    params: dict
+
+
+class Scene(Strict):
+    """A study: see the module docstring; ``[[series]]``, ``[[trace]]``, ``[[limit_cycle]]``, ``[[figure]]``."""
+
+    title: str
+    description: str = ""
+    harmonics: bool = False  # record X0..X10 of every point (figures of kind "harmonics" imply it)
+    engine: Engine = Engine()
+    series: list[Series] = []
+    trace: list[Trace] = []
+    limit_cycle: list[LimitCycle] = []
+    figure: list[Figure] = []
+
+    @field_validator("title")
+    @classmethod
+    def _has_title(cls, title):
+        if not title.strip():
+            raise ValueError("the title is empty")
+        return title
+
+    @model_validator(mode="after")
+    def _references(self):
+        if not (self.series or self.trace or self.limit_cycle):
+            raise ValueError("the scene asks for nothing: give at least one [[series]], [[trace]] or [[limit_cycle]]")
+        names = [item.name for group in (self.series, self.trace, self.limit_cycle, self.figure) for item in group]
+        for name in names:
+            if names.count(name) > 1:
+                raise ValueError(f"the name {name!r} is used twice: names must be unique in a scene")
+        if len(self.points()) > MAX_POINTS:
+            raise ValueError(f"{len(self.points())} DF points: at most {MAX_POINTS}")
+        for i, figure in enumerate(self.figure):
+            _check_figure(self, i, figure)
+        return self
+
+    def points(self):
+        """Every DF point of every series, F the outer loop (duplicates kept: they cost nothing twice)."""
+        return [Point(s.name, s.plant, float(F), float(omega), combo)
+                for s in self.series for F in s.F for combo in s.combos() for omega in s.omega.grid()]
+
+    @property
+    def needs_harmonics(self):
+        return self.harmonics or any(
+            f.kind == "harmonics" or (f.kind == "paper" and PAPER_FIGURES[f.paper].harmonics) for f in self.figure)
+
+
+def _check_figure(scene, i, figure):
+    where = f"figure[{i}] ({figure.name})"
+    pools = {"nyquist": scene.series, "re_im": scene.series, "harmonics": scene.series,
+             "trace": scene.trace, "limit_cycle": scene.limit_cycle}
+    if figure.kind == "paper":
+        if figure.paper not in PAPER_FIGURES:
+            raise ValueError(f"{where}: paper = {figure.paper!r} is not one of the paper's figures "
+                             f"(allowed: {', '.join(PAPER_FIGURES)})")
+        needed = PAPER_FIGURES[figure.paper]
+        have = {s.name for s in scene.series} | {t.name for t in scene.trace}
+        missing = [name for name in needed.series + needed.traces if name not in have]
+        if missing:
+            raise ValueError(f"{where}: the paper's {figure.paper} needs the series or trace {missing[0]!r}")
+        return
+    if figure.paper is not None:
+        raise ValueError(f"{where}: paper is only allowed with kind = \"paper\"")
+    pool = {item.name for item in pools[figure.kind]}
+    if not figure.series:
+        raise ValueError(f"{where}: series is empty (allowed: {', '.join(sorted(pool)) or 'none in this scene'})")
+    for name in figure.series:
+        if name not in pool:
+            what = {"trace": "[[trace]]", "limit_cycle": "[[limit_cycle]]"}.get(figure.kind, "[[series]]")
+            raise ValueError(f"{where}: {name!r} is not a {what} of this scene "
+                             f"(allowed: {', '.join(sorted(pool)) or 'none'})")
+
+
+def _location(loc):
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        elif not re.match(r"^(function-|[a-z]+\[|tagged-union)", str(part)):
+            text += ("." if text else "") + str(part)
+    return text
+
+
+def _message(error):
+    message = error["msg"].removeprefix("Value error, ")
+    if error["type"] not in ("value_error", "assertion_error") and "input" in error:
+        value = error["input"]
+        if not isinstance(value, (dict, list)) or len(repr(value)) < 60:
+            message += f" (got {value!r})"
+    return message
+
+
+def parse_scene(text, source="<scene>"):
+    """A validated :class:`Scene` from TOML text; SceneError names ``source``, the key and what is allowed."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise SceneError(f"{source}: not valid TOML: {error}") from None
+    try:
+        return Scene.model_validate(data)
+    except ValidationError as error:
+        first = error.errors(include_url=False)[0]
+        where = _location(first["loc"])
+        raise SceneError(f"{source}: {where + ': ' if where else ''}{_message(first)}") from None
+
+
+def load_scene(path):
+    """The validated scene in the TOML file ``path``."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise SceneError(f"{path}: cannot read the scene ({error.strerror})") from None
+    return parse_scene(text, str(path))
+
