@@ -7,25 +7,29 @@
 3. The same kind of lead around the two-mass backlash with impacts, for
    eps = 0.2 and eps = 0.8.
 
-``dfwb examples [--out DIR]`` writes ``example_<name>.png`` and ``examples.md``.
+Each example is a scene, ``scenes/lc_<name>.toml`` (``dfwb run`` runs one with
+the cache); ``dfwb examples [--out DIR]`` runs them all and adds a convergence
+study of the judge, writing ``example_<name>.png`` and ``examples.md``.
 """
 
 import json
+from importlib import resources
 from pathlib import Path
 
 from .closed_loop import START, measure, run_loop, verify
 from .describing import DFEngine
 from .limit_cycles import search
 from .plots import limit_cycle_figure
-from .transfer import parse_transfer_function
+from .scene import load_scene
 
 CONVERGENCE = (128, 256, 512, 1024, 2048)  # steps per predicted period
-EXAMPLES = [  # name, plant, G, params, F range, omega range
-    ("friction_pid", "friction", "20 + 100/s + 2*s/(0.1*s+1)", {}, (7.0001, 300.0), (0.05, 50.0)),
-    ("static_backlash_lead", "static-backlash", "20*(s+2)/(s+20)", {}, (0.01, 100.0), (0.1, 50.0)),
-    ("backlash_lead_eps02", "backlash", "200*(s+2)/(s+20)", {"eps": 0.2}, (0.01, 100.0), (0.1, 60.0)),
-    ("backlash_lead_eps08", "backlash", "200*(s+2)/(s+20)", {"eps": 0.8}, (0.01, 100.0), (0.1, 60.0)),
-]
+
+
+def examples():
+    """The [[limit_cycle]] of every shipped scene ``lc_*.toml``, by name."""
+    paths = sorted(Path(str(p)) for p in resources.files("dfwb.scenes").iterdir()
+                   if p.name.startswith("lc_") and p.name.endswith(".toml"))
+    return [cycle for path in paths for cycle in load_scene(path).limit_cycle]
 
 
 def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
@@ -39,8 +43,10 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
              "| example | G(s) | params | F [N] | w [rad/s] | amplitude | stable | distortion | judge F | judge w "
              "| error F | error w | settled (near, perturbed) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     results = {}
-    for name, plant, text, params, F_range, omega_range in EXAMPLES:
-        G = parse_transfer_function(text)
+    for example in examples():
+        name, plant, text, params = example.name, example.plant, example.G, example.params
+        F_range, omega_range = example.F_range, example.omega_range
+        G = example.transfer_function()
         cycles, F_grid, omega_grid, N_grid = search(plant, G, params, F_range, omega_range, engine=DFEngine(plant))
         runs, checks = [], []
         for cycle in cycles:
@@ -60,10 +66,11 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
               "The co-simulation holds each signal over a step (a delay of half a step on average); its error "
               "vanishes with the step. Stable cycles, near start, measured F and w:", "",
               "| example | steps per period | F [N] | w [rad/s] | settled |", "|---|---|---|---|---|"]
-    for name, plant, text, params, *_ in EXAMPLES:
+    for example in examples():
+        name, plant, params = example.name, example.plant, example.params
         for cycle in (c for c in results[name]["cycles"] if c.stable):
             for samples in CONVERGENCE:
-                run = run_loop(plant, parse_transfer_function(text), params, cycle.period / samples,
+                run = run_loop(plant, example.transfer_function(), params, cycle.period / samples,
                                40 * cycle.period, {START[plant]: cycle.amplitude_x})
                 found = measure(run, rtol=5e-3)
                 lines.append(f"| {name} | {samples} | {found.F:.5g} | {found.omega:.5g} | {found.settled} |")
@@ -71,7 +78,7 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
     lines += ["", "An unstable cycle is not expected to be reproduced: the judge's runs leave it (to the stable "
               "cycle or to rest). Where no cycle is listed, none was found in the ranges; for eps = 0.8 the "
               "only sign change of 1 + G N lies where the plant's response is not periodic.", ""]
-    lines += [f"![{name}](example_{name}.png)" for name, *_ in EXAMPLES]
+    lines += [f"![{example.name}](example_{example.name}.png)" for example in examples()]
     for entry in results.values():
         entry.pop("cycles")
     (out_dir / "examples.json").write_text(json.dumps(results, indent=1))

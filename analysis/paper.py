@@ -19,7 +19,6 @@ import numpy as np
 from . import plots
 from .closed_forms import static_backlash_plant_df, validity_frequencies
 from .plants import DEFAULT_FMU_DIR
-from .scene import PAPER_FIGURES as FIGURES
 
 FRICTION_F = [10.0, 20.0, 30.0, 40.0, 50.0]
 FRICTION_MARKS = [30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0]
@@ -120,7 +119,6 @@ class Paper:
 
     def fig05(self):
         figure, ax = plots.plt.subplots(figsize=(7, 4))
-        omega = 0.5
         for F, scale in ((10.0, 1.0), (50.0, 0.1)):
             trace = self.traces[f"friction_F{F:g}"]
             ax.plot(trace["time"], scale * np.array(trace["x"]),

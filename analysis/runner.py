@@ -32,7 +32,7 @@ from .cache import Cache, NoCache, digest
 from .describing import HARMONICS, DFEngine, DFResult
 from .executor import Chunk, Executor, chunked
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
-from .scene import Point, Scene, load_scene
+from .scene import PAPER_FIGURES, Point, Scene, load_scene
 from .sweep import COLUMNS, json_form, parse_row, read_rows, row, write_atomic
 
 ENGINE_SOURCES = ("describing.py", "session.py", "simulation.py", "closed_loop.py", "limit_cycles.py")
@@ -237,6 +237,7 @@ class SceneRun:
             cycles, F_grid, omega_grid, N_grid = search(lc.plant, G, params, lc.F_range, lc.omega_range, lc.n_F,
                                                         lc.n_omega, engine=engine)
             self.outcome.computed += engine.computed
+            self.outcome.cache_hits += engine.hits
             checks, runs = [], []
             if lc.verify:
                 task = display.add(f"{lc.name}: co-simulation judge", len(cycles), 0, 0)
@@ -345,7 +346,7 @@ class SceneRun:
 
     def draw(self, data, traces, cycles):
         from . import plots
-        from .paper import FIGURES, Paper
+        from .paper import Paper
 
         paper = Paper(self.out, data, traces)
         for figure in self.scene.figure:
@@ -353,7 +354,7 @@ class SceneRun:
                 before = len(paper.sections)
                 getattr(paper, figure.paper)()
                 self.outcome.sections += paper.sections[before:]
-                self.outcome.figures += [self.out / f"{FIGURES[figure.paper].file}.png"]
+                self.outcome.figures += [self.out / f"{PAPER_FIGURES[figure.paper].file}.png"]
             elif figure.kind == "limit_cycle":
                 for name in figure.series:
                     r = cycles[name]
@@ -406,13 +407,16 @@ class _CachedEngine:
     def __init__(self, run, table, plant):
         self.run, self.table, self.plant = run, table, find_plant(plant)
         self._engine = None
-        self.computed = 0
+        self.computed = self.hits = 0
 
     def point(self, F, omega, params=None):
         params = self.run.check(self.plant.name, params or {})
         key = self.table.key(self.plant.name, F, omega, params)
         name = digest(key)
-        value = self.run.values.get(name) or self.table.lookup(key)
+        value = self.run.values.get(name)
+        if value is None:
+            value = self.table.lookup(key)
+            self.hits += value is not None
         if value is None:
             if self._engine is None:
                 self._engine = DFEngine(self.plant.name, fmu=self.run.fmus[self.plant.name],
@@ -448,7 +452,7 @@ class _Display:
             self.progress.stop()
 
     def add(self, label, total, done, hits):
-        if self.progress is None:
+        if self.progress is None or total == 0:
             return None
         return self.progress.add_task(label, total=total, completed=done, hits=hits)
 

@@ -21,11 +21,12 @@ Examples
 ... ''', "example.toml")
 >>> [(p.F, p.omega) for p in scene.points()][:3]
 [(10.0, 0.1), (10.0, 1.0), (10.0, 10.0)]
->>> parse_scene('title = "t"\\n[[series]]\\nname = "a"\\nplant = "friction"\\nF = [1]\\nomega = [1]\\n'
-...             'params = {Fs = -1}', "bad.toml")
-Traceback (most recent call last):
-...
-dfwb.scene.SceneError: bad.toml: series[0]: Fs = -1.0 is out of range: Fs >= 0 (allowed: a finite number >= 0)
+>>> try:
+...     parse_scene('title = "t"\\n[[series]]\\nname = "a"\\nplant = "friction"\\nF = [1]\\nomega = [1]\\n'
+...                 'params = {eps = 0.5}', "bad.toml")
+... except SceneError as error:
+...     print(error)
+bad.toml: series[0]: unknown parameter 'eps' for plant friction (allowed: B, Dv, Fc, Fs, M, v0, x0)
 """
 
 import itertools

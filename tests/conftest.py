@@ -55,3 +55,9 @@ def raw_fmu(fmus):
         return fmu, messages
 
     return make
+
+
+@pytest.fixture(autouse=True, scope="session")
+def private_cache(tmp_path_factory):
+    """Tests never read or fill the user's cache ($XDG_CACHE_HOME/dfwb): each session gets its own."""
+    os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("xdg-cache"))

@@ -1,0 +1,65 @@
+"""The content-addressed cache: found again, never trusted when corrupt or from another version."""
+
+import json
+
+import pytest
+
+from dfwb import cache as cache_module
+from dfwb.cache import Cache, NoCache, default_dir
+
+KEY = {"kind": "df", "F": 10.0, "omega": 1.0, "params": {"M": 1.0}}
+VALUE = {"N_re": -0.25, "N_im": -0.3, "harmonics": [0.0, 0.1]}
+
+
+def test_a_stored_value_is_found_by_an_equal_key_in_any_order(tmp_path):
+    cache = Cache(tmp_path)
+    cache.put(KEY, VALUE)
+    assert cache.get({"params": {"M": 1.0}, "omega": 1.0, "F": 10.0, "kind": "df"}) == VALUE
+    assert cache.get(dict(KEY, F=10.000000000000002)) is None  # a different float is a different point
+    assert (cache.hits, cache.misses, cache.rejected) == (1, 1, 0)
+    assert not list(tmp_path.rglob("*.partial"))
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "value", "checksum", "format", "key"])
+def test_a_damaged_or_foreign_entry_is_rejected_not_trusted(tmp_path, damage):
+    cache = Cache(tmp_path)
+    cache.put(KEY, VALUE)
+    [path] = list(tmp_path.rglob("*.json"))
+    text = path.read_text()
+    entry = json.loads(text)
+    if damage == "truncate":
+        path.write_text(text[: len(text) // 2])
+    elif damage == "garbage":
+        path.write_bytes(b"\x00\xff" * 10)
+    else:
+        if damage == "value":
+            entry["value"]["N_re"] = 1.0  # changed without its checksum
+        elif damage == "checksum":
+            entry["sha256"] = "0" * 64
+        elif damage == "format":
+            entry["format"] = cache_module.FORMAT + 1
+        elif damage == "key":
+            entry["key"]["F"] = 20.0  # an entry filed under the wrong name
+        path.write_text(json.dumps(entry))
+    assert cache.get(KEY) is None and cache.rejected == 1
+    cache.put(KEY, VALUE)  # recomputed and stored again
+    assert cache.get(KEY) == VALUE
+
+
+def test_values_must_be_finite(tmp_path):
+    with pytest.raises(ValueError):
+        Cache(tmp_path).put(KEY, {"x": float("nan")})
+
+
+def test_the_default_directory_follows_xdg_then_home(monkeypatch, tmp_path):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert default_dir() == tmp_path / "xdg" / "dfwb"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert default_dir() == tmp_path / "home" / ".cache" / "dfwb"
+
+
+def test_no_cache_finds_and_keeps_nothing():
+    off = NoCache()
+    off.put(KEY, VALUE)
+    assert off.get(KEY) is None and off.misses == 1

@@ -1,0 +1,218 @@
+"""dfwb run: only what a scene needs, found again in the cache, resumed after a kill, the same on Dask."""
+
+import csv
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dfwb.describing import DFEngine
+from dfwb.limit_cycles import search
+from dfwb.runner import run_scene
+from dfwb.scene import parse_scene
+from dfwb.simulation import simulate
+from dfwb.transfer import parse_transfer_function
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SCENE = '''
+title = "two plants"
+[[series]]
+name = "friction"
+plant = "friction"
+F = [10.0, 30.0]
+omega = [0.5, 1.0, 5.0]
+
+[[series]]
+name = "backlash"
+plant = "backlash"
+grid = {{ eps = [0.2, 0.5] }}
+F = [50.0]
+omega = [15.0, 20.0, 40.0]
+params = {{ h = {h} }}
+
+[[figure]]
+name = "nyquist"
+kind = "nyquist"
+series = ["friction", "backlash"]
+marks = [1.0, 20.0]
+
+[[figure]]
+name = "re_im"
+kind = "re_im"
+series = ["friction"]
+'''
+
+
+def scene(h=0.1, extra=""):
+    return parse_scene(SCENE.format(h=h) + extra, "test.toml")
+
+
+def results(out):
+    """results.json without the timings, which are the only thing allowed to differ."""
+    document = json.loads((Path(out) / "results.json").read_text())
+    for rows in document["series"].values():
+        for r in rows:
+            r.pop("seconds")
+    return document
+
+
+def test_a_scene_matches_the_engine_and_writes_csv_json_figures_and_summary(fmus, tmp_path):
+    outcome = run_scene(scene(), tmp_path / "out", jobs=1, cache=tmp_path / "cache", progress=False)
+    assert (outcome.points, outcome.computed, outcome.cache_hits) == (12, 12, 0)
+    document = results(tmp_path / "out")
+    engine = DFEngine("backlash")
+    for r in document["series"]["backlash"]:
+        direct = engine.point(r["F"], r["omega"], r["params"])
+        assert complex(*r["N"]) == direct.N and r["periods"] == direct.periods
+        assert r["params"] == {"h": 0.1, "eps": r["params"]["eps"]}
+        assert len(r["harmonics"]) == 2  # a DF-only scene records X_0 and X_1 only
+    with open(tmp_path / "out" / "results.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [row["series"] for row in rows] == ["friction"] * 6 + ["backlash"] * 6
+    assert [float(row["N_re"]) for row in rows[6:]] == [r["N"][0] for r in document["series"]["backlash"]]
+    for name in ("nyquist", "re_im"):
+        assert (tmp_path / "out" / f"{name}.png").stat().st_size > 10_000
+    summary = (tmp_path / "out" / "summary.md").read_text()
+    assert "12 DF points: 12 computed" in summary and "![nyquist](nyquist.png)" in summary
+
+
+def test_a_second_run_recomputes_nothing_and_a_changed_parameter_only_its_points(fmus, tmp_path):
+    cache = tmp_path / "cache"
+    first = run_scene(scene(), tmp_path / "a", jobs=2, cache=cache, progress=False)
+    again = run_scene(scene(), tmp_path / "b", jobs=2, cache=cache, progress=False)
+    assert (first.computed, again.computed, again.cache_hits) == (12, 0, 12)
+    assert results(tmp_path / "a") == results(tmp_path / "b")
+    changed = run_scene(scene(h=0.2), tmp_path / "c", jobs=2, cache=cache, progress=False)
+    assert (changed.computed, changed.cache_hits) == (6, 6)  # only the backlash points depend on h
+    same = run_scene(scene(), tmp_path / "a", jobs=2, cache=cache, progress=False)
+    assert same.up_to_date and same.computed == 0  # the folder already holds this run
+    before = {p: p.stat().st_mtime_ns for p in (tmp_path / "a").iterdir()}
+    run_scene(scene(), tmp_path / "a", jobs=2, cache=cache, progress=False)
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "a").iterdir()} == before
+
+
+def test_defaults_given_or_omitted_are_the_same_point_and_harmonics_serve_df_only_scenes(fmus, tmp_path):
+    cache = tmp_path / "cache"
+    rich = scene(extra='[[figure]]\nname = "k"\nkind = "harmonics"\nseries = ["backlash"]\n')
+    full = run_scene(rich, tmp_path / "rich", jobs=1, cache=cache, progress=False)
+    assert full.computed == 12
+    assert all(len(r["harmonics"]) == 11 for r in results(tmp_path / "rich")["series"]["backlash"])
+    assert (tmp_path / "rich" / "k.png").exists()
+    plain = parse_scene(SCENE.format(h=0.1).replace("params = { h = 0.1 }", "").replace(
+        "grid = { eps", "params = {M1 = 1.0}\ngrid = { eps"), "plain.toml")
+    slim = run_scene(plain, tmp_path / "slim", jobs=1, cache=cache, progress=False)
+    assert (slim.computed, slim.cache_hits) == (0, 12)  # h = 0.1 and M1 = 1 are the defaults
+    for a, b in zip(results(tmp_path / "rich")["series"]["backlash"], results(tmp_path / "slim")["series"]["backlash"]):
+        assert a["N"] == b["N"] and b["harmonics"] == a["harmonics"][:2]
+
+
+def test_a_corrupt_cache_is_detected_and_recomputed(fmus, tmp_path):
+    cache = tmp_path / "cache"
+    run_scene(scene(), tmp_path / "a", jobs=1, cache=cache, progress=False)
+    entries = sorted(cache.rglob("*.json"))
+    assert len(entries) == 12
+    entries[0].write_text(entries[0].read_text()[:40])  # cut short
+    entry = json.loads(entries[1].read_text())
+    entry["value"]["N_re"] += 1.0  # tampered
+    entries[1].write_text(json.dumps(entry))
+    again = run_scene(scene(), tmp_path / "b", jobs=1, cache=cache, progress=False)
+    assert (again.computed, again.cache_hits, again.rejected) == (2, 10, 2)
+    assert results(tmp_path / "a") == results(tmp_path / "b")
+    assert "2 cache entries rejected" in (tmp_path / "b" / "summary.md").read_text()
+
+
+def test_no_cache_writes_no_cache(fmus, tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    run_scene(scene(), tmp_path / "a", jobs=1, cache=False, progress=False)
+    assert not (tmp_path / "xdg").exists()
+    run_scene(scene(), tmp_path / "b", jobs=1, cache=True, progress=False)
+    assert len(list((tmp_path / "xdg" / "dfwb").rglob("*.json"))) == 12
+
+
+def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tmp_path):
+    path = tmp_path / "long.toml"
+    path.write_text('title = "long"\n[[series]]\nname = "b"\nplant = "backlash"\nF = [50.0]\n'
+                    'omega = {log = [12.0, 60.0, 40]}\ngrid = {eps = [0.3]}\n')
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "dfwb.cli", "run", str(path), "--out", str(out), "--jobs", "1", "--no-cache",
+               "--quiet"]
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    rows = 0
+    while time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.05)
+        if (out / "results.csv").exists():
+            rows = (out / "results.csv").read_text().count("\n") - 1
+            if rows >= 5:
+                break
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    assert 5 <= rows < 40, "the run finished before it could be interrupted"
+    kept = (out / "results.csv").read_text().count("\n") - 1
+    assert not (out / "results.json").exists() and not (out / "summary.md").exists()
+    outcome = run_scene(path, out, jobs=1, cache=False, progress=False)
+    assert outcome.resumed >= kept >= rows and outcome.computed == 40 - outcome.resumed
+    run_scene(path, tmp_path / "fresh", jobs=1, cache=False, progress=False)
+    assert results(out) == results(tmp_path / "fresh")
+    assert not list(out.rglob("*.partial"))
+
+
+def test_dask_local_cluster_gives_the_results_of_local_processes(fmus, tmp_path):
+    run_scene(scene(), tmp_path / "local", jobs=2, cache=False, progress=False)
+    outcome = run_scene(scene(), tmp_path / "dask", jobs=2, dask="local", cache=False, progress=False)
+    assert outcome.computed == 12
+    assert results(tmp_path / "local") == results(tmp_path / "dask")
+    assert "computed on dask (local)" in (tmp_path / "dask" / "summary.md").read_text()
+
+
+def test_an_unreachable_dask_scheduler_is_a_clear_error(fmus, tmp_path):
+    with pytest.raises(RuntimeError, match="cannot reach the Dask scheduler 'tcp://127.0.0.1:9'"):
+        run_scene(scene(), tmp_path / "x", dask="tcp://127.0.0.1:9", cache=False, progress=False)
+
+
+def test_traces_equal_a_direct_simulation_and_are_cached(fmus, tmp_path):
+    text = ('title = "trace"\n[[trace]]\nname = "t"\nplant = "friction"\nF = 10.0\nomega = 0.5\nstart = 5.0\n'
+            'stop = 20.0\nstep = 0.05\noutputs = ["x", "v"]\n[[figure]]\nname = "f"\nkind = "trace"\nseries = ["t"]\n')
+    first = run_scene(parse_scene(text), tmp_path / "a", cache=tmp_path / "cache", progress=False)
+    direct = simulate(fmus["FrictionMass"], 20.0, 0.05, {"F": 10.0, "omega": 0.5}, ["x", "v"])
+    keep = direct["time"] >= 5.0 - 1e-12
+    with open(tmp_path / "a" / "traces" / "t.csv") as handle:
+        columns = list(zip(*csv.reader(handle)))
+    assert [c[0] for c in columns] == ["time", "x", "v"]
+    for column in columns:
+        assert np.array_equal(np.array(column[1:], dtype=float), direct[column[0]][keep])
+    assert (tmp_path / "a" / "f.png").exists() and first.points == 0
+    second = run_scene(parse_scene(text), tmp_path / "b", cache=tmp_path / "cache", progress=False)
+    assert second.cache_hits == 1
+
+
+def test_a_limit_cycle_scene_equals_the_direct_search_and_reruns_from_the_cache(fmus, tmp_path):
+    text = ('title = "lead"\n[[limit_cycle]]\nname = "lead"\nplant = "static-backlash"\nG = "20*(s+2)/(s+20)"\n'
+            'F_range = [0.01, 100.0]\nomega_range = [0.1, 50.0]\nn_F = 8\nn_omega = 16\n'
+            '[[figure]]\nname = "fig"\nkind = "limit_cycle"\nseries = ["lead"]\n')
+    first = run_scene(parse_scene(text), tmp_path / "a", cache=tmp_path / "cache", progress=False)
+    cycles = search("static-backlash", parse_transfer_function("20*(s+2)/(s+20)"), {}, (0.01, 100.0),
+                    (0.1, 50.0), 8, 16)[0]
+    found = json.loads((tmp_path / "a" / "results.json").read_text())["limit_cycles"]["lead"]["predictions"]
+    assert [(c["F"], c["omega"]) for c in found] == [(c.F, c.omega) for c in cycles] and len(cycles) == 1
+    assert first.computed > 8 * 16 and (tmp_path / "a" / "fig_lead.png").exists()
+    second = run_scene(parse_scene(text), tmp_path / "b", cache=tmp_path / "cache", progress=False)
+    assert second.computed == 0 and second.cache_hits == first.computed
+    assert json.loads((tmp_path / "b" / "results.json").read_text())["limit_cycles"]["lead"]["predictions"] == found
+
+
+def test_dfwb_run_from_the_command_line(fmus, tmp_path, capsys):
+    from dfwb.cli import main
+
+    path = tmp_path / "s.toml"
+    path.write_text(SCENE.format(h=0.1))
+    assert main(["run", str(path), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "--quiet"]) == 0
+    assert "12 points (12 computed, 0 cached, 0 resumed), 2 figure(s)" in capsys.readouterr().out
+    assert main(["run", str(path), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "--quiet"]) == 0
+    assert "up to date (12 points, 2 figure(s))" in capsys.readouterr().out

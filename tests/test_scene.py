@@ -1,0 +1,143 @@
+"""Scene files: every shipped scene is valid; every kind of mistake is one message naming file, key and range."""
+
+from pathlib import Path
+
+import pytest
+
+from dfwb.cli import main
+from dfwb.scene import PAPER_FIGURES, SceneError, load_scene, parse_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = sorted((ROOT / "scenes").glob("*.toml"))
+
+GOOD = '''
+title = "t"
+[[series]]
+name = "s"
+plant = "backlash"
+F = [50.0]
+omega = [20.0]
+'''
+
+
+def test_every_shipped_scene_is_valid_and_the_paper_has_one_scene_per_figure():
+    scenes = {path.stem: load_scene(path) for path in SHIPPED}
+    papers = [f.paper for scene in scenes.values() for f in scene.figure if f.kind == "paper"]
+    assert sorted(papers) == sorted(PAPER_FIGURES)
+    assert len([name for name in scenes if name.startswith("lc_")]) == 4
+    for name, scene in scenes.items():
+        for f in scene.figure:
+            if f.kind == "paper":
+                assert name.startswith(f.paper) and PAPER_FIGURES[f.paper].file == name
+
+
+def test_points_expand_F_outer_grid_then_omega_and_merge_log_and_values():
+    scene = parse_scene(GOOD.replace("F = [50.0]", "F = [50.0, 10]").replace(
+        "omega = [20.0]", "omega = {log = [1, 100, 3], values = [20, 10]}\ngrid = {eps = [0.2, 0.8]}"))
+    points = [(p.F, p.params["eps"], p.omega) for p in scene.points()]
+    assert points[:5] == [(50.0, 0.2, 1.0), (50.0, 0.2, 10.0), (50.0, 0.2, 20.0), (50.0, 0.2, 100.0),
+                          (50.0, 0.8, 1.0)]
+    assert len(points) == 2 * 2 * 4 and points[-1] == (10.0, 0.8, 100.0)
+
+
+@pytest.mark.parametrize("change, message", [
+    (("omega = [20.0]", "omega = [20.0]\nomgea = 3"), "series[0]: unknown key 'omgea' (allowed: name, plant, params"),
+    (("title = \"t\"", "title = \"t\"\nresults = 1"), "unknown key 'results' (allowed: title, description"),
+    (("F = [50.0]", "F = \"50\""), "series[0].F: Input should be a valid list (got '50')"),
+    (("F = [50.0]", "F = [\"50\"]"), "series[0].F[0]: Input should be a valid number (got '50')"),
+    (("F = [50.0]", "F = [-5.0]"), "series[0].F[0]: Input should be greater than 0 (got -5.0)"),
+    (("F = [50.0]", "F = [nan]"), "series[0].F[0]: Input should be a finite number"),
+    (("F = [50.0]", "F = []"), "series[0].F: List should have at least 1 item"),
+    (("omega = [20.0]", "omega = []"), "series[0].omega: the frequency grid is empty"),
+    (("omega = [20.0]", "omega = {log = [10, 1, 5]}"), "series[0].omega: log = [10.0, 1.0, 5.0]: expected"),
+    (("omega = [20.0]", "omega = {log = [1, 10, 2.5]}"), "an integer 2 <= n <= 100000"),
+    (("omega = [20.0]", "omega = [20.0]\nparams = {eps = 1.5}"),
+     "series[0]: eps = 1.5 is out of range: eps must be in [0, 1]"),
+    (("omega = [20.0]", "omega = [20.0]\ngrid = {eps = [0.5, 1.5]}"), "series[0]: eps = 1.5 is out of range"),
+    (("omega = [20.0]", "omega = [20.0]\ngrid = {eps = []}"), "series[0].grid.eps: List should have at least 1"),
+    (("omega = [20.0]", "omega = [20.0]\nparams = {mass = 2}"),
+     "series[0]: unknown parameter 'mass' for plant backlash (allowed: "),
+    (("omega = [20.0]", "omega = [20.0]\nparams = {omega = 2}"), "omega is set by the describing-function engine"),
+    (("plant = \"backlash\"", "plant = \"gearbox\""),
+     "series[0].plant: Input should be 'friction', 'backlash' or 'static-backlash' (got 'gearbox')"),
+    (("name = \"s\"", "name = \"a b\""), "series[0].name: String should match pattern"),
+    (("[[series]]", "[engine]\ndrive = \"held\"\n[[series]]"),
+     "engine.drive: Input should be 'internal' or 'input' (got 'held')"),
+    (("[[series]]", "[engine]\nsamples_per_period = 2\n[[series]]"),
+     "engine.samples_per_period: Input should be greater than or equal to 4 (got 2)"),
+    (("title = \"t\"", "title = \" \""), "title: the title is empty"),
+])
+def test_a_bad_scene_is_one_message_naming_the_key_and_the_allowed_values(change, message):
+    with pytest.raises(SceneError) as error:
+        parse_scene(GOOD.replace(*change), "my.toml")
+    assert str(error.value).startswith("my.toml: ") and message in str(error.value), str(error.value)
+
+
+LIMIT_CYCLE = '''
+title = "t"
+[[limit_cycle]]
+name = "lc"
+plant = "static-backlash"
+G = "20*(s+2)/(s+20)"
+F_range = [0.01, 100.0]
+omega_range = [0.1, 50.0]
+'''
+
+
+@pytest.mark.parametrize("change, message", [
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"s**2/(s+1)\""), "limit_cycle[0]: G(s) = s**2/(s+1) is improper"),
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"__import__('os')\""), "limit_cycle[0]: "),
+    (("G = \"20*(s+2)/(s+20)\"", ""), "limit_cycle[0]: give the controller either as G"),
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"1/(s+1)\"\nnum = [1.0]"), "give the controller either as G"),
+    (("F_range = [0.01, 100.0]", "F_range = [100.0, 0.01]"), "limit_cycle[0]: F_range = [100, 0.01]: expected"),
+    (("F_range = [0.01, 100.0]", "F_range = [0.01]"), "limit_cycle[0].F_range: List should have at least 2"),
+    (("omega_range = [0.1, 50.0]", "omega_range = [0.1, 50.0]\nsamples_per_period = 8"),
+     "limit_cycle[0].samples_per_period: Input should be greater than or equal to 16"),
+])
+def test_a_bad_limit_cycle_names_the_problem(change, message):
+    with pytest.raises(SceneError) as error:
+        parse_scene(LIMIT_CYCLE.replace(*change), "lc.toml")
+    assert message in str(error.value), str(error.value)
+
+
+@pytest.mark.parametrize("figure, message", [
+    ('kind = "nyquist"\nseries = ["nope"]', "figure[0] (f): 'nope' is not a [[series]] of this scene (allowed: s)"),
+    ('kind = "nyquist"', "figure[0] (f): series is empty (allowed: s)"),
+    ('kind = "trace"\nseries = ["s"]', "'s' is not a [[trace]] of this scene (allowed: none)"),
+    ('kind = "paper"\npaper = "fig07"', "paper = 'fig07' is not one of the paper's figures (allowed: fig03, fig04"),
+    ('kind = "paper"\npaper = "fig03"', "the paper's fig03 needs the series or trace 'friction'"),
+    ('kind = "bode"\nseries = ["s"]', "figure[0].kind: Input should be 'nyquist', 're_im', 'harmonics'"),
+    ('kind = "nyquist"\nseries = ["s"]\nxlim = [0, "a"]', "figure[0].xlim[1]: Input should be a valid number"),
+])
+def test_figures_must_name_what_the_scene_computes(figure, message):
+    with pytest.raises(SceneError) as error:
+        parse_scene(GOOD + f'[[figure]]\nname = "f"\n{figure}\n', "f.toml")
+    assert message in str(error.value), str(error.value)
+
+
+def test_scene_level_mistakes():
+    with pytest.raises(SceneError, match="the scene asks for nothing"):
+        parse_scene('title = "t"\n', "e.toml")
+    with pytest.raises(SceneError, match="the name 's' is used twice"):
+        parse_scene(GOOD + GOOD.split("\n", 2)[2], "d.toml")
+    with pytest.raises(SceneError, match=r"^bad.toml: not valid TOML: .*line 1"):
+        parse_scene("title = = 3", "bad.toml")
+    with pytest.raises(SceneError, match="missing.toml: cannot read the scene"):
+        load_scene("missing.toml")
+    trace = ('title = "t"\n[[trace]]\nname = "t"\nplant = "friction"\nF = 1.0\nomega = 1.0\nstop = 1.0\n'
+             'step = 0.1\noutputs = ["y"]\n')
+    with pytest.raises(SceneError, match=r"trace\[0\]: output 'y' is not an output of plant friction \(allowed: x, v"):
+        parse_scene(trace, "t.toml")
+    with pytest.raises(SceneError, match=r"trace\[0\]: start = 2 must be < stop = 1"):
+        parse_scene(trace.replace('["y"]', '["x"]\nstart = 2.0'), "t.toml")
+
+
+def test_dfwb_run_reports_a_bad_scene_in_one_line_and_exit_code_2(tmp_path, capsys):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(GOOD.replace("F = [50.0]", "F = [50.0]\nparams = {eps = 1.5}"))
+    with pytest.raises(SystemExit) as stop:
+        main(["run", str(scene), "--out", str(tmp_path / "out"), "--no-cache"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{scene}: series[0]: eps = 1.5 is out of range" in err
+    assert not (tmp_path / "out").exists()  # nothing written
