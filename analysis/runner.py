@@ -17,6 +17,7 @@ flight. The final ``results.csv``, ``results.json``, ``traces/*.csv``, the
 figures and ``summary.md`` are each written atomically.
 """
 
+import base64
 import csv
 import hashlib
 import io
@@ -69,6 +70,7 @@ class Outcome:
     cache_hits: int = 0
     resumed: int = 0
     rejected: int = 0
+    figures_cached: int = 0  # figures copied from the cache instead of drawn
     up_to_date: bool = False  # the folder already held this scene's results: nothing was done
     seconds: float = 0.0
     figures: list = field(default_factory=list)
@@ -220,6 +222,8 @@ class SceneRun:
 
     # -- limit cycles ---------------------------------------------------------------------
     def limit_cycles(self, display):
+        if not self.scene.limit_cycle:
+            return {}
         from .closed_loop import LoopRun, verify
         from .limit_cycles import search
 
@@ -317,7 +321,7 @@ class SceneRun:
         self.outcome.points = len(self.values)
         self.outcome.rejected = self.cache.rejected
         self.write_results(data, csv_rows, traces, cycles)
-        self.draw(data, traces, cycles)
+        self.draw(data, traces, cycles, fingerprint)
         self.outcome.seconds = time.perf_counter() - started
         self.write_summary(data, cycles)
         self.write_manifest(fingerprint)
@@ -344,25 +348,40 @@ class SceneRun:
                                      for name, r in cycles.items()}}
         write_atomic(self.out / "results.json", json.dumps(document, indent=1))
 
-    def draw(self, data, traces, cycles):
+    def draw(self, data, traces, cycles, fingerprint):
+        """Draw each figure, or copy it from the cache when this very run drew it before."""
+        for figure in self.scene.figure:
+            key = {"kind": "figure", "run": fingerprint, "name": figure.name}
+            stored = self.cache.get(key)
+            if stored is None:
+                sections, pngs = self._draw(figure, data, traces, cycles)
+                files = [path.with_suffix(suffix) for path in pngs for suffix in (".png", ".svg")]
+                stored = {"sections": [[title, png.name, text] for title, png, text in sections],
+                          "figures": [path.name for path in pngs],
+                          "files": {path.name: base64.b64encode(path.read_bytes()).decode() for path in files}}
+                self.cache.put(key, stored)
+            else:
+                self.outcome.figures_cached += 1
+                for name, content in stored["files"].items():
+                    write_atomic(self.out / name, base64.b64decode(content))
+            self.outcome.sections += [(title, self.out / png, text) for title, png, text in stored["sections"]]
+            self.outcome.figures += [self.out / name for name in stored["figures"]]
+
+    def _draw(self, figure, data, traces, cycles):
+        """([(title, png, markdown)] report sections, [png paths]) of one figure."""
         from . import plots
         from .paper import Paper
 
-        paper = Paper(self.out, data, traces)
-        for figure in self.scene.figure:
-            if figure.kind == "paper":
-                before = len(paper.sections)
-                getattr(paper, figure.paper)()
-                self.outcome.sections += paper.sections[before:]
-                self.outcome.figures += [self.out / f"{PAPER_FIGURES[figure.paper].file}.png"]
-            elif figure.kind == "limit_cycle":
-                for name in figure.series:
-                    r = cycles[name]
-                    path = plots.limit_cycle_figure(self.out / f"{figure.name}_{name}.png", r["G"], r["F_grid"],
-                                                    r["omega_grid"], r["N_grid"], r["cycles"], r["runs"])
-                    self.outcome.figures.append(path)
-            else:
-                self.outcome.figures.append(plots.scene_figure(self.out, figure, data, traces, self.scene))
+        if figure.kind == "paper":
+            paper = Paper(self.out, data, traces)
+            getattr(paper, figure.paper)()
+            return paper.sections, [self.out / f"{PAPER_FIGURES[figure.paper].file}.png"]
+        if figure.kind == "limit_cycle":
+            return [], [plots.limit_cycle_figure(self.out / f"{figure.name}_{name}.png", cycles[name]["G"],
+                                                 cycles[name]["F_grid"], cycles[name]["omega_grid"],
+                                                 cycles[name]["N_grid"], cycles[name]["cycles"], cycles[name]["runs"])
+                        for name in figure.series]
+        return [], [plots.scene_figure(self.out, figure, data, traces, self.scene)]
 
     def write_summary(self, data, cycles):
         o, scene = self.outcome, self.scene
@@ -370,7 +389,9 @@ class SceneRun:
         lines += [f"{o.points} DF points: {o.computed} computed on {self.executor.name}, {o.cache_hits} from the "
                   f"cache, {o.resumed} resumed from this folder"
                   + (f", {o.rejected} cache entries rejected (corrupt or another version) and recomputed"
-                     if o.rejected else "") + f"; {o.seconds:.2f} s. Cache: {self.cache.root or 'off'}.", "",
+                     if o.rejected else "")
+                  + (f"; {o.figures_cached} figure(s) copied from the cache" if o.figures_cached else "")
+                  + f"; {o.seconds:.2f} s. Cache: {self.cache.root or 'off'}.", "",
                   "Results: `results.csv` (one row per point) and `results.json`"
                   + (", time traces in `traces/`." if scene.trace else "."), ""]
         for title, png, text in o.sections:

@@ -89,9 +89,13 @@ def as_json(rows):
     return [json_form(parse_row(r)) for r in rows]
 
 
-def write_atomic(path, text):
+def write_atomic(path, content):
+    """Write text or bytes so that ``path`` is either the old file or the complete new one."""
     partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-    partial.write_text(text)
+    if isinstance(content, bytes):
+        partial.write_bytes(content)
+    else:
+        partial.write_text(content)
     partial.replace(path)
 
 
