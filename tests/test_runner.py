@@ -53,6 +53,11 @@ def scene(h=0.1, extra=""):
     return parse_scene(SCENE.format(h=h) + extra, "test.toml")
 
 
+def df_entries(cache):
+    """The cache's entries of DF points (it also holds figures, traces and judge runs)."""
+    return sorted(path for path in Path(cache).rglob("*.json") if json.loads(path.read_text())["key"]["kind"] == "df")
+
+
 def results(out):
     """results.json without the timings, which are the only thing allowed to differ."""
     document = json.loads((Path(out) / "results.json").read_text())
@@ -115,7 +120,7 @@ def test_defaults_given_or_omitted_are_the_same_point_and_harmonics_serve_df_onl
 def test_a_corrupt_cache_is_detected_and_recomputed(fmus, tmp_path):
     cache = tmp_path / "cache"
     run_scene(scene(), tmp_path / "a", jobs=1, cache=cache, progress=False)
-    entries = sorted(path for path in cache.rglob("*.json") if json.loads(path.read_text())["key"]["kind"] == "df")
+    entries = df_entries(cache)
     assert len(entries) == 12
     entries[0].write_text(entries[0].read_text()[:40])  # cut short
     entry = json.loads(entries[1].read_text())
@@ -132,7 +137,7 @@ def test_no_cache_writes_no_cache(fmus, tmp_path, monkeypatch):
     run_scene(scene(), tmp_path / "a", jobs=1, cache=False, progress=False)
     assert not (tmp_path / "xdg").exists()
     run_scene(scene(), tmp_path / "b", jobs=1, cache=True, progress=False)
-    assert len(list((tmp_path / "xdg" / "dfwb").rglob("*.json"))) == 12
+    assert len(df_entries(tmp_path / "xdg" / "dfwb")) == 12
 
 
 def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tmp_path):
