@@ -18,12 +18,13 @@ import hashlib
 import multiprocessing
 import os
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
 from .describing import DFEngine
 
-_ENGINES = {}  # per worker process: (plant, settings, FMU file) -> DFEngine
+_ENGINES = {}  # per worker thread: (thread, plant, settings, FMU file) -> DFEngine (FMU instances are not shared)
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,7 @@ class Chunk:
 def compute(chunk, fmu_data=None):
     """The as_dict() of every point of a chunk; ``fmu_data``: the FMU's bytes, shipped to a remote worker."""
     path = _materialize(chunk.fmu, fmu_data) if fmu_data is not None else chunk.fmu
-    key = (chunk.plant, chunk.settings, str(path))
+    key = (threading.get_ident(), chunk.plant, chunk.settings, str(path))
     if key not in _ENGINES:
         _ENGINES[key] = DFEngine(chunk.plant, fmu=path, **dict(chunk.settings))
     engine = _ENGINES[key]

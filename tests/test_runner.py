@@ -93,6 +93,9 @@ def test_a_second_run_recomputes_nothing_and_a_changed_parameter_only_its_points
     again = run_scene(scene(), tmp_path / "b", jobs=2, cache=cache, progress=False)
     assert (first.computed, again.computed, again.cache_hits) == (12, 0, 12)
     assert results(tmp_path / "a") == results(tmp_path / "b")
+    assert again.figures_cached == 2  # copied, not redrawn: the same bytes
+    for name in ("nyquist.png", "nyquist.svg", "re_im.png"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
     changed = run_scene(scene(h=0.2), tmp_path / "c", jobs=2, cache=cache, progress=False)
     assert (changed.computed, changed.cache_hits) == (6, 6)  # only the backlash points depend on h
     same = run_scene(scene(), tmp_path / "a", jobs=2, cache=cache, progress=False)
