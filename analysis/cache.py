@@ -56,18 +56,18 @@ class Cache:
         self.dir = self.root / f"v{FORMAT}"
         self.hits = self.misses = self.rejected = 0
 
-    def _path(self, key):
-        name = digest(key)
+    def _path(self, text):
+        name = hashlib.sha256(text.encode()).hexdigest()
         return self.dir / name[:2] / f"{name}.json"
 
     def get(self, key):
         """The value stored under ``key``, or None (missing, corrupt or not this version's)."""
-        path = self._path(key)
+        text = canonical(key)
+        path = self._path(text)
         try:
             entry = json.loads(path.read_bytes())
             valid = (isinstance(entry, dict) and entry.get("format") == FORMAT
-                     and entry.get("key") == json.loads(canonical(key))
-                     and entry.get("sha256") == digest(entry.get("value")))
+                     and canonical(entry.get("key")) == text and entry.get("sha256") == digest(entry.get("value")))
         except FileNotFoundError:
             self.misses += 1
             return None
@@ -81,7 +81,7 @@ class Cache:
 
     def put(self, key, value):
         """Store ``value`` (JSON-able, finite floats) under ``key``, atomically."""
-        path = self._path(key)
+        path = self._path(canonical(key))
         path.parent.mkdir(parents=True, exist_ok=True)
         entry = {"format": FORMAT, "key": key, "sha256": digest(value), "value": value}
         partial = path.with_name(f".{path.name}.{os.getpid()}.partial")

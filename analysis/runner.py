@@ -83,6 +83,15 @@ class _Points:
     def __init__(self, run, settings):
         self.run, self.settings = run, settings  # settings: sorted (name, value) for DFEngine
         self.harmonics = dict(settings)["harmonics"]
+        self._named = {}
+
+    def named(self, plant, F, omega, params):
+        """(digest, key) of a point, computed once per run."""
+        point = (plant, F, omega, tuple(sorted(params.items())))
+        if point not in self._named:
+            key = self.key(plant, F, omega, params)
+            self._named[point] = (digest(key), key)
+        return self._named[point]
 
     def key(self, plant, F, omega, params, harmonics=None):
         spec = find_plant(plant)
@@ -135,8 +144,8 @@ class SceneRun:
         """Make ``self.values`` hold every (plant, F, omega, params) of ``points``; append new ones to the CSV."""
         keys = {}
         for plant, F, omega, params in points:
-            key = table.key(plant, F, omega, params)
-            keys.setdefault(digest(key), (key, plant, F, omega, params))
+            name, key = table.named(plant, F, omega, params)
+            keys.setdefault(name, (key, plant, F, omega, params))
         resumed = {r["key"]: r for r in read_rows(self.out / "results.csv")} if self.out.exists() else {}
         pending, hits, old = [], 0, 0
         for name, (key, plant, F, omega, params) in keys.items():
@@ -180,17 +189,15 @@ class SceneRun:
                 display.advance(task, len(results))
         return {name: entry[0] for name, entry in keys.items()}
 
-    def value(self, table, plant, F, omega, params):
-        return self.values[digest(table.key(plant, F, omega, params))]
-
     def series_rows(self, table):
         """{series name: [as_json row]} in the scene's order, params as the scene gives them."""
         data = {s.name: [] for s in self.scene.series}
         csv_rows = []
         for p in self.scene.points():
             params = self.check(p.plant, p.params)
-            value = dict(self.value(table, p.plant, p.F, p.omega, params), params=params)
-            csv_rows.append(dict(row(value), series=p.series, key=digest(table.key(p.plant, p.F, p.omega, params))))
+            name = table.named(p.plant, p.F, p.omega, params)[0]
+            value = dict(self.values[name], params=params)
+            csv_rows.append(dict(row(value), series=p.series, key=name))
             data[p.series].append(json_form(value))
         return data, csv_rows
 
@@ -274,7 +281,7 @@ class SceneRun:
     # -- everything -------------------------------------------------------------------------
     def fingerprint(self, table, points):
         """A digest of everything the outputs depend on: the scene, every point's key, the code."""
-        keys = [digest(table.key(plant, F, omega, params)) for plant, F, omega, params in points]
+        keys = [table.named(plant, F, omega, params)[0] for plant, F, omega, params in points]
         return digest({"scene": self.scene.model_dump(mode="json"), "points": keys, "fmus": self.revisions,
                        "engine": self.engine, "outputs": source_revision(OUTPUT_SOURCES)})
 
@@ -346,7 +353,7 @@ class SceneRun:
                     "limit_cycles": {name: _finite({"predictions": [c.as_dict() for c in r["cycles"]],
                                                     "verification": r["verification"]})
                                      for name, r in cycles.items()}}
-        write_atomic(self.out / "results.json", json.dumps(document, indent=1))
+        write_atomic(self.out / "results.json", json.dumps(document))
 
     def draw(self, data, traces, cycles, fingerprint):
         """Draw each figure, or copy it from the cache when this very run drew it before."""
@@ -432,8 +439,7 @@ class _CachedEngine:
 
     def point(self, F, omega, params=None):
         params = self.run.check(self.plant.name, params or {})
-        key = self.table.key(self.plant.name, F, omega, params)
-        name = digest(key)
+        name, key = self.table.named(self.plant.name, F, omega, params)
         value = self.run.values.get(name)
         if value is None:
             value = self.table.lookup(key)
