@@ -251,7 +251,7 @@ class SceneRun:
             self.outcome.cache_hits += engine.hits
             checks, runs = [], []
             if lc.verify:
-                task = display.add(f"{lc.name}: co-simulation judge", len(cycles), 0, 0)
+                task = display.add(f"{lc.name}: judge", len(cycles), 0, 0)
                 controller = fmu_path("LinearSystem", self.fmu_dir)
                 for cycle in cycles:
                     key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)],
@@ -464,12 +464,13 @@ class _Display:
 
     def __enter__(self):
         if self.enabled:
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
-                                       TimeRemainingColumn)
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+            from rich.table import Column
 
-            self.progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                                     TextColumn("[cyan]{task.fields[hits]} cached"), TimeElapsedColumn(),
-                                     TextColumn("left"), TimeRemainingColumn())
+            label = Column(max_width=32, no_wrap=True, overflow="ellipsis")
+            self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20), MofNCompleteColumn(),
+                                     TextColumn("[cyan]{task.fields[hits]} cached"), TextColumn("time left"),
+                                     TimeRemainingColumn(compact=True))
             self.progress.console.print(f"[bold]{self.title}")
             self.progress.start()
         return self

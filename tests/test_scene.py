@@ -141,3 +141,11 @@ def test_dfwb_run_reports_a_bad_scene_in_one_line_and_exit_code_2(tmp_path, caps
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{scene}: series[0]: eps = 1.5 is out of range" in err
     assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_the_readme_scene_is_valid():
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("```toml\n", 1)[1].split("```", 1)[0]
+    scene = parse_scene(block, "README.md")
+    assert [s.name for s in scene.series] == ["backlash"] and scene.limit_cycle[0].verify
+    assert len(scene.points()) == 2 * 2 * 43 and not scene.needs_harmonics
