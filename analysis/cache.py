@@ -25,6 +25,7 @@ True
 ({'y': 2.0}, 1, 0)
 """
 
+import functools
 import hashlib
 import json
 import os
@@ -37,6 +38,16 @@ def default_dir():
     """``$XDG_CACHE_HOME/dfwb``, else ``~/.cache/dfwb``."""
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "dfwb"
+
+
+@functools.lru_cache(maxsize=None)
+def code_revision():
+    """Hash of every module of the dfwb analysis package: any change to the code that computes or shapes a
+    cached value gives new keys (the FMUs' own sources are covered by their build hash)."""
+    digest_ = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.glob("*.py")):
+        digest_.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest_.hexdigest()[:16]
 
 
 def canonical(document):

@@ -7,6 +7,7 @@ anything is computed or written.
 
 import argparse
 import json
+import signal
 import sys
 from pathlib import Path
 
@@ -184,11 +185,13 @@ def _cache(args):
 
 def cmd_run(args):
     from .runner import run_scene
+    from .scene import load_scene
 
-    for path in args.scenes:
+    scenes = [(path, load_scene(path)) for path in args.scenes]  # every scene is checked before any runs
+    for path, scene in scenes:
         single = len(args.scenes) == 1 and args.out
         out = args.out if single else (args.out or Path("out/scenes")) / path.stem
-        o = run_scene(path, out, args.jobs, args.dask, _cache(args), args.fmus, progress=not args.quiet)
+        o = run_scene(scene, out, args.jobs, args.dask, _cache(args), args.fmus, progress=not args.quiet)
         if o.up_to_date:
             print(f"{o.out_dir}/summary.md: up to date ({o.points} points, {len(o.figures)} figure(s)), "
                   f"{o.seconds:.2f} s")
@@ -320,12 +323,21 @@ def main(argv=None):
 
     top = parser()
     args = top.parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # kill: stop the workers and keep what is done
     try:
         return args.run(args)
     except (InputError, PlantError, ValueError, RuntimeError) as error:
         top.exit(2, f"dfwb {args.command}: error: {error}\n")
+    except OSError as error:
+        top.exit(2, f"dfwb {args.command}: error: {error.filename or ''}: {error.strerror or error}\n")
     except KeyboardInterrupt:
         top.exit(130, f"dfwb {args.command}: interrupted\n")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
+from .cache import code_revision
 from .describing import DFEngine
 
 _ENGINES = {}  # per worker thread: (thread, plant, settings, FMU file) -> DFEngine (FMU instances are not shared)
@@ -38,13 +39,14 @@ class Chunk:
 
 
 def compute(chunk, fmu_data=None):
-    """The as_dict() of every point of a chunk; ``fmu_data``: the FMU's bytes, shipped to a remote worker."""
+    """(code revision, the as_dict() of every point of a chunk); ``fmu_data``: the FMU's bytes, shipped to a
+    remote worker. The revision lets the client refuse results of a worker that runs other code."""
     path = _materialize(chunk.fmu, fmu_data) if fmu_data is not None else chunk.fmu
     key = (threading.get_ident(), chunk.plant, chunk.settings, str(path))
     if key not in _ENGINES:
         _ENGINES[key] = DFEngine(chunk.plant, fmu=path, **dict(chunk.settings))
     engine = _ENGINES[key]
-    return [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
+    return code_revision(), [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
 
 
 def _materialize(original, data):
@@ -60,8 +62,9 @@ def _materialize(original, data):
 
 
 def chunked(points, jobs, largest=16):
-    """Chunks small enough to balance ``jobs`` workers, large enough to amortise a round trip."""
-    size = max(1, min(largest, len(points) // (max(jobs, 1) * 4)))
+    """Chunks small enough to balance ``jobs`` workers, large enough to amortise a round trip
+    (one point each in this process: nothing finished waits to be recorded)."""
+    size = 1 if jobs <= 1 else max(1, min(largest, len(points) // (jobs * 4)))
     return [tuple(points[i:i + size]) for i in range(0, len(points), size)]
 
 
@@ -97,7 +100,13 @@ class Executor:
 
     def run(self, chunks):
         """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest."""
-        chunks = list(chunks)
+        for chunk, (revision, results) in self._run(list(chunks)):
+            if revision != code_revision():
+                raise RuntimeError(f"a worker ran dfwb code revision {revision}, this process has {code_revision()}: "
+                                   "install the same dfwb on every worker")
+            yield chunk, results
+
+    def _run(self, chunks):
         if not chunks:
             return
         if self.dask:

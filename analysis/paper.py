@@ -19,6 +19,7 @@ import numpy as np
 from . import plots
 from .closed_forms import static_backlash_plant_df, validity_frequencies
 from .plants import DEFAULT_FMU_DIR
+from .sweep import write_atomic
 
 FRICTION_F = [10.0, 20.0, 30.0, 40.0, 50.0]
 FRICTION_MARKS = [30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0]
@@ -316,7 +317,7 @@ def write_report(out_dir, sections, seconds):
     for title, png, body in sections:
         text += [f"## {title}", "", f"![{title}]({png.relative_to(out_dir).as_posix()})", "", body, ""]
     path = out_dir / "report.md"
-    path.write_text("\n".join(text))
+    write_atomic(path, "\n".join(text))
     return path
 
 

@@ -23,34 +23,23 @@ import hashlib
 import io
 import json
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .cache import Cache, NoCache, digest
+from .cache import Cache, NoCache, code_revision, digest
 from .describing import HARMONICS, DFEngine, DFResult
 from .executor import Chunk, Executor, chunked
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from .scene import PAPER_FIGURES, Point, Scene, load_scene
 from .sweep import COLUMNS, json_form, parse_row, read_rows, row, write_atomic
 
-ENGINE_SOURCES = ("describing.py", "session.py", "simulation.py", "closed_loop.py", "limit_cycles.py")
-OUTPUT_SOURCES = ("runner.py", "scene.py", "sweep.py", "plots.py", "paper.py", "closed_forms.py")
 MANIFEST = "manifest.json"
 RUN_COLUMNS = ["series", "key"] + COLUMNS
 SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results.csv)
-
-
-def source_revision(names):
-    here = Path(__file__).parent
-    return hashlib.sha256(b"".join((here / name).read_bytes() for name in names)).hexdigest()[:16]
-
-
-def engine_revision():
-    """Hash of the analysis code a cached result depends on (a changed engine never reuses old results)."""
-    return source_revision(ENGINE_SOURCES)
 
 
 def fmu_revision(path):
@@ -99,7 +88,7 @@ class _Points:
         engine = dict(self.settings, harmonics=harmonics or self.harmonics)
         if engine["drive"] == "internal":
             engine.pop("samples_per_period")
-        return {"kind": "df", "model": spec.fmu_name, "fmu": self.run.revisions[plant], "engine": self.run.engine,
+        return {"kind": "df", "model": spec.fmu_name, "fmu": self.run.revisions[plant], "code": self.run.code,
                 "settings": engine, "params": full, "F": float(F), "omega": float(omega)}
 
     def lookup(self, key):
@@ -118,7 +107,7 @@ class SceneRun:
     def __init__(self, scene, out_dir, executor, cache, fmu_dir, progress):
         self.scene, self.out, self.executor, self.cache = scene, Path(out_dir), executor, cache
         self.fmu_dir, self.progress = fmu_dir, progress
-        self.engine = engine_revision()
+        self.code = code_revision()
         plants = {item.plant for group in (scene.series, scene.trace, scene.limit_cycle) for item in group}
         self.fmus = {plant: fmu_path(find_plant(plant), fmu_dir) for plant in sorted(plants)}
         self.revisions = {plant: fmu_revision(path) for plant, path in self.fmus.items()}
@@ -146,13 +135,13 @@ class SceneRun:
         for plant, F, omega, params in points:
             name, key = table.named(plant, F, omega, params)
             keys.setdefault(name, (key, plant, F, omega, params))
-        resumed = {r["key"]: r for r in read_rows(self.out / "results.csv")} if self.out.exists() else {}
+        resumed = self.resumable()
         pending, hits, old = [], 0, 0
         for name, (key, plant, F, omega, params) in keys.items():
             if name in self.values:
                 continue
             if name in resumed:
-                self.values[name] = parse_row(resumed[name])
+                self.values[name] = resumed[name]
                 old += 1
                 continue
             value = table.lookup(key)
@@ -172,22 +161,42 @@ class SceneRun:
                 chunk = Chunk(plant, str(self.fmus[plant]), table.settings, tuple((p[3], p[4], p[5]) for p in part))
                 by_chunk[id(chunk)] = part
                 chunks.append(chunk)
-        self.out.mkdir(parents=True, exist_ok=True)
         csv_path = self.out / "results.csv"
-        new_file = not csv_path.exists()
         with open(csv_path, "a", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=RUN_COLUMNS)
-            if new_file:
+            if handle.tell() == 0:
                 writer.writeheader()
             for chunk, results in self.executor.run(chunks):
-                for (name, key, *_), value in zip(by_chunk[id(chunk)], results):
+                for (name, key, plant, F, omega, params), value in zip(by_chunk[id(chunk)], results):
+                    if not all(math.isfinite(value[part]) for part in ("N_re", "N_im")):
+                        raise RuntimeError(f"{plant} at F = {F!r}, omega = {omega!r}, params = {params}: the engine "
+                                           f"gave N = {value['N_re']} + {value['N_im']}j, not a finite number")
                     self.cache.put(key, value)
                     self.values[name] = value
                     writer.writerow(dict(row(value), series="", key=name))
                 handle.flush()
+                os.fsync(handle.fileno())
                 self.outcome.computed += len(results)
                 display.advance(task, len(results))
         return {name: entry[0] for name, entry in keys.items()}
+
+    def resumable(self):
+        """{key: value} of the points an interrupted run left in results.csv; a file that is not such a
+        log (another header: a sweep's, a user's) is set aside as results.csv.unrecognised, never trusted."""
+        path = self.out / "results.csv"
+        rows = read_rows(path)
+        with open(path, newline="") if path.exists() else io.StringIO() as handle:
+            header = next(csv.reader(handle), None)
+        if header is not None and header != RUN_COLUMNS:
+            path.replace(path.with_name("results.csv.unrecognised"))
+            return {}
+        values = {}
+        for r in rows:
+            try:
+                values[r["key"]] = parse_row(r)
+            except (KeyError, TypeError, ValueError):
+                continue  # a damaged row: computed again
+        return values
 
     def series_rows(self, table):
         """{series name: [as_json row]} in the scene's order, params as the scene gives them."""
@@ -210,7 +219,7 @@ class SceneRun:
         for trace in self.scene.trace:
             spec = find_plant(trace.plant)
             params = self.check(trace.plant, trace.params)
-            key = {"kind": "trace", "model": spec.fmu_name, "fmu": self.revisions[trace.plant], "engine": self.engine,
+            key = {"kind": "trace", "model": spec.fmu_name, "fmu": self.revisions[trace.plant], "code": self.code,
                    "params": {n: float(v) for n, v in dict(spec.defaults(), **params).items()}, "F": trace.F,
                    "omega": trace.omega, "start": trace.start, "stop": trace.stop, "step": trace.step,
                    "outputs": trace.outputs}
@@ -255,7 +264,7 @@ class SceneRun:
                 controller = fmu_path("LinearSystem", self.fmu_dir)
                 for cycle in cycles:
                     key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)],
-                           "engine": self.engine, "plant": lc.plant, "params": params,
+                           "code": self.code, "plant": lc.plant, "params": params,
                            "G": [G.num[0][0].tolist(), G.den[0][0].tolist()], "cycle": [cycle.F, cycle.omega,
                                                                                          cycle.amplitude_x],
                            "samples_per_period": lc.samples_per_period}
@@ -283,19 +292,18 @@ class SceneRun:
         """A digest of everything the outputs depend on: the scene, every point's key, the code."""
         keys = [table.named(plant, F, omega, params)[0] for plant, F, omega, params in points]
         return digest({"scene": self.scene.model_dump(mode="json"), "points": keys, "fmus": self.revisions,
-                       "engine": self.engine, "outputs": source_revision(OUTPUT_SOURCES)})
+                       "code": self.code})
 
     def up_to_date(self, fingerprint):
-        """The stored outcome if the folder holds exactly this run's outputs, else None."""
+        """The stored outcome if the folder holds exactly this run's outputs (each file's SHA-256), else None."""
         try:
             manifest = json.loads((self.out / MANIFEST).read_text())
             if manifest["fingerprint"] != fingerprint:
                 return None
             stored = manifest["outcome"]
-            files = [self.out / name for name in manifest["files"]]
-        except (OSError, ValueError, KeyError, TypeError):
-            return None
-        if not all(path.exists() for path in files):
+            if any(_file_digest(self.out / name) != sha for name, sha in manifest["files"].items()):
+                return None
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
             return None
         return Outcome(self.out, points=stored["points"], up_to_date=True,
                        figures=[self.out / name for name in stored["figures"]],
@@ -303,8 +311,8 @@ class SceneRun:
 
     def write_manifest(self, fingerprint):
         o = self.outcome
-        files = sorted(path.relative_to(self.out).as_posix() for path in self.out.rglob("*")
-                       if path.is_file() and not path.name.startswith(".") and path.name != MANIFEST)
+        files = {path.relative_to(self.out).as_posix(): _file_digest(path) for path in sorted(self.out.rglob("*"))
+                 if path.is_file() and not path.name.startswith(".") and path.name != MANIFEST}
         document = {"fingerprint": fingerprint, "files": files,
                     "outcome": {"points": o.points, "figures": [p.name for p in o.figures],
                                 "sections": [(title, png.name, text) for title, png, text in o.sections]}}
@@ -320,6 +328,10 @@ class SceneRun:
         if done is not None:
             done.seconds = time.perf_counter() - started
             return done
+        if self.out.exists() and not self.out.is_dir():
+            raise RuntimeError(f"--out {self.out} is a file, not a folder")
+        self.out.mkdir(parents=True, exist_ok=True)
+        (self.out / MANIFEST).unlink(missing_ok=True)  # from here on the folder is being changed
         with _Display(self.progress, scene.title) as display:
             self.compute_points(points, table, display, "DF points")
             traces = self.traces(display)
@@ -381,8 +393,14 @@ class SceneRun:
 
         if figure.kind == "paper":
             paper = Paper(self.out, data, traces)
-            getattr(paper, figure.paper)()
-            return paper.sections, [self.out / f"{PAPER_FIGURES[figure.paper].file}.png"]
+            needed = PAPER_FIGURES[figure.paper]
+            try:
+                getattr(paper, figure.paper)()
+            except (ArithmeticError, IndexError, KeyError, ValueError) as error:
+                raise RuntimeError(f"figure {figure.name}: the paper's {figure.paper} cannot be drawn from this "
+                                   f"scene's points ({type(error).__name__}: {error}); it expects those of "
+                                   f"scenes/{needed.file}.toml") from None
+            return paper.sections, [self.out / f"{needed.file}.png"]
         if figure.kind == "limit_cycle":
             return [], [plots.limit_cycle_figure(self.out / f"{figure.name}_{name}.png", cycles[name]["G"],
                                                  cycles[name]["F_grid"], cycles[name]["omega_grid"],
@@ -489,6 +507,10 @@ class _Display:
             self.progress.advance(task, n)
 
 
+def _file_digest(path):
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def _finite(document):
     """JSON-safe: infinities and NaN become None."""
     if isinstance(document, float):
@@ -502,9 +524,12 @@ def _finite(document):
 
 def open_cache(cache):
     """``cache``: True (the user's cache directory), a path, or False/None (off)."""
-    if cache is True:
-        return Cache()
-    return Cache(cache) if cache else NoCache()
+    if not cache:
+        return NoCache()
+    store = Cache() if cache is True else Cache(cache)
+    if store.root.exists() and not store.root.is_dir():
+        raise RuntimeError(f"--cache {store.root} is a file, not a folder")
+    return store
 
 
 def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=DEFAULT_FMU_DIR, progress=True):
@@ -532,4 +557,4 @@ def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=DEF
         return SceneRun(scene, out_dir, executor, open_cache(cache), fmu_dir, progress).run()
 
 
-__all__ = ["run_scene", "Outcome", "Point", "engine_revision"]
+__all__ = ["run_scene", "Outcome", "Point"]

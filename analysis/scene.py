@@ -32,7 +32,7 @@ bad.toml: series[0]: unknown parameter 'eps' for plant friction (allowed: B, Dv,
 import itertools
 import re
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
@@ -49,6 +49,8 @@ else:  # pragma: no cover
 
 PlantName = Literal["friction", "backlash", "static-backlash"]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Force = Annotated[float, Field(ge=1e-6, le=1e9, allow_inf_nan=False)]  # [N]: the range the engine is tested on
+Frequency = Annotated[float, Field(ge=1e-4, le=1e5, allow_inf_nan=False)]  # [rad/s]
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)]
@@ -59,24 +61,27 @@ MAX_SAMPLES = 2_000_000
 
 @dataclass(frozen=True)
 class PaperFigure:
-    """What a paper figure draws from: series and traces of its scene, by name."""
+    """What a paper figure draws from: its scene's series (name: plant) and traces (name: (plant, output))."""
 
     file: str
-    series: tuple
-    traces: tuple = ()
+    series: dict
+    traces: dict = field(default_factory=dict)
     harmonics: bool = False
 
 
 PAPER_FIGURES = {  # the paper's figures (dfwb.paper draws them), by id
-    "fig03": PaperFigure("fig03_friction_nyquist", ("friction", "friction_linear")),
-    "fig04": PaperFigure("fig04_friction_re_im", ("friction", "friction_linear", "friction_karnopp")),
-    "fig05": PaperFigure("fig05_friction_time", (), ("friction_F10", "friction_F50")),
-    "fig06": PaperFigure("fig06_friction_harmonics", ("friction",), harmonics=True),
-    "fig08": PaperFigure("fig08_backlash_nyquist_eps", ("backlash_F50",)),
-    "fig09": PaperFigure("fig09_backlash_nyquist_F", ("backlash_F", "backlash_F50")),
-    "fig10": PaperFigure("fig10_backlash_re_im", ("static", "backlash_F50")),
-    "fig11": PaperFigure("fig11_backlash_velocity", ("backlash_F50",), ("backlash_w20_eps08", "backlash_w40_eps02")),
-    "fig12": PaperFigure("fig12_backlash_harmonics", ("backlash_F50",), harmonics=True),
+    "fig03": PaperFigure("fig03_friction_nyquist", {"friction": "friction", "friction_linear": "friction"}),
+    "fig04": PaperFigure("fig04_friction_re_im", {"friction": "friction", "friction_linear": "friction",
+                                                  "friction_karnopp": "friction"}),
+    "fig05": PaperFigure("fig05_friction_time", {}, {"friction_F10": ("friction", "x"),
+                                                     "friction_F50": ("friction", "x")}),
+    "fig06": PaperFigure("fig06_friction_harmonics", {"friction": "friction"}, harmonics=True),
+    "fig08": PaperFigure("fig08_backlash_nyquist_eps", {"backlash_F50": "backlash"}),
+    "fig09": PaperFigure("fig09_backlash_nyquist_F", {"backlash_F": "backlash", "backlash_F50": "backlash"}),
+    "fig10": PaperFigure("fig10_backlash_re_im", {"static": "static-backlash", "backlash_F50": "backlash"}),
+    "fig11": PaperFigure("fig11_backlash_velocity", {"backlash_F50": "backlash"},
+                         {"backlash_w20_eps08": ("backlash", "v1"), "backlash_w40_eps02": ("backlash", "v1")}),
+    "fig12": PaperFigure("fig12_backlash_harmonics", {"backlash_F50": "backlash"}, harmonics=True),
 }
 
 
@@ -111,7 +116,7 @@ class Frequencies(Strict):
     """Frequencies [rad/s]: ``[w1, w2, ...]`` or ``{log = [lo, hi, n], values = [...]}``, merged and sorted."""
 
     log: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = None  # [lo, hi, n]
-    values: list[Positive] = []
+    values: list[Frequency] = []
 
     @model_validator(mode="before")
     @classmethod
@@ -120,15 +125,17 @@ class Frequencies(Strict):
 
     @model_validator(mode="after")
     def _not_empty(self):
-        if self.log is not None and not (self.log[0] < self.log[1] and self.log[2] == int(self.log[2])
+        if self.log is not None and not (1e-4 <= self.log[0] < self.log[1] <= 1e5 and self.log[2] == int(self.log[2])
                                          and 2 <= self.log[2] <= 100_000):
-            raise ValueError(f"log = {self.log}: expected [lo, hi, n] with 0 < lo < hi and an integer 2 <= n <= 100000")
+            raise ValueError(f"log = {self.log}: expected [lo, hi, n] with 1e-4 <= lo < hi <= 1e5 rad/s and an "
+                             "integer 2 <= n <= 100000")
         if self.log is None and not self.values:
             raise ValueError("the frequency grid is empty: give values = [...] or log = [lo, hi, n]")
         return self
 
     def grid(self):
-        spaced = np.round(np.geomspace(self.log[0], self.log[1], int(self.log[2])), 12).tolist() if self.log else []
+        spaced = [float(f"{w:.12g}") for w in np.geomspace(self.log[0], self.log[1], int(self.log[2]))] \
+            if self.log else []
         return sorted(set(spaced) | set(self.values))
 
 
@@ -139,7 +146,7 @@ class Series(Strict):
     plant: PlantName
     params: dict[str, Finite] = {}
     grid: dict[str, Annotated[list[Finite], Field(min_length=1)]] = {}
-    F: Annotated[list[Positive], Field(min_length=1)]
+    F: Annotated[list[Force], Field(min_length=1)]
     omega: Frequencies
 
     @model_validator(mode="after")
@@ -147,9 +154,16 @@ class Series(Strict):
         both = set(self.params) & set(self.grid)
         if both:
             raise ValueError(f"{sorted(both)[0]!r} is both in params and in grid: give it in one of them")
+        combos = int(np.prod([len(v) for v in self.grid.values()]))
+        if combos > MAX_POINTS:
+            raise ValueError(f"grid has {combos} parameter combinations: at most {MAX_POINTS}")
         for combo in self.combos():
             _check_plant(self.plant, combo)
         return self
+
+    def size(self):
+        """The number of points, counted without building them."""
+        return len(self.F) * len(self.omega.grid()) * int(np.prod([len(v) for v in self.grid.values()]))
 
     def combos(self):
         """The parameter sets: params plus each combination of the grid."""
@@ -164,8 +178,8 @@ class Trace(Strict):
     name: Name
     plant: PlantName
     params: dict[str, Finite] = {}
-    F: Positive
-    omega: Positive
+    F: Force
+    omega: Frequency
     start: NonNegative = 0.0
     stop: Positive
     step: Positive
@@ -195,8 +209,8 @@ class LimitCycle(Strict):
     G: Optional[str] = None
     num: Optional[list[Finite]] = None
     den: Optional[list[Finite]] = None
-    F_range: Annotated[list[Positive], Field(min_length=2, max_length=2)]
-    omega_range: Annotated[list[Positive], Field(min_length=2, max_length=2)]
+    F_range: Annotated[list[Force], Field(min_length=2, max_length=2)]
+    omega_range: Annotated[list[Frequency], Field(min_length=2, max_length=2)]
     n_F: Annotated[int, Field(ge=2, le=1000)] = 16
     n_omega: Annotated[int, Field(ge=2, le=1000)] = 48
     verify: bool = False
@@ -220,7 +234,7 @@ class LimitCycle(Strict):
             raise ValueError("give the controller either as G = \"...\" or as num = [...] and den = [...]")
         if self.G is not None:
             return parse_transfer_function(self.G)
-        return from_coefficients(self.num or [], self.den or [])
+        return from_coefficients(self.num or [], self.den or [], names=("num", "den"))
 
 
 class Figure(Strict):
@@ -282,8 +296,9 @@ class Scene(Strict):
         for name in names:
             if names.count(name) > 1:
                 raise ValueError(f"the name {name!r} is used twice: names must be unique in a scene")
-        if len(self.points()) > MAX_POINTS:
-            raise ValueError(f"{len(self.points())} DF points: at most {MAX_POINTS}")
+        size = sum(s.size() for s in self.series)
+        if size > MAX_POINTS:
+            raise ValueError(f"{size} DF points: at most {MAX_POINTS} in one scene (split it)")
         for i, figure in enumerate(self.figure):
             _check_figure(self, i, figure)
         return self
@@ -308,10 +323,16 @@ def _check_figure(scene, i, figure):
             raise ValueError(f"{where}: paper = {figure.paper!r} is not one of the paper's figures "
                              f"(allowed: {', '.join(PAPER_FIGURES)})")
         needed = PAPER_FIGURES[figure.paper]
-        have = {s.name for s in scene.series} | {t.name for t in scene.trace}
-        missing = [name for name in needed.series + needed.traces if name not in have]
-        if missing:
-            raise ValueError(f"{where}: the paper's {figure.paper} needs the series or trace {missing[0]!r}")
+        series = {s.name: s.plant for s in scene.series}
+        traces = {t.name: (t.plant, t.outputs) for t in scene.trace}
+        for name, plant in needed.series.items():
+            if series.get(name) != plant:
+                raise ValueError(f"{where}: the paper's {figure.paper} needs a [[series]] {name!r} of plant {plant} "
+                                 f"(see scenes/{needed.file}.toml)")
+        for name, (plant, output) in needed.traces.items():
+            if name not in traces or traces[name][0] != plant or output not in traces[name][1]:
+                raise ValueError(f"{where}: the paper's {figure.paper} needs a [[trace]] {name!r} of plant {plant} "
+                                 f"with output {output!r} (see scenes/{needed.file}.toml)")
         return
     if figure.paper is not None:
         raise ValueError(f"{where}: paper is only allowed with kind = \"paper\"")
@@ -362,8 +383,10 @@ def load_scene(path):
     """The validated scene in the TOML file ``path``."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
     except OSError as error:
         raise SceneError(f"{path}: cannot read the scene ({error.strerror})") from None
+    except UnicodeDecodeError as error:
+        raise SceneError(f"{path}: not UTF-8 text (byte {error.start}): a scene is a TOML file") from None
     return parse_scene(text, str(path))
 

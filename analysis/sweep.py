@@ -56,7 +56,7 @@ def read_rows(path):
     text = path.read_text()
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
-        path.write_text(text)
+        write_atomic(path, text)
     return list(csv.DictReader(text.splitlines()))
 
 

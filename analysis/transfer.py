@@ -101,10 +101,10 @@ def parse_transfer_function(text):
     return check_transfer_function(value, text)
 
 
-def from_coefficients(num, den):
-    """A proper TransferFunction from coefficient lists (highest power first)."""
+def from_coefficients(num, den, names=("--num", "--den")):
+    """A proper TransferFunction from coefficient lists (highest power first); ``names``: how the user wrote them."""
     if not num or not den:
-        raise ValueError("--num and --den both need at least one coefficient")
+        raise ValueError(f"{names[0]} and {names[1]} both need at least one coefficient")
     if not all(math.isfinite(c) for c in list(num) + list(den)):
         raise ValueError(f"G(s) coefficients num = {num}, den = {den} must be finite")
     if not any(den):

@@ -224,3 +224,83 @@ def test_dfwb_run_from_the_command_line(fmus, tmp_path, capsys):
     assert "12 points (12 computed, 0 cached, 0 resumed), 2 figure(s)" in capsys.readouterr().out
     assert main(["run", str(path), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "--quiet"]) == 0
     assert "up to date (12 points, 2 figure(s))" in capsys.readouterr().out
+
+
+def test_a_results_csv_that_is_not_a_run_log_is_set_aside_not_trusted(fmus, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.csv").write_text("")  # killed before the header reached the disk
+    first = run_scene(scene(), out, jobs=1, cache=False, progress=False)
+    assert first.computed == 12
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "results.csv").write_text("plant,F,omega\nfriction,10,1\n")  # e.g. a dfwb sweep folder
+    again = run_scene(scene(), foreign, jobs=1, cache=False, progress=False)
+    assert again.computed == 12 and (foreign / "results.csv.unrecognised").read_text().startswith("plant,F")
+    assert results(out) == results(foreign)
+
+
+def test_a_folder_changed_since_its_run_is_not_up_to_date(fmus, tmp_path):
+    cache = tmp_path / "cache"
+    out = tmp_path / "out"
+    run_scene(scene(), out, jobs=1, cache=cache, progress=False)
+    broken = scene(extra='[[figure]]\nname = "p"\nkind = "paper"\npaper = "fig12"\n'
+                   '[[series]]\nname = "backlash_F50"\nplant = "backlash"\nF = [50.0]\nomega = [20.0]\n')
+    with pytest.raises(RuntimeError, match="figure p: the paper's fig12 cannot be drawn from this scene's points"):
+        run_scene(broken, out, jobs=1, cache=cache, progress=False)  # another scene, failing half-way
+    again = run_scene(scene(), out, jobs=1, cache=cache, progress=False)
+    assert not again.up_to_date and again.computed == 0 and again.cache_hits == 12
+    (out / "results.json").write_text("")  # an output damaged after the run
+    assert not run_scene(scene(), out, jobs=1, cache=cache, progress=False).up_to_date
+    assert run_scene(scene(), out, jobs=1, cache=cache, progress=False).up_to_date
+    assert json.loads((out / "results.json").read_text())["title"] == "two plants"
+
+
+def test_results_from_a_worker_running_other_code_are_refused(fmus, tmp_path, monkeypatch):
+    from dfwb import executor
+
+    real = executor.compute
+    monkeypatch.setattr(executor, "compute", lambda chunk, data=None: ("0123456789abcdef", real(chunk)[1]))
+    with pytest.raises(RuntimeError, match="a worker ran dfwb code revision 0123456789abcdef, this process has"):
+        run_scene(scene(), tmp_path / "out", jobs=1, cache=tmp_path / "cache", progress=False)
+    assert not list((tmp_path / "cache").rglob("*.json"))  # nothing of it was cached
+
+
+def test_the_cache_keys_cover_every_module_of_the_package():
+    import hashlib
+
+    from dfwb.cache import code_revision
+
+    package = ROOT / "analysis"
+    expected = hashlib.sha256()
+    for path in sorted(package.glob("*.py")):
+        expected.update(path.name.encode() + b"\0" + path.read_bytes())
+    assert code_revision() == expected.hexdigest()[:16]
+    assert {"plants.py", "runner.py", "describing.py", "transfer.py"} <= {p.name for p in package.glob("*.py")}
+
+
+def test_in_this_process_every_point_is_recorded_as_it_finishes():
+    from dfwb.executor import chunked
+
+    assert {len(c) for c in chunked(list(range(100)), 1)} == {1}
+    assert max(len(c) for c in chunked(list(range(1000)), 2)) == 16
+
+
+def test_the_command_line_checks_every_scene_before_running_any_and_reports_os_errors(fmus, tmp_path, capsys):
+    from dfwb.cli import main
+
+    good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
+    good.write_text(SCENE.format(h=0.1))
+    bad.write_text(SCENE.format(h=0.1).replace("omega = [0.5, 1.0, 5.0]", "omega = [0.5, 1e9]"))
+    with pytest.raises(SystemExit) as stop:
+        main(["run", str(good), str(bad), "--out", str(tmp_path / "o"), "--no-cache", "--quiet"])
+    assert stop.value.code == 2 and not (tmp_path / "o").exists()
+    assert "bad.toml: series[0].omega.values[1]: Input should be less than or equal to 100000" in capsys.readouterr().err
+    (tmp_path / "file").write_text("")
+    with pytest.raises(SystemExit) as stop:
+        main(["run", str(good), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "file"), "--quiet"])
+    assert stop.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
+    bad.write_bytes(b"title = \"\xff\"\n")
+    with pytest.raises(SystemExit):
+        main(["run", str(bad), "--no-cache", "--quiet"])
+    assert f"{bad}: not UTF-8 text (byte 9)" in capsys.readouterr().err

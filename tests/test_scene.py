@@ -45,7 +45,9 @@ def test_points_expand_F_outer_grid_then_omega_and_merge_log_and_values():
     (("title = \"t\"", "title = \"t\"\nresults = 1"), "unknown key 'results' (allowed: title, description"),
     (("F = [50.0]", "F = \"50\""), "series[0].F: Input should be a valid list (got '50')"),
     (("F = [50.0]", "F = [\"50\"]"), "series[0].F[0]: Input should be a valid number (got '50')"),
-    (("F = [50.0]", "F = [-5.0]"), "series[0].F[0]: Input should be greater than 0 (got -5.0)"),
+    (("F = [50.0]", "F = [-5.0]"), "series[0].F[0]: Input should be greater than or equal to 0.000001 (got -5.0)"),
+    (("F = [50.0]", "F = [1.7e308]"), "series[0].F[0]: Input should be less than or equal to 1000000000 (got 1.7e+308)"),
+    (("omega = [20.0]", "omega = {log = [1e-14, 1e-12, 3]}"), "expected [lo, hi, n] with 1e-4 <= lo < hi <= 1e5"),
     (("F = [50.0]", "F = [nan]"), "series[0].F[0]: Input should be a finite number"),
     (("F = [50.0]", "F = []"), "series[0].F: List should have at least 1 item"),
     (("omega = [20.0]", "omega = []"), "series[0].omega: the frequency grid is empty"),
@@ -86,7 +88,9 @@ omega_range = [0.1, 50.0]
 
 @pytest.mark.parametrize("change, message", [
     (("G = \"20*(s+2)/(s+20)\"", "G = \"s**2/(s+1)\""), "limit_cycle[0]: G(s) = s**2/(s+1) is improper"),
-    (("G = \"20*(s+2)/(s+20)\"", "G = \"__import__('os')\""), "limit_cycle[0]: "),
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"__import__('os')\""),
+     "limit_cycle[0]: G(s) = __import__('os'): Call is not allowed (numbers, s, + - * / **, parentheses)"),
+    (("G = \"20*(s+2)/(s+20)\"", "num = [1.0]"), "limit_cycle[0]: num and den both need at least one coefficient"),
     (("G = \"20*(s+2)/(s+20)\"", ""), "limit_cycle[0]: give the controller either as G"),
     (("G = \"20*(s+2)/(s+20)\"", "G = \"1/(s+1)\"\nnum = [1.0]"), "give the controller either as G"),
     (("F_range = [0.01, 100.0]", "F_range = [100.0, 0.01]"), "limit_cycle[0]: F_range = [100, 0.01]: expected"),
@@ -105,7 +109,7 @@ def test_a_bad_limit_cycle_names_the_problem(change, message):
     ('kind = "nyquist"', "figure[0] (f): series is empty (allowed: s)"),
     ('kind = "trace"\nseries = ["s"]', "'s' is not a [[trace]] of this scene (allowed: none)"),
     ('kind = "paper"\npaper = "fig07"', "paper = 'fig07' is not one of the paper's figures (allowed: fig03, fig04"),
-    ('kind = "paper"\npaper = "fig03"', "the paper's fig03 needs the series or trace 'friction'"),
+    ('kind = "paper"\npaper = "fig03"', "the paper's fig03 needs a [[series]] 'friction' of plant friction"),
     ('kind = "bode"\nseries = ["s"]', "figure[0].kind: Input should be 'nyquist', 're_im', 'harmonics'"),
     ('kind = "nyquist"\nseries = ["s"]\nxlim = [0, "a"]', "figure[0].xlim[1]: Input should be a valid number"),
 ])
