@@ -7,8 +7,8 @@ defaulted is the same point), the point and the engine settings. A second
 run of a scene, or another scene sharing points, finds them here; a changed
 parameter gives new keys for exactly the affected points.
 
-Each entry is one JSON file, written atomically, that repeats its key
-document and carries a checksum of its value. An entry that does not parse,
+Each entry is one file, written atomically: a header line that repeats its
+key document and carries a checksum of the value, then the value (JSON). An entry that does not parse,
 whose format, key or checksum does not match, is counted as rejected and
 recomputed: a corrupt cache, or one from another version, is never trusted.
 
@@ -31,7 +31,7 @@ import json
 import os
 from pathlib import Path
 
-FORMAT = 1
+FORMAT = 2
 
 
 def default_dir():
@@ -76,9 +76,11 @@ class Cache:
         text = canonical(key)
         path = self._path(text)
         try:
-            entry = json.loads(path.read_bytes())
+            head, _, body = path.read_bytes().partition(b"\n")
+            entry = json.loads(head)
             valid = (isinstance(entry, dict) and entry.get("format") == FORMAT
-                     and canonical(entry.get("key")) == text and entry.get("sha256") == digest(entry.get("value")))
+                     and entry.get("key") == text and entry.get("sha256") == hashlib.sha256(body).hexdigest())
+            value = json.loads(body) if valid else None
         except FileNotFoundError:
             self.misses += 1
             return None
@@ -88,15 +90,19 @@ class Cache:
             self.rejected += 1
             return None
         self.hits += 1
-        return entry["value"]
+        return value
 
     def put(self, key, value):
-        """Store ``value`` (JSON-able, finite floats) under ``key``, atomically."""
+        """Store ``value`` (JSON-able, finite floats) under ``key``, atomically.
+
+        The file is one header line (format, the key's canonical text, the SHA-256 of the value's text)
+        and the value's text: a reader checks all three without serialising anything again."""
+        body = canonical(value).encode()
+        head = json.dumps({"format": FORMAT, "key": canonical(key), "sha256": hashlib.sha256(body).hexdigest()})
         path = self._path(canonical(key))
         path.parent.mkdir(parents=True, exist_ok=True)
-        entry = {"format": FORMAT, "key": key, "sha256": digest(value), "value": value}
         partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-        partial.write_text(canonical(entry))
+        partial.write_bytes(head.encode() + b"\n" + body)
         partial.replace(path)
 
 

@@ -20,27 +20,31 @@ def test_a_stored_value_is_found_by_an_equal_key_in_any_order(tmp_path):
     assert not list(tmp_path.rglob("*.partial"))
 
 
-@pytest.mark.parametrize("damage", ["truncate", "garbage", "value", "checksum", "format", "key"])
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "value", "checksum", "format", "key", "no header"])
 def test_a_damaged_or_foreign_entry_is_rejected_not_trusted(tmp_path, damage):
     cache = Cache(tmp_path)
     cache.put(KEY, VALUE)
-    [path] = list(tmp_path.rglob("*.json"))
-    text = path.read_text()
-    entry = json.loads(text)
+    [path] = [p for p in tmp_path.rglob("*.json")]
+    data = path.read_bytes()
+    head, body = data.split(b"\n", 1)
+    entry = json.loads(head)
     if damage == "truncate":
-        path.write_text(text[: len(text) // 2])
+        data = data[: len(data) - 5]
     elif damage == "garbage":
-        path.write_bytes(b"\x00\xff" * 10)
+        data = b"\x00\xff" * 10
+    elif damage == "value":
+        data = head + b"\n" + body.replace(b"-0.25", b"-0.26")  # changed without its checksum
+    elif damage == "no header":
+        data = body
     else:
-        if damage == "value":
-            entry["value"]["N_re"] = 1.0  # changed without its checksum
-        elif damage == "checksum":
+        if damage == "checksum":
             entry["sha256"] = "0" * 64
         elif damage == "format":
             entry["format"] = cache_module.FORMAT + 1
         elif damage == "key":
-            entry["key"]["F"] = 20.0  # an entry filed under the wrong name
-        path.write_text(json.dumps(entry))
+            entry["key"] = entry["key"].replace("10.0", "20.0")  # an entry filed under the wrong name
+        data = json.dumps(entry).encode() + b"\n" + body
+    path.write_bytes(data)
     assert cache.get(KEY) is None and cache.rejected == 1
     cache.put(KEY, VALUE)  # recomputed and stored again
     assert cache.get(KEY) == VALUE

@@ -55,7 +55,8 @@ def scene(h=0.1, extra=""):
 
 def df_entries(cache):
     """The cache's entries of DF points (it also holds figures, traces and judge runs)."""
-    return sorted(path for path in Path(cache).rglob("*.json") if json.loads(path.read_text())["key"]["kind"] == "df")
+    return sorted(path for path in Path(cache).rglob("*.json")
+                  if json.loads(json.loads(path.read_bytes().split(b"\n")[0])["key"])["kind"] == "df")
 
 
 def results(out):
@@ -125,10 +126,11 @@ def test_a_corrupt_cache_is_detected_and_recomputed(fmus, tmp_path):
     run_scene(scene(), tmp_path / "a", jobs=1, cache=cache, progress=False)
     entries = df_entries(cache)
     assert len(entries) == 12
-    entries[0].write_text(entries[0].read_text()[:40])  # cut short
-    entry = json.loads(entries[1].read_text())
-    entry["value"]["N_re"] += 1.0  # tampered
-    entries[1].write_text(json.dumps(entry))
+    entries[0].write_bytes(entries[0].read_bytes()[:-40])  # cut short
+    head, body = entries[1].read_bytes().split(b"\n", 1)
+    value = json.loads(body)
+    value["N_re"] += 1.0  # tampered
+    entries[1].write_bytes(head + b"\n" + json.dumps(value).encode())
     again = run_scene(scene(), tmp_path / "b", jobs=1, cache=cache, progress=False)
     assert (again.computed, again.cache_hits, again.rejected) == (2, 10, 2)
     assert results(tmp_path / "a") == results(tmp_path / "b")
