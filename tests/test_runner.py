@@ -1,10 +1,12 @@
 """dfwb run: only what a scene needs, found again in the cache, resumed after a kill, the same on Dask."""
 
 import csv
+import hashlib
 import json
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -306,3 +308,35 @@ def test_the_command_line_checks_every_scene_before_running_any_and_reports_os_e
     with pytest.raises(SystemExit):
         main(["run", str(bad), "--no-cache", "--quiet"])
     assert f"{bad}: not UTF-8 text (byte 9)" in capsys.readouterr().err
+
+
+def test_a_running_dask_scheduler_gets_the_fmus_shipped_and_gives_the_local_results(fmus, tmp_path):
+    """The documented set-up: `dask scheduler`, `dask worker ADDRESS`, `dfwb run --dask ADDRESS`; the worker
+    runs in another directory and never sees build/fmus."""
+    dask = Path(sys.executable).with_name("dask")
+    info = tmp_path / "scheduler.json"
+    worker_dir = tmp_path / "worker"
+    worker_dir.mkdir()
+    scheduler = subprocess.Popen([str(dask), "scheduler", "--scheduler-file", str(info), "--no-dashboard",
+                                  "--port", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not info.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(info.read_text())["address"]
+        worker = subprocess.Popen([str(dask), "worker", address, "--nthreads", "1", "--no-dashboard"],
+                                  cwd=worker_dir, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        outcome = run_scene(scene(), tmp_path / "remote", dask=address, cache=False, progress=False)
+        assert outcome.computed == 12
+        run_scene(scene(), tmp_path / "local", jobs=1, cache=False, progress=False)
+        assert results(tmp_path / "remote") == results(tmp_path / "local")
+        assert not (worker_dir / "build").exists()
+        for model in ("FrictionMass", "TwoMassBacklash"):  # what the worker ran: the shipped bytes
+            digest = hashlib.sha256(fmus[model].read_bytes()).hexdigest()[:16]
+            assert (Path(tempfile.gettempdir()) / "dfwb-fmus" / digest / f"{model}.fmu").exists()
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                process.terminate()
+                process.wait(timeout=30)
