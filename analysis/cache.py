@@ -31,6 +31,8 @@ import json
 import os
 from pathlib import Path
 
+from .files import write_atomic
+
 FORMAT = 2
 
 
@@ -101,9 +103,7 @@ class Cache:
         head = json.dumps({"format": FORMAT, "key": canonical(key), "sha256": hashlib.sha256(body).hexdigest()})
         path = self._path(canonical(key))
         path.parent.mkdir(parents=True, exist_ok=True)
-        partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-        partial.write_bytes(head.encode() + b"\n" + body)
-        partial.replace(path)
+        write_atomic(path, head.encode() + b"\n" + body)
 
 
 class NoCache:

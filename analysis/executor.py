@@ -24,6 +24,7 @@ from pathlib import Path
 
 from .cache import code_revision
 from .describing import DFEngine
+from .files import write_atomic
 
 _ENGINES = {}  # per worker thread: (thread, plant, settings, FMU file) -> DFEngine (FMU instances are not shared)
 
@@ -55,9 +56,7 @@ def _materialize(original, data):
     path = Path(tempfile.gettempdir()) / "dfwb-fmus" / digest[:16] / Path(original).name
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-        partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-        partial.write_bytes(data)
-        partial.replace(path)
+        write_atomic(path, data)
     return path
 
 

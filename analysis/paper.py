@@ -19,7 +19,7 @@ import numpy as np
 from . import plots
 from .closed_forms import static_backlash_plant_df, validity_frequencies
 from .plants import DEFAULT_FMU_DIR
-from .sweep import write_atomic
+from .files import write_atomic
 
 FRICTION_F = [10.0, 20.0, 30.0, 40.0, 50.0]
 FRICTION_MARKS = [30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0]

@@ -1,5 +1,6 @@
 """Plot helpers for describing functions: Nyquist loci, Bode-like magnitudes, harmonic maps."""
 
+import io
 import json
 from pathlib import Path
 
@@ -8,6 +9,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+from .files import write_atomic  # noqa: E402
 
 
 def minus_inverse(rows):
@@ -81,9 +84,9 @@ def save(figure, out_dir, name):
     if figure.get_layout_engine() is None:
         figure.tight_layout()
     for kind in ("png", "svg"):  # atomically: an interrupted run never leaves half a figure
-        partial = out_dir / f".{name}.{kind}.partial"
-        figure.savefig(partial, dpi=120, format=kind)
-        partial.replace(out_dir / f"{name}.{kind}")
+        buffer = io.BytesIO()
+        figure.savefig(buffer, dpi=120, format=kind)
+        write_atomic(out_dir / f"{name}.{kind}", buffer.getvalue())
     plt.close(figure)
     return out_dir / f"{name}.png"
 

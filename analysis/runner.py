@@ -19,7 +19,6 @@ figures and ``summary.md`` are each written atomically.
 
 import base64
 import csv
-import hashlib
 import io
 import json
 import math
@@ -35,7 +34,8 @@ from .describing import HARMONICS, DFEngine, DFResult
 from .executor import Chunk, Executor, chunked
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from .scene import PAPER_FIGURES, Point, Scene, load_scene
-from .sweep import COLUMNS, json_form, parse_row, read_rows, row, write_atomic
+from .files import file_digest, write_atomic
+from .sweep import COLUMNS, json_form, parse_row, read_rows, row
 
 MANIFEST = "manifest.json"
 RUN_COLUMNS = ["series", "key"] + COLUMNS
@@ -46,7 +46,7 @@ def fmu_revision(path):
     """The source hash the FMU was built from (its content is a function of it)."""
     from dfwb.build_fmus.builder import recorded_hash
 
-    return recorded_hash(path) or hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return recorded_hash(path) or file_digest(path)
 
 
 @dataclass
@@ -301,7 +301,7 @@ class SceneRun:
             if manifest["fingerprint"] != fingerprint:
                 return None
             stored = manifest["outcome"]
-            if any(_file_digest(self.out / name) != sha for name, sha in manifest["files"].items()):
+            if any(file_digest(self.out / name) != sha for name, sha in manifest["files"].items()):
                 return None
         except (OSError, ValueError, KeyError, TypeError, AttributeError):
             return None
@@ -311,7 +311,7 @@ class SceneRun:
 
     def write_manifest(self, fingerprint):
         o = self.outcome
-        files = {path.relative_to(self.out).as_posix(): _file_digest(path) for path in sorted(self.out.rglob("*"))
+        files = {path.relative_to(self.out).as_posix(): file_digest(path) for path in sorted(self.out.rglob("*"))
                  if path.is_file() and not path.name.startswith(".") and path.name != MANIFEST}
         document = {"fingerprint": fingerprint, "files": files,
                     "outcome": {"points": o.points, "figures": [p.name for p in o.figures],
@@ -505,10 +505,6 @@ class _Display:
     def advance(self, task, n):
         if task is not None:
             self.progress.advance(task, n)
-
-
-def _file_digest(path):
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _finite(document):

@@ -20,6 +20,7 @@ from tqdm import tqdm
 
 from .describing import HARMONICS, check_point
 from .executor import Chunk, Executor, chunked
+from .files import write_atomic
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from dfwb.fmus.piecewise import PlantError
 
@@ -87,16 +88,6 @@ def json_form(result):
 def as_json(rows):
     """results.json entries of CSV rows."""
     return [json_form(parse_row(r)) for r in rows]
-
-
-def write_atomic(path, content):
-    """Write text or bytes so that ``path`` is either the old file or the complete new one."""
-    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-    if isinstance(content, bytes):
-        partial.write_bytes(content)
-    else:
-        partial.write_text(content)
-    partial.replace(path)
 
 
 def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=64,
