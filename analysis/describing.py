@@ -143,7 +143,6 @@ class DFEngine:
         self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
         fourier = [f"I{part}{k}" for k in range(harmonics + 1) for part in "cs"]
         counter = "impacts" if plant == "backlash" else "events"
-        self._valid = {}
         self._real_names = list(self.plant.section) + fourier
         self._integer_names = list(self.plant.modes) + [counter]
 
@@ -152,7 +151,7 @@ class DFEngine:
         """The DFResult of the plant at force amplitude F and frequency omega."""
         started = time.perf_counter()
         check_point(F, omega)
-        params = self._checked(params or {})
+        params = self.plant.checked(params or {})
         mass = self.plant.mass(params)
         h = dict(self.plant.defaults(), **params).get("h", 0.0)
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
@@ -163,13 +162,6 @@ class DFEngine:
         result.plant, result.params, result.drive = self.plant.name, params, self.drive
         result.seconds = time.perf_counter() - started
         return result
-
-    def _checked(self, params):
-        """Validated parameters, checked once per distinct set (a sweep repeats them)."""
-        key = tuple(sorted(params.items()))
-        if key not in self._valid:
-            self._valid[key] = self.plant.check(params)
-        return dict(self._valid[key])
 
     # -- periods of one run ------------------------------------------------------------
     def _run(self, session, F, omega, values):

@@ -14,6 +14,7 @@ from dfwb.fmus.piecewise import PlantError
 
 DEFAULT_FMU_DIR = Path("build/fmus")
 RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
+_CHECKED = {}  # (plant, model, parameter items) -> validated parameters: sweeps repeat the same sets
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,17 @@ class Plant:
         kwargs = dict(self.defaults(), **values)
         self.model.solver_class(F=1.0, omega=1.0, **self.model.solver_kwargs(kwargs))  # the solver's own range checks
         return values
+
+    def checked(self, params):
+        """:meth:`check`, done once per distinct parameter set in a process."""
+        key = (self.name, self.model, tuple(sorted(params.items())))
+        if key not in _CHECKED:
+            _CHECKED[key] = self.check(params)
+        return dict(_CHECKED[key])
+
+    def complete(self, params):
+        """Every parameter as a float, the defaults filled in (equal sets for a default given or omitted)."""
+        return {name: float(value) for name, value in dict(self.defaults(), **params).items()}
 
     def mass(self, params):
         """Total mass moved by the force (sets the amplitude scales)."""

@@ -84,12 +84,11 @@ class _Points:
 
     def key(self, plant, F, omega, params, harmonics=None):
         spec = find_plant(plant)
-        full = {name: float(value) for name, value in dict(spec.defaults(), **params).items()}
         engine = dict(self.settings, harmonics=harmonics or self.harmonics)
         if engine["drive"] == "internal":
             engine.pop("samples_per_period")
         return {"kind": "df", "model": spec.fmu_name, "fmu": self.run.revisions[plant], "code": self.run.code,
-                "settings": engine, "params": full, "F": float(F), "omega": float(omega)}
+                "settings": engine, "params": spec.complete(params), "F": float(F), "omega": float(omega)}
 
     def lookup(self, key):
         """A cached value, also from an entry with more harmonics (N is the same to the last bit)."""
@@ -113,15 +112,7 @@ class SceneRun:
         self.revisions = {plant: fmu_revision(path) for plant, path in self.fmus.items()}
         self.values = {}  # digest -> as_dict() of every DF point known in this run
         self.outcome = Outcome(self.out)
-        self._checked = {}
         self.map_rows = []  # CSV rows of the limit cycles' DF maps
-
-    def check(self, plant, params):
-        """The plant's validated parameters (checked once per distinct set)."""
-        key = (plant, tuple(sorted(params.items())))
-        if key not in self._checked:
-            self._checked[key] = find_plant(plant).check(params)
-        return dict(self._checked[key])
 
     # -- DF points ----------------------------------------------------------------------
     def settings(self, harmonics):
@@ -203,7 +194,7 @@ class SceneRun:
         data = {s.name: [] for s in self.scene.series}
         csv_rows = []
         for p in self.scene.points():
-            params = self.check(p.plant, p.params)
+            params = find_plant(p.plant).checked(p.params)
             name = table.named(p.plant, p.F, p.omega, params)[0]
             value = dict(self.values[name], params=params)
             csv_rows.append(dict(row(value), series=p.series, key=name))
@@ -218,9 +209,9 @@ class SceneRun:
         task = display.add("traces", len(self.scene.trace), 0, 0) if self.scene.trace else None
         for trace in self.scene.trace:
             spec = find_plant(trace.plant)
-            params = self.check(trace.plant, trace.params)
+            params = spec.checked(trace.params)
             key = {"kind": "trace", "model": spec.fmu_name, "fmu": self.revisions[trace.plant], "code": self.code,
-                   "params": {n: float(v) for n, v in dict(spec.defaults(), **params).items()}, "F": trace.F,
+                   "params": spec.complete(params), "F": trace.F,
                    "omega": trace.omega, "start": trace.start, "stop": trace.stop, "step": trace.step,
                    "outputs": trace.outputs}
             value = self.cache.get(key)
@@ -247,7 +238,7 @@ class SceneRun:
         table = _Points(self, self.settings(HARMONICS))
         for lc in self.scene.limit_cycle:
             G = lc.transfer_function()
-            params = self.check(lc.plant, lc.params)
+            params = find_plant(lc.plant).checked(lc.params)
             F_grid = np.geomspace(*lc.F_range, lc.n_F)
             omega_grid = np.geomspace(*lc.omega_range, lc.n_omega)
             grid = [(lc.plant, F, w, params) for F in F_grid for w in omega_grid]
@@ -322,7 +313,7 @@ class SceneRun:
         started = time.perf_counter()
         scene = self.scene
         table = _Points(self, self.settings(HARMONICS if scene.needs_harmonics else 1))
-        points = [(p.plant, p.F, p.omega, self.check(p.plant, p.params)) for p in scene.points()]
+        points = [(p.plant, p.F, p.omega, find_plant(p.plant).checked(p.params)) for p in scene.points()]
         fingerprint = self.fingerprint(table, points)
         done = self.up_to_date(fingerprint)
         if done is not None:
@@ -456,7 +447,7 @@ class _CachedEngine:
         self.computed = self.hits = 0
 
     def point(self, F, omega, params=None):
-        params = self.run.check(self.plant.name, params or {})
+        params = self.plant.checked(params or {})
         name, key = self.table.named(self.plant.name, F, omega, params)
         value = self.run.values.get(name)
         if value is None:
