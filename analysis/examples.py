@@ -13,23 +13,20 @@ study of the judge, writing ``example_<name>.png`` and ``examples.md``.
 """
 
 import json
-from importlib import resources
 from pathlib import Path
 
 from .closed_loop import START, measure, run_loop, verify
 from .describing import DFEngine
 from .limit_cycles import search
 from .plots import limit_cycle_figure
-from .scene import load_scene
+from .scene import load_scene, shipped_scenes
 
 CONVERGENCE = (128, 256, 512, 1024, 2048)  # steps per predicted period
 
 
 def examples():
     """The [[limit_cycle]] of every shipped scene ``lc_*.toml``, by name."""
-    paths = sorted(Path(str(p)) for p in resources.files("dfwb.scenes").iterdir()
-                   if p.name.startswith("lc_") and p.name.endswith(".toml"))
-    return [cycle for path in paths for cycle in load_scene(path).limit_cycle]
+    return [cycle for path in shipped_scenes("lc_") for cycle in load_scene(path).limit_cycle]
 
 
 def run_examples(out_dir="out/examples", samples_per_period=512, report=print):

@@ -11,7 +11,6 @@ what the data say about each statement of the paper, measured, not asserted.
 
 import json
 import time
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -322,13 +321,12 @@ def write_report(out_dir, sections, seconds):
 
 
 def paper_scenes():
-    """The shipped scenes of the paper's figures: those that record harmonics first (their points then
-    serve the DF-only scenes from the cache), then in figure order."""
-    from .scene import load_scene
+    """(path, Scene) of the paper's figures: those that record harmonics first (their points then serve
+    the DF-only scenes from the cache), then in figure order."""
+    from .scene import load_scene, shipped_scenes
 
-    paths = [Path(str(path)) for path in resources.files("dfwb.scenes").iterdir()
-             if path.name.startswith("fig") and path.name.endswith(".toml")]
-    return sorted(paths, key=lambda path: (not load_scene(path).needs_harmonics, path.name))
+    scenes = [(path, load_scene(path)) for path in shipped_scenes("fig")]
+    return sorted(scenes, key=lambda item: (not item[1].needs_harmonics, item[0].name))
 
 
 def run_paper(out_dir="out/paper", jobs=None, fmu_dir=DEFAULT_FMU_DIR, progress=True, report=print, cache=True,
@@ -339,8 +337,8 @@ def run_paper(out_dir="out/paper", jobs=None, fmu_dir=DEFAULT_FMU_DIR, progress=
     started = time.perf_counter()
     out_dir = Path(out_dir)
     sections = []
-    for scene in paper_scenes():
-        outcome = run_scene(scene, out_dir / scene.stem, jobs, dask, cache, fmu_dir, progress)
+    for path, scene in paper_scenes():
+        outcome = run_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress)
         sections += outcome.sections
     sections.sort(key=lambda section: section[1].name)  # figure order
     seconds = time.perf_counter() - started

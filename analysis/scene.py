@@ -33,6 +33,7 @@ import itertools
 import re
 import sys
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
@@ -377,6 +378,12 @@ def parse_scene(text, source="<scene>"):
         first = error.errors(include_url=False)[0]
         where = _location(first["loc"])
         raise SceneError(f"{source}: {where + ': ' if where else ''}{_message(first)}") from None
+
+
+def shipped_scenes(prefix):
+    """Paths of the scenes shipped with dfwb (package ``dfwb.scenes``) whose names start with ``prefix``."""
+    return sorted(Path(str(path)) for path in resources.files("dfwb.scenes").iterdir()
+                  if path.name.startswith(prefix) and path.name.endswith(".toml"))
 
 
 def load_scene(path):
