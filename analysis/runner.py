@@ -19,6 +19,7 @@ figures and ``summary.md`` are each written atomically.
 
 import base64
 import csv
+import functools
 import io
 import json
 import math
@@ -126,7 +127,7 @@ class SceneRun:
         for plant, F, omega, params in points:
             name, key = table.named(plant, F, omega, params)
             keys.setdefault(name, (key, plant, F, omega, params))
-        resumed = self.resumable()
+        resumed = self.resumable
         pending, hits, old = [], 0, 0
         for name, (key, plant, F, omega, params) in keys.items():
             if name in self.values:
@@ -171,9 +172,10 @@ class SceneRun:
                 display.advance(task, len(results))
         return {name: entry[0] for name, entry in keys.items()}
 
+    @functools.cached_property
     def resumable(self):
-        """{key: value} of the points an interrupted run left in results.csv; a file that is not such a
-        log (another header: a sweep's, a user's) is set aside as results.csv.unrecognised, never trusted."""
+        """{key: value} of the points an interrupted run left in results.csv (read once per run); a file that
+        is not such a log (another header: a sweep's, a user's) is set aside as results.csv.unrecognised."""
         path = self.out / "results.csv"
         rows = read_rows(path)
         with open(path, newline="") if path.exists() else io.StringIO() as handle:
@@ -231,7 +233,6 @@ class SceneRun:
     def limit_cycles(self, display):
         if not self.scene.limit_cycle:
             return {}
-        from .closed_loop import LoopRun, verify
         from .limit_cycles import search
 
         results = {}
@@ -252,31 +253,36 @@ class SceneRun:
             checks, runs = [], []
             if lc.verify:
                 task = display.add(f"{lc.name}: judge", len(cycles), 0, 0)
-                controller = fmu_path("LinearSystem", self.fmu_dir)
                 for cycle in cycles:
-                    key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)],
-                           "code": self.code, "plant": lc.plant, "params": params,
-                           "G": [G.num[0][0].tolist(), G.den[0][0].tolist()], "cycle": [cycle.F, cycle.omega,
-                                                                                         cycle.amplitude_x],
-                           "samples_per_period": lc.samples_per_period}
-                    value = self.cache.get(key)
-                    if value is None:
-                        outcome, run = verify(lc.plant, G, cycle, params, lc.samples_per_period, fmu_dir=self.fmu_dir)
-                        tail = run.time >= run.time[-1] - 10 * cycle.period  # what the figure shows
-                        value = {"outcome": outcome, "run": {"time": run.time[tail].tolist(),
-                                                             "position": run.position[tail].tolist(),
-                                                             "force": run.force[tail].tolist(), "step": run.step}}
-                        self.cache.put(key, _finite(value))
-                    else:
-                        self.outcome.cache_hits += 1
-                    checks.append(value["outcome"])
-                    run = value["run"]
-                    runs.append((cycle, LoopRun(np.array(run["time"]), np.array(run["position"]),
-                                                np.array(run["force"]), run["step"])))
+                    outcome, run = self.judge(lc, G, params, cycle)
+                    checks.append(outcome)
+                    runs.append((cycle, run))
                     display.advance(task, 1)
             results[lc.name] = {"G": G, "cycles": cycles, "verification": checks, "runs": runs,
                                 "F_grid": F_grid, "omega_grid": omega_grid, "N_grid": N_grid}
         return results
+
+    def judge(self, lc, G, params, cycle):
+        """(outcome, the run's last 10 periods) of the co-simulation judge of one cycle, cached."""
+        from .closed_loop import LoopRun, verify
+
+        controller = fmu_path("LinearSystem", self.fmu_dir)
+        key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)], "code": self.code,
+               "plant": lc.plant, "params": params, "G": [G.num[0][0].tolist(), G.den[0][0].tolist()],
+               "cycle": [cycle.F, cycle.omega, cycle.amplitude_x], "samples_per_period": lc.samples_per_period}
+        value = self.cache.get(key)
+        if value is None:
+            outcome, run = verify(lc.plant, G, cycle, params, lc.samples_per_period, fmu_dir=self.fmu_dir)
+            tail = run.time >= run.time[-1] - 10 * cycle.period  # what the figure shows
+            value = {"outcome": outcome, "run": {"time": run.time[tail].tolist(), "step": run.step,
+                                                 "position": run.position[tail].tolist(),
+                                                 "force": run.force[tail].tolist()}}
+            self.cache.put(key, _finite(value))
+        else:
+            self.outcome.cache_hits += 1
+        run = value["run"]
+        return value["outcome"], LoopRun(np.array(run["time"]), np.array(run["position"]), np.array(run["force"]),
+                                         run["step"])
 
     # -- everything -------------------------------------------------------------------------
     def fingerprint(self, table, points):
@@ -477,8 +483,8 @@ class _Display:
             from rich.table import Column
 
             label = Column(max_width=32, no_wrap=True, overflow="ellipsis")
-            self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20), MofNCompleteColumn(),
-                                     TextColumn("[cyan]{task.fields[hits]} cached"), TextColumn("time left"),
+            self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20),
+                                     MofNCompleteColumn(), TextColumn("[cyan]{task.fields[hits]} cached"), TextColumn("time left"),
                                      TimeRemainingColumn(compact=True))
             self.progress.console.print(f"[bold]{self.title}")
             self.progress.start()
