@@ -29,11 +29,13 @@ import functools
 import hashlib
 import json
 import os
+import warnings
 from pathlib import Path
 
-from .files import write_atomic
+from .files import ensure_folder, read_bytes, write_atomic
 
 FORMAT = 2
+MAX_ENTRY = 64 << 20  # bytes: the largest entries (a figure's PNG and SVG) are a few hundred kB
 
 
 def default_dir():
@@ -67,7 +69,7 @@ class Cache:
     def __init__(self, directory=None):
         self.root = Path(directory) if directory is not None else default_dir()
         self.dir = self.root / f"v{FORMAT}"
-        self.hits = self.misses = self.rejected = 0
+        self.hits = self.misses = self.rejected = self.failed = 0
 
     def _path(self, text):
         name = hashlib.sha256(text.encode()).hexdigest()
@@ -78,7 +80,7 @@ class Cache:
         text = canonical(key)
         path = self._path(text)
         try:
-            head, _, body = path.read_bytes().partition(b"\n")
+            head, _, body = read_bytes(path, MAX_ENTRY, "cache entry").partition(b"\n")
             entry = json.loads(head)
             valid = (isinstance(entry, dict) and entry.get("format") == FORMAT
                      and entry.get("key") == text and entry.get("sha256") == hashlib.sha256(body).hexdigest())
@@ -95,22 +97,34 @@ class Cache:
         return value
 
     def put(self, key, value):
-        """Store ``value`` (JSON-able, finite floats) under ``key``, atomically.
+        """Store ``value`` (JSON-able, finite floats) under ``key``, atomically; never raises.
 
         The file is one header line (format, the key's canonical text, the SHA-256 of the value's text)
-        and the value's text: a reader checks all three without serialising anything again."""
+        and the value's text: a reader checks all three without serialising anything again. A cache that
+        cannot be written (read-only, full, a folder where an entry belongs) costs a warning, not a result."""
         body = canonical(value).encode()
         head = json.dumps({"format": FORMAT, "key": canonical(key), "sha256": hashlib.sha256(body).hexdigest()})
         path = self._path(canonical(key))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(path, head.encode() + b"\n" + body)
+        try:
+            ensure_folder(path.parent)
+            write_atomic(path, head.encode() + b"\n" + body)
+        except OSError as error:
+            self.failed += 1
+            if self.failed == 1:
+                warnings.warn(f"the cache {self.root} cannot be written ({error.filename}: "
+                              f"{error.strerror or error}); results are kept, not cached", CacheWarning,
+                              stacklevel=2)
+
+
+class CacheWarning(UserWarning):
+    """The cache could not store an entry: the run goes on without it."""
 
 
 class NoCache:
     """``--no-cache``: remembers nothing, finds nothing."""
 
     root = None
-    hits = misses = rejected = 0
+    hits = misses = rejected = failed = 0
 
     def get(self, key):
         self.misses += 1

@@ -13,19 +13,23 @@ computation is deterministic; only the ``seconds`` field differs):
   a worker needs dfwb installed but neither the FMUs nor a build.
 """
 
+import atexit
 import concurrent.futures as futures
 import hashlib
 import multiprocessing
 import os
+import shutil
 import tempfile
 import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from .cache import code_revision
 from .describing import DFEngine
-from .files import write_atomic
+from .files import file_digest, write_atomic
 
+MAX_JOBS = 256  # worker processes: far beyond any useful count, short of exhausting the machine
 _ENGINES = {}  # per worker thread: (thread, plant, settings, FMU file) -> DFEngine (FMU instances are not shared)
 
 
@@ -50,14 +54,40 @@ def compute(chunk, fmu_data=None):
     return code_revision(), [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
 
 
+_SHIPPED_DIR = []  # this process's private folder for shipped FMUs (created once, mode 0700)
+
+
 def _materialize(original, data):
-    """A local copy of shipped FMU bytes, named by their hash (written once per worker machine)."""
-    digest = hashlib.sha256(data).hexdigest()
-    path = Path(tempfile.gettempdir()) / "dfwb-fmus" / digest[:16] / Path(original).name
-    if not path.exists():
-        path.parent.mkdir(parents=True, exist_ok=True)
+    """A local copy of shipped FMU bytes, in a folder private to this process, verified before every use.
+
+    The folder comes from ``tempfile.mkdtemp`` (created atomically, mode 0700, an unpredictable name), so
+    nothing planted at a known path is ever loaded; the file is named by its full SHA-256 and its content is
+    hashed again each time it is handed out."""
+    expected = hashlib.sha256(data).hexdigest()
+    if not _SHIPPED_DIR:
+        _SHIPPED_DIR.append(Path(tempfile.mkdtemp(prefix="dfwb-fmus-")))
+    path = _SHIPPED_DIR[0] / expected / Path(original).name
+    if not (path.is_file() and not path.is_symlink() and file_digest(path) == expected):
+        path.parent.mkdir(mode=0o700, exist_ok=True)
         write_atomic(path, data)
     return path
+
+
+@atexit.register
+def _remove_shipped():
+    for folder in _SHIPPED_DIR:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _orphan_watch(parent):
+    """In a worker process: exit as soon as the parent (the dfwb run) is gone, even after a ``kill -9``."""
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="dfwb-orphan-watch", daemon=True).start()
 
 
 def chunked(points, jobs, largest=16):
@@ -71,7 +101,14 @@ class Executor:
     """Runs chunks; use as a context manager. ``jobs``: workers (default: all cores)."""
 
     def __init__(self, jobs=None, dask=None):
-        self.jobs = max(1, jobs or os.cpu_count() or 1)
+        if jobs is not None and not (isinstance(jobs, int) and 1 <= jobs <= MAX_JOBS):
+            raise ValueError(f"jobs = {jobs!r} is out of range: an integer from 1 to {MAX_JOBS}")
+        self.jobs = jobs or os.cpu_count() or 1
+        if dask:
+            try:
+                import distributed  # noqa: F401  (checked before anything runs)
+            except ImportError:
+                raise RuntimeError("--dask needs dask.distributed: pip install 'dfwb[dask]'") from None
         self.dask = dask
         self._pool = self._client = self._cluster = None
         self._shipped = {}
@@ -116,7 +153,8 @@ class Executor:
         else:
             if self._pool is None:
                 self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
-                                                         multiprocessing.get_context("spawn"))
+                                                         multiprocessing.get_context("spawn"),
+                                                         initializer=_orphan_watch, initargs=(os.getpid(),))
             waiting = {self._pool.submit(compute, chunk): chunk for chunk in chunks}
             try:
                 for future in futures.as_completed(waiting):
@@ -129,10 +167,8 @@ class Executor:
     def client(self):
         """The dask.distributed client (a LocalCluster of ``jobs`` single-threaded workers for "local")."""
         if self._client is None:
-            try:
-                from distributed import Client, LocalCluster
-            except ImportError:
-                raise RuntimeError("--dask needs dask.distributed: pip install 'dfwb[dask]'") from None
+            from distributed import Client, LocalCluster
+
             if self.dask == "local":
                 self._cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
                                              dashboard_address=None)

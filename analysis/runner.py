@@ -23,23 +23,26 @@ import functools
 import io
 import json
 import math
-import os
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .cache import Cache, NoCache, code_revision, digest
+from .cache import Cache, CacheWarning, NoCache, code_revision, digest
 from .describing import HARMONICS, DFEngine, DFResult
 from .executor import Chunk, Executor, chunked
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from .scene import PAPER_FIGURES, Point, Scene, load_scene
-from .files import file_digest, write_atomic
-from .sweep import COLUMNS, json_form, parse_row, read_rows, row
+from .files import ensure_folder, file_digest, folder_lock, inside, read_bytes, write_atomic
+from .runlog import RunLog
+from .sweep import COLUMNS, MAX_POINTS, json_form, parse_row, row
 
 MANIFEST = "manifest.json"
+MAX_MANIFEST = 64 << 20  # bytes
 RUN_COLUMNS = ["series", "key"] + COLUMNS
+MAX_LOG_ROWS = 2 * MAX_POINTS  # the log of one scene: its points once, plus the rewrite's limit-cycle map rows
 SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results.csv)
 
 
@@ -114,6 +117,8 @@ class SceneRun:
         self.values = {}  # digest -> as_dict() of every DF point known in this run
         self.outcome = Outcome(self.out)
         self.map_rows = []  # CSV rows of the limit cycles' DF maps
+        self.log = RunLog(self.out / "results.csv", RUN_COLUMNS, max_rows=MAX_LOG_ROWS)
+        self.written = []  # output files of this run (the manifest lists them)
 
     # -- DF points ----------------------------------------------------------------------
     def settings(self, harmonics):
@@ -153,42 +158,31 @@ class SceneRun:
                 chunk = Chunk(plant, str(self.fmus[plant]), table.settings, tuple((p[3], p[4], p[5]) for p in part))
                 by_chunk[id(chunk)] = part
                 chunks.append(chunk)
-        csv_path = self.out / "results.csv"
-        with open(csv_path, "a", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=RUN_COLUMNS)
-            if handle.tell() == 0:
-                writer.writeheader()
+        with self.log:
             for chunk, results in self.executor.run(chunks):
-                for (name, key, plant, F, omega, params), value in zip(by_chunk[id(chunk)], results):
-                    if not all(math.isfinite(value[part]) for part in ("N_re", "N_im")):
+                part = by_chunk[id(chunk)]
+                for (name, key, plant, F, omega, params), value in zip(part, results):
+                    if not all(math.isfinite(value[component]) for component in ("N_re", "N_im")):
                         raise RuntimeError(f"{plant} at F = {F!r}, omega = {omega!r}, params = {params}: the engine "
                                            f"gave N = {value['N_re']} + {value['N_im']}j, not a finite number")
-                    self.cache.put(key, value)
-                    self.values[name] = value
-                    writer.writerow(dict(row(value), series="", key=name))
-                handle.flush()
-                os.fsync(handle.fileno())
+                self.log.append([dict(row(value), series="", key=p[0]) for p, value in zip(part, results)])
+                for p, value in zip(part, results):  # the log first: a cache that fails never costs a point
+                    self.cache.put(p[1], value)
+                    self.values[p[0]] = value
                 self.outcome.computed += len(results)
                 display.advance(task, len(results))
         return {name: entry[0] for name, entry in keys.items()}
 
     @functools.cached_property
     def resumable(self):
-        """{key: value} of the points an interrupted run left in results.csv (read once per run); a file that
-        is not such a log (another header: a sweep's, a user's) is set aside as results.csv.unrecognised."""
-        path = self.out / "results.csv"
-        rows = read_rows(path)
-        with open(path, newline="") if path.exists() else io.StringIO() as handle:
-            header = next(csv.reader(handle), None)
-        if header is not None and header != RUN_COLUMNS:
-            path.replace(path.with_name("results.csv.unrecognised"))
-            return {}
+        """{key: value} of the points an interrupted run left in results.csv, each row verified by its
+        checksum (read once per run); a file that is not such a log is set aside (:mod:`dfwb.runlog`)."""
         values = {}
-        for r in rows:
+        for r in self.log.read():
             try:
                 values[r["key"]] = parse_row(r)
             except (KeyError, TypeError, ValueError):
-                continue  # a damaged row: computed again
+                continue  # a row we wrote but cannot read back: computed again
         return values
 
     def series_rows(self, table):
@@ -292,24 +286,32 @@ class SceneRun:
                        "code": self.code})
 
     def up_to_date(self, fingerprint):
-        """The stored outcome if the folder holds exactly this run's outputs (each file's SHA-256), else None."""
+        """The stored outcome if the folder holds exactly this run's outputs (each file's SHA-256), else None.
+
+        Every name in the manifest must be a file inside the folder: one that is not marks it as damaged."""
         try:
-            manifest = json.loads((self.out / MANIFEST).read_text())
+            manifest = json.loads(read_bytes(self.out / MANIFEST, MAX_MANIFEST, "manifest"))
             if manifest["fingerprint"] != fingerprint:
                 return None
             stored = manifest["outcome"]
-            if any(file_digest(self.out / name) != sha for name, sha in manifest["files"].items()):
+            if any(file_digest(inside(self.out, name)) != sha for name, sha in manifest["files"].items()):
                 return None
-        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            return Outcome(self.out, points=stored["points"], up_to_date=True,
+                           figures=[inside(self.out, name) for name in stored["figures"]],
+                           sections=[(title, inside(self.out, png), text) for title, png, text in stored["sections"]])
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):  # UnsafePath is a ValueError
             return None
-        return Outcome(self.out, points=stored["points"], up_to_date=True,
-                       figures=[self.out / name for name in stored["figures"]],
-                       sections=[(title, self.out / png, text) for title, png, text in stored["sections"]])
+
+    def write(self, name, content):
+        """Write an output file atomically and remember it for the manifest."""
+        path = self.out / name
+        write_atomic(path, content)
+        self.written.append(path)
+        return path
 
     def write_manifest(self, fingerprint):
         o = self.outcome
-        files = {path.relative_to(self.out).as_posix(): file_digest(path) for path in sorted(self.out.rglob("*"))
-                 if path.is_file() and not path.name.startswith(".") and path.name != MANIFEST}
+        files = {path.relative_to(self.out).as_posix(): file_digest(path) for path in sorted(set(self.written))}
         document = {"fingerprint": fingerprint, "files": files,
                     "outcome": {"points": o.points, "figures": [p.name for p in o.figures],
                                 "sections": [(title, png.name, text) for title, png, text in o.sections]}}
@@ -327,83 +329,96 @@ class SceneRun:
             return done
         if self.out.exists() and not self.out.is_dir():
             raise RuntimeError(f"--out {self.out} is a file, not a folder")
-        self.out.mkdir(parents=True, exist_ok=True)
-        (self.out / MANIFEST).unlink(missing_ok=True)  # from here on the folder is being changed
-        with _Display(self.progress, scene.title) as display:
-            self.compute_points(points, table, display, "DF points")
-            traces = self.traces(display)
-            cycles = self.limit_cycles(display)
-        data, csv_rows = self.series_rows(table)
-        self.outcome.points = len(self.values)
-        self.outcome.rejected = self.cache.rejected
-        self.write_results(data, csv_rows, traces, cycles)
-        self.draw(data, traces, cycles, fingerprint)
-        self.outcome.seconds = time.perf_counter() - started
-        self.write_summary(data, cycles)
-        self.write_manifest(fingerprint)
+        with folder_lock(self.out):  # one run at a time writes here
+            (self.out / MANIFEST).unlink(missing_ok=True)  # from here on the folder is being changed
+            with _Display(self.progress, scene.title) as display:
+                self.compute_points(points, table, display, "DF points")
+                traces = self.traces(display)
+                cycles = self.limit_cycles(display)
+            data, csv_rows = self.series_rows(table)
+            self.outcome.points = len(self.values)
+            self.write_results(data, csv_rows, traces, cycles)
+            self.draw(data, traces, cycles, fingerprint)
+            self.outcome.rejected = self.cache.rejected + self.log.rejected
+            self.outcome.seconds = time.perf_counter() - started
+            self.write_summary(data, cycles)
+            self.write_manifest(fingerprint)
         return self.outcome
 
     def write_results(self, data, csv_rows, traces, cycles):
-        buffer = io.StringIO()
-        writer = csv.DictWriter(buffer, fieldnames=RUN_COLUMNS, lineterminator="\n")
-        writer.writeheader()
-        writer.writerows(csv_rows + self.map_rows)
-        write_atomic(self.out / "results.csv", buffer.getvalue())
+        self.write("results.csv", self.log.text(csv_rows + self.map_rows))
         if traces:
-            (self.out / "traces").mkdir(exist_ok=True)
+            ensure_folder(self.out / "traces")
         for name, columns in traces.items():
             buffer = io.StringIO()
             writer = csv.writer(buffer, lineterminator="\n")
             writer.writerow(list(columns))
             writer.writerows(zip(*(map(repr, values) for values in columns.values())))
-            write_atomic(self.out / "traces" / f"{name}.csv", buffer.getvalue())
+            self.write(f"traces/{name}.csv", buffer.getvalue())
         document = {"title": self.scene.title, "series": data,
                     "traces": {name: f"traces/{name}.csv" for name in traces},
                     "limit_cycles": {name: _finite({"predictions": [c.as_dict() for c in r["cycles"]],
                                                     "verification": r["verification"]})
                                      for name, r in cycles.items()}}
-        write_atomic(self.out / "results.json", json.dumps(document))
+        self.write("results.json", json.dumps(document))
 
     def draw(self, data, traces, cycles, fingerprint):
-        """Draw each figure, or copy it from the cache when this very run drew it before."""
+        """Draw each figure, or copy it from the cache when this very run drew it before.
+
+        A cached figure is written only under the names this figure has (:meth:`figure_names`): an entry
+        naming other files (``../x``, another figure's) is damaged, counted as rejected and drawn again."""
         for figure in self.scene.figure:
             key = {"kind": "figure", "run": fingerprint, "name": figure.name}
+            pngs = self.figure_names(figure)
+            files = [f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
             stored = self.cache.get(key)
+            if stored is not None and not _names_match(stored, pngs, files):
+                self.cache.rejected += 1
+                stored = None
             if stored is None:
-                sections, pngs = self._draw(figure, data, traces, cycles)
-                files = [path.with_suffix(suffix) for path in pngs for suffix in (".png", ".svg")]
+                sections = self._draw(figure, pngs, data, traces, cycles)
                 stored = {"sections": [[title, png.name, text] for title, png, text in sections],
-                          "figures": [path.name for path in pngs],
-                          "files": {path.name: base64.b64encode(path.read_bytes()).decode() for path in files}}
+                          "figures": pngs,
+                          "files": {name: base64.b64encode((self.out / name).read_bytes()).decode() for name in files}}
+                self.written += [self.out / name for name in files]
                 self.cache.put(key, stored)
             else:
                 self.outcome.figures_cached += 1
-                for name, content in stored["files"].items():
-                    write_atomic(self.out / name, base64.b64decode(content))
+                for name in files:
+                    self.write(name, base64.b64decode(stored["files"][name]))
             self.outcome.sections += [(title, self.out / png, text) for title, png, text in stored["sections"]]
             self.outcome.figures += [self.out / name for name in stored["figures"]]
 
-    def _draw(self, figure, data, traces, cycles):
-        """([(title, png, markdown)] report sections, [png paths]) of one figure."""
+    def figure_names(self, figure):
+        """The PNG file names a figure writes (each with an SVG twin), known before drawing."""
+        if figure.kind == "paper":
+            return [f"{PAPER_FIGURES[figure.paper].file}.png"]
+        if figure.kind == "limit_cycle":
+            return [f"{figure.name}_{name}.png" for name in figure.series]
+        return [f"{figure.name}.png"]
+
+    def _draw(self, figure, pngs, data, traces, cycles):
+        """Draw one figure into the files ``pngs`` (and SVGs); return its [(title, png, markdown)] sections."""
         from . import plots
         from .paper import Paper
 
         if figure.kind == "paper":
             paper = Paper(self.out, data, traces)
-            needed = PAPER_FIGURES[figure.paper]
             try:
                 getattr(paper, figure.paper)()
             except (ArithmeticError, IndexError, KeyError, ValueError) as error:
                 raise RuntimeError(f"figure {figure.name}: the paper's {figure.paper} cannot be drawn from this "
                                    f"scene's points ({type(error).__name__}: {error}); it expects those of "
-                                   f"scenes/{needed.file}.toml") from None
-            return paper.sections, [self.out / f"{needed.file}.png"]
+                                   f"scenes/{PAPER_FIGURES[figure.paper].file}.toml") from None
+            return paper.sections
         if figure.kind == "limit_cycle":
-            return [], [plots.limit_cycle_figure(self.out / f"{figure.name}_{name}.png", cycles[name]["G"],
-                                                 cycles[name]["F_grid"], cycles[name]["omega_grid"],
-                                                 cycles[name]["N_grid"], cycles[name]["cycles"], cycles[name]["runs"])
-                        for name in figure.series]
-        return [], [plots.scene_figure(self.out, figure, data, traces, self.scene)]
+            for name, png in zip(figure.series, pngs):
+                r = cycles[name]
+                plots.limit_cycle_figure(self.out / png, r["G"], r["F_grid"], r["omega_grid"], r["N_grid"],
+                                         r["cycles"], r["runs"])
+            return []
+        plots.scene_figure(self.out, figure, data, traces, self.scene)
+        return []
 
     def write_summary(self, data, cycles):
         o, scene = self.outcome, self.scene
@@ -441,7 +456,7 @@ class SceneRun:
                              f"| {judged} |")
             if not r["cycles"]:
                 lines.append("| no cycle in the ranges | | | | | | | |")
-        write_atomic(self.out / "summary.md", "\n".join(lines) + "\n")
+        self.write("summary.md", "\n".join(lines) + "\n")
 
 
 class _CachedEngine:
@@ -504,6 +519,16 @@ class _Display:
             self.progress.advance(task, n)
 
 
+def _names_match(stored, pngs, files):
+    """Whether a cached figure entry names exactly the files of its figure (and is shaped as written)."""
+    try:
+        return (stored["figures"] == pngs and sorted(stored["files"]) == sorted(files)
+                and all(isinstance(text, str) for text in stored["files"].values())
+                and all(png in pngs for _, png, _ in stored["sections"]))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return False
+
+
 def _finite(document):
     """JSON-safe: infinities and NaN become None."""
     if isinstance(document, float):
@@ -521,7 +546,10 @@ def open_cache(cache):
         return NoCache()
     store = Cache() if cache is True else Cache(cache)
     if store.root.exists() and not store.root.is_dir():
-        raise RuntimeError(f"--cache {store.root} is a file, not a folder")
+        if cache is not True:  # the user named it: a mistake to say at once
+            raise RuntimeError(f"--cache {store.root} is a file, not a folder")
+        warnings.warn(f"the cache {store.root} is a file, not a folder: results are not cached", CacheWarning)
+        return NoCache()
     return store
 
 

@@ -15,6 +15,7 @@ from fmpy.fmi1 import calloc, free
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
+from . import stop
 from .simulation import FMUError, unpacked
 
 _ABANDONED = []  # failed instances stay referenced for the life of the process
@@ -53,6 +54,8 @@ class FMUSession:
     def _fail(self, what, error):
         _ABANDONED.append((self._fmu, self._callbacks))
         self._fmu = None
+        if stop.requested():  # a Ctrl-C or kill that landed inside the FMU's Python code
+            raise KeyboardInterrupt
         reason = "; ".join(self.messages) or str(error)
         self.messages = []
         raise FMUError(f"{self.name}: {what} failed at t = {self.time!r}: {reason}") from None

@@ -19,6 +19,8 @@ import fmpy
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from . import stop
+
 STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
 
@@ -103,6 +105,8 @@ def simulate(fmu_path, stop_time, output_interval, start_values=None, outputs=No
             output_interval=output_interval, start_values=dict(start_values or {}),
             output=outputs, input=input, logger=logger, debug_logging=True, validate=False)
     except FMICallException as error:
+        if stop.requested():  # a Ctrl-C or kill that landed inside the FMU's Python code
+            raise KeyboardInterrupt from None
         # pythonfmu adds a generic "Fatal py exception" line after the FMU's own message
         own = [m for m in messages if "Fatal py exception" not in m]
         reasons = "; ".join(own or messages) or "no message from the FMU"

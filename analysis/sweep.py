@@ -1,17 +1,19 @@
 """Sweeps of describing functions over F x omega x plant parameters, in parallel, resumable.
 
 Every finished point is appended to ``results.csv`` at once (flushed and
-synced), so an interrupted sweep loses at most the points in flight; the
-next run with the same definition skips what the CSV already holds.
-``results.json`` (the complete list, complex N and -1/N as pairs) is
+synced, with a checksum: :mod:`dfwb.runlog`), so an interrupted sweep loses
+at most the points in flight; the next run with the same definition skips
+what the CSV verifiably holds. One sweep at a time writes into a folder (a
+second is refused), and a sweep has at most ``MAX_POINTS`` points, counted
+before any is built. ``results.json`` (the complete list, complex N and -1/N as pairs) is
 rewritten atomically as the sweep goes and at its end. The definition
 is kept in ``sweep.json``: resuming a different sweep into the same folder is
 refused rather than mixed.
 """
 
-import csv
 import itertools
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -20,19 +22,32 @@ from tqdm import tqdm
 
 from .describing import HARMONICS, check_point
 from .executor import Chunk, Executor, chunked
-from .files import write_atomic
+from .files import folder_lock, read_bytes, write_atomic
+from .runlog import RunLog
 from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
 from dfwb.fmus.piecewise import PlantError
 
 COLUMNS = (["plant", "F", "omega", "params", "drive", "N_re", "N_im", "minus_inv_N_re", "minus_inv_N_im",
             "periodic", "periods", "orbit_periods", "seconds", "note"]
            + [f"X{k}" for k in range(HARMONICS + 1)])
+MAX_POINTS = 200_000  # DF points of one sweep or scene: hours of computing, a few hundred MB of results
+
+
+def grid_size(*lengths):
+    """The number of points of a grid, counted exactly (Python integers never overflow)."""
+    return math.prod(int(n) for n in lengths)
+
+
+def check_size(size, what="the sweep"):
+    if size > MAX_POINTS:
+        raise PlantError(f"{what} has {size} points: at most {MAX_POINTS} (split it)")
 
 
 def grid(Fs, omegas, params=None, grid_params=None):
-    """The sweep's points, F the outer loop: [(F, omega, {name: value})]."""
+    """The sweep's points, F the outer loop: [(F, omega, {name: value})]; refused beyond MAX_POINTS."""
     grid_params = grid_params or {}
     names = sorted(grid_params)
+    check_size(grid_size(len(Fs), len(omegas), *(len(grid_params[n]) for n in names)))
     combos = [dict(zip(names, values)) for values in itertools.product(*(grid_params[n] for n in names))]
     return [(F, omega, dict(params or {}, **combo)) for F in Fs for combo in combos for omega in omegas]
 
@@ -48,17 +63,6 @@ def row(data):
     for k, value in enumerate(data.pop("harmonics")):
         data[f"X{k}"] = value
     return {name: "" if data.get(name) is None else str(data[name]) for name in COLUMNS}
-
-
-def read_rows(path):
-    """Rows already in a results CSV; a last line cut short by an interruption is dropped."""
-    if not path.exists():
-        return []
-    text = path.read_text()
-    if text and not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]
-        write_atomic(path, text)
-    return list(csv.DictReader(text.splitlines()))
 
 
 def parse_row(r):
@@ -105,51 +109,57 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
         Worker processes (default: all cores); 1 computes in this process.
     """
     spec = find_plant(plant)
-    for F, omega, params in points:  # everything is checked before anything runs
+    check_size(len(points))
+    points = [(float(F), float(omega), spec.checked(params)) for F, omega, params in points]  # numbers, not text
+    for F, omega, _ in points:  # everything is checked before anything runs
         check_point(F, omega)
-        spec.check(params)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     definition = {"plant": plant, "drive": drive, "samples_per_period": samples_per_period if drive == "input" else None,
                   "points": [[F, omega, params] for F, omega, params in points]}
-    stored = out_dir / "sweep.json"
-    csv_path = out_dir / "results.csv"
-    if resume and stored.exists() and json.loads(stored.read_text()) != definition:
-        raise PlantError(f"{out_dir} holds a different sweep (see {stored}); use another folder or --no-resume")
-    if not resume:
-        csv_path.unlink(missing_ok=True)
-    write_atomic(stored, json.dumps(definition, indent=1))
+    with folder_lock(out_dir):
+        stored = out_dir / "sweep.json"
+        log = RunLog(out_dir / "results.csv", COLUMNS, max_rows=len(points))
+        if resume and stored.exists() and _definition(stored) != definition:
+            raise PlantError(f"{out_dir} holds a different sweep (see {stored}); use another folder or --no-resume")
+        if not resume:
+            log.path.unlink(missing_ok=True)
+        write_atomic(stored, json.dumps(definition, indent=1))
 
-    done = {key(float(r["F"]), float(r["omega"]), json.loads(r["params"])): r for r in read_rows(csv_path)}
-    pending = [p for p in points if key(*p) not in done]
-    jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
-    new_file = not csv_path.exists()
-    with open(csv_path, "a", newline="") as handle, \
-            tqdm(total=len(points), initial=len(points) - len(pending), unit="pt", disable=not progress,
-                 desc=f"{plant} DF") as bar:
-        writer = csv.DictWriter(handle, fieldnames=COLUMNS)
-        if new_file:
-            writer.writeheader()
-        last_json = time.monotonic()
+        wanted = {key(*p) for p in points}
+        done = {}
+        for r in log.read():
+            try:
+                k = key(float(r["F"]), float(r["omega"]), json.loads(r["params"]))
+            except (TypeError, ValueError):
+                continue
+            if k in wanted:
+                done[k] = r
+        pending = [p for p in points if key(*p) not in done]
+        jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+        with log, tqdm(total=len(points), initial=len(points) - len(pending), unit="pt", disable=not progress,
+                       desc=f"{plant} DF") as bar:
+            last_json = time.monotonic()
+            settings = (("drive", drive), ("samples_per_period", samples_per_period))
+            fmu = str(fmu_path(spec, fmu_dir))
+            with Executor(jobs) as executor:
+                for _chunk, results in executor.run(Chunk(plant, fmu, settings, c) for c in chunked(pending, jobs)):
+                    rows = [row(r) for r in results]
+                    log.append(rows)
+                    for r in rows:
+                        done[key(float(r["F"]), float(r["omega"]), json.loads(r["params"]))] = r
+                    bar.update(len(rows))
+                    if time.monotonic() - last_json > 5.0:
+                        _write_json(out_dir, points, done)
+                        last_json = time.monotonic()
+        return _write_json(out_dir, points, done)
 
-        def record(rows):
-            nonlocal last_json
-            for r in rows:
-                writer.writerow(r)
-                done[key(float(r["F"]), float(r["omega"]), json.loads(r["params"]))] = r
-            handle.flush()
-            os.fsync(handle.fileno())
-            bar.update(len(rows))
-            if time.monotonic() - last_json > 5.0:
-                _write_json(out_dir, points, done)
-                last_json = time.monotonic()
 
-        settings = (("drive", drive), ("samples_per_period", samples_per_period))
-        fmu = str(fmu_path(spec, fmu_dir))
-        with Executor(jobs) as executor:
-            for _chunk, results in executor.run(Chunk(plant, fmu, settings, c) for c in chunked(pending, jobs)):
-                record([row(r) for r in results])
-    return _write_json(out_dir, points, done)
+def _definition(path):
+    """The definition stored in sweep.json, or None when it is not one (damaged, or not JSON)."""
+    try:
+        return json.loads(read_bytes(path, 256 << 20, "sweep definition"))
+    except (OSError, ValueError):
+        return None
 
 
 def _write_json(out_dir, points, done):

@@ -4,6 +4,7 @@ import csv
 import hashlib
 import json
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -332,9 +333,10 @@ def test_a_running_dask_scheduler_gets_the_fmus_shipped_and_gives_the_local_resu
         run_scene(scene(), tmp_path / "local", jobs=1, cache=False, progress=False)
         assert results(tmp_path / "remote") == results(tmp_path / "local")
         assert not (worker_dir / "build").exists()
-        for model in ("FrictionMass", "TwoMassBacklash"):  # what the worker ran: the shipped bytes
-            digest = hashlib.sha256(fmus[model].read_bytes()).hexdigest()[:16]
-            assert (Path(tempfile.gettempdir()) / "dfwb-fmus" / digest / f"{model}.fmu").exists()
+        for model in ("FrictionMass", "TwoMassBacklash"):  # what the worker ran: the shipped bytes, in private
+            digest = hashlib.sha256(fmus[model].read_bytes()).hexdigest()
+            shipped = list(Path(tempfile.gettempdir()).glob(f"dfwb-fmus-*/{digest}/{model}.fmu"))
+            assert shipped and all(stat.S_IMODE(path.parent.parent.stat().st_mode) == 0o700 for path in shipped)
     finally:
         for process in (worker, scheduler):
             if process is not None:
