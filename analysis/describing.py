@@ -12,6 +12,12 @@ from it confirms the orbit. A response that does not repeat within
 ``max_periods`` (quasi-periodic or chaotic) gets the average over its last 20
 periods, flagged ``periodic = False``.
 
+The engine accepts F in F_RANGE and omega in OMEGA_RANGE (and the plant
+parameters in :data:`dfwb.plants.RANGES`), checked before anything runs. The
+plants are invariant under a translation, so the DF does not depend on the
+initial position: the engine runs the plant at the origin and adds the
+translation to the mean X_0 only (:meth:`DFEngine.point`).
+
 Examples
 --------
 >>> from dfwb.describing import DFEngine
@@ -26,11 +32,16 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from .plants import DEFAULT_FMU_DIR, fmu_path, plant as find_plant
+from .plants import DEFAULT_FMU_DIR, check_range, fmu_path, plant as find_plant
 from .session import FMUSession
 from dfwb.fmus import facade
 from dfwb.fmus.piecewise import PlantError
 
+# The points the engine computes (N, rad/s): the edges dfwb stress covers and beyond,
+# checked at the corners with every plant's default parameters.
+F_RANGE = (1e-6, 1e9)
+OMEGA_RANGE = (1e-4, 1e5)
+MAX_PERIODS = 100_000  # the most max_periods may be: a point's run is bounded
 HARMONICS = 10
 AVERAGE_PERIODS = 20
 MAX_LAG = 4
@@ -86,10 +97,9 @@ class DFResult:
 
 
 def check_point(F, omega):
-    """Raise PlantError unless F > 0 and omega > 0 are finite."""
-    for name, value in (("F", F), ("omega", omega)):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
-            raise PlantError(f"{name} = {value!r} is out of range: {name} must be a finite number > 0")
+    """Raise PlantError naming the value unless F is in F_RANGE and omega in OMEGA_RANGE."""
+    check_range("F", F, *F_RANGE, "N")
+    check_range("omega", omega, *OMEGA_RANGE, "rad/s")
 
 
 class DFEngine:
@@ -135,6 +145,8 @@ class DFEngine:
             raise PlantError(f"samples_per_period = {samples_per_period!r} is out of range: an integer >= 4")
         if not (isinstance(harmonics, int) and 1 <= harmonics <= HARMONICS):
             raise PlantError(f"harmonics = {harmonics!r} is out of range: an integer from 1 to {HARMONICS}")
+        if not (isinstance(max_periods, int) and 1 <= max_periods <= MAX_PERIODS):
+            raise PlantError(f"max_periods = {max_periods!r} is out of range: an integer from 1 to {MAX_PERIODS}")
         self.drive = drive
         self.harmonics = harmonics
         self.samples = samples_per_period if drive == "input" else 1
@@ -148,17 +160,23 @@ class DFEngine:
 
     # -- one point ----------------------------------------------------------------
     def point(self, F, omega, params=None):
-        """The DFResult of the plant at force amplitude F and frequency omega."""
+        """The DFResult of the plant at force amplitude F and frequency omega.
+
+        The plant runs translated to the origin (its position parameter at 0):
+        N and every X_k, k >= 1, are bit-identical whatever the position, and
+        the translation is added to the mean X_0 (harmonics[0]) only.
+        """
         started = time.perf_counter()
         check_point(F, omega)
         params = self.plant.checked(params or {})
+        at_origin, offset = self.plant.at_origin(params)
         mass = self.plant.mass(params)
         h = dict(self.plant.defaults(), **params).get("h", 0.0)
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
                   for name in self.plant.section]
-        base = dict(params, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0,
+        base = dict(at_origin, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0,
                     harmonics=self.harmonics)
-        result = _Search(self, F, omega, base, scales, self.plant.translation(params)).run()
+        result = _Search(self, F, omega, base, scales, self.plant.translation(params), offset).run()
         result.plant, result.params, result.drive = self.plant.name, params, self.drive
         result.seconds = time.perf_counter() - started
         return result
@@ -195,9 +213,10 @@ class DFEngine:
 class _Search:
     """The search for the periodic steady state of one point."""
 
-    def __init__(self, engine, F, omega, base, scales, shifts):
+    def __init__(self, engine, F, omega, base, scales, shifts, offset=0.0):
         self.engine, self.F, self.omega, self.base, self.scales = engine, F, omega, base, scales
         self.shifts = shifts
+        self.offset = offset  # the output's translation, removed from the run and added back to X_0
         self.periods = 0
 
     def drift(self, a, b):
@@ -242,6 +261,7 @@ class _Search:
         return d if previous is not None and abs(previous - d) <= 1e-6 * abs(d) else None
 
     def result(self, X, periodic, orbit, note=""):
+        X = [X[0] + self.offset] + X[1:]
         N = X[1] / self.F
         return DFResult(plant="", F=self.F, omega=self.omega, params={}, N=N, harmonics=[abs(x) for x in X],
                         periodic=periodic, periods=self.periods, seconds=0.0, note=note, orbit_periods=orbit, X=X)

@@ -2,19 +2,42 @@
 
 A plant is named on the command line (``friction``, ``backlash``,
 ``static-backlash``) and maps to one FMU. Its parameters are checked here,
-with the exact solver's own validation, before any FMU is touched, so a bad
-value becomes one clear line instead of an FMU failing mid-sweep.
+against the ranges the engine accepts and with the exact solver's own
+validation, before any FMU is touched, so a bad value becomes one clear line
+instead of an FMU failing (or running without end) mid-sweep.
 """
 
 from dataclasses import dataclass
 from pathlib import Path
 
 from dfwb.fmus import facade
-from dfwb.fmus.piecewise import PlantError
+from dfwb.fmus.piecewise import PlantError, check
 
 DEFAULT_FMU_DIR = Path("build/fmus")
 RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
 _CHECKED = {}  # (plant, model, parameter items) -> validated parameters: sweeps repeat the same sets
+
+# The parameter ranges the engine accepts: (low, high, unit). Masses, clearances, slopes,
+# forces and velocities: the edges ``dfwb stress`` covers and the engine computes (the
+# solvers accept more). Positions only translate the plant, which the engine removes
+# (Plant.at_origin): their bound merely keeps the mean and k x0 far from overflow.
+# eps and gap0 keep the solver's own ranges ([0, 1] and [0, h]).
+MASS = (1e-6, 1e6, "kg")
+FORCE = (0.0, 1e9, "N")
+VELOCITY = (-1e6, 1e6, "m/s")
+POSITION = (-1e30, 1e30, "m")
+RANGES = {
+    "M": MASS, "M1": MASS, "M2": MASS,
+    "B": (0.0, 1e9, "N.s/m"), "Fc": FORCE, "Fs": FORCE, "Dv": (0.0, 1e3, "m/s"),
+    "h": (1e-9, 1e3, "m"), "k": (1e-6, 1e6, ""),
+    "x0": POSITION, "x1_0": POSITION,
+    "v0": VELOCITY, "v1_0": VELOCITY, "v2_0": VELOCITY,
+}
+
+
+def check_range(name, value, low, high, unit=""):
+    """PlantError naming the value and the range unless low <= value <= high (a finite number)."""
+    check(name, value, lambda: low <= value <= high, f"{name} must be in [{low:g}, {high:g}] {unit}".rstrip())
 
 
 @dataclass(frozen=True)
@@ -25,12 +48,28 @@ class Plant:
     section: tuple  # continuous Poincare state, read at whole periods
     modes: tuple  # discrete Poincare state
     initial: dict  # Poincare state name -> the parameter that sets it at t = 0 (shooting)
-    shifts: dict  # how each section component moves when the plant is translated by 1 m
+    shifts: dict  # how each section component (and the output) moves when the plant is translated by 1 m
+    position: str  # the parameter that translates the whole plant
+
+    def _per_metre(self, name, params):
+        """How signal ``name`` moves when the plant is translated by 1 m."""
+        shift = self.shifts.get(name, 0.0)
+        return dict(self.defaults(), **params).get("k", 1.0) if shift == "k" else shift
 
     def translation(self, params):
         """Per section component, its change under a translation of the plant by 1 m."""
-        slope = dict(self.defaults(), **params).get("k", 1.0)
-        return tuple(slope if self.shifts.get(name) == "k" else self.shifts.get(name, 0.0) for name in self.section)
+        return tuple(self._per_metre(name, params) for name in self.section)
+
+    def at_origin(self, params):
+        """(params with the plant translated to position 0, the output's offset there).
+
+        The forces depend on velocities and relative positions only, so the
+        output of a translated plant is the same motion plus a constant: the
+        engine runs the plant at the origin, where a position of 1e20 m cannot
+        round the motion away, and adds the offset to the mean X_0 only.
+        """
+        value = dict(self.defaults(), **params)[self.position]
+        return dict(params, **{self.position: 0.0}), value * self._per_metre(self.output, params)
 
     @property
     def fmu_name(self):
@@ -53,6 +92,8 @@ class Plant:
                 values[name] = float(value)
             except (TypeError, ValueError):
                 raise PlantError(f"{name} = {value!r} is not a number") from None
+            if name in RANGES:
+                check_range(name, values[name], *RANGES[name])
         kwargs = dict(self.defaults(), **values)
         self.model.solver_class(F=1.0, omega=1.0, **self.model.solver_kwargs(kwargs))  # the solver's own range checks
         return values
@@ -75,14 +116,15 @@ class Plant:
 
 
 # The plants are invariant under a translation of all positions (forces depend on
-# velocities and relative positions only): "shifts" says how each section component moves.
+# velocities and relative positions only): "shifts" says how each section component
+# moves, "position" which parameter translates the plant.
 PLANTS = {
     "friction": Plant("friction", facade.FrictionMass, "x", ("x", "v"), ("mode",), {"x": "x0", "v": "v0"},
-                      {"x": 1.0}),
+                      {"x": 1.0}, "x0"),
     "backlash": Plant("backlash", facade.TwoMassBacklash, "x1", ("x1", "v1", "gap", "v2"), ("contact",),
-                      {"x1": "x1_0", "v1": "v1_0", "gap": "gap0", "v2": "v2_0"}, {"x1": 1.0}),
+                      {"x1": "x1_0", "v1": "v1_0", "gap": "gap0", "v2": "v2_0"}, {"x1": 1.0}, "x1_0"),
     "static-backlash": Plant("static-backlash", facade.StaticBacklash, "y", ("x", "v", "y"), ("engaged",), {},
-                             {"x": 1.0, "y": "k"}),
+                             {"x": 1.0, "y": "k"}, "x0"),
 }
 
 

@@ -18,6 +18,7 @@ drifted far or their masses differ by orders of magnitude.
 from .exact import Motion
 from .piecewise import PiecewisePlant, Search, check
 
+MIN_CLEARANCE = 1e-290  # m: the Zeno tolerance 1e-12 h stays a normal float
 FREE, LOWER, UPPER = 0, 1, 2  # the ``contact`` output: free, at gap 0, at gap h
 SIDE = {LOWER: -1, UPPER: 1}  # sigma: pressing into the boundary means sigma * u > 0
 
@@ -29,7 +30,8 @@ class TwoMassBacklash(PiecewisePlant):
                  x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, f=0.0, harmonics=10):
         check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
         check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
-        check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
+        # below, tol_h underflows and a pressed bounce never comes to rest: impacts without end
+        check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
         check("eps", eps, lambda: 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
         if gap0 is None:
             gap0 = 0.5 * h

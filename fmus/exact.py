@@ -11,6 +11,10 @@ the instants where the force crosses a level analytically, and
 :func:`first_root` finds the first zero of a smooth function from a bound on
 its second derivative, so that no zero is ever stepped over.
 
+Every loop here is bounded by construction: a phase too large to resolve a
+period and a zero search that would need more than ``MAX_EVALUATIONS``
+evaluations raise :class:`PlantError` instead of running on.
+
 Plain Python (``math``, ``cmath``) only: this module runs inside the FMUs.
 """
 
@@ -19,6 +23,17 @@ import math
 
 EPS = 2.220446049250313e-16
 TWO_PI = 2.0 * math.pi
+# |omega t + phi| at most 1e10 rad: there a phase still resolves 3e-7 of a period
+# (ulp(1e10) = 1.9e-6 rad); beyond, the force and the crossings dissolve in rounding.
+PHASE_LIMIT = 1e10
+# Evaluations of g in one first_root call. dfwb stress needs at most 13,241 (the full set: a
+# velocity touching zero at a chunk's end; the quick set 929); more means the event cannot be
+# resolved at the plant's scale (a clearance of 1e-200 m, a motion 1e30 times the clearance).
+MAX_EVALUATIONS = 100_000
+
+
+class PlantError(ValueError):
+    """A parameter, input or step the plant cannot accept."""
 
 
 def phi_real(k, y):
@@ -28,11 +43,11 @@ def phi_real(k, y):
     if y < 0.5:
         term = 1.0 / math.factorial(k)
         total = term
-        n = 0
-        while abs(term) > 1e-18 * abs(total):
-            n += 1
+        for n in range(1, 30):  # y < 0.5: the 30th term is below 1e-40 of the first
             term *= -y / (n + k)
             total += term
+            if abs(term) <= 1e-18 * abs(total):
+                break
         return total
     value = -math.expm1(-y) / y  # phi_1
     for j in range(1, k):
@@ -58,9 +73,18 @@ class Drive:
     __slots__ = ("f", "F", "omega", "phi")
 
     def __init__(self, f, F, omega, phi):
-        if F < 0.0:  # a negative amplitude is a phase shift of pi
-            F, phi = -F, phi + math.pi
+        if F < 0.0:  # a negative amplitude is a phase shift of pi (towards 0: |phi| does not grow)
+            F, phi = -F, (phi + math.pi if phi <= 0.0 else phi - math.pi)
         self.f, self.F, self.omega, self.phi = f, F, omega, phi
+
+    def phase(self, t, name="t"):
+        """omega t + phi; PlantError naming ``name`` beyond PHASE_LIMIT, where a period is no longer resolved."""
+        theta = self.omega * t + self.phi
+        if not abs(theta) <= PHASE_LIMIT:
+            raise PlantError(f"{name} = {t!r} is out of range: the phase omega*t + phi = {theta!r} rad must stay "
+                             f"within +-{PHASE_LIMIT:g} rad (t <= {(PHASE_LIMIT - self.phi) / self.omega!r} s), "
+                             f"where a float still resolves a period")
+        return theta
 
     def u(self, t):
         return self.f + self.F * math.cos(self.omega * t + self.phi)
@@ -69,8 +93,13 @@ class Drive:
         return -self.F * self.omega * math.sin(self.omega * t + self.phi)
 
     def _rounding(self, theta, level):
-        """Rounding of u - level at phase theta (a phase carries |theta| ulp)."""
-        return 8.0 * EPS * (abs(self.f) + self.F * (1.0 + abs(theta)) + abs(level))
+        """Rounding of u - level at phase theta (a phase carries |theta| ulp).
+
+        Scaled term by term: F (1 + |theta|) would overflow for F near the
+        largest float, and an infinite rounding let the trend overrule u.
+        """
+        e = 8.0 * EPS
+        return e * abs(self.f) + e * self.F * (1.0 + abs(theta)) + e * abs(level)
 
     def above(self, t, level):
         """Whether u > level just after t.
@@ -96,6 +125,8 @@ class Drive:
         """First t > t0 where u crosses ``level`` upwards (or downwards).
 
         Tangency is no crossing. Returns inf when u never crosses the level.
+        Within PHASE_LIMIT a period spans millions of ulp of the phase, so the
+        first candidate is past t0, or the next one is (rounding).
         """
         if self.F == 0.0:
             return math.inf
@@ -103,13 +134,13 @@ class Drive:
         if not -1.0 < r < 1.0:
             return math.inf
         theta_c = -math.acos(r) if rising else math.acos(r)
-        theta0 = self.omega * t0 + self.phi
-        n = math.ceil((theta0 - theta_c) / TWO_PI)
-        t = (theta_c + TWO_PI * n - self.phi) / self.omega
-        while t <= t0:
-            n += 1
+        n = math.ceil((self.phase(t0) - theta_c) / TWO_PI)
+        for n in (n, n + 1, n + 2):
             t = (theta_c + TWO_PI * n - self.phi) / self.omega
-        return t
+            if t > t0:
+                return t
+        raise PlantError(f"t = {t0!r}: no crossing of {level!r} N found past it at omega = {self.omega!r} rad/s "
+                         f"(the phase does not resolve a period)")
 
 
 class Motion:
@@ -145,10 +176,18 @@ class Motion:
     def acceleration(self, t, v):
         return -self.lam * v + self.a + self.b * math.cos(self.omega * t + self.phi)
 
-    def curvature_bound(self):
-        """Bound on |v''| over [t0, inf): ``K`` for velocity zero searches."""
+    def curvature_bound(self, t=None):
+        """Bound on |v''| over [t, inf) (t0 by default): ``K`` for velocity zero searches.
+
+        v'' = lam^2 (v0 - a/lam - Re P) exp(-lam tau) - omega^2 Re(P exp(i omega tau)):
+        the transient's part decays, so a search long after a fast initial
+        decay is not held to the scale of the initial velocity.
+        """
         lam, P = self.lam, abs(self._P)
-        return lam * lam * (abs(self.v0) + P) + lam * abs(self.a) + P * self.omega ** 2
+        transient = lam * lam * (abs(self.v0) + P) + lam * abs(self.a)
+        if t is not None and transient:
+            transient *= math.exp(-lam * (t - self.t0))
+        return transient + P * self.omega ** 2
 
     def integral(self, t):
         """Integral of x from t0 to t."""
@@ -190,42 +229,61 @@ class Motion:
 def first_root(fun, a, b, K):
     """First t in (a, b] where g(t) <= 0, given g(a) > 0 and |g''| <= K on [a, b].
 
-    ``fun(t)`` returns (g, g'). Intervals are cleared by rigorous bounds
+    ``fun(t)`` returns (g, g'). ``K`` is a number, or a function of t that
+    bounds |g''| on [t, b] (a decaying transient: each interval gets the
+    bound from its own start). Intervals are cleared by rigorous bounds
     (positive lower bound, or g increasing) and split otherwise, so a zero
     can never hide between two samples; a strictly decreasing interval with
     a sign change is refined by safeguarded Newton to machine precision.
     Returns None when g stays positive (grazes below rounding are ignored).
+    Bounded: each pass evaluates g once or pops an evaluated point, and more
+    than MAX_EVALUATIONS evaluations (the search and the refinement
+    together) raise PlantError.
     """
+    bound = K if callable(K) else None
     ga, dga = fun(a)
     if ga <= 0.0:
         return a
+    if bound is not None:
+        K = bound(a)
+    end = b
     pending = [(b,) + tuple(fun(b))]
+    evaluations = 2
     while pending:
         b, gb, dgb = pending[-1]
         span = b - a
         mean_slope = 0.5 * (dga + dgb)
         if gb <= 0.0 and mean_slope + 0.5 * K * span < 0.0:
-            return _refine(fun, a, b, ga, dga)
-        if gb > 0.0 and (min(ga, gb) - 0.125 * K * span * span > 0.0
-                         or mean_slope - 0.5 * K * span >= 0.0):
-            pending.pop()
-            a, ga, dga = b, gb, dgb
-            continue
-        m = a + 0.5 * span
-        if not a < m < b:  # interval at machine resolution
-            if gb <= 0.0:
+            return _refine(fun, a, b, ga, dga, MAX_EVALUATIONS - evaluations, K)
+        cleared = gb > 0.0 and (min(ga, gb) - 0.125 * K * span * span > 0.0
+                                or mean_slope - 0.5 * K * span >= 0.0)
+        if not cleared:
+            m = a + 0.5 * span
+            if a < m < b:
+                if evaluations >= MAX_EVALUATIONS:
+                    raise _unresolved(a, end, K)
+                evaluations += 1
+                pending.append((m,) + tuple(fun(m)))
+                continue
+            if gb <= 0.0:  # interval at machine resolution
                 return b
-            pending.pop()
-            a, ga, dga = b, gb, dgb
-            continue
-        pending.append((m,) + tuple(fun(m)))
+        pending.pop()
+        a, ga, dga = b, gb, dgb
+        if bound is not None:
+            K = bound(a)
     return None
 
 
-def _refine(fun, lo, hi, g_lo, dg_lo):
-    """Zero of a strictly decreasing g on [lo, hi], g(lo) > 0 >= g(hi)."""
+def _unresolved(a, b, K):
+    return PlantError(f"an event search between t = {a!r} and t = {b!r} s needed more than {MAX_EVALUATIONS} "
+                      f"evaluations (curvature bound {K!r}): the motion cannot be resolved at the plant's scale")
+
+
+def _refine(fun, lo, hi, g_lo, dg_lo, budget, K):
+    """Zero of a strictly decreasing g on [lo, hi], g(lo) > 0 >= g(hi), in at most ``budget`` evaluations."""
+    start = lo
     t = lo - g_lo / dg_lo if dg_lo < 0.0 else 0.5 * (lo + hi)
-    for _ in range(200):
+    for _ in range(budget):
         if not lo < t < hi:
             t = 0.5 * (lo + hi)
             if not lo < t < hi:
@@ -239,4 +297,4 @@ def _refine(fun, lo, hi, g_lo, dg_lo):
         if abs(nxt - t) <= 2.0 * EPS * abs(t):
             return min(max(nxt, lo), hi)
         t = nxt
-    return hi
+    raise _unresolved(start, hi, K)

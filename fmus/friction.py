@@ -111,7 +111,9 @@ class FrictionMass(PiecewisePlant):
             _, vv = motion.state(tt)
             return s * vv - self.Dv, s * motion.acceleration(tt, vv)
 
-        search = Search(speed_above_band, motion.curvature_bound(), t_from, "band")
+        # with damping, K is a function of t: the initial velocity's part of v'' decays
+        K = motion.curvature_bound if self.B else motion.curvature_bound()
+        search = Search(speed_above_band, K, t_from, "band")
         self._begin(t, motion, searches=[search])
 
     # -- events --------------------------------------------------------------

@@ -11,17 +11,17 @@ The running Fourier integrals of the output, ``I_k(t) = int_0^t y(s)
 exp(-i k omega s) ds`` for k = 0..harmonics (k = 0: the plain integral), are
 accumulated piece by piece in closed form; a describing function needs only
 their values at two instants.
+
+Every loop is bounded: a step by its events (EVENTS_PER_PERIOD_LIMIT) and by
+its search chunks (the phase, hence the time, is bounded by PHASE_LIMIT),
+each chunk's search by MAX_EVALUATIONS; hitting a bound raises PlantError.
 """
 
 import math
 
-from .exact import TWO_PI, Drive, first_root
+from .exact import PHASE_LIMIT, TWO_PI, Drive, PlantError, first_root
 
 EVENTS_PER_PERIOD_LIMIT = 100_000
-
-
-class PlantError(ValueError):
-    """A parameter, input or step the plant cannot accept."""
 
 
 def check(name, value, ok, allowed):
@@ -36,7 +36,11 @@ def check(name, value, ok, allowed):
 
 
 class Search:
-    """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from."""
+    """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from.
+
+    ``K`` is a number, or a function of t bounding |g''| on [t, inf) (a
+    decaying transient's bound tightens as the search advances).
+    """
 
     __slots__ = ("fun", "K", "t_from", "kind")
 
@@ -50,7 +54,8 @@ class PiecewisePlant:
     def __init__(self, F, omega, phi, f, harmonics):
         check("F", F, True, "F must be a finite number (N)")
         check("omega", omega, lambda: omega > 0.0, "omega must be > 0 (rad/s)")
-        check("phi", phi, True, "phi must be a finite number (rad)")
+        check("phi", phi, lambda: abs(phi) <= PHASE_LIMIT,
+              f"phi must be in [-{PHASE_LIMIT:g}, {PHASE_LIMIT:g}] rad (beyond, a float does not resolve a period)")
         check("f", f, True, "the input f must be a finite number (N)")
         check("harmonics", harmonics, lambda: harmonics == int(harmonics) and 0 <= harmonics <= 10,
               "harmonics must be an integer in 0..10")
@@ -81,7 +86,11 @@ class PiecewisePlant:
         width = self.period / 8.0
         n = math.floor((t - self._t_piece) / width) + 1
         end = self._t_piece + n * width
-        return end if end > t else t + width
+        if not end > t:
+            end = t + width
+            if not end > t:  # the search would not advance
+                raise PlantError(f"t = {t!r} is out of range: a search chunk of {width!r} s does not advance past it")
+        return end
 
     def _next_event(self, t_end):
         """(time, kind) of the piece's next event if it is <= t_end, else None."""
@@ -116,6 +125,7 @@ class PiecewisePlant:
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end, firing every event on the way."""
         check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        self.drive.phase(t_end, "t_end")  # bounds the search chunks (and every phase on the way)
         limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + (t_end - self.t) / self.period)
         fired = 0
         while True:
