@@ -1,51 +1,124 @@
 """The ``dfwb`` command line.
 
-Bad input (an unknown plant or parameter, F <= 0, omega <= 0, NaN, a value
-out of the plant's range) is one line on stderr and exit code 2, before
-anything is computed or written.
+Bad input (an unknown plant or parameter, a value out of the range the
+engine accepts, NaN, a malformed option) is one line on stderr and exit
+code 2, before anything is computed or written. Repeated options accumulate
+(``--set eps=0.2 --set h=0.05`` sets both; ``--F 10 --F 20`` gives two
+forces); a name or a single-valued option given twice with two different
+values is an error, never a silent choice of the last.
 """
 
 import argparse
 import json
-import signal
+import os
 import sys
+import traceback
+import warnings
 from pathlib import Path
-
-import numpy as np
 
 DEFAULT_FMU_DIR = Path("build/fmus")
 PLANT_NAMES = ("friction", "backlash", "static-backlash")
+MAX_JOBS = 256
 
 
 class InputError(Exception):
     """Bad command-line input: reported in one line, exit code 2."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors in one line (``dfwb df: error: ...``), exit code 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class _Once(argparse.Action):
+    """A single-valued option: given twice with two values is an error, not a silent choice of the last."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        seen = namespace.__dict__.setdefault("_given", {})
+        if self.dest in seen and seen[self.dest] != values:
+            parser.error(f"{option_string} given twice ({_shown(seen[self.dest])} and {_shown(values)}): give it once")
+        seen[self.dest] = values
+        setattr(namespace, self.dest, values)
+
+
+def _shown(values):
+    return " ".join(map(str, values)) if isinstance(values, (list, tuple)) else str(values)
+
+
+def _integer(lo, hi):
+    """An argparse type: an integer in [lo, hi]."""
+
+    def convert(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{value} is out of range: an integer from {lo} to {hi}")
+        return value
+
+    return convert
+
+
 def _assignments(items, option):
-    """{name: value} from NAME=VALUE words."""
+    """{name: value} from NAME=VALUE words; a name given twice with two values is an error."""
     values = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise InputError(f"{option} {item!r}: expected NAME=VALUE")
+        if name in values and values[name] != value:
+            raise InputError(f"{option} {name} given twice ({values[name]} and {value}): give it once")
         values[name] = value
     return values
 
 
+def _number(text, what):
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{what} = {text!r} is not a number") from None
+
+
 def _grid_values(items):
     """{name: [values]} from NAME=V1,V2,... words."""
-    return {name: [float(v) for v in text.split(",")] for name, text in _assignments(items, "--grid").items()}
+    return {name: [_number(v, f"--grid {name}") for v in text.split(",")]
+            for name, text in _assignments(items, "--grid").items()}
 
 
 def _omegas(args):
+    from .describing import OMEGA_RANGE
+    from .sweep import MAX_POINTS
+
+    if args.omega_log and args.omega:
+        raise InputError("give either --omega W [W ...] or --omega-log LO HI N, not both")
     if args.omega_log:
         lo, hi, n = args.omega_log
-        if not (lo > 0 and hi > lo and n >= 2 and n == int(n)):
-            raise InputError(f"--omega-log {lo:g} {hi:g} {n:g}: expected 0 < LO < HI and an integer N >= 2")
-        return list(np.geomspace(lo, hi, int(n)))
+        if not (OMEGA_RANGE[0] <= lo < hi <= OMEGA_RANGE[1] and n == int(n) and 2 <= n <= MAX_POINTS):
+            raise InputError(f"--omega-log {lo:g} {hi:g} {n:g}: expected {OMEGA_RANGE[0]:g} <= LO < HI <= "
+                             f"{OMEGA_RANGE[1]:g} rad/s and an integer N from 2 to {MAX_POINTS}")
+        import numpy as np
+
+        return [float(w) for w in np.geomspace(lo, hi, int(n))]
     if not args.omega:
         raise InputError("give --omega W [W ...] or --omega-log LO HI N")
     return args.omega
+
+
+def _points(args):
+    """(forces, frequencies), each checked against the engine's ranges before anything runs."""
+    from .describing import check_point
+    from .sweep import check_size, grid_size
+
+    omegas = _omegas(args)
+    check_size(grid_size(len(args.F), len(omegas)), "the grid")
+    for F in args.F:
+        check_point(F, omegas[0])
+    for omega in omegas:
+        check_point(args.F[0], omega)
+    return args.F, omegas
 
 
 def _fmus(out_dir):
@@ -62,16 +135,13 @@ def cmd_build(args):
 
 
 def cmd_df(args):
-    from .describing import DFEngine, check_point
+    from .describing import DFEngine
     from .plants import plant
 
     params = plant(args.plant).check(_assignments(args.set, "--set"))
-    omegas = _omegas(args)
-    for F in args.F:  # every point is checked before anything is built or computed
-        for omega in omegas:
-            check_point(F, omega)
+    forces, omegas = _points(args)
     engine = DFEngine(args.plant, args.fmus, args.drive, args.samples_per_period)
-    results = [engine.point(F, omega, params).as_dict() for F in args.F for omega in omegas]
+    results = [engine.point(F, omega, params).as_dict() for F in forces for omega in omegas]
     if args.json:
         json.dump(results, sys.stdout, indent=1)
         sys.stdout.write("\n")
@@ -91,9 +161,17 @@ def _table(results):
 
 
 def cmd_sweep(args):
+    from .plants import plant
     from .sweep import grid, run_sweep
 
-    points = grid(args.F, _omegas(args), _assignments(args.set, "--set"), _grid_values(args.grid))
+    spec = plant(args.plant)
+    params = spec.check(_assignments(args.set, "--set"))
+    grids = _grid_values(args.grid)
+    both = sorted(set(params) & set(grids))
+    if both:
+        raise InputError(f"{both[0]} is given both by --set and by --grid: give it in one of them")
+    forces, omegas = _points(args)
+    points = grid(forces, omegas, params, grids)  # counted before it is built; each set checked by run_sweep
     rows = run_sweep(args.plant, points, args.out, args.jobs, args.drive, args.samples_per_period, args.fmus,
                      progress=not args.quiet, resume=not args.no_resume)
     print(f"{len(rows)} points in {args.out}/results.csv and results.json")
@@ -109,9 +187,10 @@ def cmd_limit_cycle(args):
         raise InputError("give the controller either as --G EXPR or as --num ... --den ...")
     G = parse_transfer_function(args.G) if args.G is not None else from_coefficients(args.num, args.den or [])
     params = plant(args.plant).check(_assignments(args.set, "--set"))
-    F_range = check_range("--F-range", args.F_range)
-    omega_range = check_range("--omega-range", args.omega_range)
-    from .describing import DFEngine
+    from .describing import F_RANGE, OMEGA_RANGE, DFEngine
+
+    F_range = check_range("--F-range", args.F_range, F_RANGE)
+    omega_range = check_range("--omega-range", args.omega_range, OMEGA_RANGE)
 
     engine = DFEngine(args.plant, args.fmus)
     cycles, F_grid, omega_grid, N_grid = search(args.plant, G, params, F_range, omega_range, engine=engine,
@@ -180,17 +259,29 @@ def cmd_stress(args):
 
 
 def _cache(args):
+    if args.no_cache and args.cache:
+        raise InputError("give --cache DIR or --no-cache, not both")
     return False if args.no_cache else (args.cache or True)
 
 
 def cmd_run(args):
+    from .files import UnsafePath, inside
     from .runner import run_scene
     from .scene import load_scene
 
     scenes = [(path, load_scene(path)) for path in args.scenes]  # every scene is checked before any runs
-    for path, scene in scenes:
-        single = len(args.scenes) == 1 and args.out
-        out = args.out if single else (args.out or Path("out/scenes")) / path.stem
+    folders = {}
+    for path, _ in scenes:
+        try:
+            out = args.out if len(args.scenes) == 1 and args.out else inside(args.out or Path("out/scenes"), path.stem)
+        except UnsafePath:
+            raise InputError(f"{path}: the file name {path.stem!r} cannot name an output folder "
+                             "(letters, digits, _ . + - and no leading dot)") from None
+        if out in folders:
+            raise InputError(f"{folders[out]} and {path} would both write to {out}: rename one, or run them "
+                             "separately with --out")
+        folders[out] = path
+    for (path, scene), out in zip(scenes, folders):
         o = run_scene(scene, out, args.jobs, args.dask, _cache(args), args.fmus, progress=not args.quiet)
         if o.up_to_date:
             print(f"{o.out_dir}/summary.md: up to date ({o.points} points, {len(o.figures)} figure(s)), "
@@ -216,27 +307,27 @@ def cmd_demo(args):
 
 
 def parser():
-    top = argparse.ArgumentParser(prog="dfwb", description="Describing-function workbench for friction and backlash.")
+    top = _Parser(prog="dfwb", description="Describing-function workbench for friction and backlash.")
     commands = top.add_subparsers(dest="command", required=True)
 
     build = commands.add_parser("build", help="build the FMUs, plants and controller (skips those whose sources are unchanged)")
-    build.add_argument("--out", type=Path, default=DEFAULT_FMU_DIR, help="output folder (default: %(default)s)")
+    build.add_argument("--out", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="output folder (default: %(default)s)")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.set_defaults(run=cmd_build)
 
     def point_options(command):
         command.add_argument("plant", choices=PLANT_NAMES, help="the plant")
-        command.add_argument("--F", type=float, nargs="+", required=True, help="force amplitudes [N]")
-        command.add_argument("--omega", type=float, nargs="+", help="frequencies [rad/s]")
-        command.add_argument("--omega-log", type=float, nargs=3, metavar=("LO", "HI", "N"),
+        command.add_argument("--F", type=float, nargs="+", action="extend", required=True, help="force amplitudes [N]")
+        command.add_argument("--omega", type=float, nargs="+", action="extend", help="frequencies [rad/s]")
+        command.add_argument("--omega-log", action=_Once, type=float, nargs=3, metavar=("LO", "HI", "N"),
                              help="N log-spaced frequencies from LO to HI")
-        command.add_argument("--set", nargs="+", metavar="NAME=VALUE", help="plant parameters (e.g. eps=0.2)")
-        command.add_argument("--drive", choices=("internal", "input"), default="internal",
+        command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE", help="plant parameters (e.g. eps=0.2)")
+        command.add_argument("--drive", action=_Once, choices=("internal", "input"), default="internal",
                              help="internal: the FMU's exact built-in excitation; input: the sine sampled by the "
                                   "master into the input f, held over each step (default: %(default)s)")
-        command.add_argument("--samples-per-period", type=int, default=64,
+        command.add_argument("--samples-per-period", action=_Once, type=_integer(4, 100_000), default=64,
                              help="communication steps per period with --drive input (default: %(default)s)")
-        command.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+        command.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
 
     df = commands.add_parser("df", help="describing function N(F, omega) of a plant, one point per (F, omega)")
     point_options(df)
@@ -245,75 +336,75 @@ def parser():
 
     sweep = commands.add_parser("sweep", help="a resumable parallel sweep of DF points, written to a folder")
     point_options(sweep)
-    sweep.add_argument("--grid", nargs="+", metavar="NAME=V1,V2", help="plant parameters to sweep")
-    sweep.add_argument("--out", type=Path, required=True, help="result folder (resumed if it holds this sweep)")
-    sweep.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    sweep.add_argument("--grid", nargs="+", action="extend", metavar="NAME=V1,V2", help="plant parameters to sweep")
+    sweep.add_argument("--out", action=_Once, type=Path, required=True, help="result folder (resumed if it holds this sweep)")
+    sweep.add_argument("--jobs", action=_Once, type=_integer(1, MAX_JOBS), default=None, help="worker processes (default: all cores)")
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
 
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
     cycle.add_argument("plant", choices=PLANT_NAMES, help="the plant")
-    cycle.add_argument("--G", help="controller as an expression in s, e.g. '100*(s+1)/(s+10)'")
-    cycle.add_argument("--num", type=float, nargs="+", help="controller numerator coefficients, highest power first")
-    cycle.add_argument("--den", type=float, nargs="+", help="controller denominator coefficients")
-    cycle.add_argument("--set", nargs="+", metavar="NAME=VALUE", help="plant parameters")
-    cycle.add_argument("--F-range", type=float, nargs=2, default=(0.1, 1000.0), metavar=("LO", "HI"),
+    cycle.add_argument("--G", action=_Once, help="controller as an expression in s, e.g. '100*(s+1)/(s+10)'")
+    cycle.add_argument("--num", type=float, nargs="+", action="extend", help="controller numerator coefficients, highest power first")
+    cycle.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator coefficients")
+    cycle.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE", help="plant parameters")
+    cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=(0.1, 1000.0), metavar=("LO", "HI"),
                        help="force amplitudes searched [N] (default: %(default)s)")
-    cycle.add_argument("--omega-range", type=float, nargs=2, default=(0.05, 100.0), metavar=("LO", "HI"),
+    cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=(0.05, 100.0), metavar=("LO", "HI"),
                        help="frequencies searched [rad/s] (default: %(default)s)")
     cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
-    cycle.add_argument("--samples-per-period", type=int, default=512,
+    cycle.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                        help="co-simulation steps per predicted period with --verify (default: %(default)s)")
-    cycle.add_argument("--plot", help="write the Nyquist (and time-response) figure to this PNG")
+    cycle.add_argument("--plot", action=_Once, help="write the Nyquist (and time-response) figure to this PNG")
     cycle.add_argument("--json", action="store_true", help="print one JSON object")
-    cycle.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+    cycle.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
     cycle.set_defaults(run=cmd_limit_cycle)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
-    examples.add_argument("--out", type=Path, default=Path("out/examples"), help="output folder (default: %(default)s)")
-    examples.add_argument("--samples-per-period", type=int, default=512,
+    examples.add_argument("--out", action=_Once, type=Path, default=Path("out/examples"), help="output folder (default: %(default)s)")
+    examples.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                           help="co-simulation steps per predicted period (default: %(default)s)")
     examples.set_defaults(run=cmd_examples)
 
     bench = commands.add_parser("bench", help="run time against error of every method (Pareto plots, bench.md)")
     bench.add_argument("--quick", action="store_true", help="the quick set (under 3 minutes)")
-    bench.add_argument("--out", type=Path, default=Path("out/bench"), help="output folder (default: %(default)s)")
+    bench.add_argument("--out", action=_Once, type=Path, default=Path("out/bench"), help="output folder (default: %(default)s)")
     bench.set_defaults(run=cmd_bench)
 
     stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")
     stress.add_argument("--quick", action="store_true", help="the quick set (at least 50 cases, under 2 minutes)")
     stress.add_argument("--json", action="store_true", help="print one JSON object (cases, failed, failures)")
-    stress.add_argument("--part", type=int, default=1, help="run only this piece of the set (default: %(default)s)")
-    stress.add_argument("--parts", type=int, default=1, help="split the set into this many pieces (default: 1)")
+    stress.add_argument("--part", action=_Once, type=_integer(1, 10_000), default=1, help="run only this piece of the set (default: %(default)s)")
+    stress.add_argument("--parts", action=_Once, type=_integer(1, 10_000), default=1, help="split the set into this many pieces (default: 1)")
     stress.set_defaults(run=cmd_stress)
 
     def scene_options(command):
-        command.add_argument("--jobs", type=int, default=None,
+        command.add_argument("--jobs", action=_Once, type=_integer(1, MAX_JOBS), default=None,
                              help="worker processes, or Dask workers with --dask local (default: all cores)")
-        command.add_argument("--dask", metavar="ADDRESS|local",
+        command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
                              help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
-        command.add_argument("--cache", type=Path, metavar="DIR",
+        command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
                              help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
         command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
-        command.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+        command.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
         command.add_argument("--quiet", action="store_true", help="no progress display")
 
     run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
-    run.add_argument("scenes", type=Path, nargs="+", metavar="SCENE.toml", help="scene file(s), e.g. scenes/*.toml")
-    run.add_argument("--out", type=Path, help="output folder (default: out/scenes/<scene>; with several scenes, "
+    run.add_argument("scenes", type=Path, nargs="+", action="extend", metavar="SCENE.toml", help="scene file(s), e.g. scenes/*.toml")
+    run.add_argument("--out", action=_Once, type=Path, help="output folder (default: out/scenes/<scene>; with several scenes, "
                                               "one subfolder each)")
     scene_options(run)
     run.set_defaults(run=cmd_run)
 
     paper = commands.add_parser("paper", help="run the paper's scenes (figures 3-6, 8-12) and write report.md")
-    paper.add_argument("--out", type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")
+    paper.add_argument("--out", action=_Once, type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")
     scene_options(paper)
     paper.set_defaults(run=cmd_paper)
 
     demo = commands.add_parser("demo", help="drive each FMU with a sine through fmpy and plot the response")
-    demo.add_argument("--out", type=Path, default=Path("out"), help="output folder (default: %(default)s)")
-    demo.add_argument("--fmus", type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+    demo.add_argument("--out", action=_Once, type=Path, default=Path("out"), help="output folder (default: %(default)s)")
+    demo.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
     demo.set_defaults(run=cmd_demo)
     return top
 
@@ -321,23 +412,36 @@ def parser():
 def main(argv=None):
     from dfwb.fmus.piecewise import PlantError
 
+    from .stop import handling_signals
+
     top = parser()
     args = top.parse_args(argv)
-    previous = signal.signal(signal.SIGTERM, _interrupt)  # kill: stop the workers and keep what is done
+    prog = f"dfwb {args.command}"
+    shown = warnings.showwarning
+    warnings.showwarning = lambda message, *_, **__: sys.stderr.write(f"{prog}: warning: {message}\n")
     try:
-        return args.run(args)
+        with handling_signals():  # Ctrl-C and kill: stop the workers and keep what is done
+            return args.run(args)
     except (InputError, PlantError, ValueError, RuntimeError) as error:
-        top.exit(2, f"dfwb {args.command}: error: {error}\n")
+        top.exit(2, f"{prog}: error: {_one_line(error)}\n")
     except OSError as error:
-        top.exit(2, f"dfwb {args.command}: error: {error.filename or ''}: {error.strerror or error}\n")
+        where = f"{error.filename}: " if error.filename else ""
+        top.exit(2, f"{prog}: error: {where}{error.strerror or _one_line(error)}\n")
     except KeyboardInterrupt:
-        top.exit(130, f"dfwb {args.command}: interrupted\n")
+        top.exit(130, f"{prog}: interrupted\n")
+    except (RecursionError, MemoryError) as error:
+        top.exit(2, f"{prog}: error: the input is too large or too deeply nested ({type(error).__name__})\n")
+    except Exception as error:  # a defect of dfwb: one line, the traceback on request
+        if os.environ.get("DFWB_TRACEBACK"):
+            traceback.print_exc()
+        top.exit(1, f"{prog}: internal error: {type(error).__name__}: {_one_line(error)} "
+                    "(please report it; DFWB_TRACEBACK=1 shows the traceback)\n")
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        warnings.showwarning = shown
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
+def _one_line(error):
+    return " ".join(str(error).split())
 
 
 if __name__ == "__main__":

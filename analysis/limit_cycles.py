@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from .describing import DFEngine, check_point
+from .describing import F_RANGE, OMEGA_RANGE, DFEngine
 from .transfer import check_transfer_function
 from dfwb.fmus.piecewise import PlantError
 
@@ -59,10 +59,12 @@ class Cycle:
                 "distortion": self.distortion, "residual": self.residual, "periodic": self.periodic}
 
 
-def check_range(name, values):
+def check_range(name, values, limits):
+    """(lo, hi) as floats, refused unless limits[0] <= lo < hi <= limits[1] (the engine's range)."""
     lo, hi = values
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
-        raise PlantError(f"{name} = [{lo!r}, {hi!r}] is not a range: it must satisfy 0 < LO < HI, both finite")
+    if not (limits[0] <= lo < hi <= limits[1]):
+        raise PlantError(f"{name} = [{lo!r}, {hi!r}] is not a range the engine accepts: "
+                         f"{limits[0]:g} <= LO < HI <= {limits[1]:g}")
     return float(lo), float(hi)
 
 
@@ -166,11 +168,12 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
     list of Cycle, sorted by F (empty when there is none: a valid answer), and the map
     """
     G = check_transfer_function(G)
-    F_lo, F_hi = check_range("F range", F_range)
-    w_lo, w_hi = check_range("omega range", omega_range)
+    F_lo, F_hi = check_range("F range", F_range, F_RANGE)
+    w_lo, w_hi = check_range("omega range", omega_range, OMEGA_RANGE)
+    if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
+        raise PlantError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
     engine = engine or DFEngine(plant)
     params = engine.plant.check(params or {})
-    check_point(F_lo, w_lo)
     F_grid, omega_grid = np.geomspace(F_lo, F_hi, n_F), np.geomspace(w_lo, w_hi, n_omega)
     N_grid = df_map(engine, params, F_grid, omega_grid, progress)
     R = 1.0 + np.array([complex(G(1j * w)) for w in omega_grid]) * N_grid

@@ -40,7 +40,10 @@ from typing import Annotated, Literal, Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from .describing import F_RANGE, OMEGA_RANGE
+from .files import read_bytes
 from .plants import plant as find_plant
+from .sweep import MAX_POINTS, grid_size
 from dfwb.fmus.piecewise import PlantError
 
 if sys.version_info >= (3, 11):
@@ -50,13 +53,13 @@ else:  # pragma: no cover
 
 PlantName = Literal["friction", "backlash", "static-backlash"]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-Force = Annotated[float, Field(ge=1e-6, le=1e9, allow_inf_nan=False)]  # [N]: the range the engine is tested on
-Frequency = Annotated[float, Field(ge=1e-4, le=1e5, allow_inf_nan=False)]  # [rad/s]
+Force = Annotated[float, Field(ge=F_RANGE[0], le=F_RANGE[1], allow_inf_nan=False)]  # [N]: what the engine accepts
+Frequency = Annotated[float, Field(ge=OMEGA_RANGE[0], le=OMEGA_RANGE[1], allow_inf_nan=False)]  # [rad/s]
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)]
 FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper")
-MAX_POINTS = 200_000
+MAX_BYTES = 1 << 20  # a scene file: a page of TOML, never a device or a data file read whole
 MAX_SAMPLES = 2_000_000
 
 
@@ -126,9 +129,10 @@ class Frequencies(Strict):
 
     @model_validator(mode="after")
     def _not_empty(self):
-        if self.log is not None and not (1e-4 <= self.log[0] < self.log[1] <= 1e5 and self.log[2] == int(self.log[2])
+        lo, hi = OMEGA_RANGE
+        if self.log is not None and not (lo <= self.log[0] < self.log[1] <= hi and self.log[2] == int(self.log[2])
                                          and 2 <= self.log[2] <= 100_000):
-            raise ValueError(f"log = {self.log}: expected [lo, hi, n] with 1e-4 <= lo < hi <= 1e5 rad/s and an "
+            raise ValueError(f"log = {self.log}: expected [lo, hi, n] with {lo:g} <= lo < hi <= {hi:g} rad/s and an "
                              "integer 2 <= n <= 100000")
         if self.log is None and not self.values:
             raise ValueError("the frequency grid is empty: give values = [...] or log = [lo, hi, n]")
@@ -155,7 +159,7 @@ class Series(Strict):
         both = set(self.params) & set(self.grid)
         if both:
             raise ValueError(f"{sorted(both)[0]!r} is both in params and in grid: give it in one of them")
-        combos = int(np.prod([len(v) for v in self.grid.values()]))
+        combos = grid_size(*(len(v) for v in self.grid.values()))
         if combos > MAX_POINTS:
             raise ValueError(f"grid has {combos} parameter combinations: at most {MAX_POINTS}")
         for combo in self.combos():
@@ -164,7 +168,7 @@ class Series(Strict):
 
     def size(self):
         """The number of points, counted without building them."""
-        return len(self.F) * len(self.omega.grid()) * int(np.prod([len(v) for v in self.grid.values()]))
+        return grid_size(len(self.F), len(self.omega.grid()), *(len(v) for v in self.grid.values()))
 
     def combos(self):
         """The parameter sets: params plus each combination of the grid."""
@@ -297,9 +301,10 @@ class Scene(Strict):
         for name in names:
             if names.count(name) > 1:
                 raise ValueError(f"the name {name!r} is used twice: names must be unique in a scene")
-        size = sum(s.size() for s in self.series)
+        size = sum(s.size() for s in self.series) + sum(lc.n_F * lc.n_omega for lc in self.limit_cycle)
         if size > MAX_POINTS:
-            raise ValueError(f"{size} DF points: at most {MAX_POINTS} in one scene (split it)")
+            raise ValueError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
+                             "(split it)")
         for i, figure in enumerate(self.figure):
             _check_figure(self, i, figure)
         return self
@@ -390,7 +395,7 @@ def load_scene(path):
     """The validated scene in the TOML file ``path``."""
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = read_bytes(path, MAX_BYTES, "scene").decode("utf-8")
     except OSError as error:
         raise SceneError(f"{path}: cannot read the scene ({error.strerror})") from None
     except UnicodeDecodeError as error:

@@ -24,6 +24,41 @@ import control as ct
 import numpy as np
 
 ALLOWED_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
+MAX_LENGTH = 1000  # characters of an expression: a controller is a line, not a file
+MAX_DEPTH = 100  # nesting of the syntax tree
+MAX_DEGREE = 20  # of a numerator or denominator, at every step of the evaluation
+
+
+def _number(value, text):
+    """A finite float of a literal (1e309 and 10**400 written out are not numbers the engine can use)."""
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise ValueError(f"G(s) = {text}: the number {value!r} is not finite")
+    return number
+
+
+def _checked_degree(value, text):
+    if isinstance(value, ct.TransferFunction):
+        degree = max(len(value.num[0][0]), len(value.den[0][0])) - 1
+        if degree > MAX_DEGREE:
+            raise ValueError(f"G(s) = {text}: a polynomial of degree {degree}, at most {MAX_DEGREE} is allowed")
+    elif not math.isfinite(value):
+        raise ValueError(f"G(s) = {text}: a coefficient overflows ({value})")
+    return value
+
+
+def _depth(node, limit):
+    """The depth of a syntax tree, counted without recursion (refused beyond ``limit``)."""
+    level, depth = [node], 0
+    while level:
+        depth += 1
+        if depth > limit:
+            return depth
+        level = [child for parent in level for child in ast.iter_child_nodes(parent)]
+    return depth
 
 
 def _evaluate(node, text):
@@ -31,7 +66,7 @@ def _evaluate(node, text):
     if isinstance(node, ast.Expression):
         return _evaluate(node.body, text)
     if isinstance(node, ast.Constant) and type(node.value) in (int, float):
-        return float(node.value)
+        return _number(node.value, text)
     if isinstance(node, ast.Name) and node.id == "s":
         return ct.tf("s")
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
@@ -40,16 +75,16 @@ def _evaluate(node, text):
     if isinstance(node, ast.BinOp) and type(node.op) in ALLOWED_OPERATORS:
         left, right = _evaluate(node.left, text), _evaluate(node.right, text)
         if isinstance(node.op, ast.Pow):
-            if isinstance(right, ct.TransferFunction) or right != int(right) or not 0 <= right <= 20:
-                raise ValueError(f"G(s) = {text}: only integer powers 0..20 of an expression are allowed")
+            if isinstance(right, ct.TransferFunction) or not (0 <= right <= MAX_DEGREE and right == int(right)):
+                raise ValueError(f"G(s) = {text}: only integer powers 0..{MAX_DEGREE} of an expression are allowed")
             result = 1.0
             for _ in range(int(right)):
-                result = result * left
+                result = _checked_degree(result * left, text)
             return result
         if isinstance(node.op, ast.Div) and not isinstance(right, ct.TransferFunction) and right == 0:
             raise ValueError(f"G(s) = {text}: division by zero")
-        return {ast.Add: lambda: left + right, ast.Sub: lambda: left - right, ast.Mult: lambda: left * right,
-                ast.Div: lambda: left / right}[type(node.op)]()
+        return _checked_degree({ast.Add: lambda: left + right, ast.Sub: lambda: left - right,
+                                ast.Mult: lambda: left * right, ast.Div: lambda: left / right}[type(node.op)](), text)
     what = type(node).__name__
     if isinstance(node, ast.Name):
         what = f"the name {node.id!r} (the only variable is s)"
@@ -87,16 +122,24 @@ def parse_transfer_function(text):
     """A proper python-control TransferFunction from an expression in s."""
     if not isinstance(text, str) or not text.strip():
         raise ValueError("G(s) is empty: give an expression in s, e.g. '100*(s+1)/(s+10)'")
+    if len(text) > MAX_LENGTH:
+        raise ValueError(f"G(s) is {len(text)} characters long: at most {MAX_LENGTH}")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as error:
         raise ValueError(f"G(s) = {text} does not parse: {error.msg} at column {error.offset} "
                          f"(write products with *, e.g. 2*s)") from None
+    except (RecursionError, MemoryError):
+        raise ValueError(f"G(s) = {text[:40]}...: nested too deeply to parse") from None
+    if _depth(tree, MAX_DEPTH) > MAX_DEPTH:
+        raise ValueError(f"G(s) = {text[:40]}...: nested more than {MAX_DEPTH} levels deep")
     try:
         value = _evaluate(tree, text)
     except ValueError as error:
         if str(error).startswith("G(s)"):
             raise
+        raise ValueError(f"G(s) = {text}: {error}") from None
+    except (ArithmeticError, FloatingPointError) as error:
         raise ValueError(f"G(s) = {text}: {error}") from None
     return check_transfer_function(value, text)
 

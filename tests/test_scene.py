@@ -47,7 +47,7 @@ def test_points_expand_F_outer_grid_then_omega_and_merge_log_and_values():
     (("F = [50.0]", "F = [\"50\"]"), "series[0].F[0]: Input should be a valid number (got '50')"),
     (("F = [50.0]", "F = [-5.0]"), "series[0].F[0]: Input should be greater than or equal to 0.000001 (got -5.0)"),
     (("F = [50.0]", "F = [1.7e308]"), "series[0].F[0]: Input should be less than or equal to 1000000000 (got 1.7e+308)"),
-    (("omega = [20.0]", "omega = {log = [1e-14, 1e-12, 3]}"), "expected [lo, hi, n] with 1e-4 <= lo < hi <= 1e5"),
+    (("omega = [20.0]", "omega = {log = [1e-14, 1e-12, 3]}"), "expected [lo, hi, n] with 0.0001 <= lo < hi <= 100000"),
     (("F = [50.0]", "F = [nan]"), "series[0].F[0]: Input should be a finite number"),
     (("F = [50.0]", "F = []"), "series[0].F: List should have at least 1 item"),
     (("omega = [20.0]", "omega = []"), "series[0].omega: the frequency grid is empty"),
