@@ -96,7 +96,7 @@ def _omegas(args):
         raise InputError("give either --omega W [W ...] or --omega-log LO HI N, not both")
     if args.omega_log:
         lo, hi, n = args.omega_log
-        if not (OMEGA_RANGE[0] <= lo < hi <= OMEGA_RANGE[1] and n == int(n) and 2 <= n <= MAX_POINTS):
+        if not (OMEGA_RANGE[0] <= lo < hi <= OMEGA_RANGE[1] and 2 <= n <= MAX_POINTS and n == int(n)):
             raise InputError(f"--omega-log {lo:g} {hi:g} {n:g}: expected {OMEGA_RANGE[0]:g} <= LO < HI <= "
                              f"{OMEGA_RANGE[1]:g} rad/s and an integer N from 2 to {MAX_POINTS}")
         import numpy as np
@@ -183,6 +183,7 @@ def cmd_limit_cycle(args):
     from .plants import plant
     from .transfer import from_coefficients, parse_transfer_function
 
+    plot = _plot_path(args.plot) if args.plot else None
     if (args.G is None) == (args.num is None):
         raise InputError("give the controller either as --G EXPR or as --num ... --den ...")
     G = parse_transfer_function(args.G) if args.G is not None else from_coefficients(args.num, args.den or [])
@@ -210,7 +211,7 @@ def cmd_limit_cycle(args):
     if args.plot:
         from .plots import limit_cycle_figure
 
-        limit_cycle_figure(Path(args.plot), G, F_grid, omega_grid, N_grid, cycles, runs)
+        limit_cycle_figure(plot, G, F_grid, omega_grid, N_grid, cycles, runs)
     if args.json:
         json.dump(report, sys.stdout, indent=1)
         sys.stdout.write("\n")
@@ -225,6 +226,18 @@ def cmd_limit_cycle(args):
                          f"omega = {v['omega']:.6g} (errors {v['rel_error_F']:.2%}, {v['rel_error_omega']:.2%})")
             print(line)
     return 0
+
+
+def _plot_path(text):
+    """The --plot file, checked before anything is computed: a .png in a folder that exists."""
+    path = Path(text)
+    if text.endswith(("/", os.sep)) or path.suffix.lower() != ".png" or path.name in (".png", ""):
+        raise InputError(f"--plot {text}: expected a file name ending in .png (the SVG is written beside it)")
+    if path.is_dir():
+        raise InputError(f"--plot {text} is a folder: give a file name ending in .png")
+    if not path.parent.is_dir():
+        raise InputError(f"--plot {text}: the folder {path.parent} does not exist")
+    return path
 
 
 def cmd_examples(args):

@@ -30,6 +30,7 @@ bad.toml: series[0]: unknown parameter 'eps' for plant friction (allowed: B, Dv,
 """
 
 import itertools
+import math
 import re
 import sys
 from dataclasses import dataclass, field
@@ -61,6 +62,7 @@ Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)
 FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper")
 MAX_BYTES = 1 << 20  # a scene file: a page of TOML, never a device or a data file read whole
 MAX_SAMPLES = 2_000_000
+MAX_TRACE_PERIODS = 100_000  # the horizon the stress suite covers; a trace is for looking at, not for soaking
 
 
 @dataclass(frozen=True)
@@ -197,6 +199,10 @@ class Trace(Strict):
             raise ValueError(f"start = {self.start:g} must be < stop = {self.stop:g}")
         if self.stop / self.step > MAX_SAMPLES:
             raise ValueError(f"stop / step = {self.stop / self.step:.3g} samples: at most {MAX_SAMPLES:g}")
+        periods = self.stop * self.omega / (2 * math.pi)
+        if periods > MAX_TRACE_PERIODS:
+            raise ValueError(f"stop = {self.stop:g} s is {periods:.3g} forcing periods at omega = {self.omega:g} rad/s: "
+                             f"at most {MAX_TRACE_PERIODS:g}")
         known = [name for name, *_ in find_plant(self.plant).model.all_outputs()]
         for name in self.outputs:
             if name not in known:

@@ -279,6 +279,10 @@ def test_sizes_are_counted_before_anything_is_built(tmp_path, capsys):
         f"{name} = [{values}]" for name in ("M", "B", "Fc", "Fs", "Dv", "v0", "x0")) + " }")
     with pytest.raises(ValueError, match="at most 200000"):  # 1024**7 = 2**70 was 0 for np.prod
         parse_scene(overflow, "g.toml")
+    soak = FIGURE_SCENE + ('[[trace]]\nname = "t"\nplant = "friction"\nF = 10.0\nomega = 10.0\nstop = 1e9\n'
+                           'step = 1e5\noutputs = ["x"]\n')
+    with pytest.raises(ValueError, match="forcing periods"):  # 1e4 samples but 1.6e9 periods: it ran for hours
+        parse_scene(soak, "t.toml")
     maps = FIGURE_SCENE + ('[[limit_cycle]]\nname = "lc"\nplant = "friction"\nG = "10/s"\nF_range = [8.0, 100.0]\n'
                            'omega_range = [0.1, 10.0]\nn_F = 1000\nn_omega = 1000\n')
     with pytest.raises(ValueError, match="limit-cycle maps"):
@@ -308,6 +312,9 @@ def test_files_are_hashed_in_pieces(tmp_path):
     (["sweep", "friction", "--F", "10", "--omega", "1", "--out", "o", "--jobs", "-3"], "--jobs: -3 is out of range"),
     (["df", "friction", "--F", "10", "--omega", "1", "--samples-per-period", "x"], "'x' is not an integer"),
     (["run", "nowhere.toml", "--cache", "c", "--no-cache"], "not both"),
+    (["df", "friction", "--F", "1", "--omega-log", "1", "5", "inf"], "--omega-log 1 5 inf"),
+    (["limit-cycle", "friction", "--G", "10/s", "--plot", "out/"], "expected a file name ending in .png"),
+    (["limit-cycle", "friction", "--G", "10/s", "--plot", "missing/cycle.png"], "the folder missing does not exist"),
 ])
 def test_bad_values_are_one_line_not_a_traceback(capsys, tmp_path, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)
