@@ -18,7 +18,6 @@ from pathlib import Path
 
 DEFAULT_FMU_DIR = Path("build/fmus")
 PLANT_NAMES = ("friction", "backlash", "static-backlash")
-MAX_JOBS = 256
 
 
 class InputError(Exception):
@@ -60,6 +59,13 @@ def _integer(lo, hi):
         return value
 
     return convert
+
+
+def _jobs(text):
+    """--jobs: an integer within the executor's bound (imported only when the option is given)."""
+    from .executor import MAX_JOBS
+
+    return _integer(1, MAX_JOBS)(text)
 
 
 def _assignments(items, option):
@@ -109,15 +115,15 @@ def _omegas(args):
 
 def _points(args):
     """(forces, frequencies), each checked against the engine's ranges before anything runs."""
-    from .describing import check_point
+    from .describing import check_force, check_frequency
     from .sweep import check_size, grid_size
 
     omegas = _omegas(args)
     check_size(grid_size(len(args.F), len(omegas)), "the grid")
     for F in args.F:
-        check_point(F, omegas[0])
+        check_force(F)
     for omega in omegas:
-        check_point(args.F[0], omega)
+        check_frequency(omega)
     return args.F, omegas
 
 
@@ -351,7 +357,7 @@ def parser():
     point_options(sweep)
     sweep.add_argument("--grid", nargs="+", action="extend", metavar="NAME=V1,V2", help="plant parameters to sweep")
     sweep.add_argument("--out", action=_Once, type=Path, required=True, help="result folder (resumed if it holds this sweep)")
-    sweep.add_argument("--jobs", action=_Once, type=_integer(1, MAX_JOBS), default=None, help="worker processes (default: all cores)")
+    sweep.add_argument("--jobs", action=_Once, type=_jobs, default=None, help="worker processes (default: all cores)")
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
@@ -393,7 +399,7 @@ def parser():
     stress.set_defaults(run=cmd_stress)
 
     def scene_options(command):
-        command.add_argument("--jobs", action=_Once, type=_integer(1, MAX_JOBS), default=None,
+        command.add_argument("--jobs", action=_Once, type=_jobs, default=None,
                              help="worker processes, or Dask workers with --dask local (default: all cores)")
         command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
                              help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")

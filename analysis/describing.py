@@ -96,10 +96,20 @@ class DFResult:
                    drive=data["drive"], note=data["note"], orbit_periods=data["orbit_periods"])
 
 
+def check_force(F):
+    """Raise PlantError naming the value unless F is in F_RANGE."""
+    check_range("F", F, *F_RANGE, "N")
+
+
+def check_frequency(omega):
+    """Raise PlantError naming the value unless omega is in OMEGA_RANGE."""
+    check_range("omega", omega, *OMEGA_RANGE, "rad/s")
+
+
 def check_point(F, omega):
     """Raise PlantError naming the value unless F is in F_RANGE and omega in OMEGA_RANGE."""
-    check_range("F", F, *F_RANGE, "N")
-    check_range("omega", omega, *OMEGA_RANGE, "rad/s")
+    check_force(F)
+    check_frequency(omega)
 
 
 class DFEngine:
