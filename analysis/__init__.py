@@ -1,3 +1,78 @@
-"""dfwb: a describing-function workbench for friction and backlash, on FMI co-simulation."""
+"""dfwb: a describing-function workbench for friction and backlash, on FMI co-simulation.
+
+The public API, in the style of python-control: functions that return
+response objects with a ``.plot()``.
+
+- :func:`describing_function` -- N(F, omega) of a plant over a broadcast grid
+  (:class:`DescribingFunctionResponse`);
+- :func:`limit_cycles` -- limit cycles of a plant under a controller G(s)
+  (:class:`LimitCycleResponse`); :func:`transfer_function` reads a G(s);
+- :func:`run_scene`, :func:`sweep` and :func:`grid` -- studies written to a folder;
+- :func:`plant`, :func:`names`, :class:`Plant`, :func:`register` -- the plant registry
+  (:mod:`dfwb.plants`, whose ``PLANTS`` maps each name to its entry);
+- :class:`DfwbError` -- the base of every error a user can act on.
+
+A DF point has one shape everywhere, its record (a flat dict: ``F`` [N],
+``omega`` [rad/s], ``N_re``/``N_im`` [m/N], ``minus_inv_N_re``/``_im``
+[N/m], ``harmonics`` [m], ...): ``results.json`` holds records,
+``results.csv`` flattened records (units in the column names), and
+``DescribingFunctionResponse.points`` lists them.
+
+Examples
+--------
+>>> import dfwb
+>>> dfwb.names()
+('friction', 'backlash', 'static-backlash')
+>>> response = dfwb.describing_function("friction", F=[10.0, 20.0], omega=1.0)
+>>> response.N.shape, response.periodic.tolist()
+((2,), [True, True])
+"""
 
 __version__ = "0.1.0"
+
+import importlib
+from typing import TYPE_CHECKING
+
+# Where each public name lives. They load on first use (PEP 562), so that ``dfwb --help``
+# and a worker process do not pay for numpy, matplotlib and python-control up front.
+_PUBLIC = {
+    "describing_function": "dfwb.api.functions", "limit_cycles": "dfwb.api.functions",
+    "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.functions",
+    "sweep": "dfwb.api.functions", "grid": "dfwb.api.functions",
+    "DescribingFunctionResponse": "dfwb.api.responses", "LimitCycleResponse": "dfwb.api.responses",
+    "DfwbError": "dfwb.base.errors", "InputError": "dfwb.base.errors",
+    "PlantError": "dfwb.base.errors", "RunError": "dfwb.base.errors",
+    "Plant": "dfwb.plants", "names": "dfwb.plants", "plant": "dfwb.plants",
+    "register": "dfwb.plants", "unregister": "dfwb.plants",
+}
+
+__all__ = [
+    "__version__",
+    "describing_function", "DescribingFunctionResponse",
+    "limit_cycles", "LimitCycleResponse", "transfer_function",
+    "run_scene", "sweep", "grid",
+    "plant", "plants", "names", "Plant", "register", "unregister",
+    "DfwbError", "PlantError", "InputError", "RunError",
+]
+
+
+def __getattr__(name):
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+        globals()[name] = value
+        return value
+    if name == "plants":
+        return importlib.import_module("dfwb.plants")
+    raise AttributeError(f"module 'dfwb' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # the names as static analysers and IDEs see them
+    from dfwb import plants
+    from dfwb.api.functions import describing_function, grid, limit_cycles, run_scene, sweep, transfer_function
+    from dfwb.api.responses import DescribingFunctionResponse, LimitCycleResponse
+    from dfwb.base.errors import DfwbError, InputError, PlantError, RunError
+    from dfwb.plants import Plant, names, plant, register, unregister

@@ -16,12 +16,12 @@ import traceback
 import warnings
 from pathlib import Path
 
-DEFAULT_FMU_DIR = Path("build/fmus")
-PLANT_NAMES = ("friction", "backlash", "static-backlash")
+from dfwb.base.errors import InputError
+
+FMU_DIR_HELP = "$DFWB_FMU_DIR, else a per-user folder, ~/.cache/dfwb/fmus"
+FIGURE_COMMANDS = {"limit-cycle", "examples", "bench", "run", "paper", "demo"}  # the commands that write figures
 
 
-class InputError(Exception):
-    """Bad command-line input: reported in one line, exit code 2."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -63,7 +63,7 @@ def _integer(lo, hi):
 
 def _jobs(text):
     """--jobs: an integer within the executor's bound (imported only when the option is given)."""
-    from .executor import MAX_JOBS
+    from dfwb.studies.executor import MAX_JOBS
 
     return _integer(1, MAX_JOBS)(text)
 
@@ -95,8 +95,8 @@ def _grid_values(items):
 
 
 def _omegas(args):
-    from .describing import OMEGA_RANGE
-    from .sweep import MAX_POINTS
+    from dfwb.engine.describing import OMEGA_RANGE
+    from dfwb.studies.sweep import MAX_POINTS
 
     if args.omega_log and args.omega:
         raise InputError("give either --omega W [W ...] or --omega-log LO HI N, not both")
@@ -115,8 +115,8 @@ def _omegas(args):
 
 def _points(args):
     """(forces, frequencies), each checked against the engine's ranges before anything runs."""
-    from .describing import check_force, check_frequency
-    from .sweep import check_size, grid_size
+    from dfwb.engine.describing import check_force, check_frequency
+    from dfwb.studies.sweep import check_size, grid_size
 
     omegas = _omegas(args)
     check_size(grid_size(len(args.F), len(omegas)), "the grid")
@@ -128,21 +128,22 @@ def _points(args):
 
 
 def _fmus(out_dir):
-    from dfwb.build_fmus import build_all
+    from dfwb.fmi.location import build_fmus
 
-    return {path.stem: path for path in build_all(out_dir, report=lambda message: None)}
+    return {path.stem: path for path in build_fmus(out_dir, report=lambda message: None)}
 
 
 def cmd_build(args):
-    from dfwb.build_fmus import build_all
+    """Build the production FMUs (the registry's plants and LinearSystem); ``--naive``: their fixed-step twins too."""
+    from dfwb.fmi.location import build_fmus
 
-    build_all(args.out, force=args.force)
+    build_fmus(args.out, naive=args.naive, force=args.force)
     return 0
 
 
 def cmd_df(args):
-    from .describing import DFEngine
-    from .plants import plant
+    from dfwb.engine.describing import DFEngine
+    from dfwb.plants.registry import plant
 
     params = plant(args.plant).check(_assignments(args.set, "--set"))
     forces, omegas = _points(args)
@@ -157,18 +158,20 @@ def cmd_df(args):
 
 
 def _table(results):
-    header = f"{'F':>10} {'omega':>11} {'Re N':>13} {'Im N':>13} {'Re -1/N':>13} {'Im -1/N':>13} {'periodic':>8} {'periods':>7} {'ms':>8}  note"
+    header = (f"{'F [N]':>10} {'omega [rad/s]':>13} {'Re N [m/N]':>13} {'Im N [m/N]':>13} {'Re -1/N [N/m]':>13} "
+              f"{'Im -1/N [N/m]':>13} {'periodic':>8} {'periods':>7} {'time [ms]':>9}  note")
     lines = [header]
     for r in results:
-        inv = ("", "") if r["minus_inv_N_re"] is None else (f"{r['minus_inv_N_re']:13.6g}", f"{r['minus_inv_N_im']:13.6g}")
-        lines.append(f"{r['F']:10.4g} {r['omega']:11.5g} {r['N_re']:13.6g} {r['N_im']:13.6g} {inv[0]:>13} {inv[1]:>13} "
-                     f"{str(r['periodic']):>8} {r['periods']:7d} {r['seconds'] * 1e3:8.2f}  {r['note']}")
+        inv = ("", "") if r["minus_inv_N_re"] is None else \
+            (f"{r['minus_inv_N_re']:13.6g}", f"{r['minus_inv_N_im']:13.6g}")
+        lines.append(f"{r['F']:10.4g} {r['omega']:13.5g} {r['N_re']:13.6g} {r['N_im']:13.6g} {inv[0]:>13} {inv[1]:>13} "
+                     f"{str(r['periodic']):>8} {r['periods']:7d} {r['seconds'] * 1e3:9.2f}  {r['note']}".rstrip())
     return "\n".join(lines)
 
 
 def cmd_sweep(args):
-    from .plants import plant
-    from .sweep import grid, run_sweep
+    from dfwb.plants.registry import plant
+    from dfwb.studies.sweep import grid, run_sweep
 
     spec = plant(args.plant)
     params = spec.check(_assignments(args.set, "--set"))
@@ -185,29 +188,29 @@ def cmd_sweep(args):
 
 
 def cmd_limit_cycle(args):
-    from .limit_cycles import check_range, search
-    from .plants import plant
-    from .transfer import from_coefficients, parse_transfer_function
+    from dfwb.engine.limit_cycles import check_range, search
+    from dfwb.engine.transfer import from_coefficients, parse_transfer_function
+    from dfwb.plants.registry import plant
 
     plot = _plot_path(args.plot) if args.plot else None
     if (args.G is None) == (args.num is None):
         raise InputError("give the controller either as --G EXPR or as --num ... --den ...")
     G = parse_transfer_function(args.G) if args.G is not None else from_coefficients(args.num, args.den or [])
     params = plant(args.plant).check(_assignments(args.set, "--set"))
-    from .describing import F_RANGE, OMEGA_RANGE, DFEngine
+    from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine
 
     F_range = check_range("--F-range", args.F_range, F_RANGE)
     omega_range = check_range("--omega-range", args.omega_range, OMEGA_RANGE)
 
     engine = DFEngine(args.plant, args.fmus)
-    cycles, F_grid, omega_grid, N_grid = search(args.plant, G, params, F_range, omega_range, engine=engine,
-                                                progress=not args.json)
+    found = search(args.plant, G, params, F_range, omega_range, engine=engine, progress=not args.json)
+    cycles = found.cycles
     report = {"plant": args.plant, "G": {"num": [float(c) for c in G.num[0][0]],
                                          "den": [float(c) for c in G.den[0][0]]},
               "params": params, "predictions": [c.as_dict() for c in cycles]}
     runs = []
     if args.verify:
-        from .closed_loop import verify
+        from dfwb.engine.closed_loop import verify
 
         report["verification"] = []
         for cycle in cycles:
@@ -215,9 +218,9 @@ def cmd_limit_cycle(args):
             report["verification"].append(outcome)
             runs.append((cycle, run))
     if args.plot:
-        from .plots import limit_cycle_figure
+        from dfwb.plotting.plots import limit_cycle_figure
 
-        limit_cycle_figure(plot, G, F_grid, omega_grid, N_grid, cycles, runs)
+        limit_cycle_figure(plot, G, found.F_grid, found.omega_grid, found.N_grid, cycles, runs)
     if args.json:
         json.dump(report, sys.stdout, indent=1)
         sys.stdout.write("\n")
@@ -247,14 +250,14 @@ def _plot_path(text):
 
 
 def cmd_examples(args):
-    from .examples import run_examples
+    from dfwb.studies.examples import run_examples
 
     run_examples(args.out, args.samples_per_period)
     return 0
 
 
 def cmd_bench(args):
-    from .bench import run_bench
+    from dfwb.verify.bench import run_bench
 
     path = run_bench(args.out, quick=args.quick)
     print(f"{path} written")
@@ -262,7 +265,7 @@ def cmd_bench(args):
 
 
 def cmd_stress(args):
-    from .stress import run_stress
+    from dfwb.verify.stress import run_stress
 
     if not 1 <= args.part <= args.parts:
         raise InputError(f"--part {args.part} of --parts {args.parts}: expected 1 <= PART <= PARTS")
@@ -284,9 +287,9 @@ def _cache(args):
 
 
 def cmd_run(args):
-    from .files import UnsafePath, inside
-    from .runner import run_scene
-    from .scene import load_scene
+    from dfwb.base.files import UnsafePath, inside
+    from dfwb.studies.runner import run_scene
+    from dfwb.studies.scene import load_scene
 
     scenes = [(path, load_scene(path)) for path in args.scenes]  # every scene is checked before any runs
     folders = {}
@@ -306,47 +309,57 @@ def cmd_run(args):
             print(f"{o.out_dir}/summary.md: up to date ({o.points} points, {len(o.figures)} figure(s)), "
                   f"{o.seconds:.2f} s")
         else:
-            print(f"{o.out_dir}/summary.md: {o.points} points ({o.computed} computed, {o.cache_hits} cached, "
-                  f"{o.resumed} resumed), {len(o.figures)} figure(s), {o.seconds:.1f} s")
+            df_hits = o.points - o.computed - o.resumed  # o.cache_hits also counts traces and judge runs
+            others = o.cache_hits - df_hits
+            print(f"{o.out_dir}/summary.md: {o.points} points ({o.computed} computed, {df_hits} cached, "
+                  f"{o.resumed} resumed)" + (f", {others} trace(s) and closed-loop run(s) cached" if others else "")
+                  + f", {len(o.figures)} figure(s), {o.seconds:.1f} s")
     return 0
 
 
 def cmd_paper(args):
-    from .paper import run_paper
+    from dfwb.studies.reproduce import run_paper
 
     run_paper(args.out, args.jobs, args.fmus, progress=not args.quiet, cache=_cache(args), dask=args.dask)
     return 0
 
 
 def cmd_demo(args):
-    from .demo import run_demo
+    from dfwb.studies.demo import run_demo
 
     run_demo(_fmus(args.fmus), args.out)
     return 0
 
 
 def parser():
+    from dfwb.plants import names
+
+    plant_names = names()
     top = _Parser(prog="dfwb", description="Describing-function workbench for friction and backlash.")
     commands = top.add_subparsers(dest="command", required=True)
 
-    build = commands.add_parser("build", help="build the FMUs, plants and controller (skips those whose sources are unchanged)")
-    build.add_argument("--out", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="output folder (default: %(default)s)")
+    build = commands.add_parser("build",
+                                help="build the FMUs, plants and controller (skips those whose sources are unchanged)")
+    build.add_argument("--out", action=_Once, type=Path, default=None, help=f"output folder (default: {FMU_DIR_HELP})")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    build.add_argument("--naive", action="store_true", help="also build the benchmark's fixed-step twins")
     build.set_defaults(run=cmd_build)
 
     def point_options(command):
-        command.add_argument("plant", choices=PLANT_NAMES, help="the plant")
+        command.add_argument("plant", choices=plant_names, help="the plant")
         command.add_argument("--F", type=float, nargs="+", action="extend", required=True, help="force amplitudes [N]")
         command.add_argument("--omega", type=float, nargs="+", action="extend", help="frequencies [rad/s]")
         command.add_argument("--omega-log", action=_Once, type=float, nargs=3, metavar=("LO", "HI", "N"),
                              help="N log-spaced frequencies from LO to HI")
-        command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE", help="plant parameters (e.g. eps=0.2)")
+        command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
+                             help="plant parameters (e.g. eps=0.2)")
         command.add_argument("--drive", action=_Once, choices=("internal", "input"), default="internal",
                              help="internal: the FMU's exact built-in excitation; input: the sine sampled by the "
                                   "master into the input f, held over each step (default: %(default)s)")
         command.add_argument("--samples-per-period", action=_Once, type=_integer(4, 100_000), default=64,
                              help="communication steps per period with --drive input (default: %(default)s)")
-        command.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+        command.add_argument("--fmus", action=_Once, type=Path, default=None,
+                             help=f"FMU folder (default: {FMU_DIR_HELP})")
 
     df = commands.add_parser("df", help="describing function N(F, omega) of a plant, one point per (F, omega)")
     point_options(df)
@@ -356,16 +369,18 @@ def parser():
     sweep = commands.add_parser("sweep", help="a resumable parallel sweep of DF points, written to a folder")
     point_options(sweep)
     sweep.add_argument("--grid", nargs="+", action="extend", metavar="NAME=V1,V2", help="plant parameters to sweep")
-    sweep.add_argument("--out", action=_Once, type=Path, required=True, help="result folder (resumed if it holds this sweep)")
+    sweep.add_argument("--out", action=_Once, type=Path, required=True,
+                       help="result folder (resumed if it holds this sweep)")
     sweep.add_argument("--jobs", action=_Once, type=_jobs, default=None, help="worker processes (default: all cores)")
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
 
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
-    cycle.add_argument("plant", choices=PLANT_NAMES, help="the plant")
+    cycle.add_argument("plant", choices=plant_names, help="the plant")
     cycle.add_argument("--G", action=_Once, help="controller as an expression in s, e.g. '100*(s+1)/(s+10)'")
-    cycle.add_argument("--num", type=float, nargs="+", action="extend", help="controller numerator coefficients, highest power first")
+    cycle.add_argument("--num", type=float, nargs="+", action="extend",
+                       help="controller numerator coefficients, highest power first")
     cycle.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator coefficients")
     cycle.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE", help="plant parameters")
     cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=(0.1, 1000.0), metavar=("LO", "HI"),
@@ -377,25 +392,29 @@ def parser():
                        help="co-simulation steps per predicted period with --verify (default: %(default)s)")
     cycle.add_argument("--plot", action=_Once, help="write the Nyquist (and time-response) figure to this PNG")
     cycle.add_argument("--json", action="store_true", help="print one JSON object")
-    cycle.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+    cycle.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
     cycle.set_defaults(run=cmd_limit_cycle)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
-    examples.add_argument("--out", action=_Once, type=Path, default=Path("out/examples"), help="output folder (default: %(default)s)")
+    examples.add_argument("--out", action=_Once, type=Path, default=Path("out/examples"),
+                          help="output folder (default: %(default)s)")
     examples.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                           help="co-simulation steps per predicted period (default: %(default)s)")
     examples.set_defaults(run=cmd_examples)
 
     bench = commands.add_parser("bench", help="run time against error of every method (Pareto plots, bench.md)")
     bench.add_argument("--quick", action="store_true", help="the quick set (under 3 minutes)")
-    bench.add_argument("--out", action=_Once, type=Path, default=Path("out/bench"), help="output folder (default: %(default)s)")
+    bench.add_argument("--out", action=_Once, type=Path, default=Path("out/bench"),
+                       help="output folder (default: %(default)s)")
     bench.set_defaults(run=cmd_bench)
 
     stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")
     stress.add_argument("--quick", action="store_true", help="the quick set (at least 50 cases, under 2 minutes)")
     stress.add_argument("--json", action="store_true", help="print one JSON object (cases, failed, failures)")
-    stress.add_argument("--part", action=_Once, type=_integer(1, 10_000), default=1, help="run only this piece of the set (default: %(default)s)")
-    stress.add_argument("--parts", action=_Once, type=_integer(1, 10_000), default=1, help="split the set into this many pieces (default: 1)")
+    stress.add_argument("--part", action=_Once, type=_integer(1, 10_000), default=1,
+                        help="run only this piece of the set (default: %(default)s)")
+    stress.add_argument("--parts", action=_Once, type=_integer(1, 10_000), default=1,
+                        help="split the set into this many pieces (default: 1)")
     stress.set_defaults(run=cmd_stress)
 
     def scene_options(command):
@@ -406,42 +425,50 @@ def parser():
         command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
                              help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
         command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
-        command.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+        command.add_argument("--fmus", action=_Once, type=Path, default=None,
+                             help=f"FMU folder (default: {FMU_DIR_HELP})")
         command.add_argument("--quiet", action="store_true", help="no progress display")
 
     run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
-    run.add_argument("scenes", type=Path, nargs="+", action="extend", metavar="SCENE.toml", help="scene file(s), e.g. scenes/*.toml")
-    run.add_argument("--out", action=_Once, type=Path, help="output folder (default: out/scenes/<scene>; with several scenes, "
+    run.add_argument("scenes", type=Path, nargs="+", action="extend", metavar="SCENE.toml",
+                     help="scene file(s), e.g. scenes/*.toml")
+    run.add_argument("--out", action=_Once, type=Path,
+                     help="output folder (default: out/scenes/<scene>; with several scenes, "
                                               "one subfolder each)")
     scene_options(run)
     run.set_defaults(run=cmd_run)
 
     paper = commands.add_parser("paper", help="run the paper's scenes (figures 3-6, 8-12) and write report.md")
-    paper.add_argument("--out", action=_Once, type=Path, default=Path("out/paper"), help="output folder (default: %(default)s)")
+    paper.add_argument("--out", action=_Once, type=Path, default=Path("out/paper"),
+                       help="output folder (default: %(default)s)")
     scene_options(paper)
     paper.set_defaults(run=cmd_paper)
 
     demo = commands.add_parser("demo", help="drive each FMU with a sine through fmpy and plot the response")
-    demo.add_argument("--out", action=_Once, type=Path, default=Path("out"), help="output folder (default: %(default)s)")
-    demo.add_argument("--fmus", action=_Once, type=Path, default=DEFAULT_FMU_DIR, help="FMU folder (default: %(default)s)")
+    demo.add_argument("--out", action=_Once, type=Path, default=Path("out"),
+                      help="output folder (default: %(default)s)")
+    demo.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
     demo.set_defaults(run=cmd_demo)
     return top
 
 
 def main(argv=None):
-    from dfwb.fmus.piecewise import PlantError
-
-    from .stop import handling_signals
+    from dfwb.base.errors import DfwbError
+    from dfwb.base.stop import handling_signals
 
     top = parser()
     args = top.parse_args(argv)
     prog = f"dfwb {args.command}"
+    if args.command in FIGURE_COMMANDS and (args.command != "limit-cycle" or args.plot):
+        from dfwb.plotting.plots import use_batch_backend
+
+        use_batch_backend()  # figures go to files, in batch: no display is needed
     shown = warnings.showwarning
     warnings.showwarning = lambda message, *_, **__: sys.stderr.write(f"{prog}: warning: {message}\n")
     try:
         with handling_signals():  # Ctrl-C and kill: stop the workers and keep what is done
             return args.run(args)
-    except (InputError, PlantError, ValueError, RuntimeError) as error:
+    except DfwbError as error:
         top.exit(2, f"{prog}: error: {_one_line(error)}\n")
     except OSError as error:
         where = f"{error.filename}: " if error.filename else ""

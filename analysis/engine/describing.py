@@ -1,0 +1,433 @@
+"""Describing functions N(F, w) of the plant FMUs, by the convention of docs/models.md.
+
+The plant starts at rest and is driven by ``F cos(w t)``. Instead of a long
+fixed transient, the engine reads the plant's state at whole periods (the
+Poincare section) and stops as soon as it repeats, with a period of 1 to 4
+forcing periods; N is then exact from one orbit, ``N = X1 / F`` with
+``X1 = (2 / T) int x exp(-j w t) dt`` taken from the FMU's exactly integrated
+Fourier outputs (two reads per period, no sampling). When the section
+converges geometrically but slowly (a lightly damped linear mode), an
+Aitken-Steffensen step extrapolates the fixed point and one shooting period
+from it confirms the orbit. A response that does not repeat within
+``max_periods`` (quasi-periodic or chaotic) gets the average over its last 20
+periods, flagged ``periodic = False``.
+
+The engine accepts F in F_RANGE and omega in OMEGA_RANGE (and the plant
+parameters in :data:`dfwb.plants.registry.RANGES`), checked before anything runs. The
+plants are invariant under a translation, so the DF does not depend on the
+initial position: the engine runs the plant at the origin and adds the
+translation to the mean X_0 only (:meth:`DFEngine.point`).
+
+Examples
+--------
+>>> from dfwb.engine.describing import DFEngine
+>>> engine = DFEngine("friction")
+>>> result = engine.point(F=10.0, omega=1.0)
+>>> result.periodic, result.periods, round(result.N.real, 9), round(result.N.imag, 9)
+(True, 2, -0.235053392, -0.297987542)
+"""
+
+import dataclasses
+import json
+import math
+import time
+from dataclasses import dataclass, field
+
+from dfwb.fmi.location import fmu_path
+from dfwb.fmi.session import FMUSession
+from dfwb.fmus.piecewise import PlantError
+from dfwb.plants import check_range
+from dfwb.plants import plant as find_plant
+
+# The points the engine computes (N, rad/s): the edges dfwb stress covers and beyond,
+# checked at the corners with every plant's default parameters.
+F_RANGE = (1e-6, 1e9)
+OMEGA_RANGE = (1e-4, 1e5)
+MAX_PERIODS = 100_000  # the most max_periods may be: a point's run is bounded
+HARMONICS = 10
+AVERAGE_PERIODS = 20
+MAX_LAG = 4
+SECTION_RTOL = 1e-11
+DRIVES = ("internal", "input")
+
+
+@dataclass
+class DFResult:
+    """One describing-function point."""
+
+    plant: str
+    F: float
+    omega: float
+    params: dict
+    N: complex
+    harmonics: list  # |X_k|, k = 0..10 (0..1 for an engine with harmonics=1)
+    periodic: bool
+    periods: int  # forcing periods simulated, shooting included
+    seconds: float
+    drive: str = "internal"
+    note: str = ""
+    orbit_periods: int = 1  # the orbit's period in forcing periods (1: harmonic response)
+    X: list = field(default_factory=list, repr=False)  # complex X_k, k = 0..10
+
+    @property
+    def minus_inverse(self):
+        """-1/N, or None where N = 0 (no engagement)."""
+        return None if self.N == 0 else -1.0 / self.N
+
+    def as_dict(self):
+        """The point's record: the one shape of a DF point in CSV, JSON and the API.
+
+        A flat dict of plain values (see :data:`RECORD`); complex numbers are
+        split into ``_re`` / ``_im`` parts, -1/N is None where N = 0, and
+        ``harmonics`` lists |X_k| for k = 0, 1, ... CSV flattens it further
+        (:func:`to_row`), JSON holds it as it is.
+        """
+        inverse = self.minus_inverse
+        return {
+            "plant": self.plant, "F": self.F, "omega": self.omega, "params": dict(self.params),
+            "drive": self.drive, "N_re": self.N.real, "N_im": self.N.imag,
+            "minus_inv_N_re": None if inverse is None else inverse.real,
+            "minus_inv_N_im": None if inverse is None else inverse.imag,
+            "periodic": self.periodic, "periods": self.periods, "orbit_periods": self.orbit_periods,
+            "harmonics": list(self.harmonics), "seconds": self.seconds, "note": self.note,
+        }
+
+    @classmethod
+    def from_dict(cls, data):
+        """The result back from its record :meth:`as_dict` (complex X_k are not kept there)."""
+        return cls(plant=data["plant"], F=data["F"], omega=data["omega"], params=dict(data["params"]),
+                   N=complex(data["N_re"], data["N_im"]), harmonics=list(data["harmonics"]),
+                   periodic=data["periodic"], periods=data["periods"], seconds=data["seconds"],
+                   drive=data["drive"], note=data["note"], orbit_periods=data["orbit_periods"])
+
+
+# -- the record of a DF point, and its CSV row -------------------------------------------------
+#: The record's keys (:meth:`DFResult.as_dict`) in order, with their units ("" where none).
+#: ``harmonics`` is a list: CSV spreads it over the columns ``X0 [m]`` .. ``X10 [m]``.
+RECORD = {
+    "plant": "", "F": "N", "omega": "rad/s", "params": "", "drive": "",
+    "N_re": "m/N", "N_im": "m/N", "minus_inv_N_re": "N/m", "minus_inv_N_im": "N/m",
+    "periodic": "", "periods": "", "orbit_periods": "", "harmonics": "m", "seconds": "s", "note": "",
+}
+_INTEGERS = {"periods", "orbit_periods"}
+_TEXTS = {"plant", "drive", "note"}
+
+
+def column(key, k=None):
+    """The CSV column of a record key (``k``: the harmonic of ``harmonics``), its unit in brackets.
+
+    >>> column("F"), column("N_re"), column("harmonics", 3), column("periodic")
+    ('F [N]', 'N_re [m/N]', 'X3 [m]', 'periodic')
+    """
+    name = f"X{k}" if key == "harmonics" else key
+    return f"{name} [{RECORD[key]}]" if RECORD[key] else name
+
+
+#: The CSV columns of a record, in order: its flattened keys with their units.
+COLUMNS = [column(key, k) for key in RECORD for k in (range(HARMONICS + 1) if key == "harmonics" else [None])]
+
+
+def to_row(record):
+    """A record's CSV row ``{column: text}``, floats as round-trip text, None as "".
+
+    Examples
+    --------
+    >>> row = to_row({"plant": "friction", "F": 10.0, "omega": 1.0, "params": {"M": 2.0}, "drive": "internal",
+    ...               "N_re": -0.25, "N_im": -0.3, "minus_inv_N_re": None, "minus_inv_N_im": None,
+    ...               "periodic": True, "periods": 2, "orbit_periods": 1, "harmonics": [0.0, 0.1],
+    ...               "seconds": 0.001, "note": ""})
+    >>> row["F [N]"], row["params"], row["minus_inv_N_re [N/m]"], row["X1 [m]"], row["X2 [m]"]
+    ('10.0', '{"M": 2.0}', '', '0.1', '')
+    >>> from_row(row)["harmonics"], from_row(row)["params"]
+    ([0.0, 0.1], {'M': 2.0})
+    """
+    row = {}
+    for key in RECORD:
+        value = record.get(key)
+        if key == "harmonics":
+            for k, x in enumerate(value):
+                row[column(key, k)] = str(x)
+        elif key == "params":
+            row[key] = json.dumps(value, sort_keys=True)
+        else:
+            row[column(key)] = "" if value is None else str(value)
+    return {name: row.get(name, "") for name in COLUMNS}
+
+
+def from_row(row):
+    """The record back from its CSV row (:func:`to_row`); ValueError, KeyError or TypeError if it is not one."""
+    record = {}
+    for key in RECORD:
+        if key == "harmonics":
+            cells = [row[column(key, k)] for k in range(HARMONICS + 1)]
+            record[key] = [float(cell) for cell in cells if cell != ""]
+            continue
+        text = row[column(key)]
+        if key == "params":
+            record[key] = json.loads(text)
+        elif key in _TEXTS:
+            record[key] = text
+        elif key == "periodic":
+            record[key] = text == "True"
+        elif key in _INTEGERS:
+            record[key] = int(text)
+        else:
+            record[key] = None if text == "" else float(text)
+    return record
+
+
+def check_force(F):
+    """Raise PlantError naming the value unless F is in F_RANGE."""
+    check_range("F", F, *F_RANGE, "N")
+
+
+def check_frequency(omega):
+    """Raise PlantError naming the value unless omega is in OMEGA_RANGE."""
+    check_range("omega", omega, *OMEGA_RANGE, "rad/s")
+
+
+def check_point(F, omega):
+    """Raise PlantError naming the value unless F is in F_RANGE and omega in OMEGA_RANGE."""
+    check_force(F)
+    check_frequency(omega)
+
+
+class DFEngine:
+    """DF points of one plant, computed through its FMU with fmpy.
+
+    Parameters
+    ----------
+    plant : {"friction", "backlash", "static-backlash"}
+    fmu_dir : path, optional
+        Where the FMUs are (built there if missing or stale).
+    drive : {"internal", "input"}
+        ``internal``: the FMU's built-in excitation, exact. ``input``: the
+        sine is sampled at the start of each communication step and fed into
+        the input ``f``, held over the step, as any FMI master would.
+    samples_per_period : int
+        Communication steps per period with ``drive="input"``.
+    max_periods : int
+        Periods simulated before a response is declared not periodic.
+    model : str, optional
+        Another FMI facade of the same plant interface, by class name (the
+        benchmark's fixed-step baselines).
+    harmonics : int
+        Harmonics X_0..X_harmonics recorded (1 to 10). The FMU integrates only
+        those, so a DF-only study (1) does less work per event.
+    fmu : path, optional
+        The FMU file itself, used as given (e.g. one shipped to a Dask worker);
+        by default the plant's FMU in ``fmu_dir``.
+    """
+
+    def __init__(self, plant, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,
+                 model=None, harmonics=HARMONICS, fmu=None):
+        self.plant = find_plant(plant)
+        if model is not None:  # the plant's other FMU of the same interface (its fixed-step twin)
+            variants = [m for m in (self.plant.model, self.plant.naive) if m is not None]
+            chosen = [m for m in variants if m.__name__ == model]
+            if not chosen:
+                raise PlantError(f"model {model!r} is not an FMU of plant {plant} "
+                                 f"(allowed: {', '.join(m.__name__ for m in variants)})")
+            self.plant = dataclasses.replace(self.plant, model=chosen[0])
+        if drive not in DRIVES:
+            raise PlantError(f"drive {drive!r} is not allowed (allowed: {', '.join(DRIVES)})")
+        if not (isinstance(samples_per_period, int) and samples_per_period >= 4):
+            raise PlantError(f"samples_per_period = {samples_per_period!r} is out of range: an integer >= 4")
+        if not (isinstance(harmonics, int) and 1 <= harmonics <= HARMONICS):
+            raise PlantError(f"harmonics = {harmonics!r} is out of range: an integer from 1 to {HARMONICS}")
+        if not (isinstance(max_periods, int) and 1 <= max_periods <= MAX_PERIODS):
+            raise PlantError(f"max_periods = {max_periods!r} is out of range: an integer from 1 to {MAX_PERIODS}")
+        self.drive = drive
+        self.harmonics = harmonics
+        self.samples = samples_per_period if drive == "input" else 1
+        self.max_periods = max_periods
+        path = fmu if fmu is not None else fmu_path(self.plant, fmu_dir)
+        self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
+        fourier = [f"I{part}{k}" for k in range(harmonics + 1) for part in "cs"]
+        self._real_names = list(self.plant.section) + fourier
+        self._integer_names = list(self.plant.modes) + [self.plant.counter]
+
+    # -- one point ----------------------------------------------------------------
+    def point(self, F, omega, params=None):
+        """The DFResult of the plant at force amplitude F and frequency omega.
+
+        The plant runs translated to the origin (its position parameter at 0):
+        N and every X_k, k >= 1, are bit-identical whatever the position, and
+        the translation is added to the mean X_0 (harmonics[0]) only.
+        """
+        started = time.perf_counter()
+        check_point(F, omega)
+        params = self.plant.checked(params or {})
+        at_origin, offset = self.plant.at_origin(params)
+        mass = self.plant.mass(params)
+        h = dict(self.plant.defaults(), **params).get("h", 0.0)
+        scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
+                  for name in self.plant.section]
+        base = dict(at_origin, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0,
+                    harmonics=self.harmonics)
+        result = _Search(self, F, omega, base, scales, self.plant.translation(params), offset).run()
+        result.plant, result.params, result.drive = self.plant.name, params, self.drive
+        result.seconds = time.perf_counter() - started
+        return result
+
+    # -- periods of one run ------------------------------------------------------------
+    def _run(self, session, F, omega, values):
+        """Yield ((section, modes), X_k list, engagement count): at t = 0 (X None), then each period."""
+        session.start(values)
+        period = 2 * math.pi / omega
+        step = period / self.samples
+        section, previous, count = self._read(session)
+        yield section, None, count
+        while True:
+            t0 = session.time
+            for i in range(self.samples):
+                inputs = {"f": F * math.cos(omega * (t0 + i * step))} if self.drive == "input" else None
+                session.step(step, inputs)
+            section, current, count = self._read(session)
+            width = session.time - t0
+            X = [(current[0] - previous[0]) / width] + [
+                2.0 * (current[k] - previous[k]) / width for k in range(1, self.harmonics + 1)]
+            previous = current
+            yield section, X, count
+
+    def _read(self, session):
+        """((section, modes), running Fourier integrals I_k, engagement count): two FMI calls."""
+        n = len(self.plant.section)
+        reals = session.reals(self._real_names)
+        integers = session.integers(self._integer_names)
+        integrals = [complex(reals[n + 2 * k], -reals[n + 2 * k + 1]) for k in range(self.harmonics + 1)]
+        return (tuple(reals[:n]), tuple(integers[:-1])), integrals, integers[-1]
+
+
+class _Search:
+    """The search for the periodic steady state of one point."""
+
+    def __init__(self, engine, F, omega, base, scales, shifts, offset=0.0):
+        self.engine, self.F, self.omega, self.base, self.scales = engine, F, omega, base, scales
+        self.shifts = shifts
+        self.offset = offset  # the output's translation, removed from the run and added back to X_0
+        self.periods = 0
+
+    def drift(self, a, b):
+        """The translation taking section b to section a, or None if they differ otherwise.
+
+        A repeat up to a translation is a periodic orbit of the plant (its
+        forces ignore absolute position); a steady drift arises when a sampled
+        input gives a free mass a mean velocity.
+        """
+        (sa, ma), (sb, mb) = a, b
+        if ma != mb:
+            return None
+        d = sa[0] - sb[0]  # the first component is a position that moves by 1 m per metre
+        for x, y, s, shift in zip(sa, sb, self.scales, self.shifts):
+            if abs(x - shift * d - y) > SECTION_RTOL * (abs(x) + s):
+                return None
+        return d if abs(d) > SECTION_RTOL * (abs(sa[0]) + self.scales[0]) else 0.0
+
+    def close(self, a, b):
+        return self.drift(a, b) == 0.0
+
+    def orbit(self, sections, lag):
+        """The drift per orbit if the last section closes an orbit of ``lag`` periods, else None.
+
+        A multi-period orbit must differ from one period to the next (a period-1
+        orbit approached with alternating steps would repeat every 2 periods
+        first); a drift must be steady (the same over the previous orbit), or be
+        below 1e-9 of the scale (a position still converging, not drifting).
+        """
+        if len(sections) <= lag:
+            return None
+        d = self.drift(sections[-1], sections[-1 - lag])
+        if d is None:
+            return None
+        if lag > 1:
+            (now, _), (before, _) = sections[-1], sections[-2]
+            if all(abs(x - y) <= 1e-6 * (abs(x) + s) for x, y, s in zip(now, before, self.scales)):
+                return None
+        if d == 0.0 or abs(d) <= 1e-9 * (abs(sections[-1][0][0]) + self.scales[0]):
+            return 0.0
+        previous = self.drift(sections[-2], sections[-2 - lag]) if len(sections) > lag + 1 else None
+        return d if previous is not None and abs(previous - d) <= 1e-6 * abs(d) else None
+
+    def result(self, X, periodic, orbit, note=""):
+        X = [X[0] + self.offset] + X[1:]
+        N = X[1] / self.F
+        return DFResult(plant="", F=self.F, omega=self.omega, params={}, N=N, harmonics=[abs(x) for x in X],
+                        periodic=periodic, periods=self.periods, seconds=0.0, note=note, orbit_periods=orbit, X=X)
+
+    def run(self):
+        engine = self.engine
+        runs = engine._run(engine._sessions[0], self.F, self.omega, self.base)
+        origin, _, count = next(runs)
+        sections, spectra, counts = [origin], [], [count]
+        shots = 0
+        while True:
+            section, X, count = next(runs)
+            self.periods += 1
+            sections.append(section)
+            spectra.append(X)
+            counts.append(count)
+            for lag in range(1, MAX_LAG + 1):
+                d = self.orbit(sections, lag)
+                if d is not None:
+                    return self.finish(spectra[-lag:], True, lag, count - counts[-1 - lag], drift=d / lag)
+            if self.periods >= engine.max_periods:
+                n = min(AVERAGE_PERIODS, len(spectra))
+                return self.finish(spectra[-n:], False, 1, count - counts[-1 - n],
+                                   f"not periodic after {self.periods} periods: average of the last {n}")
+            start = self.extrapolate(sections)
+            if start is not None and shots < 5:
+                shots += 1
+                shot_runs = engine._run(engine._sessions[1], self.F, self.omega, dict(self.base, **start))
+                origin = next(shot_runs)[0]
+                returned, X_shot, shot_count = next(shot_runs)
+                self.periods += 1
+                if self.close(returned, origin):
+                    return self.finish([X_shot], True, 1, shot_count, "periodic orbit confirmed by shooting")
+                # not yet: the shooting run, closer to the orbit, becomes the trajectory
+                runs = shot_runs
+                engine._sessions.reverse()
+                sections, spectra, counts = [origin, returned], [X_shot], [0, shot_count]
+
+    def finish(self, spectra, periodic, orbit, engagements, note="", drift=0.0):
+        """The result from the orbit's spectra; ``engagements``: impacts or events within the orbit."""
+        X = [sum(column) / len(spectra) for column in zip(*spectra)]
+        if drift:
+            # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
+            c = drift * self.omega / (2 * math.pi)
+            X = [X[0] - drift / 2] + [X[k] - 2j * c / (k * self.omega) for k in range(1, len(X))]
+            note = f"periodic up to a steady drift of {drift:.3g} m per period (removed from the harmonics)"
+        never = self.engine.plant.never_engaged
+        # No engagement in the orbit, or only grazes (x touching the edge at its extremum)
+        # that move the output by rounding: the output is constant, its harmonics are 0.
+        if never and (engagements == 0 or abs(X[1]) <= 1e-12 * self.scales[0]):
+            X, note = [X[0]] + [0j] * (len(X) - 1), never
+        return self.result(X, periodic, orbit, note)
+
+    def extrapolate(self, sections):
+        """Aitken-Steffensen start parameters from a geometric tail of sections, or None."""
+        initial = self.engine.plant.initial
+        if not initial or len(sections) < 4:
+            return None
+        (s0, m0), (s1, m1), (s2, m2) = sections[-3:]
+        if not m0 == m1 == m2:
+            return None
+        d1 = [(b - a) / s for a, b, s in zip(s0, s1, self.scales)]
+        d2 = [(b - a) / s for a, b, s in zip(s1, s2, self.scales)]
+        norm1 = sum(x * x for x in d1)
+        norm2 = sum(x * x for x in d2)
+        if norm1 == 0.0 or norm2 == 0.0:
+            return None
+        r = sum(x * y for x, y in zip(d1, d2)) / norm1
+        residual = sum((y - r * x) ** 2 for x, y in zip(d1, d2))
+        if not (-0.999 < r < 0.999) or residual > 1e-6 * norm2:
+            return None  # not (yet) a clean geometric tail
+        if math.log(SECTION_RTOL / math.sqrt(norm2)) / math.log(abs(r)) < 3:
+            return None  # plain iteration converges within a few periods anyway
+        target = tuple(b + (b - a) * r / (1.0 - r) for a, b in zip(s1, s2))
+        values = dict(zip(self.engine.plant.section, target))
+        params = {initial[name]: values[name] for name in self.engine.plant.section if name in initial}
+        if "gap0" in params:
+            h = dict(self.engine.plant.defaults(), **self.base).get("h")
+            params["gap0"] = min(max(params["gap0"], 0.0), h)
+        return params

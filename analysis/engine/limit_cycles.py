@@ -1,0 +1,226 @@
+"""Limit cycles of a plant FMU under a controller G(s): G(jw) N(F, w) = -1.
+
+The plant's DF depends on both the force amplitude F and the frequency w,
+so the harmonic balance is two real equations in two unknowns,
+``R(F, w) = 1 + G(jw) N(F, w) = 0`` (python-control's amplitude-only
+``describing_function_response`` cannot solve it). A coarse map of R over
+an F x w grid locates candidate cells (both Re R and Im R change sign);
+each is refined by damped Newton steps in (ln F, ln w) on the plant's exact
+DF to 1e-8 or better. Stability follows Loeb's criterion, valid for a DF that
+depends on w: with R = U + jV, the cycle is stable when
+``dU/dF dV/dw - dU/dw dV/dF > 0`` (a small increase of the amplitude must
+move the loop back inside).
+
+Examples
+--------
+>>> import control as ct
+>>> from dfwb.engine.limit_cycles import predict
+>>> lead = ct.tf([20.0, 40.0], [1.0, 20.0])  # 20 (s + 2) / (s + 20) around mass + backlash
+>>> cycles = predict("static-backlash", lead, F_range=(0.01, 100), omega_range=(0.1, 50))
+>>> [(round(c.F, 6), round(c.omega, 6), c.stable) for c in cycles]
+[(0.248573, 0.913732, True)]
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine
+from dfwb.engine.transfer import check_transfer_function
+from dfwb.fmus.piecewise import PlantError
+
+NEWTON_TOL = 1e-10  # on the steps in ln F and ln w
+DIFF_STEP = 1e-6  # relative step of the finite-difference Jacobian
+
+
+@dataclass
+class Cycle:
+    """A predicted limit cycle: the force amplitude F at the plant input, and w."""
+
+    F: float
+    omega: float
+    N: complex
+    amplitude_x: float  # |N| F: the plant output's first-harmonic amplitude
+    distortion: float  # sqrt(sum_{k>=2} |X_k|^2) / |X_1|: how far to trust the prediction
+    stable: bool
+    loeb: float  # dU/dF dV/dw - dU/dw dV/dF at the cycle (> 0: stable)
+    residual: float  # |1 + G(jw) N(F, w)| at the cycle
+    periodic: bool  # whether the plant's response at (F, w) is periodic
+
+    @property
+    def period(self):
+        return 2 * math.pi / self.omega
+
+    def as_dict(self):
+        return {"F": self.F, "omega": self.omega, "amplitude_x": self.amplitude_x, "period": self.period,
+                "N_re": self.N.real, "N_im": self.N.imag, "stable": self.stable, "loeb": self.loeb,
+                "distortion": self.distortion, "residual": self.residual, "periodic": self.periodic}
+
+
+def check_range(name, values, limits):
+    """(lo, hi) as floats, refused unless limits[0] <= lo < hi <= limits[1] (the engine's range)."""
+    lo, hi = values
+    if not (limits[0] <= lo < hi <= limits[1]):
+        raise PlantError(f"{name} = [{lo!r}, {hi!r}] is not a range the engine accepts: "
+                         f"{limits[0]:g} <= LO < HI <= {limits[1]:g}")
+    return float(lo), float(hi)
+
+
+class _Balance:
+    """R(ln F, ln w) = 1 + G(jw) N(F, w) through the plant's exact DF."""
+
+    def __init__(self, engine, G, params):
+        self.engine, self.G, self.params = engine, G, params
+        self.evaluations = 0
+
+    def point(self, u, v):
+        self.evaluations += 1
+        return self.engine.point(math.exp(u), math.exp(v), self.params)
+
+    def residual(self, result):
+        return 1.0 + complex(self.G(1j * result.omega)) * result.N
+
+    def jacobian(self, u, v, R):
+        """d(Re R, Im R)/d(ln F, ln w) by forward differences."""
+        columns = []
+        for du, dv in ((DIFF_STEP, 0.0), (0.0, DIFF_STEP)):
+            shifted = self.residual(self.point(u + du, v + dv))
+            d = (shifted - R) / DIFF_STEP
+            columns.append((d.real, d.imag))
+        return np.array(columns).T
+
+    def newton(self, u, v, bounds, max_iterations=40):
+        """Refined (u, v, result, R, J) or None when it leaves the range or does not converge."""
+        result = self.point(u, v)
+        R = self.residual(result)
+        for _ in range(max_iterations):
+            J = self.jacobian(u, v, R)
+            try:
+                step = np.linalg.solve(J, [-R.real, -R.imag])
+            except np.linalg.LinAlgError:
+                return None
+            scale = 1.0
+            while True:  # damped: accept the first step that reduces |R|
+                nu, nv = u + scale * step[0], v + scale * step[1]
+                if not (bounds[0] <= nu <= bounds[1] and bounds[2] <= nv <= bounds[3]):
+                    scale *= 0.5
+                else:
+                    trial = self.point(nu, nv)
+                    trial_R = self.residual(trial)
+                    if abs(trial_R) < abs(R) or scale < 1e-3:
+                        break
+                    scale *= 0.5
+                if scale < 1e-3:
+                    return None
+            u, v, result, R = nu, nv, trial, trial_R
+            if max(abs(scale * step[0]), abs(scale * step[1])) < NEWTON_TOL:
+                return u, v, result, R, self.jacobian(u, v, R)
+        return None
+
+
+def df_map(engine, params, F_grid, omega_grid, progress=False):
+    """N on the grid: an array [len(F_grid), len(omega_grid)] of complex."""
+    N = np.empty((len(F_grid), len(omega_grid)), dtype=complex)
+    points = [(i, j) for i in range(len(F_grid)) for j in range(len(omega_grid))]
+    for i, j in tqdm(points, disable=not progress, unit="pt", desc="DF map"):
+        N[i, j] = engine.point(F_grid[i], omega_grid[j], params).N
+    return N
+
+
+def candidates(R):
+    """Grid cells (i, j) where both Re R and Im R change sign among the four corners."""
+    cells = []
+    for i in range(R.shape[0] - 1):
+        for j in range(R.shape[1] - 1):
+            corners = R[i:i + 2, j:j + 2]
+            if corners.real.min() < 0 < corners.real.max() and corners.imag.min() < 0 < corners.imag.max():
+                cells.append((i, j))
+    return cells
+
+
+@dataclass
+class Search:
+    """What :func:`search` found: the limit cycles, and the DF map they were found on.
+
+    Attributes
+    ----------
+    cycles : list of Cycle
+        Sorted by F; empty when there is none in the ranges (a valid answer).
+    F_grid : ndarray
+        The map's force amplitudes [N], geometrically spaced.
+    omega_grid : ndarray
+        The map's frequencies [rad/s], geometrically spaced.
+    N_grid : ndarray of complex
+        N(F_grid[i], omega_grid[j]) [m/N], shape ``(len(F_grid), len(omega_grid))``.
+    """
+
+    cycles: list
+    F_grid: np.ndarray
+    omega_grid: np.ndarray
+    N_grid: np.ndarray
+
+
+def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
+            engine=None, progress=False):
+    """Every limit cycle of ``plant`` under the controller ``G`` in the given ranges.
+
+    See :func:`search`, which also returns the DF map."""
+    return search(plant, G, params, F_range, omega_range, n_F, n_omega, engine, progress).cycles
+
+
+def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
+           engine=None, progress=False):
+    """The limit cycles and the DF map they were found on.
+
+    Parameters
+    ----------
+    plant : {"friction", "backlash", "static-backlash"}
+    G : control.TransferFunction or control.StateSpace
+        Maps the plant output (position) to the plant input force, with negative
+        feedback: force = -G(s) position.
+    params : dict, optional
+        Plant parameters.
+    F_range, omega_range : (float, float)
+        Search ranges of the force amplitude [N] and the frequency [rad/s].
+
+    n_F, n_omega : int
+        The DF map's size (2 to 1000 each).
+    engine : DFEngine, optional
+        The engine to use (default: a new one of ``plant``).
+
+    Returns
+    -------
+    Search
+        ``.cycles``: list of Cycle, sorted by F (empty when there is none: a valid answer);
+        ``.F_grid``, ``.omega_grid``, ``.N_grid``: the map.
+    """
+    G = check_transfer_function(G)
+    F_lo, F_hi = check_range("F range", F_range, F_RANGE)
+    w_lo, w_hi = check_range("omega range", omega_range, OMEGA_RANGE)
+    if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
+        raise PlantError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
+    engine = engine or DFEngine(plant)
+    params = engine.plant.check(params or {})
+    F_grid, omega_grid = np.geomspace(F_lo, F_hi, n_F), np.geomspace(w_lo, w_hi, n_omega)
+    N_grid = df_map(engine, params, F_grid, omega_grid, progress)
+    R = 1.0 + np.array([complex(G(1j * w)) for w in omega_grid]) * N_grid
+    balance = _Balance(engine, G, params)
+    bounds = (math.log(F_lo), math.log(F_hi), math.log(w_lo), math.log(w_hi))
+    cycles = []
+    for i, j in candidates(R):
+        u = 0.5 * (math.log(F_grid[i]) + math.log(F_grid[i + 1]))
+        v = 0.5 * (math.log(omega_grid[j]) + math.log(omega_grid[j + 1]))
+        refined = balance.newton(u, v, bounds)
+        if refined is None:
+            continue
+        u, v, result, residual, J = refined
+        if any(abs(u - math.log(c.F)) < 1e-6 and abs(v - math.log(c.omega)) < 1e-6 for c in cycles):
+            continue
+        X = result.harmonics
+        loeb = float(J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0])  # same sign in (ln F, ln w) as in (F, w)
+        cycles.append(Cycle(F=result.F, omega=result.omega, N=result.N, amplitude_x=abs(result.N) * result.F,
+                            distortion=math.sqrt(sum(x * x for x in X[2:])) / X[1] if X[1] else math.inf,
+                            stable=loeb > 0, loeb=loeb, residual=abs(residual), periodic=result.periodic))
+    return Search(sorted(cycles, key=lambda c: c.F), F_grid, omega_grid, N_grid)

@@ -1,0 +1,282 @@
+"""The plant contract: one registry entry per plant carries every fact the rest of dfwb needs.
+
+A plant is its solver (anything that implements :class:`dfwb.fmus.Solver`),
+its FMU facade (a :class:`dfwb.fmus.facade.PlantFMU`) and one
+:class:`Plant` entry, registered with :func:`register`. The command line's
+choices, the scene schema, the describing-function engine, the closed-loop
+judge, the benchmark, the stress suite, the demo and the tests' lists of
+plants all read the registry; none of them names a plant.
+
+Parameters are checked here, against the ranges the engine accepts and with
+the solver's own validation, before any FMU is touched, so a bad value
+becomes one clear line instead of an FMU failing (or running without end)
+mid-sweep.
+
+Examples
+--------
+>>> from dfwb.plants import names, plant
+>>> names()
+('friction', 'backlash', 'static-backlash')
+>>> friction = plant("friction")
+>>> friction.output, friction.section, friction.counter
+('x', ('x', 'v'), 'events')
+>>> friction.check({"M": 2})
+{'M': 2.0}
+"""
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Optional
+
+from dfwb.fmus.piecewise import PlantError, check
+
+__all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "PLANTS", "RANGES", "check_range"]
+
+RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
+_CHECKED = {}  # (plant, model, parameter items) -> validated parameters: sweeps repeat the same sets
+
+# The parameter ranges the engine accepts: (low, high, unit). Masses, clearances, slopes,
+# forces and velocities: the edges ``dfwb stress`` covers and the engine computes (the
+# solvers accept more). Positions only translate the plant, which the engine removes
+# (Plant.at_origin): their bound merely keeps the mean and k x0 far from overflow.
+# eps and gap0 keep the solver's own ranges ([0, 1] and [0, h]). A plant adds its own
+# parameters' ranges in its entry (:attr:`Plant.ranges`).
+MASS = (1e-6, 1e6, "kg")
+FORCE = (0.0, 1e9, "N")
+VELOCITY = (-1e6, 1e6, "m/s")
+POSITION = (-1e30, 1e30, "m")
+RANGES = {
+    "M": MASS, "M1": MASS, "M2": MASS,
+    "B": (0.0, 1e9, "N.s/m"), "Fc": FORCE, "Fs": FORCE, "Dv": (0.0, 1e3, "m/s"),
+    "h": (1e-9, 1e3, "m"), "k": (1e-6, 1e6, ""),
+    "x0": POSITION, "x1_0": POSITION,
+    "v0": VELOCITY, "v1_0": VELOCITY, "v2_0": VELOCITY,
+}
+
+
+def check_range(name, value, low, high, unit=""):
+    """PlantError naming the value and the range unless low <= value <= high (a finite number)."""
+    check(name, value, lambda: low <= value <= high, f"{name} must be in [{low:g}, {high:g}] {unit}".rstrip())
+
+
+@dataclass(frozen=True)
+class Demo:
+    """How ``dfwb demo`` shows a plant: start values, stop time, input samples per period, [(output, label)]."""
+
+    start: Mapping[str, float]
+    stop_time: float
+    samples_per_period: int
+    outputs: tuple
+
+
+@dataclass(frozen=True)
+class Plant:
+    """Everything dfwb knows about one plant.
+
+    Attributes
+    ----------
+    name : str
+        The name on the command line and in scenes (``"friction"``).
+    model : type
+        The FMI facade class (:class:`dfwb.fmus.facade.PlantFMU`); its
+        ``parameters`` and ``outputs`` name the variables.
+    output : str
+        The signal whose describing function is taken.
+    section : tuple of str
+        The continuous state read at whole periods (the Poincare section).
+    modes : tuple of str
+        The discrete state read with it (an orbit's modes must repeat).
+    initial : dict
+        Section component -> the parameter that sets it at t = 0 (shooting);
+        components without one are not reset.
+    shifts : dict
+        How each section component (and the output) moves when the plant is
+        translated by 1 m: a number, or ``"k"`` (the parameter k).
+    position : str
+        The parameter that translates the whole plant; the closed loop also
+        starts the plant from it.
+    summary : str
+        One line for tables (README, ``dfwb --help``).
+    counter : str
+        The FMU's integer output counting engagements (``"events"``: the
+        facade's own count of every event).
+    never_engaged : str or None
+        What an orbit without engagement means (the output is then constant
+        and N = 0), or None when every orbit engages.
+    ranges : dict
+        Extra parameter ranges ``name -> (low, high, unit)`` beyond
+        :data:`RANGES`.
+    naive : type or None
+        A fixed-step twin facade for the benchmark (parameter ``dt``).
+    reference : callable or None
+        ``reference(F, omega, params) -> complex N`` by an independent method
+        (a closed form, or scipy at tight tolerance), for the tests and the
+        benchmark.
+    scipy : callable or None
+        ``scipy(F, omega, params, method, rtol) -> complex N``: what a user
+        would write with ``solve_ivp``, for the benchmark's comparison.
+    variants : tuple
+        ``(label, params)`` regularised settings the benchmark also runs
+        (e.g. a Karnopp band).
+    bench : dict
+        ``{"quick": [(F, omega, params)], "full": [...]}``: the benchmark's points.
+    stress : StressProfile or None
+        The stress suite's knowledge of the plant: its cases, per-point
+        observer and energy balances (:class:`dfwb.plants.stress_kit.StressProfile`;
+        ``dfwb stress`` runs every plant that has one).
+    demo : Demo or None
+        How ``dfwb demo`` shows the plant.
+    masses : tuple of str
+        The parameters whose sum is the mass moved by the force (it sets the
+        engine's amplitude scales); empty: ``M``, else ``M1 + M2``.
+    linear : tuple or None
+        ``(params, N)``: parameters that make the plant linear (or linear
+        to 1e-10 at F = 50 N, omega = 1 rad/s), and ``N(omega, params) ->
+        complex``, its describing function there, given every parameter (the
+        defaults filled in); the contract suite (tests/test_contract.py)
+        checks the engine against it.
+    """
+
+    name: str
+    model: type
+    output: str
+    section: tuple
+    modes: tuple
+    initial: dict
+    shifts: dict
+    position: str
+    summary: str = ""
+    counter: str = "events"
+    never_engaged: Optional[str] = None
+    ranges: dict = field(default_factory=dict)
+    naive: Optional[type] = None
+    reference: Optional[Callable] = None
+    scipy: Optional[Callable] = None
+    variants: tuple = ()
+    bench: dict = field(default_factory=dict)
+    stress: object = None
+    demo: Optional[Demo] = None
+    masses: tuple = ()
+    linear: Optional[tuple] = None
+
+    def __post_init__(self):
+        names = {name for name, *_ in self.model.all_outputs()}
+        defaults = self.defaults()
+        for what, wanted in (("output", [self.output]), ("section", self.section), ("modes", self.modes),
+                             ("counter", [self.counter])):
+            missing = [name for name in wanted if name not in names]
+            if missing:
+                raise PlantError(f"plant {self.name!r}: {what} {missing} are not outputs of {self.fmu_name}")
+        unknown = [p for p in list(self.initial.values()) + [self.position] + list(self.masses) if p not in defaults]
+        if unknown:
+            raise PlantError(f"plant {self.name!r}: {unknown} are not parameters of {self.fmu_name}")
+
+    @property
+    def fmu_name(self):
+        """The FMU's model name (the facade class's name)."""
+        return self.model.__name__
+
+    @property
+    def loop_start(self):
+        """The parameter the closed loop starts the plant from (its position)."""
+        return self.position
+
+    def _per_metre(self, name, params):
+        """How signal ``name`` moves when the plant is translated by 1 m."""
+        shift = self.shifts.get(name, 0.0)
+        return dict(self.defaults(), **params).get("k", 1.0) if shift == "k" else shift
+
+    def translation(self, params):
+        """Per section component, its change under a translation of the plant by 1 m."""
+        return tuple(self._per_metre(name, params) for name in self.section)
+
+    def at_origin(self, params):
+        """(params with the plant translated to position 0, the output's offset there).
+
+        The forces depend on velocities and relative positions only, so the
+        output of a translated plant is the same motion plus a constant: the
+        engine runs the plant at the origin, where a position of 1e20 m cannot
+        round the motion away, and adds the offset to the mean X_0 only.
+        """
+        value = dict(self.defaults(), **params)[self.position]
+        return dict(params, **{self.position: 0.0}), value * self._per_metre(self.output, params)
+
+    def defaults(self):
+        """{parameter: default} of the FMU."""
+        return {name: default for name, default, *_ in self.model.parameters}
+
+    def check(self, params):
+        """Validated {name: float}; raises PlantError naming the value and what is allowed."""
+        allowed = sorted(self.defaults())
+        values = {}
+        for name, value in params.items():
+            if name in RESERVED:
+                raise PlantError(f"{name} is set by the describing-function engine, not by --set "
+                                 f"(allowed: {', '.join(allowed)})")
+            if name not in allowed:
+                raise PlantError(f"unknown parameter {name!r} for plant {self.name} (allowed: {', '.join(allowed)})")
+            try:
+                values[name] = float(value)
+            except (TypeError, ValueError, OverflowError):
+                raise PlantError(f"{name} = {value!r} is not a number") from None
+            limits = self.ranges.get(name, RANGES.get(name))
+            if limits is not None:
+                check_range(name, values[name], *limits)
+        kwargs = dict(self.defaults(), **values)
+        self.model.solver_class(F=1.0, omega=1.0, **self.model.solver_kwargs(kwargs))  # the solver's own range checks
+        return values
+
+    def checked(self, params):
+        """:meth:`check`, done once per distinct parameter set in a process."""
+        key = (self.name, self.model, tuple(sorted(params.items())))
+        if key not in _CHECKED:
+            _CHECKED[key] = self.check(params)
+        return dict(_CHECKED[key])
+
+    def complete(self, params):
+        """Every parameter as a float, the defaults filled in (equal sets for a default given or omitted)."""
+        return {name: float(value) for name, value in dict(self.defaults(), **params).items()}
+
+    def mass(self, params):
+        """Total mass moved by the force (sets the amplitude scales)."""
+        merged = dict(self.defaults(), **params)
+        if self.masses:
+            return sum(merged[name] for name in self.masses)
+        return merged.get("M", merged.get("M1", 0.0) + merged.get("M2", 0.0))
+
+
+PLANTS: dict = {}
+
+
+def register(entry):
+    """Add a plant to the registry and return the entry.
+
+    A name may be registered again only for the same FMU model (a module
+    imported twice); another plant of that name is an error.
+    """
+    if not isinstance(entry, Plant):
+        raise TypeError(f"register() takes a Plant, not {type(entry).__name__}")
+    known = PLANTS.get(entry.name)
+    if known is not None and known.model is not entry.model:
+        raise PlantError(f"a plant named {entry.name!r} is registered already (FMU {known.fmu_name})")
+    PLANTS[entry.name] = entry
+    return entry
+
+
+def unregister(name):
+    """Remove a plant from the registry (tests that add one take it out again)."""
+    PLANTS.pop(name, None)
+
+
+def names():
+    """The registered plants' names, in registration order."""
+    return tuple(PLANTS)
+
+
+def plant(name):
+    """The Plant called ``name``, or PlantError listing the known ones."""
+    if isinstance(name, Plant):
+        return name
+    try:
+        return PLANTS[name]
+    except (KeyError, TypeError):
+        raise PlantError(f"unknown plant {name!r} (allowed: {', '.join(PLANTS)})") from None

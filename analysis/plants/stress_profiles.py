@@ -1,0 +1,491 @@
+"""The stress profiles of the three built-in plants (:attr:`dfwb.plants.registry.Plant.stress`).
+
+Each profile carries what ``dfwb stress`` knows about one plant and nothing
+else (see :class:`~dfwb.plants.stress_kit.StressProfile`): its cases, from the
+edges of every parameter's range to seeded random ones; the invariants of its
+physics at every communication point (an observer); its end-of-run energy and
+momentum balances; its random held inputs, 1e5-period cases and invalid
+parameters. The suite that runs them is :mod:`dfwb.verify.stress`.
+"""
+
+import math
+
+from dfwb.plants.stress_kit import (
+    EPS,
+    TWO_PI,
+    Case,
+    StressObserver,
+    StressProfile,
+    adder,
+    energy_balance,
+    held_sine,
+    loguniform,
+    pattern,
+    random_stepping,
+    uniform,
+)
+
+__all__ = ["FRICTION", "BACKLASH", "STATIC_BACKLASH", "EPS_VALUES"]
+
+EPS_VALUES = (0.0, 1e-9, 0.5, 1.0 - 1e-9, 1.0)  # restitution coefficients every backlash case family covers
+
+
+# -- friction: a mass with Coulomb, viscous and static friction -------------------------
+def _friction_cases(name, rng, quick):
+    cases = []
+
+    add = adder(name, cases)
+
+    base = dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=10.0, omega=1.0)
+    add(base, note="baseline Fs=Fc, B=0")
+    add(dict(base, B=0.5, Fs=7.0), note="default friction Fs>Fc, B>0")
+    for F in (1e-6, 1e-3, 1e3, 1e6):  # the force's scale, stick-slip kept (Fs = Fc = F/2)
+        add(dict(base, F=F, Fc=F / 2, Fs=F / 2), note=f"F={F:g}, Fs=Fc=F/2")
+    add(dict(base, F=1e-6), note="F=1e-6 << Fs: stuck forever")
+    add(dict(base, F=1e6), note="F=1e6 >> Fs")
+    for w in (1e-4, 1e-2, 1e2, 1e4):
+        add(dict(base, omega=w), note=f"w={w:g}")
+    for M in (1e-6, 1e6):
+        add(dict(base, M=M), note=f"M={M:g}")
+    add(dict(base, M=1e-6, F=1e6, Fc=5e5, Fs=5e5, omega=1e4), note="M=1e-6, F=1e6, w=1e4")
+    add(dict(base, M=1e6, F=1e-6, Fc=5e-7, Fs=5e-7, omega=1e-4), per_period=8, note="M=1e6, F=1e-6, w=1e-4")
+    # the force touching Fs exactly, and just above or below it
+    add(dict(base, F=5.0), note="F = Fs: tangent, never exceeds")
+    add(dict(base, F=5.0 * (1 + 1e-12)), note="F = Fs (1 + 1e-12)")
+    add(dict(base, F=5.0 * (1 - 1e-12)), note="F = Fs (1 - 1e-12)")
+    add(dict(base, Fs=7.0, F=5.0, f=2.0), note="f + F = Fs exactly (peak touches Fs)")
+    # a constant force of exactly +-Fs (F = 0): must stay stuck whatever phi
+    for f in (7.0, -7.0):
+        add(dict(M=1.0, B=0.0, Fc=5.0, Fs=7.0, F=0.0, f=f, omega=1.0), n_periods=2,
+            note=f"constant f = {f:+g} = +-Fs, F = 0")
+    add(dict(base, f=3.0, phi=0.7), note="offset f=3, phi=0.7")
+    add(dict(base, F=-10.0, phi=-2.0), note="negative F")
+    add(dict(base, v0=3.0, x0=1e6), note="x0=1e6, v0=3")
+    add(dict(M=1.0, B=0.0, Fc=0.0, Fs=0.0, F=10.0, omega=1.0, v0=-2.0), note="free mass (Fc=Fs=B=0)")
+    add(dict(M=2.0, B=0.3, Fc=0.0, Fs=0.0, F=10.0, omega=3.0), note="linear mass-damper")
+    add(dict(base, Dv=1e-3), note="Karnopp Dv=1e-3")
+    add(dict(base, Dv=1e-9, Fs=7.0, B=0.5), note="Karnopp Dv=1e-9")
+    # communication steps at both ends of the range
+    add(dict(base, F=1e6, Fc=1e5, Fs=1e5, omega=1e4), times=uniform(1e-6, 1000), note="dt=1e-9 from t=0")
+    t_late = (10.0,) + tuple(10.0 + 1e-9 * k for k in range(1, 1001))
+    add(base, times=(t_late, "t=10 in one step, then 1000 steps of 1e-9 s"), note="dt=1e-9 at t=10")
+    add(dict(base, omega=1e-4), times=uniform(1.2e6, 1200), note="dt=1e3 s, w=1e-4")
+    t_far = (1e6,) + tuple(1e6 + 1e-9 * k for k in range(1, 1001))
+    add(dict(base, omega=1e-3), times=(t_far, "t=1e6 in one step, then 1000 steps of 1e-9 s (~8.6 ulp of t each)"),
+        note="dt=1e-9 at t=1e6, w=1e-3")
+    add(dict(base, harmonics=0), note="harmonics=0")
+    add(base, times=uniform(1e4, 10), note="dt=1e3 s, w=1 (160 periods per step)")
+    # held input, as an FMI master feeds a sine
+    c = add(dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=0.0, omega=1.0), note="held sine input 10 sin, 32/period")
+    held_sine(c, 10.0, 32)
+    c = add(dict(M=1.0, B=0.0, Fc=5.0, Fs=7.0, F=0.0, omega=1.0), times=uniform(1e-3, 1000),
+            note="held input, dt=1e-6, alternating sign")
+    c.inputs = tuple(8.0 if (j // 100) % 2 == 0 else -8.0 for j in range(1000))
+    c.input_form = "8.0 if (j // 100) % 2 == 0 else -8.0"
+
+    friction = dict(M=1.0, B=0.0, Fc=5.0, Fs=7.0, F=0.0, omega=1.0)
+    cases.append(pattern(name, friction, [(8.0, 10), (-8.0, 20), (8.0, 10)], 0.1,
+                         "held steps +-8: v returns to 0 exactly at a step"))
+    cases.append(pattern(name, friction, [(8.0, 10), (0.0, 10), (7.0, 10), (-7.0, 10)], 0.1,
+                         "held steps to 0 and to +-Fs exactly"))
+    for i in range(30 if quick else 150):
+        cases.append(_random_friction(name, rng, i))
+    if not quick:
+        for F in (1e-6, 1e6):
+            for w in (1e-4, 1e4):
+                for M in (1e-6, 1e6):
+                    add(dict(base, F=F, Fc=F / 2, Fs=F / 2, omega=w, M=M), note=f"corner F={F:g} w={w:g} M={M:g}")
+    return cases
+
+
+def _random_friction(name, rng, i):
+    M, F, w = loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-4, 1e4)
+    Fc = F * rng.uniform(0.0, 1.5)
+    Fs = Fc if rng.random() < 0.5 else Fc * (1 + rng.uniform(0, 0.5))
+    B = 0.0 if rng.random() < 0.5 else M * w * rng.uniform(0, 1)  # decay rate B/M <= w
+    params = dict(M=M, B=B, Fc=Fc, Fs=Fs, F=F, omega=w, phi=rng.uniform(-math.pi, math.pi))
+    if rng.random() < 0.3:
+        params["f"] = F * rng.uniform(-0.5, 0.5)
+    if rng.random() < 0.3:
+        params["v0"] = F / (M * w) * rng.uniform(-1, 1)
+    times, stepping = random_stepping(rng, TWO_PI / w, rng.randint(2, 10))
+    return Case(name, params, times, stepping, note=f"random #{i}")
+
+
+class FrictionObserver(StressObserver):
+    """Stick, slide and (without Coulomb friction) momentum at every point."""
+
+    def setup(self):
+        p = self.case.params
+        self.M, self.B = p.get("M", 1.0), p.get("B", 0.5)
+        self.Fc, self.Fs, self.Dv = p.get("Fc", 5.0), p.get("Fs", 7.0), p.get("Dv", 0.0)
+        self.x0, self.v0 = p.get("x0", 0.0), p.get("v0", 0.0)
+        # |u| never exceeds Fs and the mass starts at rest: it must never move
+        self.stays_stuck = self.v0 == 0.0 and abs(self.F) + self.f_max <= self.Fs
+        self.linear = self.Fc == 0.0 and self.Fs == 0.0
+
+    def sample(self, plant, t, f, values):
+        x, v, ff, mode = values
+        fail = self.failures.add
+        u = self.u(t, f)
+        r = self.u_rounding(t, f, self.Fs)
+        vscale = abs(self.v0) + (2.0 * abs(self.F) / self.w + (self.f_max + self.Fs) * t) / self.M
+        tiny = 64.0 * EPS * (plant.events + 1) * vscale
+        if mode not in (-1, 0, 1):
+            fail("mode", t=t, mode=mode)
+        if self.stays_stuck and not (x == self.x0 and v == 0.0):
+            fail("stays_stuck", t=t, x=x, v=v, mode=mode, u=u, Fs=self.Fs,
+                 why="max |u| = |f| + |F| <= Fs from rest, yet the mass moved")
+        if mode == 0:
+            if self.Dv == 0.0:
+                if v != 0.0:
+                    fail("stick", t=t, v=v, why="mode 0 with v != 0")
+                self.margins.see("stick", max(abs(u) - self.Fs, 0.0), r, self.case)
+                if not abs(u) <= self.Fs + r:
+                    fail("stick", t=t, u=u, Fs=self.Fs, excess=abs(u) - self.Fs, tol=r, why="stuck with |u| > Fs")
+                if not abs(ff - u) <= r:
+                    fail("stick", t=t, Ff=ff, u=u, why="stuck with Ff != u")
+            else:
+                if not abs(v) <= self.Dv * (1 + 1e-12) + tiny:
+                    fail("stick", t=t, v=v, Dv=self.Dv, why="band mode with |v| > Dv")
+                bound = max(self.Fs, self.Fc + self.B * self.Dv)
+                if not abs(ff) <= bound + r:
+                    fail("stick", t=t, Ff=ff, bound=bound, why="band mode with |Ff| > max(Fs, Fc + B Dv)")
+        else:
+            if not mode * v >= self.Dv - tiny:
+                fail("slide", t=t, v=v, mode=mode, Dv=self.Dv, tol=tiny, why="sliding against the mode's direction")
+            expected = mode * self.Fc + self.B * v
+            tol_ff = r + 16.0 * EPS * (abs(self.Fc) + abs(self.B * v))
+            err = abs(ff - expected)
+            self.margins.see("slide", err, tol_ff, self.case)
+            if not err <= tol_ff:
+                fail("slide", t=t, Ff=ff, expected=expected, error=err, tol=tol_ff, why="Ff != Fc sgn(v) + B v")
+        if self.linear:
+            p0 = self.M * self.v0
+            self.momentum(plant, t, self.M * v + self.B * (x - self.x0), p0,
+                          self.M * abs(v) + self.B * abs(x - self.x0))
+
+
+def _friction_held(rng, scale, w, F):
+    Fc = scale * rng.uniform(0.2, 1.0)
+    params = dict(M=loguniform(rng, 1e-3, 1e3), B=0.0, Fc=Fc, Fs=Fc * rng.choice((1.0, 1.4)), F=F, omega=w)
+    return params, (params["Fs"], -params["Fs"])
+
+
+def _friction_bounds(p, F, f_max, dy_max):
+    return dy_max, (f_max + abs(F) + p.get("Fc", 5.0) + p.get("B", 0.5) * dy_max) / p.get("M", 1.0)
+
+
+def _friction_balances(case, out, n, sums):
+    p = case.params
+    M, B = p.get("M", 1.0), p.get("B", 0.5)
+    v0 = p.get("v0", 0.0)
+    ke0, ke = 0.5 * M * v0 ** 2, 0.5 * M * out[1] ** 2
+    scale = max(ke0, ke) + sums["abs_work"]
+    linear_free = p.get("Fc", 5.0) == 0.0 and p.get("Fs", 7.0) == 0.0 and B == 0.0
+    energy = energy_balance(ke - ke0, sums["work"], 1e-10 * scale + 8.0 * EPS * n * scale, equal=linear_free)
+    dp = M * (out[1] - v0)
+    scale = sums["abs_impulse"] + M * (abs(v0) + abs(out[1]))
+    tol = 1e-10 * scale + 8.0 * EPS * n * scale
+    err = abs(dp - sums["impulse"])
+    impulse = ("impulse", err, tol, dict(momentum_change=dp, integral_u_minus_Ff=sums["impulse"], error=err, tol=tol,
+                                         why="M (v - v0) != int (u - Ff) dt"))
+    return [energy, impulse]
+
+
+FRICTION = StressProfile(
+    cases=_friction_cases, observer=FrictionObserver, output=0, velocity=1, rate=1, force=2,
+    bounds=_friction_bounds, balances=_friction_balances, random_held=_friction_held,
+    long=(
+        (dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=10.0, omega=1.0), "1e5 periods stick-slip Fs=Fc"),
+        (dict(M=1.0, B=0.0, Fc=0.0, Fs=0.0, F=10.0, omega=1e3), "1e5 periods free mass w=1e3"),
+        (dict(M=1.0, B=0.5, Fc=5.0, Fs=7.0, F=6.0, omega=1.0), "1e5 periods stuck (F < Fs)"),
+    ),
+    invalid=(("M", 0.0), ("M", -1.0), ("M", math.nan), ("M", math.inf), ("B", -0.1), ("B", math.nan), ("Fc", -1.0),
+             ("Fc", math.nan), ("Fs", 4.0), ("Fs", math.nan), ("Dv", -1e-3), ("Dv", math.nan), ("x0", math.nan),
+             ("v0", math.inf), ("M", None), ("M", "1")),
+)
+
+
+# -- two-mass backlash: two masses, a clearance h and impacts of restitution eps --------
+def _backlash_params(M1, M2, F, w, ratio):
+    """h from the ratio of the free amplitude F/(M2 w^2) to the clearance."""
+    return dict(M1=M1, M2=M2, h=F / (M2 * w * w * ratio), F=F, omega=w)
+
+
+def _backlash_cases(name, rng, quick):
+    cases = []
+
+    add = adder(name, cases)
+
+    base = dict(M1=1.0, M2=1.0, h=0.1, F=50.0, omega=20.0)
+    for eps in EPS_VALUES:
+        add(dict(base, eps=eps), note=f"paper case eps={eps!r}")
+    axis_eps = EPS_VALUES if not quick else (0.0, 0.5, 1.0)
+    axes = [
+        ("h=1e-9", _backlash_params(1.0, 1.0, 2e-6, 20.0, 5.0)),  # h = 1e-9
+        ("h=10", _backlash_params(1.0, 1.0, 2e4, 20.0, 5.0)),  # h = 10
+        ("F=1e-6", dict(M1=1.0, M2=1.0, h=0.1, F=1e-6, omega=math.sqrt(2e-6))),  # X/h = 5
+        ("F=1e6", dict(M1=1.0, M2=1.0, h=0.1, F=1e6, omega=math.sqrt(2e6))),
+        ("w=1e-4", dict(M1=1.0, M2=1.0, h=10.0, F=1e-6, omega=1e-4)),  # X/h = 10
+        ("w=1e4", dict(M1=1.0, M2=1.0, h=1e-3, F=5e5, omega=1e4)),  # X/h = 5
+        ("M1=1e-6", dict(base, M1=1e-6)),
+        ("M1=1e6", dict(base, M1=1e6)),
+        ("M2=1e-6", _backlash_params(1.0, 1e-6, 2e-4, 20.0, 5.0)),
+        ("M2=1e6", _backlash_params(1.0, 1e6, 1e6, math.sqrt(2.0), 5.0)),
+        ("M1=1e-6 M2=1e6", _backlash_params(1e-6, 1e6, 1e6, math.sqrt(2.0), 5.0)),
+        ("M1=1e6 M2=1e-6", _backlash_params(1e6, 1e-6, 2e-4, 20.0, 5.0)),
+    ]
+    for label, params in axes:
+        for eps in axis_eps:
+            add(dict(params, eps=eps), note=f"{label} eps={eps!r}")
+    # initial conditions at the boundaries, far from the origin, moving
+    add(dict(base, eps=0.5, gap0=0.0), note="gap0=0, pressed at start")
+    add(dict(base, eps=0.5, gap0=0.1, phi=math.pi), note="gap0=h, pulled at start")
+    add(dict(base, eps=0.5, gap0=0.0, phi=math.pi, v1_0=1.0, v2_0=1.0), note="gap0=0, pulled apart, moving")
+    add(dict(base, eps=1.0, x1_0=1e9, v1_0=-3.0, v2_0=2.0), note="x1_0=1e9, moving")
+    # free elastic flight: kinetic energy constant at every point
+    add(dict(M1=2.0, M2=0.5, h=0.1, eps=1.0, F=0.0, omega=1.0, v1_0=0.3, v2_0=-1.1), n_periods=20,
+        note="free elastic flight")
+    add(dict(M1=1e-6, M2=1e6, h=1e-9, eps=1.0, F=0.0, omega=1e4, v1_0=1e-3, v2_0=0.0),
+        note="free elastic flight, mass ratio 1e12, h=1e-9")
+    # constant pressing force: a Zeno accumulation ending in contact (or, eps ~ 1, bouncing)
+    for eps in EPS_VALUES:
+        add(dict(base, F=0.0, f=-10.0, eps=eps), n_periods=2, note=f"constant press f=-10 eps={eps!r}")
+    # steps at the ends of the range
+    add(dict(base, eps=0.5), times=uniform(1e-6, 1000), note="dt=1e-9 from t=0")
+    add(dict(base, eps=0.5, F=1e6, omega=1e4, h=1e-3), times=uniform(1e-6, 1000), note="dt=1e-9, F=1e6, w=1e4")
+    add(dict(M1=1.0, M2=1.0, h=10.0, F=1e-6, omega=1e-4, eps=0.5), times=uniform(6.3e5, 630), note="dt=1e3 s, w=1e-4")
+    add(dict(base, eps=0.0, omega=1.0, F=1.0), times=uniform(1e4, 10), note="dt=1e3 s, w=1")
+    t_far = (1e6,) + tuple(1e6 + 1e-9 * k for k in range(1, 1001))
+    add(dict(M1=1.0, M2=1.0, h=10.0, F=1e-6, omega=1e-4, eps=0.5),
+        times=(t_far, "t=1e6 in one step, then 1000 steps of 1e-9 s"), note="dt=1e-9 at t=1e6, w=1e-4")
+    add(dict(base, eps=0.5, harmonics=1), note="harmonics=1")
+    # a held input
+    c = add(dict(base, F=0.0, eps=0.5), note="held sine input 50 sin, 32/period")
+    held_sine(c, 50.0, 32)
+
+    # held inputs that stop, reverse and press again (F = 0, so phi must not matter)
+    press = dict(M1=1.0, M2=1.0, h=0.1, eps=0.5, F=0.0, omega=1.0, gap0=0.0)
+    for phi in (0.0, -1.5):
+        cases.append(pattern(name, dict(press, phi=phi), [(-10.0, 10), (0.0, 10), (-10.0, 10)], 0.1,
+                             f"held -10, 0, -10 from contact, phi={phi!r}"))
+    cases.append(pattern(name, dict(press, gap0=0.05, eps=0.0), [(10.0, 10), (-10.0, 20), (10.0, 10)], 0.1,
+                         "held +-10, eps=0: the pair's velocity returns to 0 at a step"))
+    cases.append(pattern(name, dict(press, gap0=0.1), [(10.0, 10), (0.0, 10), (10.0, 10)], 0.1,
+                         "held +10, 0, +10 from contact at gap h (default phi)"))
+    c = Case(name, dict(press, F=1.0), *uniform(1.0, 10), note="F=1 pulls apart at gap0=0; held f=-10 presses from t=0")
+    c.inputs, c.input_form = (-10.0,) * 10, "-10.0 for 10 steps"
+    cases.append(c)
+    for i in range(40 if quick else 200):
+        cases.append(_random_backlash(name, rng, i))
+    return cases
+
+
+def _random_backlash(name, rng, i):
+    eps = rng.choice(EPS_VALUES)
+    max_ratio = 20.0 if eps > 0.9 else 100.0
+    while True:
+        M1, M2 = loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-6, 1e6)
+        F, w = loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-4, 1e4)
+        ratio = loguniform(rng, 0.05, max_ratio)
+        params = _backlash_params(M1, M2, F, w, ratio)
+        if 1e-9 <= params["h"] <= 10.0:
+            break
+    params.update(eps=eps, phi=rng.uniform(-math.pi, math.pi), gap0=params["h"] * rng.random())
+    if rng.random() < 0.3:
+        params["f"] = F * rng.uniform(-0.3, 0.3)
+    if rng.random() < 0.3:
+        vs = F / (M2 * w)
+        params["v1_0"], params["v2_0"] = vs * rng.uniform(-1, 1), vs * rng.uniform(-1, 1)
+    times, stepping = random_stepping(rng, TWO_PI / w, rng.randint(2, 10))
+    return Case(name, params, times, stepping, note=f"random #{i} X/h={ratio:.3g}")
+
+
+class BacklashObserver(StressObserver):
+    """The gap, contact, momentum and (free elastic flight) kinetic energy at every point."""
+
+    def setup(self):
+        p = self.case.params
+        self.M1, self.M2, self.h = p.get("M1", 1.0), p.get("M2", 1.0), p.get("h", 0.1)
+        self.eps = p.get("eps", 0.5)
+        self.p0 = self.M1 * p.get("v1_0", 0.0) + self.M2 * p.get("v2_0", 0.0)
+        self.ke0 = 0.5 * self.M1 * p.get("v1_0", 0.0) ** 2 + 0.5 * self.M2 * p.get("v2_0", 0.0) ** 2
+        self.free_elastic = (self.eps == 1.0 and self.F == 0.0 and self.f_max == 0.0)
+
+    def sample(self, plant, t, f, values):
+        x1, v1, x2, v2, g = values
+        fail = self.failures.add
+        tol_g = 1e-9 * self.h + 1e-12 * abs(x1)
+        if not -tol_g <= g <= self.h + tol_g:
+            fail("gap", t=t, gap=g, h=self.h, tol=tol_g, why="gap outside [0, h]")
+        contact = plant.contact
+        if contact not in (0, 1, 2):
+            fail("gap", t=t, contact=contact, why="unknown contact state")
+        elif contact:
+            u = self.u(t, f)
+            sigma = -1 if contact == 1 else 1
+            edge = 0.0 if contact == 1 else self.h
+            if g != edge or v1 != v2:
+                fail("gap", t=t, contact=contact, gap=g, v1=v1, v2=v2,
+                     why="contact with a gap off the edge or two velocities")
+            r = self.u_rounding(t, f, 0.0)
+            if not sigma * u >= -r:
+                fail("gap", t=t, contact=contact, u=u, tol=r, why="contact while u pulls the masses apart")
+        self.momentum(plant, t, self.M1 * v1 + self.M2 * v2, self.p0, self.M1 * abs(v1) + self.M2 * abs(v2))
+        if self.free_elastic:
+            ke = 0.5 * self.M1 * v1 * v1 + 0.5 * self.M2 * v2 * v2
+            tol = 8.0 * EPS * (plant.events + 1) * self.ke0 + 1e-300
+            err = abs(ke - self.ke0)
+            self.margins.see("energy", err, tol, self.case)
+            if not err <= tol:
+                fail("energy", t=t, kinetic=ke, initial=self.ke0, error=err, tol=tol, impacts=plant.impacts,
+                     why="eps = 1, f = F = 0: kinetic energy must stay constant")
+
+
+def _backlash_held(rng, scale, w, F):
+    M2 = loguniform(rng, 1e-3, 1e3)
+    params = dict(M1=loguniform(rng, 1e-3, 1e3), M2=M2,
+                  h=min(max(scale / (M2 * w * w) * rng.uniform(0.2, 5.0), 1e-9), 10.0),
+                  eps=rng.choice(EPS_VALUES), F=F, omega=w)
+    params["gap0"] = rng.choice((0.0, params["h"], 0.5 * params["h"]))
+    return params, ()
+
+
+def _backlash_bounds(p, F, f_max, dy_max):
+    return dy_max, (f_max + abs(F)) / (p.get("M1", 1.0) + p.get("M2", 1.0))
+
+
+def _backlash_balances(case, out, n, sums):
+    p = case.params
+    F = p.get("F", 0.0)
+    M1, M2 = p.get("M1", 1.0), p.get("M2", 1.0)
+    ke0 = 0.5 * M1 * p.get("v1_0", 0.0) ** 2 + 0.5 * M2 * p.get("v2_0", 0.0) ** 2
+    ke = 0.5 * M1 * out[1] ** 2 + 0.5 * M2 * out[3] ** 2
+    eps = p.get("eps", 0.5)
+    umax = abs(F) + sums["f_max"]
+    zeno_cut = n * 1e-12 * p.get("h", 0.1) * umax  # the contact rule drops < tol_h |u| per entry
+    scale = max(ke0, ke) + sums["abs_work"]
+    tol = 1e-10 * scale + 8.0 * EPS * n * scale + zeno_cut
+    return [energy_balance(ke - ke0, sums["work"], tol, equal=eps == 1.0)]
+
+
+_PAPER = dict(M1=1.0, M2=1.0, h=0.1, F=50.0, omega=20.0)
+BACKLASH = StressProfile(
+    cases=_backlash_cases, observer=BacklashObserver, output=0, velocity=3, rate=1,
+    bounds=_backlash_bounds, balances=_backlash_balances, random_held=_backlash_held,
+    long=(
+        (dict(_PAPER, eps=0.0), "1e5 periods eps=0"),
+        (dict(_PAPER, eps=1e-9), "1e5 periods eps=1e-9"),
+        (dict(_PAPER, eps=0.5), "1e5 periods eps=0.5"),
+        (dict(_PAPER, eps=1.0), "1e5 periods eps=1"),
+        (dict(M1=2.0, M2=0.5, h=0.1, F=0.0, omega=20.0, eps=1.0, v1_0=0.3, v2_0=-1.1),
+         "1e5 periods free elastic flight"),
+    ),
+    invalid=(("M1", 0.0), ("M1", math.nan), ("M2", -1.0), ("M2", math.inf), ("h", 0.0), ("h", -0.1), ("h", math.nan),
+             ("h", 1e-300), ("h", math.inf), ("eps", -1e-12), ("eps", 1.0 + 1e-12), ("eps", math.nan),
+             ("gap0", -1e-12), ("gap0", 0.1 * (1 + 1e-12)), ("gap0", math.nan), ("x1_0", math.nan),
+             ("v1_0", math.inf), ("v2_0", -math.inf), ("h", None)),
+)
+
+
+# -- static backlash: a mass followed by a dead band h of slope k -----------------------
+def _static_cases(name, rng, quick):
+    cases = []
+
+    add = adder(name, cases)
+
+    def amp(M, F, w, ratio, k=1.0):  # h from X / h, X = F / (M w^2)
+        return dict(M=M, k=k, h=F / (M * w * w * ratio), F=F, omega=w)
+
+    base = dict(M=2.0, k=1.0, h=0.1, F=50.0, omega=20.0)
+    add(base, note="baseline")
+    add(amp(2.0, 2e-6 * 2, 20.0, 4.0), note="h=1e-9")
+    add(amp(2.0, 2e4 * 2, 20.0, 2.0), note="h=10")
+    add(dict(base, F=1e-6, omega=math.sqrt(1e-6 / (2 * 0.1 * 1.5))), note="F=1e-6")
+    add(dict(base, F=1e6, omega=math.sqrt(1e6 / (2 * 0.1 * 1.5))), note="F=1e6")
+    add(dict(base, h=10.0, F=2e-7, omega=1e-4), note="w=1e-4")
+    add(dict(base, h=1e-3, F=3e5, omega=1e4), note="w=1e4")
+    add(amp(1e-6, 1e-3, 20.0, 2.0), note="M=1e-6")
+    add(amp(1e6, 1e6, 10.0, 2.0), note="M=1e6")
+    add(dict(base, k=1e-6), note="k=1e-6")
+    add(dict(base, k=1e6), note="k=1e6")
+    add(dict(base, F=1.0), note="X < h/2: never engages")
+    add(dict(base, x0=1e6, v0=0.5), note="x0=1e6, drifting")
+    add(dict(base, x0=1e6, h=1e-9, F=50.0 * 1e-8), note="x0=1e6 with h=1e-9 (ulp(x0) ~ h/8)")
+    add(dict(base, f=10.0), note="constant offset f=10: drifts")
+    add(base, times=uniform(1e-6, 1000), note="dt=1e-9 from t=0")
+    add(dict(base, h=10.0, F=2e-7, omega=1e-4), times=uniform(6.3e5, 630), note="dt=1e3 s, w=1e-4")
+    c = add(dict(base, F=0.0), note="held sine input 50 sin, 32/period")
+    held_sine(c, 50.0, 32)
+    cases.append(pattern(name, dict(M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0), [(10.0, 1), (-10.0, 1), (10.0, 1)], 1.0,
+                         "held +10, -10, +10 (1 s each): v = 0 exactly at the reversal"))
+    for i in range(25 if quick else 150):
+        cases.append(_random_static(name, rng, i))
+    return cases
+
+
+def _random_static(name, rng, i):
+    while True:
+        M, k = loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-6, 1e6)
+        F, w = loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-4, 1e4)
+        ratio = loguniform(rng, 0.1, 50)
+        h = F / (M * w * w * ratio)
+        if 1e-9 <= h <= 10.0:
+            break
+    params = dict(M=M, k=k, h=h, F=F, omega=w, phi=rng.uniform(-math.pi, math.pi))
+    if rng.random() < 0.3:
+        params["v0"] = F / (M * w) * rng.uniform(-0.3, 0.3)
+    times, stepping = random_stepping(rng, TWO_PI / w, rng.randint(2, 10))
+    return Case(name, params, times, stepping, note=f"random #{i} X/h={ratio:.3g}")
+
+
+class StaticBacklashObserver(StressObserver):
+    """The play operator, the engaged direction and momentum at every point."""
+
+    def setup(self):
+        p = self.case.params
+        self.M, self.k, self.h = p.get("M", 2.0), p.get("k", 1.0), p.get("h", 0.1)
+        self.v0 = p.get("v0", 0.0)
+
+    def sample(self, plant, t, f, values):
+        x, v, y = values
+        fail = self.failures.add
+        tol = 1e-9 * self.h + 1e-12 * abs(x)
+        offset = x - y / self.k
+        if not abs(offset) <= 0.5 * self.h + tol:
+            fail("play", t=t, x=x, y=y, offset=offset, half_h=0.5 * self.h, tol=tol, why="|x - y/k| > h/2")
+        s = plant.engaged
+        if s:
+            if not abs(offset - s * 0.5 * self.h) <= tol:
+                fail("play", t=t, engaged=s, offset=offset, tol=tol, why="engaged but y != k (x - s h/2)")
+            vscale = abs(self.v0) + (2.0 * abs(self.F) / self.w + self.f_max * t) / self.M
+            if not s * v >= -64.0 * EPS * (plant.events + 1) * vscale:
+                fail("play", t=t, engaged=s, v=v, why="engaged while moving away from the edge")
+        self.momentum(plant, t, self.M * v, self.M * self.v0, self.M * abs(v))
+
+
+def _static_held(rng, scale, w, F):
+    M = loguniform(rng, 1e-3, 1e3)
+    return dict(M=M, k=1.0, h=min(max(scale / (M * w * w) * rng.uniform(0.2, 5.0), 1e-9), 10.0), F=F, omega=w), ()
+
+
+def _static_bounds(p, F, f_max, dy_max):
+    return dy_max * p.get("k", 1.0), p.get("k", 1.0) * (f_max + abs(F)) / p.get("M", 2.0)
+
+
+def _static_balances(case, out, n, sums):
+    p = case.params
+    M = p.get("M", 2.0)
+    ke0, ke = 0.5 * M * p.get("v0", 0.0) ** 2, 0.5 * M * out[1] ** 2
+    scale = max(ke0, ke) + sums["abs_work"]
+    return [energy_balance(ke - ke0, sums["work"], 1e-10 * scale + 8.0 * EPS * n * scale, equal=True)]
+
+
+STATIC_BACKLASH = StressProfile(
+    cases=_static_cases, observer=StaticBacklashObserver, output=2, velocity=1, rate=1,
+    bounds=_static_bounds, balances=_static_balances, random_held=_static_held,
+    long=((dict(M=2.0, k=1.0, h=0.1, F=50.0, omega=20.0), "1e5 periods"),),
+    invalid=(("M", 0.0), ("M", math.nan), ("k", 0.0), ("k", -1.0), ("k", math.inf), ("h", 0.0), ("h", math.nan),
+             ("x0", math.inf), ("v0", math.nan), ("k", None)),
+)

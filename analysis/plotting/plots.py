@@ -1,0 +1,237 @@
+"""Plot helpers for describing functions: Nyquist loci, Bode-like magnitudes, harmonic maps.
+
+The helpers draw into the axes they are given (or a new figure's when ``ax``
+is None) and return what they drew; only :func:`save` writes files. Importing
+this module leaves matplotlib's backend alone: a program that writes figures
+in batch (the ``dfwb`` command line) calls :func:`use_batch_backend` first,
+a notebook keeps its own. The rows are DF records
+(:meth:`dfwb.engine.describing.DFResult.as_dict`); the axes carry units
+(N in m/N, so -1/N and G(jw) in N/m).
+"""
+
+import io
+import json
+from pathlib import Path
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from dfwb.base.files import write_atomic
+
+RE_INVERSE = "Re{-1/N} [N/m]"
+IM_INVERSE = "Im{-1/N} [N/m]"
+OMEGA = "omega [rad/s]"
+
+
+def use_batch_backend():
+    """Select matplotlib's Agg backend: figures are written to files, never shown (no display needed)."""
+    matplotlib.use("Agg")
+
+
+def get_axes(ax=None, **subplots):
+    """``ax``, or the axes of a new figure (``plt.subplots(**subplots)``) when it is None."""
+    if ax is None:
+        _, ax = plt.subplots(**subplots)
+    return ax
+
+
+def minus_inverse(rows):
+    """(omega, -1/N) arrays of DF records with N != 0, sorted by omega."""
+    data = sorted((r["omega"], complex(r["minus_inv_N_re"], r["minus_inv_N_im"]))
+                  for r in rows if r["minus_inv_N_re"] is not None)
+    omega = np.array([w for w, _ in data], dtype=float)
+    values = np.array([v for _, v in data], dtype=complex)
+    return omega, values
+
+
+def nyquist(ax, curves, marks=(), label_marks=True):
+    """-1/N loci: ``curves`` is [(label, rows, style)], marks are omegas shown as dots; returns the lines.
+
+    ``ax`` None draws into a new figure."""
+    ax = get_axes(ax)
+    lines = []
+    for label, rows, style in curves:
+        omega, values = minus_inverse(rows)
+        if len(values) == 0:
+            continue
+        line, = ax.plot(values.real, values.imag, label=label, **style)
+        lines.append(line)
+        for mark in marks:
+            hits = np.flatnonzero(np.isclose(omega, mark, rtol=1e-9))
+            if len(hits):
+                point = values[hits[0]]
+                ax.plot(point.real, point.imag, "o", ms=3, color=line.get_color())
+                if label_marks:
+                    ax.annotate(f"{mark:g}", (point.real, point.imag), fontsize=6, xytext=(2, 2),
+                                textcoords="offset points", color=line.get_color())
+    ax.set_xlabel(RE_INVERSE)
+    ax.set_ylabel(IM_INVERSE)
+    ax.grid(alpha=0.3)
+    return lines
+
+
+def re_im_loglog(axes, curves):
+    """|Re{-1/N}| and |Im{-1/N}| against omega on two log-log axes; returns the lines."""
+    lines = []
+    for label, rows, style in curves:
+        omega, values = minus_inverse(rows)
+        lines += axes[0].loglog(omega, np.abs(values.real), label=label, **style)
+        lines += axes[1].loglog(omega, np.abs(values.imag), label=label, **style)
+    axes[0].set_ylabel("|Re{-1/N}| [N/m]")
+    axes[1].set_ylabel("|Im{-1/N}| [N/m]")
+    for ax in axes:
+        ax.set_xlabel(OMEGA)
+        ax.grid(alpha=0.3, which="both")
+    return lines
+
+
+def harmonic_map(ax, rows, title):
+    """log10 |X_k| over (omega, k), k = 0..10: where the harmonics live."""
+    rows = sorted(rows, key=lambda r: r["omega"])
+    omega = np.array([r["omega"] for r in rows])
+    amplitudes = np.array([r["harmonics"] for r in rows]).T
+    with np.errstate(divide="ignore"):
+        levels = np.log10(np.maximum(amplitudes, 1e-300))
+    top = np.max(levels)
+    mesh = ax.pcolormesh(omega, np.arange(amplitudes.shape[0]), levels, shading="nearest",
+                         vmin=top - 8, vmax=top, cmap="viridis")
+    ax.set_xscale("log")
+    ax.set_xlabel(OMEGA)
+    ax.set_ylabel("harmonic k")
+    ax.set_title(title, fontsize=9)
+    return mesh
+
+
+def vertical_marks(ax, frequencies):
+    """Dashed verticals at named frequencies (e.g. w_C, w_J, w_L)."""
+    for name, value in frequencies.items():
+        ax.axvline(value, ls=":", lw=0.8, color="gray")
+        ax.annotate(name, (value, 1.0), xycoords=("data", "axes fraction"), fontsize=7, color="gray",
+                    xytext=(2, -10), textcoords="offset points")
+
+
+def save(figure, out_dir, name):
+    """PNG and SVG of a figure; returns the PNG path."""
+    if figure.get_layout_engine() is None:
+        figure.tight_layout()
+    for kind in ("png", "svg"):  # atomically: an interrupted run never leaves half a figure
+        buffer = io.BytesIO()
+        figure.savefig(buffer, dpi=120, format=kind)
+        write_atomic(out_dir / f"{name}.{kind}", buffer.getvalue())
+    plt.close(figure)
+    return out_dir / f"{name}.png"
+
+
+def curves_of(data, names):
+    """[(label, rows, style)]: one curve per series, force and parameter set (the frequency varies)."""
+    curves = []
+    for name in names:
+        groups = {}
+        for r in data[name]:
+            groups.setdefault((r["F"], json.dumps(r["params"], sort_keys=True)), []).append(r)
+        for (F, params), rows in groups.items():
+            extra = ", ".join(f"{k} = {v:g}" for k, v in json.loads(params).items())
+            label = f"{name}: F = {F:g} N" + (f", {extra}" if extra else "")
+            curves.append((label, rows, {}))
+    return curves
+
+
+def scene_figure(out_dir, figure, data, traces, scene):
+    """A scene's figure of kind nyquist, re_im, harmonics or trace; returns the PNG path."""
+    title = figure.title or f"{scene.title}: {figure.name}"
+    if figure.kind == "trace":
+        outputs = sorted({o for name in figure.series for o in traces[name] if o != "time"})
+        fig, axes = plt.subplots(len(outputs), 1, figsize=(7, 2.6 * len(outputs)), sharex=True, squeeze=False)
+        for ax, output in zip(axes[:, 0], outputs):
+            for name in figure.series:
+                if output in traces[name]:
+                    ax.plot(traces[name]["time"], traces[name][output], lw=1, label=name)
+            ax.set_ylabel(output)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[0, 0].set_title(title, fontsize=9)
+        ax = axes[0, 0]
+    elif figure.kind == "harmonics":
+        curves = curves_of(data, figure.series)
+        fig, axes = plt.subplots(1, len(curves), figsize=(5 * len(curves), 4), squeeze=False, layout="constrained")
+        for ax, (label, rows, _) in zip(axes[0], curves):
+            mesh = harmonic_map(ax, rows, label)
+        fig.colorbar(mesh, ax=axes[0].tolist(), label="log10 (|X_k| / 1 m)")
+        fig.suptitle(title, fontsize=9)
+        ax = axes[0, 0]
+    elif figure.kind == "re_im":
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+        re_im_loglog(axes, curves_of(data, figure.series))
+        axes[0].legend(fontsize=7)
+        axes[0].set_title(title, fontsize=9)
+        ax = axes[0]
+    else:
+        fig, ax = plt.subplots(figsize=(6.5, 5))
+        nyquist(ax, curves_of(data, figure.series), figure.marks)
+        ax.legend(fontsize=7)
+        ax.set_title(title, fontsize=9)
+    if figure.xlim:
+        ax.set_xlim(*figure.xlim)
+    if figure.ylim:
+        ax.set_ylim(*figure.ylim)
+    return save(fig, Path(out_dir), figure.name)
+
+
+def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6):
+    """The Nyquist plane of a limit-cycle search: G(jw), -1/N(F, w) for ``curves`` forces of the map, the
+    predicted cycles marked (filled: stable); returns the lines. ``ax`` None draws into a new figure."""
+    ax = get_axes(ax, figsize=(6.5, 5))
+    fine = np.geomspace(omega_grid[0], omega_grid[-1], 600)
+    Gjw = np.array([complex(G(1j * w)) for w in fine])
+    lines = ax.plot(Gjw.real, Gjw.imag, "k", lw=2, label="G(jw)")
+    rows = np.unique(np.linspace(0, len(F_grid) - 1, curves).astype(int))
+    for i in rows:
+        N = np.asarray(N_grid[i])
+        keep = N != 0
+        inverse = -1.0 / N[keep]
+        lines += ax.plot(inverse.real, inverse.imag, lw=1, label=f"-1/N, F = {F_grid[i]:.3g} N")
+    for c in cycles:
+        point = -1.0 / c.N
+        lines += ax.plot(point.real, point.imag, "o", ms=8, mfc="r" if c.stable else "w", mec="r",
+                         label=f"{'stable' if c.stable else 'unstable'}: F = {c.F:.4g} N, w = {c.omega:.4g} rad/s")
+    span = max([abs(-1.0 / c.N) for c in cycles] + [1.0])
+    ax.set_xlim(-3 * span, 3 * span)
+    ax.set_ylim(-3 * span, 3 * span)
+    ax.set_xlabel("Re [N/m]")
+    ax.set_ylabel("Im [N/m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title("G(jw) and -1/N(F, w): limit cycles where they meet at the same w", fontsize=9)
+    return lines
+
+
+def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=()):
+    """Nyquist plane (:func:`limit_cycle_plane`) and the judge's runs, written to ``path`` (PNG and SVG)."""
+    panels = 2 if runs else 1
+    figure, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 5), squeeze=False)
+    limit_cycle_plane(axes[0][0], G, F_grid, omega_grid, N_grid, cycles)
+    if runs:
+        ax = axes[0][1]
+        for (cycle, run) in runs:
+            tail = run.position[len(run.position) // 2:]
+            centre = 0.5 * (tail.max() + tail.min()) if np.all(np.isfinite(tail)) else 0.0
+            relative = (run.position - centre) / cycle.amplitude_x
+            kind = "stable" if cycle.stable else "unstable"
+            line, = ax.plot(run.time, relative, lw=0.8, label=f"from the {kind} cycle (w = {cycle.omega:.4g})")
+            end = run.time[-1]
+            for k in range(1, 4):
+                ax.axvline(end - k * cycle.period, ls=":", lw=0.6, color=line.get_color())
+        for sign in (1, -1):
+            ax.axhline(sign, ls="--", lw=0.8, color="k")
+        longest = max(cycle.period for cycle, _ in runs)
+        ax.set_xlim(max(run.time[-1] for _, run in runs) - 6 * longest, max(run.time[-1] for _, run in runs))
+        ax.set_ylim(-3, 3)
+        ax.set_xlabel("t [s] (the last 6 periods)")
+        ax.set_ylabel("plant output / predicted amplitude")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        ax.set_title("the judge: co-simulation; dashed: predicted amplitude, dotted: predicted period\n"
+                     "(a run that leaves its cycle, as from an unstable one, runs off the plot)", fontsize=9)
+    return save(figure, path.parent, path.stem)

@@ -1,0 +1,152 @@
+"""A content-addressed cache of computed results (DF points, traces, limit cycles).
+
+An entry's key is the SHA-256 of everything that determines its value: the
+kind of result, the FMU's content hash, the engine's source revision, the
+complete parameter set (defaults filled in, so ``eps = 0.5`` given or
+defaulted is the same point), the point and the engine settings. A second
+run of a scene, or another scene sharing points, finds them here; a changed
+parameter gives new keys for exactly the affected points.
+
+Each entry is one file, written atomically: a header line that repeats its
+key document and carries a checksum of the value, then the value (JSON). An entry that does not parse,
+whose format, key or checksum does not match, is counted as rejected and
+recomputed: a corrupt cache, or one from another version, is never trusted.
+
+The cache lives in ``$XDG_CACHE_HOME/dfwb``, else ``~/.cache/dfwb``.
+
+Examples
+--------
+>>> import tempfile
+>>> cache = Cache(tempfile.mkdtemp())
+>>> cache.get({"kind": "demo", "x": 1.0}) is None
+True
+>>> cache.put({"kind": "demo", "x": 1.0}, {"y": 2.0})
+>>> cache.get({"kind": "demo", "x": 1.0}), cache.hits, cache.rejected
+({'y': 2.0}, 1, 0)
+"""
+
+import functools
+import hashlib
+import json
+import warnings
+from pathlib import Path
+
+from dfwb.base.files import ensure_folder, read_bytes, user_cache_dir, write_atomic
+
+FORMAT = 2
+MAX_ENTRY = 64 << 20  # bytes: the largest entries (a figure's PNG and SVG) are a few hundred kB
+
+
+def default_dir():
+    """``$XDG_CACHE_HOME/dfwb``, else ``~/.cache/dfwb``."""
+    return user_cache_dir()
+
+
+# The layers whose code computes or shapes a cached value (the FMUs' own sources are covered
+# by their build hash). The command line and the plots are not among them: editing a plot
+# redraws figures (their keys add :func:`drawing_revision`) but keeps every computed point.
+COMPUTING = ("base", "plants", "fmi", "engine", "studies")
+DRAWING = ("plotting",)
+
+
+PACKAGE = Path(__file__).resolve().parent.parent
+
+
+@functools.lru_cache(maxsize=None)
+def revision(layers, root=PACKAGE):
+    """Hash of the modules of the given dfwb layers (subpackages of ``root``)."""
+    digest_ = hashlib.sha256()
+    for layer in layers:
+        for path in sorted((root / layer).glob("*.py")):
+            digest_.update(f"{layer}/{path.name}".encode() + b"\0" + path.read_bytes())
+    return digest_.hexdigest()[:16]
+
+
+def code_revision():
+    """Revision of the code that computes results: any change to it gives new keys."""
+    return revision(COMPUTING)
+
+
+def drawing_revision():
+    """Revision of the code that draws figures (part of a cached figure's key)."""
+    return revision(DRAWING)
+
+
+def canonical(document):
+    """The one JSON text of a document (sorted keys, floats as repr: they round-trip)."""
+    return json.dumps(document, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def digest(document):
+    return hashlib.sha256(canonical(document).encode()).hexdigest()
+
+
+class Cache:
+    """Entries under ``directory/v<FORMAT>/<2 hex>/<sha256>.json``; counts hits, misses and rejects."""
+
+    def __init__(self, directory=None):
+        self.root = Path(directory) if directory is not None else default_dir()
+        self.dir = self.root / f"v{FORMAT}"
+        self.hits = self.misses = self.rejected = self.failed = 0
+
+    def _path(self, text):
+        name = hashlib.sha256(text.encode()).hexdigest()
+        return self.dir / name[:2] / f"{name}.json"
+
+    def get(self, key):
+        """The value stored under ``key``, or None (missing, corrupt or not this version's)."""
+        text = canonical(key)
+        path = self._path(text)
+        try:
+            head, _, body = read_bytes(path, MAX_ENTRY, "cache entry").partition(b"\n")
+            entry = json.loads(head)
+            valid = (isinstance(entry, dict) and entry.get("format") == FORMAT
+                     and entry.get("key") == text and entry.get("sha256") == hashlib.sha256(body).hexdigest())
+            value = json.loads(body) if valid else None
+        except FileNotFoundError:
+            self.misses += 1
+            return None
+        except (OSError, ValueError, TypeError):
+            valid = False
+        if not valid:
+            self.rejected += 1
+            return None
+        self.hits += 1
+        return value
+
+    def put(self, key, value):
+        """Store ``value`` (JSON-able, finite floats) under ``key``, atomically; never raises.
+
+        The file is one header line (format, the key's canonical text, the SHA-256 of the value's text)
+        and the value's text: a reader checks all three without serialising anything again. A cache that
+        cannot be written (read-only, full, a folder where an entry belongs) costs a warning, not a result."""
+        body = canonical(value).encode()
+        head = json.dumps({"format": FORMAT, "key": canonical(key), "sha256": hashlib.sha256(body).hexdigest()})
+        path = self._path(canonical(key))
+        try:
+            ensure_folder(path.parent)
+            write_atomic(path, head.encode() + b"\n" + body)
+        except OSError as error:
+            self.failed += 1
+            if self.failed == 1:
+                warnings.warn(f"the cache {self.root} cannot be written ({error.filename}: "
+                              f"{error.strerror or error}); results are kept, not cached", CacheWarning,
+                              stacklevel=2)
+
+
+class CacheWarning(UserWarning):
+    """The cache could not store an entry: the run goes on without it."""
+
+
+class NoCache:
+    """``--no-cache``: remembers nothing, finds nothing."""
+
+    root = None
+    hits = misses = rejected = failed = 0
+
+    def get(self, key):
+        self.misses += 1
+        return None
+
+    def put(self, key, value):
+        pass

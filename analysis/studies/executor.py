@@ -1,0 +1,197 @@
+"""Where DF points are computed: in this process, in local processes, or on a Dask cluster.
+
+Work goes out in chunks of points of one plant with one engine setting;
+results come back as each chunk finishes, in any order, so the caller can
+record them at once. The three backends give identical results (the
+computation is deterministic; only the ``seconds`` field differs):
+
+- ``jobs=1``: this process (no start-up cost, easiest to debug);
+- default: a pool of spawned local processes, one engine per plant each;
+- ``dask="local"`` starts a ``distributed.LocalCluster``; ``dask="tcp://host:8786"``
+  uses a running scheduler. The FMU files are shipped to the workers (scattered
+  once, written to each worker's temporary directory under their SHA-256), so
+  a worker needs dfwb installed but neither the FMUs nor a build.
+"""
+
+import atexit
+import concurrent.futures as futures
+import hashlib
+import multiprocessing
+import os
+import shutil
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from dfwb.base.errors import InputError, RunError
+from dfwb.base.files import file_digest, write_atomic
+from dfwb.engine.describing import DFEngine
+from dfwb.studies.cache import code_revision
+
+MAX_JOBS = 256  # worker processes: far beyond any useful count, short of exhausting the machine
+_ENGINES = {}  # per worker thread: (thread, plant, settings, FMU file) -> DFEngine (FMU instances are not shared)
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Points [(F, omega, params)] of one plant, one FMU and one engine setting."""
+
+    plant: str
+    fmu: str  # path of the FMU file where it was built
+    settings: tuple  # sorted (name, value) pairs for DFEngine: drive, samples_per_period, max_periods, harmonics
+    points: tuple
+
+
+def compute(chunk, fmu_data=None):
+    """(code revision, the as_dict() of every point of a chunk); ``fmu_data``: the FMU's bytes, shipped to a
+    remote worker. The revision lets the client refuse results of a worker that runs other code."""
+    path = _materialize(chunk.fmu, fmu_data) if fmu_data is not None else chunk.fmu
+    key = (threading.get_ident(), chunk.plant, chunk.settings, str(path))
+    if key not in _ENGINES:
+        _ENGINES[key] = DFEngine(chunk.plant, fmu=path, **dict(chunk.settings))
+    engine = _ENGINES[key]
+    return code_revision(), [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
+
+
+_SHIPPED_DIR = []  # this process's private folder for shipped FMUs (created once, mode 0700)
+
+
+def _materialize(original, data):
+    """A local copy of shipped FMU bytes, in a folder private to this process, verified before every use.
+
+    The folder comes from ``tempfile.mkdtemp`` (created atomically, mode 0700, an unpredictable name), so
+    nothing planted at a known path is ever loaded; the file is named by its full SHA-256 and its content is
+    hashed again each time it is handed out."""
+    expected = hashlib.sha256(data).hexdigest()
+    if not _SHIPPED_DIR:
+        _SHIPPED_DIR.append(Path(tempfile.mkdtemp(prefix="dfwb-fmus-")))
+    path = _SHIPPED_DIR[0] / expected / Path(original).name
+    if not (path.is_file() and not path.is_symlink() and file_digest(path) == expected):
+        path.parent.mkdir(mode=0o700, exist_ok=True)
+        write_atomic(path, data)
+    return path
+
+
+@atexit.register
+def _remove_shipped():
+    for folder in _SHIPPED_DIR:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _orphan_watch(parent):
+    """In a worker process: exit as soon as the parent (the dfwb run) is gone, even after a ``kill -9``."""
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="dfwb-orphan-watch", daemon=True).start()
+
+
+def chunked(points, jobs, largest=16):
+    """Chunks small enough to balance ``jobs`` workers, large enough to amortise a round trip
+    (one point each in this process: nothing finished waits to be recorded)."""
+    size = 1 if jobs <= 1 else max(1, min(largest, len(points) // (jobs * 4)))
+    return [tuple(points[i:i + size]) for i in range(0, len(points), size)]
+
+
+class Executor:
+    """Runs chunks; use as a context manager. ``jobs``: workers (default: all cores)."""
+
+    def __init__(self, jobs=None, dask=None):
+        if jobs is not None and not (isinstance(jobs, int) and 1 <= jobs <= MAX_JOBS):
+            raise InputError(f"jobs = {jobs!r} is out of range: an integer from 1 to {MAX_JOBS}")
+        self.jobs = jobs or os.cpu_count() or 1
+        if dask:
+            try:
+                import distributed  # noqa: F401  (checked before anything runs)
+            except ImportError:
+                raise RunError("--dask needs dask.distributed: pip install -e '.[dask]'") from None
+        self.dask = dask
+        self._pool = self._client = self._cluster = None
+        self._shipped = {}
+
+    @property
+    def name(self):
+        if self.dask:
+            return f"dask ({self.dask})"
+        return "this process" if self.jobs == 1 else f"{self.jobs} local processes"
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._pool = self._client = self._cluster = None
+
+    def run(self, chunks):
+        """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest."""
+        for chunk, (revision, results) in self._run(list(chunks)):
+            if revision != code_revision():
+                raise RunError(f"a worker ran dfwb code revision {revision}, this process has {code_revision()}: "
+                                   "install the same dfwb on every worker")
+            yield chunk, results
+
+    def _run(self, chunks):
+        if not chunks:
+            return
+        if self.dask:
+            yield from self._run_dask(chunks)
+        elif self.jobs == 1 or len(chunks) == 1:
+            for chunk in chunks:
+                yield chunk, compute(chunk)
+        else:
+            if self._pool is None:
+                self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
+                                                         multiprocessing.get_context("spawn"),
+                                                         initializer=_orphan_watch, initargs=(os.getpid(),))
+            waiting = {self._pool.submit(compute, chunk): chunk for chunk in chunks}
+            try:
+                for future in futures.as_completed(waiting):
+                    yield waiting[future], future.result()
+            finally:
+                for future in waiting:
+                    future.cancel()
+
+    # -- Dask ------------------------------------------------------------------------
+    def client(self):
+        """The dask.distributed client (a LocalCluster of ``jobs`` single-threaded workers for "local")."""
+        if self._client is None:
+            from distributed import Client, LocalCluster
+
+            if self.dask == "local":
+                self._cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                             dashboard_address=None)
+                self._client = Client(self._cluster)
+            else:
+                try:
+                    self._client = Client(self.dask, timeout="20s")
+                except (OSError, TimeoutError, ValueError) as error:
+                    raise RunError(f"cannot reach the Dask scheduler {self.dask!r}: {error}") from None
+        return self._client
+
+    def _run_dask(self, chunks):
+        from distributed import as_completed
+
+        client = self.client()
+        for path in {chunk.fmu for chunk in chunks}:
+            if path not in self._shipped:
+                self._shipped[path] = client.scatter(Path(path).read_bytes(), broadcast=True)
+        waiting = {client.submit(compute, chunk, self._shipped[chunk.fmu], pure=False): chunk for chunk in chunks}
+        try:
+            for future in as_completed(waiting):
+                yield waiting[future], future.result()
+        finally:
+            for future in waiting:
+                future.cancel()

@@ -1,0 +1,589 @@
+"""``dfwb run SCENE.toml``: compute what a scene needs, and nothing else, then write its results.
+
+Work is skipped at every level:
+
+- each DF point is looked up first in the output folder (an interrupted run
+  resumes), then in the content-addressed cache (:mod:`dfwb.studies.cache`); only the
+  rest is computed, on local processes or a Dask cluster (:mod:`dfwb.studies.executor`);
+- the engine integrates only X_0 and X_1 unless harmonics are asked for, steps
+  one forcing period at a time (exact with the FMU's own excitation) and stops
+  at the periodic steady state;
+- time traces, limit cycles and figures exist only when the scene names them;
+  traces and the judge's co-simulations are cached as well.
+
+Every computed point is appended to ``results.csv`` at once (flushed and
+synced) and stored in the cache, so an interruption loses only the points in
+flight. The final ``results.csv``, ``results.json``, ``traces/*.csv``, the
+figures and ``summary.md`` are each written atomically.
+"""
+
+import base64
+import csv
+import functools
+import io
+import json
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dfwb.base.errors import InputError, RunError
+from dfwb.base.files import ensure_folder, file_digest, folder_lock, inside, read_bytes, write_atomic
+from dfwb.base.runlog import RunLog
+from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
+from dfwb.fmi.location import fmu_path
+from dfwb.plants import plant as find_plant
+from dfwb.studies.cache import Cache, CacheWarning, NoCache, code_revision, digest, drawing_revision
+from dfwb.studies.executor import Chunk, Executor, chunked
+from dfwb.studies.scene import PAPER_FIGURES, Point, Scene, load_scene
+from dfwb.studies.sweep import MAX_POINTS
+
+MANIFEST = "manifest.json"
+MAX_MANIFEST = 64 << 20  # bytes
+RUN_COLUMNS = ["series", "key"] + COLUMNS
+MAX_LOG_ROWS = 2 * MAX_POINTS  # the log of one scene: its points once, plus the rewrite's limit-cycle map rows
+SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results.csv)
+
+
+def fmu_revision(path):
+    """The source hash the FMU was built from (its content is a function of it)."""
+    from dfwb.build_fmus.builder import recorded_hash
+
+    return recorded_hash(path) or file_digest(path)
+
+
+@dataclass
+class Outcome:
+    """What a run did: counts, time, where the results are, and the paper's report sections."""
+
+    out_dir: Path
+    points: int = 0
+    computed: int = 0
+    cache_hits: int = 0
+    resumed: int = 0
+    rejected: int = 0
+    figures_cached: int = 0  # figures copied from the cache instead of drawn
+    up_to_date: bool = False  # the folder already held this scene's results: nothing was done
+    seconds: float = 0.0
+    figures: list = field(default_factory=list)
+    sections: list = field(default_factory=list)  # (title, png path, markdown) of paper figures
+
+
+class _Points:
+    """The scene's DF points by key: resumed from the folder, found in the cache, or computed."""
+
+    def __init__(self, run, settings):
+        self.run, self.settings = run, settings  # settings: sorted (name, value) for DFEngine
+        self.harmonics = dict(settings)["harmonics"]
+        self._named = {}
+
+    def named(self, plant, F, omega, params):
+        """(digest, key) of a point, computed once per run."""
+        point = (plant, F, omega, tuple(sorted(params.items())))
+        if point not in self._named:
+            key = self.key(plant, F, omega, params)
+            self._named[point] = (digest(key), key)
+        return self._named[point]
+
+    def key(self, plant, F, omega, params, harmonics=None):
+        spec = find_plant(plant)
+        engine = dict(self.settings, harmonics=harmonics or self.harmonics)
+        if engine["drive"] == "internal":
+            engine.pop("samples_per_period")
+        return {"kind": "df", "model": spec.fmu_name, "fmu": self.run.revisions[plant], "code": self.run.code,
+                "settings": engine, "params": spec.complete(params), "F": float(F), "omega": float(omega)}
+
+    def lookup(self, key):
+        """A cached value, also from an entry with more harmonics (N is the same to the last bit)."""
+        value = self.run.cache.get(key)
+        if value is None and key["settings"]["harmonics"] < HARMONICS:
+            value = self.run.cache.get(dict(key, settings=dict(key["settings"], harmonics=HARMONICS)))
+            if value is not None:
+                value = dict(value, harmonics=value["harmonics"][: key["settings"]["harmonics"] + 1])
+        return value
+
+
+class SceneRun:
+    """One run of one scene; see :func:`run_scene`."""
+
+    def __init__(self, scene, out_dir, executor, cache, fmu_dir, progress):
+        self.scene, self.out, self.executor, self.cache = scene, Path(out_dir), executor, cache
+        self.fmu_dir, self.progress = fmu_dir, progress
+        self.code = code_revision()
+        plants = {item.plant for group in (scene.series, scene.trace, scene.limit_cycle) for item in group}
+        self.fmus = {plant: fmu_path(find_plant(plant), fmu_dir) for plant in sorted(plants)}
+        self.revisions = {plant: fmu_revision(path) for plant, path in self.fmus.items()}
+        self.values = {}  # digest -> as_dict() of every DF point known in this run
+        self.outcome = Outcome(self.out)
+        self.map_rows = []  # CSV rows of the limit cycles' DF maps
+        self.log = RunLog(self.out / "results.csv", RUN_COLUMNS, max_rows=MAX_LOG_ROWS)
+        self.written = []  # output files of this run (the manifest lists them)
+
+    # -- DF points ----------------------------------------------------------------------
+    def settings(self, harmonics):
+        e = self.scene.engine
+        return (("drive", e.drive), ("harmonics", harmonics), ("max_periods", e.max_periods),
+                ("samples_per_period", e.samples_per_period))
+
+    def compute_points(self, points, table, display, label):
+        """Make ``self.values`` hold every (plant, F, omega, params) of ``points``; append new ones to the CSV."""
+        keys = {}
+        for plant, F, omega, params in points:
+            name, key = table.named(plant, F, omega, params)
+            keys.setdefault(name, (key, plant, F, omega, params))
+        resumed = self.resumable
+        pending, hits, old = [], 0, 0
+        for name, (key, plant, F, omega, params) in keys.items():
+            if name in self.values:
+                continue
+            if name in resumed:
+                self.values[name] = resumed[name]
+                old += 1
+                continue
+            value = table.lookup(key)
+            if value is not None:
+                self.values[name] = value
+                hits += 1
+            else:
+                pending.append((name, key, plant, F, omega, params))
+        self.outcome.cache_hits += hits
+        self.outcome.resumed += old
+        task = display.add(label, len(keys), len(keys) - len(pending), hits)
+        by_chunk = {}
+        chunks = []
+        for plant in sorted({p[2] for p in pending}):
+            mine = [p for p in pending if p[2] == plant]
+            for part in chunked(mine, self.executor.jobs):
+                chunk = Chunk(plant, str(self.fmus[plant]), table.settings, tuple((p[3], p[4], p[5]) for p in part))
+                by_chunk[id(chunk)] = part
+                chunks.append(chunk)
+        with self.log:
+            for chunk, results in self.executor.run(chunks):
+                part = by_chunk[id(chunk)]
+                for (name, key, plant, F, omega, params), value in zip(part, results):
+                    if not all(math.isfinite(value[component]) for component in ("N_re", "N_im")):
+                        raise RunError(f"{plant} at F = {F!r}, omega = {omega!r}, params = {params}: the engine "
+                                           f"gave N = {value['N_re']} + {value['N_im']}j, not a finite number")
+                self.log.append([dict(to_row(value), series="", key=p[0]) for p, value in zip(part, results)])
+                for p, value in zip(part, results):  # the log first: a cache that fails never costs a point
+                    self.cache.put(p[1], value)
+                    self.values[p[0]] = value
+                self.outcome.computed += len(results)
+                display.advance(task, len(results))
+        return {name: entry[0] for name, entry in keys.items()}
+
+    @functools.cached_property
+    def resumable(self):
+        """{key: value} of the points an interrupted run left in results.csv, each row verified by its
+        checksum (read once per run); a file that is not such a log is set aside (:mod:`dfwb.base.runlog`)."""
+        values = {}
+        for r in self.log.read():
+            try:
+                values[r["key"]] = from_row(r)
+            except (KeyError, TypeError, ValueError):
+                continue  # a row we wrote but cannot read back: computed again
+        return values
+
+    def series_rows(self, table):
+        """({series name: [record]} in the scene's order, params as the scene gives them; their CSV rows)."""
+        data = {s.name: [] for s in self.scene.series}
+        csv_rows = []
+        for p in self.scene.points():
+            params = find_plant(p.plant).checked(p.params)
+            name = table.named(p.plant, p.F, p.omega, params)[0]
+            value = dict(self.values[name], params=params)
+            csv_rows.append(dict(to_row(value), series=p.series, key=name))
+            data[p.series].append(value)
+        return data, csv_rows
+
+    # -- traces ---------------------------------------------------------------------------
+    def traces(self, display):
+        from dfwb.fmi.simulation import simulate
+
+        out = {}
+        task = display.add("traces", len(self.scene.trace), 0, 0) if self.scene.trace else None
+        for trace in self.scene.trace:
+            spec = find_plant(trace.plant)
+            params = spec.checked(trace.params)
+            key = {"kind": "trace", "model": spec.fmu_name, "fmu": self.revisions[trace.plant], "code": self.code,
+                   "params": spec.complete(params), "F": trace.F,
+                   "omega": trace.omega, "start": trace.start, "stop": trace.stop, "step": trace.step,
+                   "outputs": trace.outputs}
+            value = self.cache.get(key)
+            if value is None:
+                result = simulate(self.fmus[trace.plant], trace.stop, trace.step,
+                                  dict(params, F=trace.F, omega=trace.omega), trace.outputs)
+                keep = result["time"] >= trace.start - 1e-9 * trace.step
+                value = {name: result[name][keep].astype(float).tolist() for name in ["time"] + trace.outputs}
+                self.cache.put(key, value)
+            else:
+                self.outcome.cache_hits += 1
+            out[trace.name] = value
+            display.advance(task, 1)
+        return out
+
+    # -- limit cycles ---------------------------------------------------------------------
+    def limit_cycles(self, display):
+        if not self.scene.limit_cycle:
+            return {}
+        from dfwb.engine.limit_cycles import search
+
+        results = {}
+        table = _Points(self, self.settings(HARMONICS))
+        for lc in self.scene.limit_cycle:
+            G = lc.transfer_function()
+            params = find_plant(lc.plant).checked(lc.params)
+            F_grid = np.geomspace(*lc.F_range, lc.n_F)
+            omega_grid = np.geomspace(*lc.omega_range, lc.n_omega)
+            grid = [(lc.plant, F, w, params) for F in F_grid for w in omega_grid]
+            keys = self.compute_points(grid, table, display, f"{lc.name}: DF map")
+            self.map_rows += [dict(to_row(self.values[name]), series=lc.name, key=name) for name in keys]
+            engine = _CachedEngine(self, table, lc.plant)
+            found = search(lc.plant, G, params, lc.F_range, lc.omega_range, lc.n_F, lc.n_omega, engine=engine)
+            cycles = found.cycles
+            self.outcome.computed += engine.computed
+            self.outcome.cache_hits += engine.hits
+            checks, runs = [], []
+            if lc.verify:
+                task = display.add(f"{lc.name}: judge", len(cycles), 0, 0)
+                for cycle in cycles:
+                    outcome, run = self.judge(lc, G, params, cycle)
+                    checks.append(outcome)
+                    runs.append((cycle, run))
+                    display.advance(task, 1)
+            results[lc.name] = {"G": G, "cycles": cycles, "verification": checks, "runs": runs,
+                                "F_grid": found.F_grid, "omega_grid": found.omega_grid, "N_grid": found.N_grid}
+        return results
+
+    def judge(self, lc, G, params, cycle):
+        """(outcome, the run's last 10 periods) of the co-simulation judge of one cycle, cached."""
+        from dfwb.engine.closed_loop import LoopRun, verify
+
+        controller = fmu_path("LinearSystem", self.fmu_dir)
+        key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)], "code": self.code,
+               "plant": lc.plant, "params": params, "G": [G.num[0][0].tolist(), G.den[0][0].tolist()],
+               "cycle": [cycle.F, cycle.omega, cycle.amplitude_x], "samples_per_period": lc.samples_per_period}
+        value = self.cache.get(key)
+        if value is None:
+            outcome, run = verify(lc.plant, G, cycle, params, lc.samples_per_period, fmu_dir=self.fmu_dir)
+            tail = run.time >= run.time[-1] - 10 * cycle.period  # what the figure shows
+            value = {"outcome": outcome, "run": {"time": run.time[tail].tolist(), "step": run.step,
+                                                 "position": run.position[tail].tolist(),
+                                                 "force": run.force[tail].tolist()}}
+            self.cache.put(key, _finite(value))
+        else:
+            self.outcome.cache_hits += 1
+        run = value["run"]
+        return value["outcome"], LoopRun(np.array(run["time"]), np.array(run["position"]), np.array(run["force"]),
+                                         run["step"])
+
+    # -- everything -------------------------------------------------------------------------
+    def fingerprint(self, table, points):
+        """A digest of everything the outputs depend on: the scene, every point's key, the code."""
+        keys = [table.named(plant, F, omega, params)[0] for plant, F, omega, params in points]
+        return digest({"scene": self.scene.model_dump(mode="json"), "points": keys, "fmus": self.revisions,
+                       "code": self.code, "drawing": drawing_revision()})
+
+    def up_to_date(self, fingerprint):
+        """The stored outcome if the folder holds exactly this run's outputs (each file's SHA-256), else None.
+
+        Every name in the manifest must be a file inside the folder: one that is not marks it as damaged."""
+        try:
+            manifest = json.loads(read_bytes(self.out / MANIFEST, MAX_MANIFEST, "manifest"))
+            if manifest["fingerprint"] != fingerprint:
+                return None
+            stored = manifest["outcome"]
+            if any(file_digest(inside(self.out, name)) != sha for name, sha in manifest["files"].items()):
+                return None
+            return Outcome(self.out, points=stored["points"], up_to_date=True,
+                           figures=[inside(self.out, name) for name in stored["figures"]],
+                           sections=[(title, inside(self.out, png), text) for title, png, text in stored["sections"]])
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):  # UnsafePath is a ValueError
+            return None
+
+    def write(self, name, content):
+        """Write an output file atomically and remember it for the manifest."""
+        path = self.out / name
+        write_atomic(path, content)
+        self.written.append(path)
+        return path
+
+    def write_manifest(self, fingerprint):
+        o = self.outcome
+        files = {path.relative_to(self.out).as_posix(): file_digest(path) for path in sorted(set(self.written))}
+        document = {"fingerprint": fingerprint, "files": files,
+                    "outcome": {"points": o.points, "figures": [p.name for p in o.figures],
+                                "sections": [(title, png.name, text) for title, png, text in o.sections]}}
+        write_atomic(self.out / MANIFEST, json.dumps(document, indent=1))
+
+    def run(self):
+        started = time.perf_counter()
+        scene = self.scene
+        table = _Points(self, self.settings(HARMONICS if scene.needs_harmonics else 1))
+        points = [(p.plant, p.F, p.omega, find_plant(p.plant).checked(p.params)) for p in scene.points()]
+        fingerprint = self.fingerprint(table, points)
+        done = self.up_to_date(fingerprint)
+        if done is not None:
+            done.seconds = time.perf_counter() - started
+            return done
+        if self.out.exists() and not self.out.is_dir():
+            raise RunError(f"--out {self.out} is a file, not a folder")
+        with folder_lock(self.out):  # one run at a time writes here
+            (self.out / MANIFEST).unlink(missing_ok=True)  # from here on the folder is being changed
+            with _Display(self.progress, scene.title) as display:
+                self.compute_points(points, table, display, "DF points")
+                traces = self.traces(display)
+                cycles = self.limit_cycles(display)
+            data, csv_rows = self.series_rows(table)
+            self.outcome.points = len(self.values)
+            self.write_results(data, csv_rows, traces, cycles)
+            self.draw(data, traces, cycles, fingerprint)
+            self.outcome.rejected = self.cache.rejected + self.log.rejected
+            self.outcome.seconds = time.perf_counter() - started
+            self.write_summary(data, cycles)
+            self.write_manifest(fingerprint)
+        return self.outcome
+
+    def write_results(self, data, csv_rows, traces, cycles):
+        self.write("results.csv", self.log.text(csv_rows + self.map_rows))
+        if traces:
+            ensure_folder(self.out / "traces")
+        for name, columns in traces.items():
+            buffer = io.StringIO()
+            writer = csv.writer(buffer, lineterminator="\n")
+            writer.writerow(list(columns))
+            writer.writerows(zip(*(map(repr, values) for values in columns.values())))
+            self.write(f"traces/{name}.csv", buffer.getvalue())
+        document = {"title": self.scene.title, "series": data,
+                    "traces": {name: f"traces/{name}.csv" for name in traces},
+                    "limit_cycles": {name: _finite({"predictions": [c.as_dict() for c in r["cycles"]],
+                                                    "verification": r["verification"]})
+                                     for name, r in cycles.items()}}
+        self.write("results.json", json.dumps(document))
+
+    def draw(self, data, traces, cycles, fingerprint):
+        """Draw each figure, or copy it from the cache when this very run drew it before.
+
+        A cached figure is written only under the names this figure has (:meth:`figure_names`): an entry
+        naming other files (``../x``, another figure's) is damaged, counted as rejected and drawn again."""
+        for figure in self.scene.figure:
+            key = {"kind": "figure", "run": fingerprint, "name": figure.name}
+            pngs = self.figure_names(figure)
+            files = [f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
+            stored = self.cache.get(key)
+            if stored is not None and not _names_match(stored, pngs, files):
+                self.cache.rejected += 1
+                stored = None
+            if stored is None:
+                sections = self._draw(figure, pngs, data, traces, cycles)
+                stored = {"sections": [[title, png.name, text] for title, png, text in sections],
+                          "figures": pngs,
+                          "files": {name: base64.b64encode((self.out / name).read_bytes()).decode() for name in files}}
+                self.written += [self.out / name for name in files]
+                self.cache.put(key, stored)
+            else:
+                self.outcome.figures_cached += 1
+                for name in files:
+                    self.write(name, base64.b64decode(stored["files"][name]))
+            self.outcome.sections += [(title, self.out / png, text) for title, png, text in stored["sections"]]
+            self.outcome.figures += [self.out / name for name in stored["figures"]]
+
+    def figure_names(self, figure):
+        """The PNG file names a figure writes (each with an SVG twin), known before drawing."""
+        if figure.kind == "paper":
+            return [f"{PAPER_FIGURES[figure.paper].file}.png"]
+        if figure.kind == "limit_cycle":
+            return [f"{figure.name}_{name}.png" for name in figure.series]
+        return [f"{figure.name}.png"]
+
+    def _draw(self, figure, pngs, data, traces, cycles):
+        """Draw one figure into the files ``pngs`` (and SVGs); return its [(title, png, markdown)] sections."""
+        from dfwb.plotting import plots
+        from dfwb.studies.paper import Paper
+
+        if figure.kind == "paper":
+            paper = Paper(self.out, data, traces)
+            try:
+                getattr(paper, figure.paper)()
+            except (ArithmeticError, IndexError, KeyError, ValueError) as error:
+                raise RunError(f"figure {figure.name}: the paper's {figure.paper} cannot be drawn from this "
+                                   f"scene's points ({type(error).__name__}: {error}); it expects those of "
+                                   f"scenes/{PAPER_FIGURES[figure.paper].file}.toml") from None
+            return paper.sections
+        if figure.kind == "limit_cycle":
+            for name, png in zip(figure.series, pngs):
+                r = cycles[name]
+                plots.limit_cycle_figure(self.out / png, r["G"], r["F_grid"], r["omega_grid"], r["N_grid"],
+                                         r["cycles"], r["runs"])
+            return []
+        plots.scene_figure(self.out, figure, data, traces, self.scene)
+        return []
+
+    def write_summary(self, data, cycles):
+        o, scene = self.outcome, self.scene
+        lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
+        # every DF point is computed, resumed or a cache hit; cache_hits also counts traces and judge runs
+        df_hits = o.points - o.computed - o.resumed
+        others = o.cache_hits - df_hits
+        lines += [f"{o.points} DF points: {o.computed} computed on {self.executor.name}, {df_hits} from the "
+                  f"cache, {o.resumed} resumed from this folder"
+                  + (f"; {others} time trace(s) and closed-loop run(s) from the cache" if others else "")
+                  + (f", {o.rejected} cache entries rejected (corrupt or another version) and recomputed"
+                     if o.rejected else "")
+                  + (f"; {o.figures_cached} figure(s) copied from the cache" if o.figures_cached else "")
+                  + f"; {o.seconds:.2f} s. Cache: {self.cache.root or 'off'}.", "",
+                  "Results: `results.csv` (one row per point) and `results.json`"
+                  + (", time traces in `traces/`." if scene.trace else "."), ""]
+        for title, png, text in o.sections:
+            lines += [f"## {title}", "", f"![{title}]({png.name})", "", text, ""]
+        shown = {png.name for _, png, _ in o.sections}
+        lines += [f"![{path.stem}]({path.name})" for path in o.figures if path.name not in shown]
+        for name, rows in data.items():
+            lines += ["", f"## Series {name}", "", "| F [N] | params | w [rad/s] | N | -1/N | periodic | note |",
+                      "|---|---|---|---|---|---|---|"]
+            step = max(1, math.ceil(len(rows) / SUMMARY_ROWS))
+            for r in rows[::step]:
+                N = complex(r["N_re"], r["N_im"])
+                inverse = ("-" if r["minus_inv_N_re"] is None
+                           else f"{complex(r['minus_inv_N_re'], r['minus_inv_N_im']):.6g}")
+                lines.append(f"| {r['F']:g} | {json.dumps(r['params'], sort_keys=True)} | {r['omega']:.6g} | "
+                             f"{N:.6g} | {inverse} | {r['periodic']} | {r['note']} |")
+            if step > 1:
+                lines.append(f"\nEvery {step}th of {len(rows)} points; all are in `results.csv`.")
+        for name, r in cycles.items():
+            lines += ["", f"## Limit cycles: {name}", "", "| F [N] | w [rad/s] | amplitude | stable | distortion "
+                      "| judge F | judge w | settled |", "|---|---|---|---|---|---|---|---|"]
+            for i, c in enumerate(r["cycles"]):
+                v = r["verification"][i] if r["verification"] else None
+                judged = (f"{v['F']:.4g} | {v['omega']:.4g} | {v['settled']}" if v else "- | - | not asked")
+                lines.append(f"| {c.F:.6g} | {c.omega:.6g} | {c.amplitude_x:.4g} | {c.stable} | {c.distortion:.3g} "
+                             f"| {judged} |")
+            if not r["cycles"]:
+                lines.append("| no cycle in the ranges | | | | | | | |")
+        self.write("summary.md", "\n".join(lines) + "\n")
+
+
+class _CachedEngine:
+    """The DFEngine interface over the run's known points, the cache, then a local engine."""
+
+    def __init__(self, run, table, plant):
+        self.run, self.table, self.plant = run, table, find_plant(plant)
+        self._engine = None
+        self.computed = self.hits = 0
+
+    def point(self, F, omega, params=None):
+        params = self.plant.checked(params or {})
+        name, key = self.table.named(self.plant.name, F, omega, params)
+        value = self.run.values.get(name)
+        if value is None:
+            value = self.table.lookup(key)
+            self.hits += value is not None
+        if value is None:
+            if self._engine is None:
+                self._engine = DFEngine(self.plant.name, fmu=self.run.fmus[self.plant.name],
+                                        **dict(self.table.settings))
+            value = self._engine.point(F, omega, params).as_dict()
+            self.run.cache.put(key, value)
+            self.computed += 1
+        self.run.values[name] = value
+        return DFResult.from_dict(dict(value, params=params))
+
+
+class _Display:
+    """A rich progress display: points done, cache hits, time left (silent when off)."""
+
+    def __init__(self, enabled, title):
+        self.enabled, self.title = enabled, title
+        self.progress = None
+
+    def __enter__(self):
+        if self.enabled:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+            from rich.table import Column
+
+            label = Column(max_width=32, no_wrap=True, overflow="ellipsis")
+            self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20),
+                                     MofNCompleteColumn(), TextColumn("[cyan]{task.fields[hits]} cached"),
+                                     TextColumn("time left"),
+                                     TimeRemainingColumn(compact=True))
+            self.progress.console.print(f"[bold]{self.title}")
+            self.progress.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.progress is not None:
+            self.progress.stop()
+
+    def add(self, label, total, done, hits):
+        if self.progress is None or total == 0:
+            return None
+        return self.progress.add_task(label, total=total, completed=done, hits=hits)
+
+    def advance(self, task, n):
+        if task is not None:
+            self.progress.advance(task, n)
+
+
+def _names_match(stored, pngs, files):
+    """Whether a cached figure entry names exactly the files of its figure (and is shaped as written)."""
+    try:
+        return (stored["figures"] == pngs and sorted(stored["files"]) == sorted(files)
+                and all(isinstance(text, str) for text in stored["files"].values())
+                and all(png in pngs for _, png, _ in stored["sections"]))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return False
+
+
+def _finite(document):
+    """JSON-safe: infinities and NaN become None."""
+    if isinstance(document, float):
+        return document if math.isfinite(document) else None
+    if isinstance(document, dict):
+        return {k: _finite(v) for k, v in document.items()}
+    if isinstance(document, (list, tuple)):
+        return [_finite(v) for v in document]
+    return document
+
+
+def open_cache(cache):
+    """``cache``: True (the user's cache directory), a path, or False/None (off)."""
+    if not cache:
+        return NoCache()
+    store = Cache() if cache is True else Cache(cache)
+    if store.root.exists() and not store.root.is_dir():
+        if cache is not True:  # the user named it: a mistake to say at once
+            raise RunError(f"--cache {store.root} is a file, not a folder")
+        warnings.warn(f"the cache {store.root} is a file, not a folder: results are not cached", CacheWarning)
+        return NoCache()
+    return store
+
+
+def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=None, progress=True):
+    """Run a scene (a path or a :class:`~dfwb.studies.scene.Scene`); return an :class:`Outcome`.
+
+    Parameters
+    ----------
+    scene : path or Scene
+    out_dir : path, optional
+        Default ``out/scenes/<file stem>``.
+    jobs : int, optional
+        Local worker processes, or Dask workers with ``dask="local"`` (default: all cores).
+    dask : str, optional
+        ``"local"`` or the address of a dask.distributed scheduler.
+    cache : bool or path
+        True: ``$XDG_CACHE_HOME/dfwb`` (else ``~/.cache/dfwb``); a path; False: no cache.
+    """
+    if not isinstance(scene, Scene):
+        path = Path(scene)
+        scene = load_scene(path)
+        out_dir = out_dir or Path("out/scenes") / path.stem
+    if out_dir is None:
+        raise InputError("out_dir is required when the scene is not a file")
+    with Executor(jobs, dask) as executor:
+        return SceneRun(scene, out_dir, executor, open_cache(cache), fmu_dir, progress).run()
+
+
+__all__ = ["run_scene", "Outcome", "Point"]

@@ -1,0 +1,143 @@
+"""Sweeps of describing functions over F x omega x plant parameters, in parallel, resumable.
+
+Every finished point is appended to ``results.csv`` at once (flushed and
+synced, with a checksum: :mod:`dfwb.base.runlog`), so an interrupted sweep loses
+at most the points in flight; the next run with the same definition skips
+what the CSV verifiably holds. One sweep at a time writes into a folder (a
+second is refused), and a sweep has at most ``MAX_POINTS`` points, counted
+before any is built. ``results.json`` (the complete list of records) is
+rewritten atomically as the sweep goes and at its end. The definition
+is kept in ``sweep.json``: resuming a different sweep into the same folder is
+refused rather than mixed.
+
+A point has one shape everywhere, its record (:meth:`dfwb.engine.describing.DFResult.as_dict`):
+``results.json`` is the list of records, ``results.csv`` holds one flattened
+record per row (:func:`dfwb.engine.describing.to_row`, units in the column
+names) and :func:`run_sweep` returns the records.
+"""
+
+import itertools
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from dfwb.base.files import folder_lock, read_bytes, write_atomic
+from dfwb.base.runlog import RunLog
+from dfwb.engine.describing import COLUMNS, check_point, from_row, to_row
+from dfwb.fmi.location import fmu_path
+from dfwb.fmus.piecewise import PlantError
+from dfwb.plants import plant as find_plant
+from dfwb.studies.executor import Chunk, Executor, chunked
+
+MAX_POINTS = 200_000  # DF points of one sweep or scene: hours of computing, a few hundred MB of results
+
+
+def grid_size(*lengths):
+    """The number of points of a grid, counted exactly (Python integers never overflow)."""
+    return math.prod(int(n) for n in lengths)
+
+
+def check_size(size, what="the sweep"):
+    if size > MAX_POINTS:
+        raise PlantError(f"{what} has {size} points: at most {MAX_POINTS} (split it)")
+
+
+def grid(Fs, omegas, params=None, grid_params=None):
+    """The sweep's points, F the outer loop: [(F, omega, {name: value})]; refused beyond MAX_POINTS."""
+    grid_params = grid_params or {}
+    names = sorted(grid_params)
+    check_size(grid_size(len(Fs), len(omegas), *(len(grid_params[n]) for n in names)))
+    combos = [dict(zip(names, values)) for values in itertools.product(*(grid_params[n] for n in names))]
+    return [(F, omega, dict(params or {}, **combo)) for F in Fs for combo in combos for omega in omegas]
+
+
+def key(F, omega, params):
+    return (repr(float(F)), repr(float(omega)), json.dumps(params, sort_keys=True))
+
+
+def _key_of(record):
+    return key(record["F"], record["omega"], record["params"])
+
+
+def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=64,
+              fmu_dir=None, progress=True, resume=True):
+    """Compute every point not yet in ``out_dir``; return the records of all points in grid order.
+
+    Parameters
+    ----------
+    plant : str
+    points : list of (F, omega, params)
+        Usually from :func:`grid`.
+    out_dir : path
+        Gets ``results.csv``, ``results.json`` and ``sweep.json``.
+    jobs : int, optional
+        Worker processes (default: all cores); 1 computes in this process.
+
+    Returns
+    -------
+    list of dict
+        One record per point (:meth:`dfwb.engine.describing.DFResult.as_dict`).
+    """
+    spec = find_plant(plant)
+    check_size(len(points))
+    points = [(float(F), float(omega), spec.checked(params)) for F, omega, params in points]  # numbers, not text
+    for F, omega, _ in points:  # everything is checked before anything runs
+        check_point(F, omega)
+    out_dir = Path(out_dir)
+    definition = {"plant": plant, "drive": drive,
+                  "samples_per_period": samples_per_period if drive == "input" else None,
+                  "points": [[F, omega, params] for F, omega, params in points]}
+    with folder_lock(out_dir):
+        stored = out_dir / "sweep.json"
+        log = RunLog(out_dir / "results.csv", COLUMNS, max_rows=len(points))
+        if resume and stored.exists() and _definition(stored) != definition:
+            raise PlantError(f"{out_dir} holds a different sweep (see {stored}); use another folder or --no-resume")
+        if not resume:
+            log.path.unlink(missing_ok=True)
+        write_atomic(stored, json.dumps(definition, indent=1))
+
+        wanted = {key(*p) for p in points}
+        done = {}
+        for r in log.read():
+            try:
+                record = from_row(r)
+                k = _key_of(record)
+            except (KeyError, TypeError, ValueError):
+                continue
+            if k in wanted:
+                done[k] = record
+        pending = [p for p in points if key(*p) not in done]
+        jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+        with log, tqdm(total=len(points), initial=len(points) - len(pending), unit="pt", disable=not progress,
+                       desc=f"{plant} DF") as bar:
+            last_json = time.monotonic()
+            settings = (("drive", drive), ("samples_per_period", samples_per_period))
+            fmu = str(fmu_path(spec, fmu_dir))
+            with Executor(jobs) as executor:
+                for _chunk, results in executor.run(Chunk(plant, fmu, settings, c) for c in chunked(pending, jobs)):
+                    log.append([to_row(r) for r in results])
+                    for r in results:
+                        done[_key_of(r)] = r
+                    bar.update(len(results))
+                    if time.monotonic() - last_json > 5.0:
+                        _write_json(out_dir, points, done)
+                        last_json = time.monotonic()
+        return _write_json(out_dir, points, done)
+
+
+def _definition(path):
+    """The definition stored in sweep.json, or None when it is not one (damaged, or not JSON)."""
+    try:
+        return json.loads(read_bytes(path, 256 << 20, "sweep definition"))
+    except (OSError, ValueError):
+        return None
+
+
+def _write_json(out_dir, points, done):
+    records = [done[key(*p)] for p in points if key(*p) in done]
+    write_atomic(Path(out_dir) / "results.json", json.dumps(records, indent=1))
+    return records
