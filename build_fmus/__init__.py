@@ -1,5 +1,5 @@
 """Builds the plant FMUs of dfwb with pythonfmu and makes them FMI-compliant."""
 
-from .builder import build_all, source_hash
+from .builder import BuildError, build, build_all, source_hash, sources
 
-__all__ = ["build_all", "source_hash"]
+__all__ = ["build", "build_all", "source_hash", "sources", "BuildError"]

@@ -1,21 +1,52 @@
 """Build the plant FMUs: pythonfmu, then a pass that makes them FMI 2.0 clean.
 
+What goes into an FMU
+---------------------
+An FMU bundles the module that defines its facade class and the modules
+that one needs, no more: :func:`sources` follows the imports inside the
+solver package (``from .x import y`` and ``from dfwb.fmus.x import y``)
+from the facade's module, read with :mod:`ast`, and always adds
+:mod:`~dfwb.fmus.facade` (the base classes and ``pin``). The production
+facades (:mod:`dfwb.fmus.facade`) thus bundle the three exact solvers and
+the linear system, never :mod:`dfwb.fmus.naive`; the benchmark's twins
+(:mod:`dfwb.fmus.naive_facade`) bundle those and the naive solvers.
+
+Each FMU's hash, :func:`source_hash`, covers exactly what it bundles (file
+names and contents), pythonfmu's version and :data:`BUILDER_REVISION`:
+editing a module outside an FMU's closure neither changes its hash nor
+rebuilds it. An FMU whose recorded hash matches is not rebuilt.
+
+A plant defined outside dfwb
+----------------------------
+A facade class may live in any single-file module (a plugin, a test: see
+``docs/adding-a-plant.md``). That module is bundled into the package next
+to the solver modules, and its imports of the solver package are rewritten
+to relative ones: ``from dfwb.fmus.exact import Motion`` becomes ``from
+.exact import Motion``, ``from dfwb.fmus import PlantError`` becomes
+``from .exact import PlantError`` (the module that defines the name), line
+numbers unchanged. An FMU runs without dfwb, so the module may import other
+parts of dfwb (the registry, to make its entry) only inside functions, which
+the FMU never calls; ``import dfwb.fmus...``, relative imports and other
+dfwb imports at module level are refused with :class:`BuildError`.
+
 Two FMUs in one process must never share Python code by accident
 (pythonfmu imports each FMU's script and bundled modules by name, and the
-first module of a name wins). So every build bundles the solver package
-under a name that carries the hash of its sources, ``dfwb_fmus_<hash>``,
-next to a one-line script ``<Model>_<hash>.py``: FMUs of the same sources
-share identical code, FMUs of different sources cannot collide.
+first module of a name wins). So every build bundles its modules as a
+package whose name carries the hash, ``dfwb_fmus_<hash>``, next to a
+one-line script ``<Model>_<hash>.py``: FMUs of the same sources share
+identical code, FMUs of different sources cannot collide.
 
 pythonfmu writes no units, no ModelStructure/InitialUnknowns and a random
 GUID; :func:`finish_model_description` adds the first two (so that ``fmpy
 validate`` passes) and makes the GUID a function of the model and the hash.
-An FMU whose recorded hash matches the sources is not rebuilt.
 """
 
+import ast
+import functools
 import hashlib
+import importlib
 import os
-import shutil
+import sys
 import tempfile
 import uuid
 import xml.etree.ElementTree as ET
@@ -26,15 +57,26 @@ import pythonfmu
 from pythonfmu.builder import FmuBuilder
 
 from dfwb.fmus import facade
+from dfwb.fmus.exact import DfwbError
+
+__all__ = ["build", "build_all", "source_hash", "sources", "recorded_hash", "BuildError"]
 
 FMUS_DIR = Path(facade.__file__).resolve().parent
-BUILDER_REVISION = "2"
+PACKAGE = "dfwb.fmus"
+BUILDER_REVISION = "3"
 HASH_PREFIX = "dfwb-sources-"
+INIT = '"""dfwb solver modules bundled into one FMU (only those its facade needs)."""\n'
 SCRIPT = '''"""dfwb {model} FMU: the facade from the bundled, hash-named solver package."""
-from {package}.facade import {model}, pin
+from {package}.{module} import {model}
+from {package}.facade import pin
 
 pin(globals())  # pythonfmu 0.7.0 releases this namespace once per instantiation
 '''
+
+
+class BuildError(DfwbError, ValueError):
+    """A facade whose module cannot be bundled into an FMU (the message says which import)."""
+
 
 # SI base-unit exponents of every unit the models use
 BASE_UNITS = {
@@ -43,6 +85,7 @@ BASE_UNITS = {
     "m": {"m": 1},
     "m/s": {"m": 1, "s": -1},
     "N.s/m": {"kg": 1, "s": -1},
+    "N/m": {"kg": 1, "s": -2},
     "rad/s": {"rad": 1, "s": -1},
     "rad": {"rad": 1},
     "m.s": {"m": 1, "s": 1},
@@ -50,11 +93,143 @@ BASE_UNITS = {
 }
 
 
-def source_hash():
-    """Hash of everything that goes into an FMU: solver sources, pythonfmu, this builder."""
+def _imports(tree):
+    """[(import node, whether it sits inside a function body)] (an import there runs only when it is called)."""
+    found, todo = [], [(tree, False)]
+    while todo:
+        node, lazy = todo.pop()
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            found.append((node, lazy))
+            continue
+        inner = lazy or isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+        # an expression holds no statement, so no import: skipped (the walk stays linear and short)
+        todo.extend((child, inner) for child in ast.iter_child_nodes(node) if not isinstance(child, ast.expr))
+    return sorted(found, key=lambda item: (item[0].lineno, item[0].col_offset))
+
+
+def _is_module(name):
+    return (FMUS_DIR / f"{name}.py").is_file() and name != "__init__"
+
+
+def _import_lines(names, where):
+    """``from dfwb.fmus import a, b as c`` -> relative statements, each name from its defining module."""
+    package = importlib.import_module(PACKAGE)
+    statements = []
+    for alias in names:
+        bound = f" as {alias.asname}" if alias.asname else ""
+        if _is_module(alias.name):
+            statements.append(f"from . import {alias.name}{bound}")
+            continue
+        home = getattr(getattr(package, alias.name, None), "__module__", "") or ""
+        if not home.startswith(PACKAGE + ".") or not _is_module(home[len(PACKAGE) + 1:]):
+            raise BuildError(f"{where}: cannot bundle 'from {PACKAGE} import {alias.name}': "
+                             f"import it from the module that defines it")
+        statements.append(f"from .{home[len(PACKAGE) + 1:]} import {alias.name}{bound}")
+    return statements
+
+
+@functools.lru_cache(maxsize=256)
+def _dependencies(text, where, external, modules):
+    """(names of the solver modules a module imports, its text with dfwb.fmus imports made relative).
+
+    ``modules``: the solver package's module names now (a key of the cache, which
+    saves parsing the same text again at each ``fmu_path``).
+    """
+    found, edits = set(), []
+    for node, lazy in _imports(ast.parse(text, where)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == "dfwb" and (alias.name.startswith(PACKAGE) or not lazy):
+                    raise BuildError(f"{where}:{node.lineno}: 'import {alias.name}' cannot be bundled into an FMU "
+                                     f"(write 'from {PACKAGE}.<module> import <name>'; other dfwb imports only "
+                                     f"inside functions)")
+        elif isinstance(node, ast.ImportFrom) and node.level:
+            if node.level != 1 or external:
+                raise BuildError(f"{where}:{node.lineno}: a relative import cannot be bundled into an FMU "
+                                 f"(only this module and {PACKAGE} are)")
+            targets = [node.module.split(".")[0]] if node.module else [alias.name for alias in node.names]
+            missing = [target for target in targets if not _is_module(target)]
+            if missing:
+                raise BuildError(f"{where}:{node.lineno}: {missing} are not modules of {PACKAGE}")
+            found.update(targets)
+        elif isinstance(node, ast.ImportFrom) and node.module.split(".")[0] == "dfwb":
+            if node.module == PACKAGE:
+                statements = _import_lines(node.names, f"{where}:{node.lineno}")
+            elif node.module.startswith(PACKAGE + ".") and _is_module(node.module[len(PACKAGE) + 1:]):
+                names = ", ".join(alias.name + (f" as {alias.asname}" if alias.asname else "") for alias in node.names)
+                statements = [f"from .{node.module[len(PACKAGE) + 1:]} import {names}"]
+            elif lazy:
+                continue  # another layer of dfwb, imported only when a function runs (never inside the FMU)
+            else:
+                raise BuildError(f"{where}:{node.lineno}: 'from {node.module} import ...' at module level cannot be "
+                                 f"bundled into an FMU (an FMU runs without dfwb): import it inside a function")
+            for statement in statements:  # "from .x import y" or "from . import x [as y]"
+                words = statement.split()
+                found.add(words[1][1:] or words[3])
+            edits.append((node, statements))
+    return frozenset(found), _rewrite(text, edits, where)
+
+
+def _rewrite(text, edits, where):
+    """Replace each import statement by its relative statements on the same lines (line numbers kept)."""
+    if not edits:
+        return text
+    lines = text.splitlines(keepends=True)
+    for node, statements in sorted(edits, key=lambda edit: edit[0].lineno, reverse=True):
+        first, last = lines[node.lineno - 1], lines[node.end_lineno - 1]
+        before, after = first[:node.col_offset], last[node.end_col_offset:]
+        if before.strip() or after.strip() and not after.strip().startswith("#"):
+            raise BuildError(f"{where}:{node.lineno}: put the import of {PACKAGE} on lines of its own")
+        replaced = before + "; ".join(statements) + after
+        lines[node.lineno - 1:node.end_lineno] = [replaced] + ["\n"] * (node.end_lineno - node.lineno)
+    return "".join(lines)
+
+
+def _facade_module(model):
+    """(the bundled module name of the facade class, its text, whether it lives outside dfwb.fmus)."""
+    name = model.__module__
+    if name.startswith(PACKAGE + ".") and _is_module(name[len(PACKAGE) + 1:]):
+        stem = name[len(PACKAGE) + 1:]
+        return stem, (FMUS_DIR / f"{stem}.py").read_text(), False
+    path = Path(getattr(sys.modules.get(name), "__file__", None) or "")
+    if path.suffix != ".py" or path.stem == "__init__":
+        raise BuildError(f"{model.__name__}: its module {name!r} is not a single .py file, which the builder bundles")
+    if _is_module(path.stem):
+        raise BuildError(f"{model.__name__}: its module's name {path.stem!r} is a module of {PACKAGE} already")
+    return path.stem, path.read_text(), True
+
+
+def sources(model):
+    """{file name: bytes} bundled into the FMU of facade class ``model`` (its module's closure).
+
+    The facade's module, every solver module reached from it through imports
+    of the solver package, :mod:`~dfwb.fmus.facade`, and the package's
+    ``__init__.py`` (a docstring: nothing is imported that the closure
+    does not name). A module outside dfwb.fmus has its imports rewritten
+    (see the module's docstring).
+    """
+    stem, text, external = _facade_module(model)
+    where = f"{model.__module__} ({stem}.py)"
+    modules = frozenset(path.stem for path in FMUS_DIR.glob("*.py"))
+    found, text = _dependencies(text, where, external, modules)
+    files = {f"{stem}.py": text.encode()}
+    todo = sorted(found | {"facade"})
+    while todo:
+        name = todo.pop()
+        if f"{name}.py" in files:
+            continue
+        more, content = _dependencies((FMUS_DIR / f"{name}.py").read_text(), f"{PACKAGE}.{name}", False, modules)
+        files[f"{name}.py"] = content.encode()
+        todo.extend(sorted(more))
+    files["__init__.py"] = INIT.encode()
+    return dict(sorted(files.items()))
+
+
+def source_hash(model):
+    """Hash of everything that goes into the FMU of ``model``: its bundled sources, pythonfmu, this builder."""
     digest = hashlib.sha256()
-    for path in sorted(FMUS_DIR.glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    for name, content in sources(model).items():
+        digest.update(name.encode() + b"\0" + content + b"\0")
     digest.update(pythonfmu.__version__.encode() + BUILDER_REVISION.encode())
     return digest.hexdigest()[:16]
 
@@ -83,6 +258,9 @@ def finish_model_description(xml_bytes, model, digest):
         if real is not None and unit:
             real.set("unit", unit)
     used = sorted(set(units.values()))
+    unknown = [name for name in used if name not in BASE_UNITS]
+    if unknown:
+        raise BuildError(f"{model.__name__}: units {unknown} are not in the builder's BASE_UNITS")
     definitions = ET.Element("UnitDefinitions")
     for name in used:
         unit = ET.SubElement(definitions, "Unit", name=name)
@@ -102,18 +280,21 @@ def finish_model_description(xml_bytes, model, digest):
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 
 
-def build_one(model, out_dir, digest):
+def build_one(model, out_dir, digest=None):
     """Build ``<out_dir>/<Model>.fmu`` from the current sources (atomic replace)."""
+    files = sources(model)
+    digest = digest or source_hash(model)
     package = f"dfwb_fmus_{digest}"
+    module = _facade_module(model)[0]
     dest = Path(out_dir) / f"{model.__name__}.fmu"
     with tempfile.TemporaryDirectory(prefix="dfwb_build_") as tmp:
         tmp = Path(tmp)
         stage = tmp / package
         stage.mkdir()
-        for path in FMUS_DIR.glob("*.py"):
-            shutil.copy2(path, stage / path.name)
+        for name, content in files.items():
+            (stage / name).write_bytes(content)
         script = tmp / f"{model.__name__}_{digest}.py"
-        script.write_text(SCRIPT.format(model=model.__name__, package=package))
+        script.write_text(SCRIPT.format(model=model.__name__, package=package, module=module))
         raw = FmuBuilder.build_FMU(script, dest=tmp / "raw", project_files=[stage])
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")  # concurrent builds never mix
         with zipfile.ZipFile(raw) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
@@ -126,14 +307,28 @@ def build_one(model, out_dir, digest):
     return dest
 
 
-def build_all(out_dir="build/fmus", force=False, report=print):
-    """Build every plant FMU that is missing or stale; return their paths."""
+def build(out_dir, models=None, force=False, report=print):
+    """Build the FMUs of the facade classes ``models`` that are missing or stale; return their paths.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The folder of the FMUs (created if needed); ``<Model>.fmu`` each.
+    models : sequence of facade classes, optional
+        By default the production FMUs, :data:`dfwb.fmus.facade.PRODUCTION`
+        (the three plants and LinearSystem). ``dfwb.fmi.location.models()``
+        lists the registry's plants (and, when asked, their naive twins).
+    force : bool
+        Rebuild even an FMU whose recorded hash matches its sources.
+    report : callable
+        Called with one line per FMU (``built`` or ``up to date``).
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    digest = source_hash()
     paths = []
-    for model in facade.FACADES:
+    for model in facade.PRODUCTION if models is None else models:
         path = out_dir / f"{model.__name__}.fmu"
+        digest = source_hash(model)
         if not force and recorded_hash(path) == digest:
             report(f"{path}: up to date")
         else:
@@ -141,3 +336,10 @@ def build_all(out_dir="build/fmus", force=False, report=print):
             report(f"{path}: built")
         paths.append(path)
     return paths
+
+
+def build_all(out_dir, force=False, report=print):
+    """Build every FMU of dfwb, the benchmark's naive twins included (see :func:`build`)."""
+    from dfwb.fmus.naive_facade import NAIVE
+
+    return build(out_dir, facade.PRODUCTION + NAIVE, force, report)

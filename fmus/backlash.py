@@ -15,12 +15,14 @@ suffers the cancellation of x2 - x1 or M1 v1 + M2 v2 when the masses have
 drifted far or their masses differ by orders of magnitude.
 """
 
+from .contract import BacklashOutput, EventKind
 from .exact import Motion
 from .piecewise import PiecewisePlant, Search, check
 
 MIN_CLEARANCE = 1e-290  # m: the Zeno tolerance 1e-12 h stays a normal float
 FREE, LOWER, UPPER = 0, 1, 2  # the ``contact`` output: free, at gap 0, at gap h
 SIDE = {LOWER: -1, UPPER: 1}  # sigma: pressing into the boundary means sigma * u > 0
+WALL = {EventKind.WALL_LOWER: LOWER, EventKind.WALL_UPPER: UPPER}  # the event of reaching a wall -> contact
 
 
 class TwoMassBacklash(PiecewisePlant):
@@ -65,9 +67,9 @@ class TwoMassBacklash(PiecewisePlant):
         x1, v1 = self._output.state(self.t)
         g, w = self.relative(self.t)
         if self.contact != FREE:  # riding together: one closed form for both
-            return x1, v1, x1 + g, v1, g
+            return BacklashOutput(x1, v1, x1 + g, v1, g)
         x_cm, v_cm = self._cm.state(self.t)
-        return x1, v1, x_cm + self.r1 * g, v_cm + self.r1 * w, g
+        return BacklashOutput(x1, v1, x_cm + self.r1 * g, v_cm + self.r1 * w, g)
 
     # -- pieces -------------------------------------------------------------
     def _start(self, t, g, w):
@@ -114,7 +116,7 @@ class TwoMassBacklash(PiecewisePlant):
 
             sep = -departing * w
             t_from = t if sep > 0.0 else d.crossing(t, 0.0, rising=departing > 0)
-            self._searches.append(Search(separation, gap.curvature_bound(), t_from, "apex"))
+            self._searches.append(Search(separation, gap.curvature_bound(), t_from, EventKind.APEX))
 
     def _boundary_searches(self, t, skip=0):
         gap, h = self._gap, self.h
@@ -130,9 +132,9 @@ class TwoMassBacklash(PiecewisePlant):
 
         searches = []
         if skip != SIDE[LOWER]:
-            searches.append(Search(above_lower, K, t, LOWER))
+            searches.append(Search(above_lower, K, t, EventKind.WALL_LOWER))
         if skip != SIDE[UPPER]:
-            searches.append(Search(below_upper, K, t, UPPER))
+            searches.append(Search(below_upper, K, t, EventKind.WALL_UPPER))
         return searches
 
     def _contact(self, t, side):
@@ -143,21 +145,21 @@ class TwoMassBacklash(PiecewisePlant):
         wall = 0.0 if side == LOWER else self.h
         output = self._output_motion(t, wall, 0.0, d.f / self.total, d.F / self.total)
         t_release = d.crossing(t, 0.0, rising=SIDE[side] < 0)
-        self._begin(t, output, t_release, "release")
+        self._begin(t, output, t_release, EventKind.RELEASE)
 
     # -- events ---------------------------------------------------------------
     def _fire(self, t, kind):
-        if kind == "apex":
+        if kind is EventKind.APEX:
             self._departing = 0
             self._set_searches(t, self._boundary_searches(t))
             return False
         g, w = self.relative(t)
         self._close_piece(t)
-        if kind == "release":
+        if kind is EventKind.RELEASE:
             side = self.contact
             self._free(t, 0.0 if side == LOWER else self.h, 0.0, departing=SIDE[side])
         else:
-            self._at_boundary(t, kind, w)
+            self._at_boundary(t, WALL[kind], w)
         return True
 
     def _restart(self, t):

@@ -32,7 +32,11 @@ PHASE_LIMIT = 1e10
 MAX_EVALUATIONS = 100_000
 
 
-class PlantError(ValueError):
+class DfwbError(Exception):
+    """Base of every error dfwb raises for a reason the user can act on (a value, a file, a run)."""
+
+
+class PlantError(DfwbError, ValueError):
     """A parameter, input or step the plant cannot accept."""
 
 

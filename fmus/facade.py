@@ -5,6 +5,13 @@ the parameters to its solver at the end of initialisation and advances the
 solver in ``do_step``. Bad parameters, inputs or steps are reported through
 the FMI logger with status error, and the call fails: an importer sees an
 error status, never NaN outputs.
+
+A solver is anything that implements :class:`~.contract.Solver`; a facade
+names it in ``solver_class``. The FMU of a facade bundles only the modules
+its own module imports (the builder follows the relative imports), so the
+benchmark's fixed-step twins live in :mod:`.naive`, outside the closure of
+the production FMUs, and a plant defined outside dfwb subclasses
+:class:`PlantFMU` in its own module.
 """
 
 import math
@@ -16,9 +23,6 @@ from .backlash import TwoMassBacklash as _TwoMassBacklash
 from .friction import FrictionMass as _FrictionMass
 from .linear_system import MAX_ORDER as _MAX_ORDER
 from .linear_system import LinearSystem as _LinearSystem
-from .naive import NaiveFrictionMass as _NaiveFrictionMass
-from .naive import NaiveStaticBacklash as _NaiveStaticBacklash
-from .naive import NaiveTwoMassBacklash as _NaiveTwoMassBacklash
 from .piecewise import PlantError, check
 from .static_backlash import StaticBacklash as _StaticBacklash
 
@@ -31,6 +35,9 @@ EXCITATION = (
 
 
 _PINNED = []
+FACADES = []
+"""Every loaded facade class: :class:`PlantFMU` subclasses add themselves (the naive twins when
+:mod:`.naive` is imported, a plant defined elsewhere when its module is); LinearSystem is added below."""
 
 
 def pin(namespace):
@@ -99,6 +106,8 @@ class PlantFMU(SolverFMU):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        if cls.solver_class is not None:
+            FACADES.append(cls)
         cls._layout = cls.layout()
         cls._settable = frozenset(name for name, _kind, causality, *_ in cls._layout if causality != "output")
 
@@ -181,8 +190,9 @@ class PlantFMU(SolverFMU):
         signal, unit = cls.output_signal
         fourier = []
         for k in range(MAX_HARMONIC + 1):
-            fourier.append((f"Ic{k}", f"{unit}.s", f"running integral of {signal}(t) cos({k} omega t) dt from 0", False))
-            fourier.append((f"Is{k}", f"{unit}.s", f"running integral of {signal}(t) sin({k} omega t) dt from 0", False))
+            for part, wave in (("c", "cos"), ("s", "sin")):
+                fourier.append((f"I{part}{k}", f"{unit}.s",
+                                f"running integral of {signal}(t) {wave}({k} omega t) dt from 0", False))
         events = ("events", None, "number of events (mode changes, impacts) so far", True)
         return tuple(cls.outputs) + (events,) + tuple(fourier)
 
@@ -364,50 +374,7 @@ class LinearSystem(SolverFMU):
             self._fail(f"invalid parameter: {error}")
 
 
+PRODUCTION = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem)
+"""The FMUs dfwb ships: the three plants and the linear controller (what ``dfwb build`` builds)."""
 
-# -- naive fixed-step baselines ----------------------------------------------------
-# The same plants integrated the way typical pythonfmu examples do: semi-implicit
-# Euler with a fixed internal step dt inside doStep (fmus/naive.py). They exist as
-# the ``fmu-fixedstep`` method of the benchmark, to measure what exactness buys;
-# their results carry a first-order error in dt and are not for analysis. Same
-# variables as the exact FMUs plus the parameter dt, so any importer (and the DF
-# engine) can use either.
-DT_PARAMETER = ("dt", 1e-3, "s", "internal fixed step of the naive integrator (> 0)")
-
-
-class NaiveFrictionMass(FrictionMass):
-    """Friction mass by naive fixed-step semi-implicit Euler (Karnopp band): a benchmark baseline, not for analysis.
-
-    The ``fmu-fixedstep`` comparison method: the exact FrictionMass's
-    variables plus ``dt``; Karnopp's stick band is max(Dv, Fs dt / M).
-    """
-
-    solver_class = _NaiveFrictionMass
-    parameters = FrictionMass.parameters + (DT_PARAMETER,)
-
-
-class NaiveTwoMassBacklash(TwoMassBacklash):
-    """Two-mass backlash by naive fixed-step semi-implicit Euler (clamped gap): a benchmark baseline, not for analysis.
-
-    The ``fmu-fixedstep`` comparison method: the exact TwoMassBacklash's
-    variables plus ``dt``; impacts are detected after the step that crosses
-    a wall.
-    """
-
-    solver_class = _NaiveTwoMassBacklash
-    parameters = TwoMassBacklash.parameters + (DT_PARAMETER,)
-
-
-class NaiveStaticBacklash(StaticBacklash):
-    """Mass and backlash by naive fixed-step semi-implicit Euler: a benchmark baseline, not for analysis.
-
-    The ``fmu-fixedstep`` comparison method: the exact StaticBacklash's
-    variables plus ``dt``; the play operator acts once per internal step.
-    """
-
-    solver_class = _NaiveStaticBacklash
-    parameters = StaticBacklash.parameters + (DT_PARAMETER,)
-
-
-FACADES = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem,
-           NaiveFrictionMass, NaiveTwoMassBacklash, NaiveStaticBacklash)
+FACADES.append(LinearSystem)

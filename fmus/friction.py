@@ -13,6 +13,7 @@ slide +-1. Break-away and release are analytic crossings of the force;
 stops (v reaching the band) are first zeros of the closed-form velocity.
 """
 
+from .contract import EventKind, FrictionOutput
 from .exact import Motion
 from .piecewise import PiecewisePlant, Search, check
 
@@ -43,7 +44,7 @@ class FrictionMass(PiecewisePlant):
         x, v = self._output.state(self.t)
         acc = self._output.acceleration(self.t, v)
         ff = self.drive.u(self.t) - self.M * acc
-        return x, v, ff, self.direction if self.mode == SLIDE else 0
+        return FrictionOutput(x, v, ff, self.direction if self.mode == SLIDE else 0)
 
     # -- pieces ------------------------------------------------------------
     def _motion(self, t, x, v, lam, force):
@@ -84,7 +85,7 @@ class FrictionMass(PiecewisePlant):
         down = max(self.Fs, self.edge_force) if v <= -self.Dv else self.Fs
         t_up = self.drive.crossing(t, up, rising=True)
         t_down = self.drive.crossing(t, -down, rising=False)
-        kind, t_ev = ("break+", t_up) if t_up <= t_down else ("break-", t_down)
+        kind, t_ev = (EventKind.BREAK_UP, t_up) if t_up <= t_down else (EventKind.BREAK_DOWN, t_down)
         self._begin(t, Motion(t, x, v, 0.0, 0.0, 0.0, self.drive.omega, self.drive.phi), t_ev, kind)
 
     def _push(self, t, x, v, s):
@@ -97,8 +98,8 @@ class FrictionMass(PiecewisePlant):
             _, vv = motion.state(tt)
             return self.Dv - s * vv, -s * motion.acceleration(tt, vv)
 
-        search = Search(gap_to_edge, motion.curvature_bound(), t, "edge")
-        self._begin(t, motion, t_release, "release", [search])
+        search = Search(gap_to_edge, motion.curvature_bound(), t, EventKind.EDGE)
+        self._begin(t, motion, t_release, EventKind.RELEASE, [search])
 
     def _slide(self, t, x, v, s, departing):
         """Sliding in direction s until the velocity falls back to the band."""
@@ -113,7 +114,7 @@ class FrictionMass(PiecewisePlant):
 
         # with damping, K is a function of t: the initial velocity's part of v'' decays
         K = motion.curvature_bound if self.B else motion.curvature_bound()
-        search = Search(speed_above_band, K, t_from, "band")
+        search = Search(speed_above_band, K, t_from, EventKind.BAND)
         self._begin(t, motion, searches=[search])
 
     # -- events --------------------------------------------------------------
@@ -121,21 +122,21 @@ class FrictionMass(PiecewisePlant):
         self._close_piece(t)
         x, v = self._output.state(t)
         s = self.direction
-        if kind == "break+" or kind == "break-":
-            s = 1 if kind == "break+" else -1
+        if kind is EventKind.BREAK_UP or kind is EventKind.BREAK_DOWN:
+            s = 1 if kind is EventKind.BREAK_UP else -1
             if s * v >= self.Dv:
                 self._slide(t, x, s * self.Dv, s, departing=True)
             else:
                 self._push(t, x, v, s)
-        elif kind == "release":  # |u| falls to Fs: hold, or (Fs = 0) a push the other way
+        elif kind is EventKind.RELEASE:  # |u| falls to Fs: hold, or (Fs = 0) a push the other way
             self._start(t, x, v)
-        elif kind == "edge":  # pushed through the band to its edge s * Dv (Dv > 0)
+        elif kind is EventKind.EDGE:  # pushed through the band to its edge s * Dv (Dv > 0)
             edge = s * self.edge_force
             if self.drive.above(t, edge) if s > 0 else self.drive.below(t, edge):
                 self._slide(t, x, s * self.Dv, s, departing=True)
             else:
                 self._hold(t, x, s * self.Dv)
-        else:  # "band": the sliding velocity reached the band edge
+        else:  # EventKind.BAND: the sliding velocity reached the band edge
             self._start(t, x, v, at_edge=s)
         return True
 

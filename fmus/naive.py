@@ -14,6 +14,8 @@ by the same naive rule: the left rectangle ``dt * y(t_i) exp(-i k omega t_i)``
 (explicit Euler of ``I_k' = y exp(-i k omega t)``). Nothing is located:
 events happen at grid instants and the error is first order in ``dt``.
 
+Their FMI facades are in :mod:`.naive_facade` (outside the production FMUs' sources).
+
 The public interface is the exact solvers' (:mod:`.friction`,
 :mod:`.backlash`, :mod:`.static_backlash`): the same keyword arguments plus
 ``dt``, ``advance``, ``set_input``, ``output``, ``integrals``, ``events``,
@@ -28,6 +30,7 @@ import cmath
 import math
 
 from .backlash import TwoMassBacklash as _ExactTwoMassBacklash
+from .contract import BacklashOutput, FrictionOutput, StaticBacklashOutput
 from .exact import Drive
 from .friction import FrictionMass as _ExactFrictionMass
 from .piecewise import PlantError, check
@@ -142,7 +145,7 @@ class NaiveFrictionMass(NaivePlant):
 
     def output(self):
         """x, v, friction force Ff (at the current state and force) and mode (0 band, +-1 sliding)."""
-        return self.x, self.v, self._friction(self.v, self.drive.u(self.t)), self.mode
+        return FrictionOutput(self.x, self.v, self._friction(self.v, self.drive.u(self.t)), self.mode)
 
 
 class NaiveTwoMassBacklash(NaivePlant):
@@ -217,7 +220,7 @@ class NaiveTwoMassBacklash(NaivePlant):
 
     def output(self):
         """x1, v1, x2, v2, gap at self.t."""
-        return self.x1, self.v1, self.x1 + self.g, self.v1 + self.w, self.g
+        return BacklashOutput(self.x1, self.v1, self.x1 + self.g, self.v1 + self.w, self.g)
 
 
 class NaiveStaticBacklash(NaivePlant):
@@ -258,4 +261,4 @@ class NaiveStaticBacklash(NaivePlant):
 
     def output(self):
         """x, v, y at self.t."""
-        return self.x, self.v, self.k * self.z
+        return StaticBacklashOutput(self.x, self.v, self.k * self.z)

@@ -12,6 +12,9 @@ exp(-i k omega s) ds`` for k = 0..harmonics (k = 0: the plain integral), are
 accumulated piece by piece in closed form; a describing function needs only
 their values at two instants.
 
+:class:`PiecewisePlant` implements the :class:`~.contract.Solver` protocol
+(it does not define it); its events are :class:`~.contract.EventKind` members.
+
 Every loop is bounded: a step by its events (EVENTS_PER_PERIOD_LIMIT) and by
 its search chunks (the phase, hence the time, is bounded by PHASE_LIMIT),
 each chunk's search by MAX_EVALUATIONS; hitting a bound raises PlantError.
@@ -36,7 +39,7 @@ def check(name, value, ok, allowed):
 
 
 class Search:
-    """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from.
+    """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from; ``kind``: its EventKind.
 
     ``K`` is a number, or a function of t bounding |g''| on [t, inf) (a
     decaying transient's bound tightens as the search advances).
@@ -64,7 +67,7 @@ class PiecewisePlant:
         self.harmonics = int(harmonics)
         self.t = 0.0
         self.events = 0
-        self.event_log = None  # set to a list to record (time, kind) of every event
+        self.event_log = None  # set to a list to record (time, EventKind) of every counted event
         self._integrals = [0j] * (self.harmonics + 1)
 
     # -- pieces ---------------------------------------------------------

@@ -7,8 +7,12 @@ closed-form position; disengagement is the velocity reversal, a first zero
 of the closed-form velocity. The output is y; it starts centred, y = k x0.
 """
 
+from .contract import EventKind, StaticBacklashOutput
 from .exact import Motion
 from .piecewise import PiecewisePlant, Search, check
+
+ENGAGE = {1: EventKind.ENGAGE_UP, -1: EventKind.ENGAGE_DOWN}  # the edge x reaches -> the event
+EDGE = {kind: s for s, kind in ENGAGE.items()}
 
 
 class StaticBacklash(PiecewisePlant):
@@ -30,7 +34,7 @@ class StaticBacklash(PiecewisePlant):
         """x, v, y at self.t."""
         x, v = self._mass.state(self.t)
         y, _ = self._output.state(self.t)
-        return x, v, y
+        return StaticBacklashOutput(x, v, y)
 
     def _mass_motion(self, t, x, v):
         d = self.drive
@@ -51,7 +55,7 @@ class StaticBacklash(PiecewisePlant):
                 return -leaving * vv, -leaving * mass.acceleration(tt, vv)
 
             t_from = t if -leaving * v > 0.0 else self.drive.crossing(t, 0.0, rising=leaving > 0)
-            self._searches.append(Search(away, mass.curvature_bound(), t_from, "apex"))
+            self._searches.append(Search(away, mass.curvature_bound(), t_from, EventKind.APEX))
 
     def _edge_searches(self, t, skip=0):
         mass, y = self._mass, self._y
@@ -66,7 +70,7 @@ class StaticBacklash(PiecewisePlant):
                 xx, vv = mass.state(tt)
                 return s * (edge - xx), -s * vv
 
-            searches.append(Search(distance, K, t, s))
+            searches.append(Search(distance, K, t, ENGAGE[s]))
         return searches
 
     def _engage(self, t, x, v, s):
@@ -82,21 +86,21 @@ class StaticBacklash(PiecewisePlant):
             return s * vv, s * mass.acceleration(tt, vv)
 
         t_from = t if s * v > 0.0 else self.drive.crossing(t, 0.0, rising=s < 0)
-        self._begin(t, output, searches=[Search(speed, mass.curvature_bound(), t_from, "reverse")])
+        self._begin(t, output, searches=[Search(speed, mass.curvature_bound(), t_from, EventKind.REVERSE)])
 
     def _fire(self, t, kind):
-        if kind == "apex":
+        if kind is EventKind.APEX:
             self._leaving = 0
             self._set_searches(t, self._edge_searches(t))
             return False
         x, v = self._mass.state(t)
         self._close_piece(t)
         # x and v stay as computed (no snapping): the mass's motion is continuous
-        if kind == "reverse":
+        if kind is EventKind.REVERSE:
             s = self.engaged
             self._free(t, x, v, self.k * (x - s * 0.5 * self.h), leaving=s)
         else:
-            self._engage(t, x, v, kind)
+            self._engage(t, x, v, EDGE[kind])
         return True
 
     def _restart(self, t):

@@ -5,14 +5,22 @@ from pathlib import Path
 
 import pytest
 from fmpy.fmi1 import calloc, free
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
 from hypothesis import settings
 
 from dfwb.build_fmus import build_all
-from dfwb.simulation import unpacked
+from dfwb.fmi.simulation import unpacked
 
 ROOT = Path(__file__).resolve().parents[1]
+# The tests share one FMU folder in the checkout (built once, reused across sessions and by the
+# subprocesses they start), instead of the per-user default.
+os.environ["DFWB_FMU_DIR"] = str(ROOT / "build" / "fmus")
 
 # Property tests: 50 random cases each in CI; DFWB_HYPOTHESIS=stress for 1000.
 settings.register_profile("default", max_examples=50, deadline=None)

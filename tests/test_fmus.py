@@ -9,8 +9,8 @@ import pytest
 from fmpy.validation import validate_fmu
 
 from dfwb.build_fmus import builder
+from dfwb.fmi.simulation import FMUError, simulate, sine_input
 from dfwb.fmus import FrictionMass, StaticBacklash, TwoMassBacklash
-from dfwb.simulation import FMUError, simulate, sine_input
 
 MODELS = ["FrictionMass", "TwoMassBacklash", "StaticBacklash"]
 EXCITED = {  # model: (start values, stop time, outputs)
@@ -138,31 +138,34 @@ def test_all_fmus_load_together_in_any_order_and_repeatedly(fmus):
 
 
 def test_fmus_bundle_their_code_under_a_source_hash(fmus):
-    digest = builder.source_hash()
     for model in MODELS:
+        digest = builder.source_hash(getattr(builder.facade, model))
         with zipfile.ZipFile(fmus[model]) as archive:
             names = archive.namelist()
             assert f"resources/dfwb_fmus_{digest}/friction.py" in names
+            assert f"resources/dfwb_fmus_{digest}/naive.py" not in names  # the benchmark's twins stay out
             assert archive.read("resources/slavemodule.txt").decode() == f"{model}_{digest}"
         assert builder.recorded_hash(fmus[model]) == digest
 
 
 def test_build_skips_unchanged_fmus_and_hash_follows_sources(tmp_path, monkeypatch):
     messages = []
-    first = builder.build_all(tmp_path, report=messages.append)
+    models = [builder.facade.FrictionMass, builder.facade.LinearSystem]
+    first = builder.build(tmp_path, models, report=messages.append)
     stamps = [path.stat().st_mtime_ns for path in first]
-    builder.build_all(tmp_path, report=messages.append)
+    builder.build(tmp_path, models, report=messages.append)
     assert [path.stat().st_mtime_ns for path in first] == stamps
-    assert sum("up to date" in message for message in messages) == len(builder.facade.FACADES)
+    assert sum("up to date" in message for message in messages) == len(models)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["FrictionMass.fmu", "LinearSystem.fmu"]
 
     sources = tmp_path / "sources"
     sources.mkdir()
     for path in builder.FMUS_DIR.glob("*.py"):
         (sources / path.name).write_bytes(path.read_bytes())
     monkeypatch.setattr(builder, "FMUS_DIR", sources)
-    before = builder.source_hash()
+    before = builder.source_hash(builder.facade.FrictionMass)
     (sources / "exact.py").write_text((sources / "exact.py").read_text() + "\n# changed\n")
-    assert builder.source_hash() != before
+    assert builder.source_hash(builder.facade.FrictionMass) != before
 
 
 def test_fmus_from_different_sources_never_share_code(fmus, tmp_path, monkeypatch):
@@ -172,11 +175,11 @@ def test_fmus_from_different_sources_never_share_code(fmus, tmp_path, monkeypatc
     for path in builder.FMUS_DIR.glob("*.py"):
         (sources / path.name).write_bytes(path.read_bytes())
     friction = sources / "friction.py"
-    original = "return x, v, ff, self.direction if self.mode == SLIDE else 0"
+    original = "return FrictionOutput(x, v, ff, self.direction if self.mode == SLIDE else 0)"
     assert original in friction.read_text()
     friction.write_text(friction.read_text().replace(original, original.replace("x, v,", "x + 1.0, v,", 1)))
     monkeypatch.setattr(builder, "FMUS_DIR", sources)
-    changed = builder.build_one(builder.facade.FrictionMass, tmp_path, builder.source_hash())
+    changed = builder.build_one(builder.facade.FrictionMass, tmp_path)
 
     start = {"F": 10.0, "omega": 1.0}
     current = simulate(fmus["FrictionMass"], 5.0, 0.5, start, ["x"])

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dfwb.fmus import FrictionMass, PlantError
+from dfwb.fmus import EventKind, FrictionMass, PlantError, Solver
 
 
 def mass_damper_exact(M, B, F, w, t):
@@ -56,7 +56,7 @@ def test_pure_mass_is_exact():
 
 @pytest.mark.parametrize("w", [0.01, 1.0, 1000.0])
 def test_linear_describing_function_is_exact(w):
-    """The check MODELS.md requires of any DF implementation: -1/N = M w^2 - j B w."""
+    """The check docs/models.md requires of any DF implementation: -1/N = M w^2 - j B w."""
     M, B, F = 1.0, 0.5, 10.0
     plant = FrictionMass(M=M, B=B, Fc=0.0, Fs=0.0, F=F, omega=w)
     period = 2 * math.pi / w
@@ -84,10 +84,21 @@ def test_break_away_exactly_where_force_exceeds_static_friction():
     plant = FrictionMass(F=10.0, omega=1.0)
     plant.event_log = []
     plant.advance(40.0)
-    breaks = [t for t, kind in plant.event_log if kind.startswith("break")]
+    assert all(isinstance(kind, EventKind) for _, kind in plant.event_log)
+    breaks = [t for t, kind in plant.event_log if kind in (EventKind.BREAK_UP, EventKind.BREAK_DOWN)]
     assert len(breaks) >= 10
     for t in breaks:
         assert abs(plant.drive.u(t)) == pytest.approx(7.0, rel=1e-12)
+
+
+def test_solver_implements_the_protocol_and_names_its_outputs():
+    plant = FrictionMass(F=10.0, omega=1.0)
+    assert isinstance(plant, Solver)
+    plant.advance(3.0)
+    out = plant.output()
+    assert out._fields == ("x", "v", "Ff", "mode")
+    x, v, ff, mode = out  # still a tuple
+    assert (out.x, out.v, out.Ff, out.mode) == (x, v, ff, mode)
 
 
 @settings(deadline=None)

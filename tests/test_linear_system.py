@@ -9,9 +9,9 @@ import pytest
 from fmpy.validation import validate_fmu
 from scipy import signal
 
+from dfwb.fmi.simulation import FMUError, simulate, sine_input
 from dfwb.fmus import LinearSystem, PlantError
 from dfwb.fmus.linear_system import expm
-from dfwb.simulation import FMUError, simulate, sine_input
 
 EPS = 2.0 ** -52
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
+from dfwb.fmi.simulation import FMUError, simulate
 from dfwb.fmus import naive
-from dfwb.simulation import FMUError, simulate
 
 EXACT = {"NaiveFrictionMass": "FrictionMass", "NaiveTwoMassBacklash": "TwoMassBacklash",
          "NaiveStaticBacklash": "StaticBacklash"}

@@ -18,7 +18,7 @@ def play(xs, k, h, y0):
 
 
 def backlash_df(X, k, h):
-    """Phillips-Harbor describing function of the backlash element (MODELS.md eq. 6-7)."""
+    """Phillips-Harbor describing function of the backlash element (docs/models.md eq. 6-7)."""
     if X <= h / 2:
         return 0j
     d = 1 - h / X
