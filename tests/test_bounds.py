@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from dfwb.describing import F_RANGE, OMEGA_RANGE, DFEngine, check_point
+from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine, check_point
 from dfwb.fmus import PlantError
-from dfwb.plants import plant
+from dfwb.plants.registry import plant
 
 ROOT = Path(__file__).resolve().parents[1]
 LIMIT = 60  # seconds: each case below ends within a few seconds
@@ -94,7 +94,7 @@ def test_a_huge_initial_velocity_is_integrated():
 
 def test_an_fmu_refuses_a_phase_it_cannot_resolve(fmus):
     code = f"""
-        from dfwb.simulation import FMUError, simulate
+        from dfwb.fmi.simulation import FMUError, simulate
         for values, stop in (({{"F": 10.0, "phi": 1e300}}, 6.3), ({{"F": 10.0, "omega": 1e9}}, 100.0)):
             try:
                 simulate({str(fmus["FrictionMass"])!r}, stop, stop, start_values=values)

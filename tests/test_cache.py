@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from dfwb import cache as cache_module
-from dfwb.cache import Cache, NoCache, default_dir
+from dfwb.studies import cache as cache_module
+from dfwb.studies.cache import Cache, NoCache, default_dir
 
 KEY = {"kind": "df", "F": 10.0, "omega": 1.0, "params": {"M": 1.0}}
 VALUE = {"N_re": -0.25, "N_im": -0.3, "harmonics": [0.0, 0.1]}

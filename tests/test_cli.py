@@ -11,7 +11,7 @@ import time
 import pytest
 
 from dfwb.cli import main
-from dfwb.sweep import grid, run_sweep
+from dfwb.studies.sweep import grid, run_sweep
 
 
 def run_cli(capsys, *argv):
@@ -35,7 +35,7 @@ def test_df_set_and_table(fmus, capsys):
     code, out = run_cli(capsys, "df", "backlash", "--F", "50", "--omega", "20", "--set", "eps=0.2", "h=0.1")
     assert code == 0
     lines = out.out.strip().splitlines()
-    assert lines[0].split()[:4] == ["F", "omega", "Re", "N"] and len(lines) == 2
+    assert lines[0].split()[:6] == ["F", "[N]", "omega", "[rad/s]", "Re", "N"] and len(lines) == 2
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -68,7 +68,7 @@ def test_sweep_resumes_and_recomputes_nothing(fmus, tmp_path):
     points = grid([10.0, 20.0], [0.5, 1.0, 2.0], grid_params={"B": [0.5, 1.0]})
     assert len(points) == 12
     first = run_sweep("friction", points, tmp_path, jobs=1, progress=False)
-    assert [(float(r["F"]), float(r["omega"]), json.loads(r["params"])) for r in first] == points
+    assert [(r["F"], r["omega"], r["params"]) for r in first] == points  # the records of the points
     # an interruption: 5 rows kept, the 6th cut in the middle
     csv_path = tmp_path / "results.csv"
     lines = csv_path.read_text().splitlines(keepends=True)

@@ -6,9 +6,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from dfwb.closed_forms import backlash_df, static_backlash_plant_df, validity_frequencies
-from dfwb.describing import DFEngine
+from dfwb.engine.describing import DFEngine
 from dfwb.fmus import PlantError
+from dfwb.plants.closed_forms import backlash_df, static_backlash_plant_df, validity_frequencies
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +28,7 @@ def backlash(fmus):
 
 @pytest.mark.parametrize("omega", [0.01, 0.1, 1.0, 10.0, 100.0, 1000.0])
 def test_linear_limit_is_exact(friction, omega):
-    """Fc = Fs = 0: -1/N = M w^2 - j B w (MODELS.md's check for any implementation), to 1e-10."""
+    """Fc = Fs = 0: -1/N = M w^2 - j B w (docs/models.md's check for any implementation), to 1e-10."""
     result = friction.point(10.0, omega, {"Fc": 0.0, "Fs": 0.0})
     assert result.periodic
     assert result.minus_inverse == pytest.approx(omega ** 2 - 0.5j * omega, rel=1e-10)

@@ -28,7 +28,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, assume, event, given, settings, strategies as st
+from hypothesis import HealthCheck, assume, event, given, settings
+from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fuzz import harness  # noqa: E402
@@ -62,7 +63,7 @@ def judge(result):
 
 
 # ----------------------------------------------------------------------------------------------------------
-# The plants' real parameter names (checked against dfwb.plants below) and values that pass their checks.
+# The plants' real parameter names (checked against dfwb.plants.registry below) and values that pass their checks.
 
 PARAMETERS = {
     "friction": {"M": (0.1, 10.0), "B": (0.0, 5.0), "Fc": (0.0, 5.0), "Fs": (5.0, 10.0), "Dv": (0.0, 0.1),
@@ -638,7 +639,7 @@ def test_harness_catches_writes_outside_and_bad_errors(sandbox_factory):
 
 
 def test_parameter_names_are_the_plants():
-    from dfwb.plants import PLANTS as REAL
+    from dfwb.plants.registry import PLANTS as REAL
 
     assert {name: sorted(spec.defaults()) for name, spec in REAL.items()} == \
         {name: sorted(names) for name, names in PARAMETERS.items()}

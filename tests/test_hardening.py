@@ -8,7 +8,6 @@ their parent.
 """
 
 import base64
-import csv
 import errno
 import hashlib
 import json
@@ -22,12 +21,12 @@ from pathlib import Path
 
 import pytest
 
-from dfwb.cache import Cache, digest
+from dfwb.base.files import FolderBusy, file_digest, folder_lock, inside, write_atomic
 from dfwb.cli import main
-from dfwb.files import FolderBusy, file_digest, folder_lock, inside, write_atomic
-from dfwb.runner import run_scene
-from dfwb.scene import parse_scene
-from dfwb.sweep import grid, run_sweep
+from dfwb.studies.cache import Cache
+from dfwb.studies.runner import run_scene
+from dfwb.studies.scene import parse_scene
+from dfwb.studies.sweep import grid, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -106,7 +105,7 @@ def test_a_manifest_naming_files_outside_the_folder_is_damaged(fmus, tmp_path):
 
 # -- 2. FMUs shipped to workers ----------------------------------------------------------------------------------
 def test_shipped_fmus_live_in_a_private_folder_and_are_verified_at_every_use(fmus, tmp_path, monkeypatch):
-    import dfwb.executor as executor
+    import dfwb.studies.executor as executor
 
     monkeypatch.setattr(executor, "_SHIPPED_DIR", [])
     monkeypatch.setenv("TMPDIR", str(tmp_path))
@@ -210,7 +209,7 @@ def test_an_edited_row_is_recomputed_not_trusted(fmus, tmp_path):
     points = grid([10.0], [1.0, 2.0])
     first = run_sweep("friction", points, tmp_path, jobs=1, progress=False)
     path = tmp_path / "results.csv"
-    path.write_text(path.read_text().replace(first[0]["N_re"], "123.0", 1))
+    path.write_text(path.read_text().replace(repr(first[0]["N_re"]), "123.0", 1))
     again = run_sweep("friction", points, tmp_path, jobs=1, progress=False)
     assert again[0]["N_re"] == first[0]["N_re"] and again[1]["seconds"] == first[1]["seconds"]
 
@@ -218,15 +217,15 @@ def test_an_edited_row_is_recomputed_not_trusted(fmus, tmp_path):
     out = tmp_path / "scene"
     run_scene(scene, out, jobs=1, cache=False, progress=False)
     log = out / "results.csv"
-    original = json.loads((out / "results.json").read_text())["series"]["friction"][0]["N"][0]
+    original = json.loads((out / "results.json").read_text())["series"]["friction"][0]["N_re"]
     log.write_text(log.read_text().replace(repr(original), "123.0", 1))
     (out / "manifest.json").unlink()
     outcome = run_scene(scene, out, jobs=1, cache=False, progress=False)
     assert outcome.resumed == 1 and outcome.computed == 1 and outcome.rejected == 1
-    assert json.loads((out / "results.json").read_text())["series"]["friction"][0]["N"][0] == original
+    assert json.loads((out / "results.json").read_text())["series"]["friction"][0]["N_re"] == original
 
 
-# -- 8. one folder, one run ---------------------------------------------------------------------------------------------
+# -- 8. one folder, one run ------------------------------------------------------------------------------
 def test_two_scenes_of_the_same_name_are_refused(tmp_path, capsys):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
@@ -330,10 +329,10 @@ def test_dask_without_distributed_is_one_line(fmus, tmp_path):
             f"'--out', {str(tmp_path / 'o')!r}, '--no-cache', '--quiet'])")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.strip() == \
-        "dfwb run: error: --dask needs dask.distributed: pip install 'dfwb[dask]'"
+        "dfwb run: error: --dask needs dask.distributed: pip install -e '.[dask]'"
 
 
-# -- 13. processes --------------------------------------------------------------------------------------------------------
+# -- 13. processes ---------------------------------------------------------------------------------------
 def _children(pid):
     found = []
     for entry in Path("/proc").iterdir():
@@ -385,12 +384,12 @@ def test_sigterm_during_a_step_reads_interrupted(fmus, tmp_path):
     assert process.returncode == 130 and err.strip().splitlines() == ["dfwb df: interrupted"], err
 
 
-# -- 14. a full disk names its file --------------------------------------------------------------------------------------
+# -- 14. a full disk names its file ----------------------------------------------------------------------
 def test_a_write_error_names_its_file(fmus, tmp_path, capsys, monkeypatch):
     def full(descriptor):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr("dfwb.runlog.os.fsync", full)
+    monkeypatch.setattr("dfwb.base.runlog.os.fsync", full)
     line = refused(capsys, "sweep", "friction", "--F", "10", "--omega", "1", "--out", str(tmp_path), "--jobs", "1",
                    "--quiet")
     assert line == f"dfwb sweep: error: {tmp_path / 'results.csv'}: No space left on device"

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from dfwb.cli import main
-from dfwb.closed_loop import controller_values, measure, run_loop
-from dfwb.describing import DFEngine
-from dfwb.limit_cycles import predict
-from dfwb.transfer import from_coefficients, parse_transfer_function
+from dfwb.engine.closed_loop import controller_values, measure, run_loop
+from dfwb.engine.describing import DFEngine
+from dfwb.engine.limit_cycles import predict
+from dfwb.engine.transfer import from_coefficients, parse_transfer_function
 
 LEAD = ct.tf([20.0, 40.0], [1.0, 20.0])  # 20 (s + 2) / (s + 20)
 PID = "20 + 100/s + 2*s/(0.1*s+1)"
@@ -64,6 +64,7 @@ def test_static_backlash_cycle_equals_python_control(fmus):
     assert c.omega == pytest.approx(w_ref, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_pid_hunting_pair_stable_and_unstable(fmus):
     """Integral action and static friction: a stable cycle and, above it, an unstable one (Loeb)."""
     cycles = predict("friction", parse_transfer_function(PID), F_range=(7.0001, 300), omega_range=(0.05, 50))
@@ -74,6 +75,7 @@ def test_pid_hunting_pair_stable_and_unstable(fmus):
         assert abs(1 + complex(parse_transfer_function(PID)(1j * c.omega)) * N) < 1e-8
 
 
+@pytest.mark.slow
 def test_no_cycle_is_an_empty_answer(fmus):
     assert predict("friction", parse_transfer_function("40 + 60/s + 8*s/(0.01*s+1)"),
                    F_range=(7.0001, 300), omega_range=(0.05, 50)) == []
@@ -84,6 +86,7 @@ def test_controller_fmu_values_are_minus_G():
     assert values == {"order": 1, "b0": -0.5, "b1": -1.5, "a1": 2.0}
 
 
+@pytest.mark.slow
 def test_judge_converges_towards_the_static_backlash_prediction(fmus):
     """The co-simulated cycle approaches the prediction as the communication step shrinks."""
     cycle, = predict("static-backlash", LEAD, F_range=(0.01, 100), omega_range=(0.1, 50))
@@ -124,6 +127,7 @@ def test_cli_bad_input_is_one_line_exit_2(capsys, argv, message):
     assert message in capsys.readouterr().err.strip().splitlines()[-1]
 
 
+@pytest.mark.slow
 def test_two_mass_backlash_example_has_a_stable_cycle_at_eps_02(fmus):
     cycles = predict("backlash", parse_transfer_function("200*(s+2)/(s+20)"), {"eps": 0.2},
                      F_range=(0.01, 100), omega_range=(0.1, 60))
@@ -132,6 +136,7 @@ def test_two_mass_backlash_example_has_a_stable_cycle_at_eps_02(fmus):
     assert c.F == pytest.approx(2.11872, rel=1e-4) and c.omega == pytest.approx(7.52788, rel=1e-4)
 
 
+@pytest.mark.slow
 def test_cli_verify_reports_the_judge_in_prediction_order(fmus, capsys, tmp_path):
     figure = tmp_path / "cycle.png"
     code = main(["limit-cycle", "static-backlash", "--G", "20*(s+2)/(s+20)", "--F-range", "0.01", "100",

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dfwb.describing import DFEngine
-from dfwb.limit_cycles import search
-from dfwb.runner import run_scene
-from dfwb.scene import parse_scene
-from dfwb.simulation import simulate
-from dfwb.transfer import parse_transfer_function
+from dfwb.engine.describing import DFEngine
+from dfwb.engine.limit_cycles import search
+from dfwb.engine.transfer import parse_transfer_function
+from dfwb.fmi.simulation import simulate
+from dfwb.studies.runner import run_scene
+from dfwb.studies.scene import parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -78,13 +78,13 @@ def test_a_scene_matches_the_engine_and_writes_csv_json_figures_and_summary(fmus
     engine = DFEngine("backlash")
     for r in document["series"]["backlash"]:
         direct = engine.point(r["F"], r["omega"], r["params"])
-        assert complex(*r["N"]) == direct.N and r["periods"] == direct.periods
+        assert complex(r["N_re"], r["N_im"]) == direct.N and r["periods"] == direct.periods
         assert r["params"] == {"h": 0.1, "eps": r["params"]["eps"]}
         assert len(r["harmonics"]) == 2  # a DF-only scene records X_0 and X_1 only
     with open(tmp_path / "out" / "results.csv") as handle:
         rows = list(csv.DictReader(handle))
     assert [row["series"] for row in rows] == ["friction"] * 6 + ["backlash"] * 6
-    assert [float(row["N_re"]) for row in rows[6:]] == [r["N"][0] for r in document["series"]["backlash"]]
+    assert [float(row["N_re [m/N]"]) for row in rows[6:]] == [r["N_re"] for r in document["series"]["backlash"]]
     for name in ("nyquist", "re_im"):
         assert (tmp_path / "out" / f"{name}.png").stat().st_size > 10_000
     summary = (tmp_path / "out" / "summary.md").read_text()
@@ -121,7 +121,7 @@ def test_defaults_given_or_omitted_are_the_same_point_and_harmonics_serve_df_onl
     slim = run_scene(plain, tmp_path / "slim", jobs=1, cache=cache, progress=False)
     assert (slim.computed, slim.cache_hits) == (0, 12)  # h = 0.1 and M1 = 1 are the defaults
     for a, b in zip(results(tmp_path / "rich")["series"]["backlash"], results(tmp_path / "slim")["series"]["backlash"]):
-        assert a["N"] == b["N"] and b["harmonics"] == a["harmonics"][:2]
+        assert (a["N_re"], a["N_im"]) == (b["N_re"], b["N_im"]) and b["harmonics"] == a["harmonics"][:2]
 
 
 def test_a_corrupt_cache_is_detected_and_recomputed(fmus, tmp_path):
@@ -176,6 +176,7 @@ def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tm
     assert not list(out.rglob("*.partial"))
 
 
+@pytest.mark.dask
 def test_dask_local_cluster_gives_the_results_of_local_processes(fmus, tmp_path):
     run_scene(scene(), tmp_path / "local", jobs=2, cache=False, progress=False)
     outcome = run_scene(scene(), tmp_path / "dask", jobs=2, dask="local", cache=False, progress=False)
@@ -184,6 +185,8 @@ def test_dask_local_cluster_gives_the_results_of_local_processes(fmus, tmp_path)
     assert "computed on dask (local)" in (tmp_path / "dask" / "summary.md").read_text()
 
 
+@pytest.mark.dask
+@pytest.mark.slow
 def test_an_unreachable_dask_scheduler_is_a_clear_error(fmus, tmp_path):
     with pytest.raises(RuntimeError, match="cannot reach the Dask scheduler 'tcp://127.0.0.1:9'"):
         run_scene(scene(), tmp_path / "x", dask="tcp://127.0.0.1:9", cache=False, progress=False)
@@ -211,7 +214,7 @@ def test_a_limit_cycle_scene_equals_the_direct_search_and_reruns_from_the_cache(
             '[[figure]]\nname = "fig"\nkind = "limit_cycle"\nseries = ["lead"]\n')
     first = run_scene(parse_scene(text), tmp_path / "a", cache=tmp_path / "cache", progress=False)
     cycles = search("static-backlash", parse_transfer_function("20*(s+2)/(s+20)"), {}, (0.01, 100.0),
-                    (0.1, 50.0), 8, 16)[0]
+                    (0.1, 50.0), 8, 16).cycles
     found = json.loads((tmp_path / "a" / "results.json").read_text())["limit_cycles"]["lead"]["predictions"]
     assert [(c["F"], c["omega"]) for c in found] == [(c.F, c.omega) for c in cycles] and len(cycles) == 1
     assert first.computed > 8 * 16 and (tmp_path / "a" / "fig_lead.png").exists()
@@ -231,6 +234,7 @@ def test_dfwb_run_from_the_command_line(fmus, tmp_path, capsys):
     assert "up to date (12 points, 2 figure(s))" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_results_csv_that_is_not_a_run_log_is_set_aside_not_trusted(fmus, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
@@ -245,6 +249,7 @@ def test_a_results_csv_that_is_not_a_run_log_is_set_aside_not_trusted(fmus, tmp_
     assert results(out) == results(foreign)
 
 
+@pytest.mark.slow
 def test_a_folder_changed_since_its_run_is_not_up_to_date(fmus, tmp_path):
     cache = tmp_path / "cache"
     out = tmp_path / "out"
@@ -262,7 +267,7 @@ def test_a_folder_changed_since_its_run_is_not_up_to_date(fmus, tmp_path):
 
 
 def test_results_from_a_worker_running_other_code_are_refused(fmus, tmp_path, monkeypatch):
-    from dfwb import executor
+    from dfwb.studies import executor
 
     real = executor.compute
     monkeypatch.setattr(executor, "compute", lambda chunk, data=None: ("0123456789abcdef", real(chunk)[1]))
@@ -271,21 +276,32 @@ def test_results_from_a_worker_running_other_code_are_refused(fmus, tmp_path, mo
     assert not list((tmp_path / "cache").rglob("*.json"))  # nothing of it was cached
 
 
-def test_the_cache_keys_cover_every_module_of_the_package():
-    import hashlib
+def test_the_cache_keys_cover_the_computing_code_and_not_the_command_line_or_the_plots(tmp_path):
+    """Editing a plot or the CLI keeps every cached point; editing the engine gives new keys."""
+    import shutil
 
-    from dfwb.cache import code_revision
+    from dfwb.studies.cache import COMPUTING, DRAWING, revision
 
-    package = ROOT / "analysis"
-    expected = hashlib.sha256()
-    for path in sorted(package.glob("*.py")):
-        expected.update(path.name.encode() + b"\0" + path.read_bytes())
-    assert code_revision() == expected.hexdigest()[:16]
-    assert {"plants.py", "runner.py", "describing.py", "transfer.py"} <= {p.name for p in package.glob("*.py")}
+    package = tmp_path / "analysis"
+    shutil.copytree(ROOT / "analysis", package, ignore=shutil.ignore_patterns("__pycache__"))
+    layers = {path.parent.name for path in package.glob("*/__init__.py")}
+    assert layers == set(COMPUTING) | set(DRAWING) | {"verify", "api"}  # a new layer must be placed
+    code, drawing = revision(COMPUTING, package), revision(DRAWING, package)
+
+    def edited(path):
+        path.write_text(path.read_text() + "\n# edited\n")
+        revision.cache_clear()
+        return revision(COMPUTING, package), revision(DRAWING, package)
+
+    assert edited(package / "cli.py") == (code, drawing)
+    new_code, new_drawing = edited(package / "plotting" / "plots.py")
+    assert new_code == code and new_drawing != drawing
+    assert edited(package / "engine" / "describing.py")[0] != code
+    assert edited(package / "plants" / "registry.py")[0] not in (code, new_code)
 
 
 def test_in_this_process_every_point_is_recorded_as_it_finishes():
-    from dfwb.executor import chunked
+    from dfwb.studies.executor import chunked
 
     assert {len(c) for c in chunked(list(range(100)), 1)} == {1}
     assert max(len(c) for c in chunked(list(range(1000)), 2)) == 16
@@ -311,6 +327,8 @@ def test_the_command_line_checks_every_scene_before_running_any_and_reports_os_e
     assert f"{bad}: not UTF-8 text (byte 9)" in capsys.readouterr().err
 
 
+@pytest.mark.dask
+@pytest.mark.slow
 def test_a_running_dask_scheduler_gets_the_fmus_shipped_and_gives_the_local_results(fmus, tmp_path):
     """The documented set-up: `dask scheduler`, `dask worker ADDRESS`, `dfwb run --dask ADDRESS`; the worker
     runs in another directory and never sees build/fmus."""

@@ -30,14 +30,15 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from dfwb.engine.describing import COLUMNS
+
 TIMEOUT = float(os.environ.get("DFWB_FUZZ_TIMEOUT", "60"))  # [s] wall clock; more is a hang
 ADDRESS_SPACE = 4 << 30  # [bytes] RLIMIT_AS of each process (numpy, scipy, matplotlib, the FMUs load in 1 GiB)
 FILE_SIZE = 1 << 30  # [bytes] RLIMIT_FSIZE: no file may grow beyond this
 DISK = 256 << 20  # [bytes] at most this much left in the output, cache and temporary folders by one case
 GRACE = 3.0  # [s] for processes of the case to go after the command ended
 STDERR_TAIL = 1500  # characters of stderr shown in a failure
-NUMERIC_COLUMNS = {"F", "omega", "N_re", "N_im", "minus_inv_N_re", "minus_inv_N_im", "seconds", "periods",
-                   "orbit_periods", *(f"X{k}" for k in range(11))}
+NUMERIC_COLUMNS = set(COLUMNS) - {"plant", "params", "drive", "periodic", "note"}  # a DF point's numeric CSV columns
 NON_FINITE = re.compile(r"(?i)(?<![\w.])[-+]?(nan|inf|infinity)(?![\w.])")
 PYTHON = sys.executable
 
