@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from dfwb.runner import run_scene
+from dfwb.studies.runner import run_scene
 
 GRID = """
 [[series]]

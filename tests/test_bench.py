@@ -2,21 +2,41 @@
 
 import csv
 
-from dfwb import bench
+import pytest
+
+from dfwb.plants import PLANTS, builtin
+from dfwb.verify import bench
+
+SCIPY = {f"scipy-{method}" for method in bench.SCIPY_METHODS}
+BENCHED = [entry.name for entry in PLANTS.values() if entry.reference is not None and entry.bench.get("quick")]
+
+
+def test_every_registered_plant_has_what_the_benchmark_needs():
+    """The built-in plants have points, a reference, a naive twin and a scipy rival; the points are well formed."""
+    for entry in (builtin.FRICTION, builtin.BACKLASH, builtin.STATIC_BACKLASH):
+        assert entry.name in BENCHED and entry.naive is not None and entry.scipy is not None
+    for entry in PLANTS.values():
+        for which in entry.bench:
+            for F, omega, params in entry.bench[which]:
+                assert F > 0 and omega > 0 and isinstance(params, dict), (entry.name, which)
+                entry.check(params)
 
 
 def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monkeypatch):
-    monkeypatch.setitem(bench.POINTS, "quick", {"friction": [(10.0, 1.0, None)],
-                                                "backlash": [(50.0, 20.0, 0.5)],
-                                                "static-backlash": [(50.0, 20.0, None)]})
+    for name in BENCHED:  # one point per plant: its first quick one
+        monkeypatch.setitem(PLANTS[name].bench, "quick", PLANTS[name].bench["quick"][:1])
     report = bench.run_bench(tmp_path, quick=True, repeats=1, report=lambda message: None)
     with open(tmp_path / "bench.csv") as handle:
         rows = list(csv.DictReader(handle))
     assert list(rows[0]) == ["plant", "method", "setting", "F", "omega", "eps", "error", "seconds"]
-    for plant in ("friction", "backlash", "static-backlash"):
+    for plant in BENCHED:
+        entry = PLANTS[plant]
         methods = {r["method"] for r in rows if r["plant"] == plant}
-        assert {"fmu-exact", "fmu-input", "fmu-fixedstep", "scipy-RK45", "scipy-DOP853", "scipy-LSODA",
-                "scipy-Radau"} <= methods
+        expected = {"fmu-exact", "fmu-input"}
+        expected |= {"fmu-fixedstep"} if entry.naive is not None else set()
+        expected |= SCIPY if entry.scipy is not None else set()
+        expected |= {"fmu-karnopp"} if entry.variants else set()
+        assert methods == expected, plant
         exact = next(r for r in rows if r["plant"] == plant and r["method"] == "fmu-exact")
         assert float(exact["error"]) < 1e-9  # against DOP853 at rtol 1e-12, or the closed form
         assert (tmp_path / f"pareto_{plant}.png").stat().st_size > 10_000
@@ -24,3 +44,12 @@ def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monke
     text = report.read_text()
     assert "fmu-exact against the fastest method at equal or better error" in text
     assert "How the cost grows" in text and "ms per period" in text
+
+
+@pytest.mark.parametrize("plant", [name for name in BENCHED if PLANTS[name].scipy is not None])
+def test_the_scipy_rival_approaches_the_reference(plant):
+    """What a user would write with solve_ivp agrees with the plant's reference at a tight tolerance."""
+    entry = PLANTS[plant]
+    F, omega, params = entry.bench["quick"][0]
+    truth = entry.reference(F, omega, dict(params))
+    assert abs(entry.scipy(F, omega, dict(params), "DOP853", 1e-9) - truth) <= 1e-5 * abs(truth)

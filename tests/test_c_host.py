@@ -6,7 +6,7 @@ a Python process that has already loaded libpython, set up ``sys.path`` and
 imported numpy. This test proves that the FMU loads and runs with none of
 that: a C program dlopen()s binaries/linux64/<id>.so, calls the FMI 2.0
 functions itself, and must produce the very numbers of the fmpy path
-(``dfwb.simulation.simulate``) on the same grid -- it is the same Python code
+(``dfwb.fmi.simulation.simulate``) on the same grid -- it is the same Python code
 inside the FMU, so they agree to 1e-12 relative -- and must see the FMU's
 own error message and an error status when a parameter is out of range.
 
@@ -36,7 +36,9 @@ import fmpy
 import numpy as np
 import pytest
 
-from dfwb.simulation import simulate
+from dfwb.fmi.simulation import simulate
+
+pytestmark = pytest.mark.needs_cc
 
 HOST_SOURCE = Path(__file__).resolve().parent / "c_host" / "fmu_host.c"
 FMI_HEADERS = Path(fmpy.__file__).resolve().parent / "c-code"  # fmi2Functions.h & co.

@@ -8,20 +8,24 @@ depends on one importer's reading of the FMI standard.
 import numpy as np
 import pytest
 
-from dfwb.simulation import simulate
+from dfwb.fmi.simulation import simulate
+from dfwb.plants import PLANTS
 
-try:  # dfwb.cosim imports libcosimpy and loads its shared library
-    from dfwb.cosim import simulate_cosim, simulate_cosim_together
+try:  # dfwb.fmi.cosim imports libcosimpy and loads its shared library
+    from dfwb.fmi.cosim import simulate_cosim, simulate_cosim_together
 except (ImportError, OSError) as error:
     pytest.skip(f"libcosimpy cannot be imported: {error}", allow_module_level=True)
 
-# model: (start values, real outputs, integer outputs, stop time, step)
+pytestmark = pytest.mark.needs_libcosim
+
+# plant: (start values, real outputs, integer outputs, stop time, step); the FMU is the plant's model
 CASES = {
-    "FrictionMass": (dict(F=10.0, omega=1.0), ["x", "v", "Ff", "Ic1", "Is1"], ["mode", "events"], 20.0, 0.1),
-    "TwoMassBacklash": (dict(F=50.0, omega=20.0, eps=0.5), ["x1", "v1", "x2", "v2", "gap", "Ic1", "Is1"],
-                        ["contact", "impacts", "events"], 1.0, 0.005),
-    "StaticBacklash": (dict(F=50.0, omega=20.0), ["x", "y", "Ic1"], ["engaged", "events"], 1.0, 0.005),
+    "friction": (dict(F=10.0, omega=1.0), ["x", "v", "Ff", "Ic1", "Is1"], ["mode", "events"], 20.0, 0.1),
+    "backlash": (dict(F=50.0, omega=20.0, eps=0.5), ["x1", "v1", "x2", "v2", "gap", "Ic1", "Is1"],
+                 ["contact", "impacts", "events"], 1.0, 0.005),
+    "static-backlash": (dict(F=50.0, omega=20.0), ["x", "y", "Ic1"], ["engaged", "events"], 1.0, 0.005),
 }
+PLANT_NAMES = [name for name in PLANTS if name in CASES]
 RTOL = 1e-12  # relative to the largest magnitude of the output
 ATOL = 1e-15
 
@@ -38,9 +42,15 @@ def assert_close(expected, actual, names):
             f"{actual[name][worst]!r} instead of {expected[name][worst]!r}")
 
 
-@pytest.mark.parametrize("model", list(CASES))
-def test_libcosim_matches_fmpy(fmus, model):
-    start_values, reals, integers, stop_time, step = CASES[model]
+def test_every_registered_plant_has_a_case():
+    missing = [name for name in PLANTS if name not in CASES]
+    assert not missing, f"add a case to CASES for {missing}"
+
+
+@pytest.mark.parametrize("plant", PLANT_NAMES)
+def test_libcosim_matches_fmpy(fmus, plant):
+    start_values, reals, integers, stop_time, step = CASES[plant]
+    model = PLANTS[plant].fmu_name
     expected = simulate(fmus[model], stop_time, step, start_values=start_values, outputs=reals + integers)
     actual = simulate_cosim(fmus[model], stop_time, step, start_values=start_values, outputs=reals + integers)
     assert actual.dtype.names == expected.dtype.names
@@ -50,11 +60,11 @@ def test_libcosim_matches_fmpy(fmus, model):
         np.testing.assert_array_equal(actual[name], expected[name], err_msg=name)
 
 
-def test_three_fmus_in_one_execution(fmus):
-    """One system, three slaves stepping together: each gives what it gives alone (bit for bit)."""
+def test_every_plant_in_one_execution(fmus):
+    """One system, a slave per plant stepping together: each gives what it gives alone (bit for bit)."""
     stop_time, step = 1.0, 0.005
-    runs = [(fmus[model], start_values, reals + integers)
-            for model, (start_values, reals, integers, _stop, _step) in CASES.items()]
+    runs = [(fmus[PLANTS[plant].fmu_name], start_values, reals + integers)
+            for plant, (start_values, reals, integers, _stop, _step) in CASES.items() if plant in PLANTS]
     together = simulate_cosim_together(runs, stop_time, step)
     assert len(together) == len(runs)
     for (path, start_values, outputs), result in zip(runs, together):

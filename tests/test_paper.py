@@ -2,13 +2,16 @@
 
 import re
 
-from dfwb.paper import run_paper
+import pytest
+
+from dfwb.studies.reproduce import run_paper
 
 FIGURES = ["fig03_friction_nyquist", "fig04_friction_re_im", "fig05_friction_time", "fig06_friction_harmonics",
            "fig08_backlash_nyquist_eps", "fig09_backlash_nyquist_F", "fig10_backlash_re_im",
            "fig11_backlash_velocity", "fig12_backlash_harmonics"]
 
 
+@pytest.mark.slow
 def test_paper_runs_its_scenes_writes_every_figure_and_a_report(fmus, tmp_path):
     cache = tmp_path / "cache"
     report = run_paper(tmp_path / "paper", jobs=2, progress=False, report=lambda message: None, cache=cache)

@@ -1,13 +1,14 @@
-"""The numerical stress suite (dfwb.stress): the quick set passes, and a broken solver is caught."""
+"""The numerical stress suite (dfwb.verify.stress): the quick set passes, and a broken solver is caught."""
 
+import functools
 import json
 import math
 
 import pytest
 
-from dfwb import stress
-from dfwb.fmus import FrictionMass, StaticBacklash, TwoMassBacklash
-from dfwb.fmus import piecewise
+from dfwb.fmus import FrictionMass, StaticBacklash, TwoMassBacklash, piecewise
+from dfwb.plants import PLANTS, builtin
+from dfwb.verify import stress
 
 
 @pytest.fixture(scope="module")
@@ -48,11 +49,38 @@ def _checks(case):
 FRICTION = dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=10.0, omega=1.0)
 BACKLASH = dict(M1=1.0, M2=1.0, h=0.1, eps=0.5, F=50.0, omega=20.0)
 STATIC = dict(M=2.0, k=1.0, h=0.1, F=50.0, omega=20.0)
+REFERENCE_CASES = {"friction": FRICTION, "backlash": BACKLASH, "static-backlash": STATIC}  # plant: a plain case
+STRESSED = [entry.name for entry in PLANTS.values() if entry.stress is not None]
 
 
-def test_the_reference_cases_pass_unbroken():
-    for plant, params in (("friction", FRICTION), ("backlash", BACKLASH), ("static", STATIC)):
-        assert _checks(_case(plant, params)) == set()
+def test_every_registered_plant_has_a_reference_case():
+    """A stressed plant missing from REFERENCE_CASES fails here; the built-in plants are all stressed."""
+    missing = sorted(set(STRESSED) - set(REFERENCE_CASES))
+    assert not missing, f"add a plain case to REFERENCE_CASES for {missing}"
+    assert {builtin.FRICTION.name, builtin.BACKLASH.name, builtin.STATIC_BACKLASH.name} <= set(STRESSED)
+
+
+@functools.lru_cache(maxsize=None)
+def _all_cases(quick):
+    return stress.all_cases(quick=quick)
+
+
+@pytest.mark.parametrize("plant", STRESSED)
+def test_every_plant_is_stressed(plant):
+    """Its own valid cases, its long cases and its invalid parameters are in the sets, named by the plant."""
+    quick, full = _all_cases(True), _all_cases(False)
+    valid = [c for c in quick if isinstance(c, stress.Case) and c.plant == plant]
+    assert len(valid) >= 10
+    long = [c for c in full if isinstance(c, stress.Case) and c.plant == plant and c.long]
+    assert len(long) == len(PLANTS[plant].stress.long)
+    invalid = [c for c in quick if isinstance(c, stress.InvalidCase) and c.plant == plant]
+    assert len(invalid) >= len(PLANTS[plant].stress.invalid) + 18 + 3 + 4  # its own, the excitation's, f, t_end
+    assert all(c.describe().startswith(plant + "[") for c in valid)
+
+
+@pytest.mark.parametrize("plant", STRESSED)
+def test_the_reference_cases_pass_unbroken(plant):
+    assert _checks(_case(plant, REFERENCE_CASES[plant])) == set()
 
 
 def test_a_nan_output_is_caught(monkeypatch):
@@ -96,7 +124,7 @@ def test_a_leaking_play_is_caught(monkeypatch):
         return x + 0.6 * self.h, v, y
 
     monkeypatch.setattr(StaticBacklash, "output", leak)
-    assert "play" in _checks(_case("static", STATIC))
+    assert "play" in _checks(_case("static-backlash", STATIC))
 
 
 def test_sticking_under_a_large_force_is_caught(monkeypatch):
@@ -132,7 +160,7 @@ def test_wrong_fourier_integrals_are_caught(monkeypatch):
         return [values[0]] + [z * (1 + 1e-6) for z in values[1:]]
 
     monkeypatch.setattr(StaticBacklash, "integrals", off)
-    assert "fourier" in _checks(_case("static", STATIC))
+    assert "fourier" in _checks(_case("static-backlash", STATIC))
 
 
 def test_events_and_time_budget_are_enforced(monkeypatch):

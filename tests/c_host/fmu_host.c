@@ -9,7 +9,7 @@
    after every step. Any status other than fmi2OK ends it with exit code 1 and a message
    on stderr; logging is on, so the FMU's own messages reach stderr too.
 
-   Build: cc -I<fmpy>/c-code fmu_host.c -o fmu_host -ldl   (headers: FMI 2.0, as shipped with fmpy) */
+   Build: cc -I<fmpy>/c-code fmu_host.c -o fmu_host -ldl -lm   (headers: FMI 2.0, as shipped with fmpy) */
 
 #include <dlfcn.h>
 #include <math.h>
