@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test fmus clean
+.PHONY: demo test lint fmus clean
 
 # The virtual environment with the project (editable) and, for tests, its test extras.
 $(VENV)/.base: pyproject.toml
@@ -25,6 +25,10 @@ demo: fmus
 
 test: $(VENV)/.test
 	$(BIN)/python -m pytest -q
+
+# ruff, configured in pyproject.toml ([tool.ruff]); installed with the test extras.
+lint: $(VENV)/.test
+	$(BIN)/ruff check .
 
 clean:
 	rm -rf $(VENV) build out
