@@ -17,7 +17,7 @@ drifted far or their masses differ by orders of magnitude.
 
 from .contract import BacklashOutput, EventKind
 from .exact import Motion
-from .piecewise import PiecewisePlant, Search, check
+from .piecewise import PiecewisePlant, PositionSearch, Search, VelocitySearch, check
 
 MIN_CLEARANCE = 1e-290  # m: the Zeno tolerance 1e-12 h stays a normal float
 FREE, LOWER, UPPER = 0, 1, 2  # the ``contact`` output: free, at gap 0, at gap h
@@ -110,10 +110,7 @@ class TwoMassBacklash(PiecewisePlant):
         if departing:
             # The gap cannot return to the boundary it left before the
             # separation speed -sigma*w falls to zero: search that apex first.
-            def separation(tt):
-                _, ww = gap.state(tt)
-                return -departing * ww, -departing * gap.acceleration(tt, ww)
-
+            separation = VelocitySearch(gap, -departing)  # -sigma w, -sigma w'
             sep = -departing * w
             t_from = t if sep > 0.0 else d.crossing(t, 0.0, rising=departing > 0)
             self._searches.append(Search(separation, gap.curvature_bound(), t_from, EventKind.APEX))
@@ -121,14 +118,8 @@ class TwoMassBacklash(PiecewisePlant):
     def _boundary_searches(self, t, skip=0):
         gap, h = self._gap, self.h
         K = abs(gap.a) + abs(gap.b)
-
-        def above_lower(tt):
-            g, w = gap.state(tt)
-            return g, w
-
-        def below_upper(tt):
-            g, w = gap.state(tt)
-            return h - g, -w
+        above_lower = PositionSearch(gap)  # g, w
+        below_upper = PositionSearch(gap, h)  # h - g, -w
 
         searches = []
         if skip != SIDE[LOWER]:

@@ -14,19 +14,25 @@ the production FMUs, and a plant defined outside dfwb subclasses
 :class:`PlantFMU` in its own module.
 """
 
+import cmath
 import math
 
 from pythonfmu import DefaultExperiment, Fmi2Slave, Integer, Real
 from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 
+from . import state as _state
 from .backlash import TwoMassBacklash as _TwoMassBacklash
+from .contract import EventKind
+from .exact import PHASE_LIMIT, Drive, Motion
 from .friction import FrictionMass as _FrictionMass
 from .linear_system import MAX_ORDER as _MAX_ORDER
 from .linear_system import LinearSystem as _LinearSystem
-from .piecewise import PlantError, check
+from .piecewise import SEARCH_CLASSES, PlantError, check
 from .static_backlash import StaticBacklash as _StaticBacklash
 
 MAX_HARMONIC = 10
+STATE_BASE_CLASSES = (Drive, Motion, EventKind) + SEARCH_CLASSES
+"""Classes any solver's state may hold (with the solver's own classes): what a serialized state may name."""
 EXCITATION = (
     ("F", 0.0, "N", "amplitude of the built-in excitation F cos(omega t + phi)"),
     ("omega", 1.0, "rad/s", "angular frequency of the built-in excitation (> 0)"),
@@ -53,17 +59,89 @@ def pin(namespace):
 
 
 class StepRefused(RuntimeError):
-    """Raised inside the FMU so that the importer gets an error status."""
+    """A refused call inside the FMU: caught by the callback's guard, logged as an error, never raised out."""
+
+
+MAX_INPUT = 1e100
+"""Largest magnitude of the input (N for the plants): beyond, a plant's motion can overflow a float within a step."""
+
+INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED, ERROR = (
+    "instantiated", "initialization mode", "stepping", "terminated", "error")
+PHASES = (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED, ERROR)
+PHASE_VR = 0x7FFFFFFF
+"""A valueReference outside the model description: getInteger of it alone answers the phase's index in
+PHASES (0 instantiated, 1 initialization mode, 2 stepping, 3 terminated, 4 error), for the FMU's C shim,
+which must learn the phase a restored FMU state puts the instance in."""
+
+
+def _guarded(call, fallback=None):
+    """Wrap an Fmi2Slave callback: any exception becomes one logged error and a benign return.
+
+    pythonfmu 0.7.0 treats an exception out of a callback as fatal and
+    destroys the Python instance (later calls crash the host), so none ever
+    leaves. ``fallback(self, *args)`` is what a refused call returns (getters:
+    values of the right length; doStep: False).
+    """
+
+    def decorate(method):
+        def guarded(self, *args):
+            try:
+                return method(self, *args)
+            except Exception as error:  # noqa: BLE001 - every exception must become an FMI error
+                message = str(error) if isinstance(error, (StepRefused, PlantError)) else \
+                    f"{call} failed: {type(error).__name__}: {error}"
+                self._refuse(call, message)
+                return fallback(self, *args) if fallback else None
+
+        guarded.__name__, guarded.__doc__ = method.__name__, method.__doc__
+        return guarded
+
+    return decorate
+
+
+def _zeros(value):
+    return lambda self, vrs, *rest: [value] * len(vrs)
 
 
 class SolverFMU(Fmi2Slave):
-    """What every dfwb FMU shares: metadata, errors through the FMI logger, a checked doStep.
+    """What every dfwb FMU shares: metadata, errors through the FMI logger, a checked doStep, FMU state.
+
+    FMI interface
+    -------------
+    * Time: ``fmi2SetupExperiment``'s start time t0 is honoured. The plant
+      starts at t = t0 from its initial values (x0, v0, ...); the built-in
+      excitation is ``F cos(omega t + phi)`` in absolute time t, and the
+      Fourier outputs are ``I_k(t) = int_{t0}^{t} y(s) exp(-i k omega s) ds``
+      (absolute phase; with t0 = 0 everything is as before, bit for bit).
+      doStep's currentTime must be the FMU's absolute time.
+    * Errors: no exception ever leaves a callback. A refused call logs one
+      message with status error (naming the call and the value) and returns
+      normally (doStep returns False, getters return values of the right
+      length); the FMU is then in the Error state of the standard: only
+      getters, fmi2SetFMUstate, fmi2Reset and fmi2FreeInstance make sense.
+      Refused: a bad parameter (at exitInitializationMode), a fixed parameter
+      set after initialisation (its value is kept), an input that is NaN,
+      infinite or larger than MAX_INPUT, a step at the wrong time or of a bad
+      length, doStep before initialisation or after terminate.
+    * State: fmi2Get/Set/FreeFMUstate copy the solver exactly (time, pieces,
+      Fourier integrals, event counters, modes) and the facade's values;
+      fmi2SerializeFMUstate writes them as bytes that only this model of
+      the same build accepts (see :mod:`.state`).
 
     A subclass creates ``self.solver`` at the end of initialisation; doStep
     hands it the input named ``input_name``, held over the step.
     """
 
     input_name = "f"
+    ranges = {}
+    """{variable name: (min, max)} written into the model description (None: no bound on that side).
+
+    Declarative only: the solvers' own checks decide what is accepted, with their messages
+    (a bound that is strict, like M > 0, is written as min = 0 and said in the description)."""
+    feedthrough = {}
+    """{output name: dependenciesKind} of the outputs the input feeds directly (the others depend on no input)."""
+    state_classes = ()
+    """Extra classes a solver's state holds (beyond its own class, Drive, Motion and the searches)."""
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -71,25 +149,257 @@ class SolverFMU(Fmi2Slave):
         self.description = self.__class__.__doc__.strip().splitlines()[0]
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.01)
         self.solver = None
+        self._phase = INSTANTIATED
+        self._start_time = 0.0
+        self._time = 0.0
+
+    @classmethod
+    def limits(cls):
+        """{name: (min, max)} of the model description (:attr:`ranges`, the input's bound)."""
+        return dict({cls.input_name: (-MAX_INPUT, MAX_INPUT)}, **cls.ranges)
+
+    # -- errors ---------------------------------------------------------------
+    def _refuse(self, call, message):
+        """Log a refused call (status error) and enter the Error state."""
+        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
+        self._phase = ERROR
 
     def _fail(self, message):
-        self.log(f"{self.__class__.__name__}: {message}", status=Fmi2Status.error)
         raise StepRefused(message)
 
+    def _expect(self, call, *phases):
+        if self._phase not in phases:
+            raise StepRefused(f"{call} is not allowed in the {self._phase} state"
+                              + (" (after an error only getters, setFMUstate, reset and freeInstance)"
+                                 if self._phase == ERROR else ""))
+
+    # -- FMI callbacks ---------------------------------------------------------------
+    @_guarded("setupExperiment")
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._expect("setupExperiment", INSTANTIATED)
+        if not (isinstance(start_time, (int, float)) and math.isfinite(start_time)):
+            self._fail(f"start time {start_time!r} refused: it must be a finite number")
+        self._start_time = self._time = float(start_time)
+
+    @_guarded("enterInitializationMode")
+    def enter_initialization_mode(self):
+        self._expect("enterInitializationMode", INSTANTIATED)
+        self._phase = INITIALIZATION
+
+    @_guarded("exitInitializationMode")
+    def exit_initialization_mode(self):
+        self._expect("exitInitializationMode", INITIALIZATION)
+        self._check_input(getattr(self, self.input_name))
+        try:
+            self.solver = self._make_solver()
+        except PlantError as error:
+            self._fail(f"invalid parameter: {error}")
+        self._phase = STEPPING
+        self._refresh()
+
+    @_guarded("doStep", fallback=lambda self, *args: False)
     def do_step(self, current_time, step_size):
         solver = self.solver
-        if solver is None:
+        if self._phase == TERMINATED:
+            self._fail(f"doStep at t = {current_time!r} refused: the FMU is terminated")
+        if solver is None or self._phase in (INSTANTIATED, INITIALIZATION):
             self._fail("doStep called before initialisation")
+        self._expect("doStep", STEPPING)
         if not (math.isfinite(step_size) and step_size > 0.0):
             self._fail(f"communication step {step_size!r} at t = {current_time!r}: it must be > 0 and finite")
-        if not (abs(current_time - solver.t) <= 1e-9 * max(1.0, abs(solver.t))):  # NaN refused too
-            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {solver.t!r}")
+        now = self._time
+        if not (abs(current_time - now) <= 1e-9 * max(1.0, abs(now))):  # NaN refused too
+            self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {now!r}")
+        end = max(current_time + step_size, now)
         try:
             solver.set_input(getattr(self, self.input_name))
-            solver.advance(max(current_time + step_size, solver.t))
+            solver.advance(end - self._start_time)  # the solver's own time starts at 0
         except PlantError as error:
+            self._broken()
             self._fail(f"step from t = {current_time!r} refused: {error}")
+        self._time = end
         self._refresh()
+        if not self._finite():
+            self._broken()
+            self._fail(f"step from t = {current_time!r} to {end!r} refused: the motion overflows a float "
+                       f"(outputs are no longer finite)")
+        return True
+
+    @_guarded("terminate")
+    def terminate(self):
+        self._expect("terminate", STEPPING)
+        self._phase = TERMINATED
+
+    @_guarded("getReal", fallback=_zeros(0.0))
+    def get_real(self, vrs):
+        return self._get_real(vrs)
+
+    @_guarded("getInteger", fallback=_zeros(0))
+    def get_integer(self, vrs):
+        if len(vrs) == 1 and vrs[0] == PHASE_VR:  # the host shim asks the phase (after fmi2SetFMUstate)
+            return [PHASES.index(self._phase)]
+        return self._get_integer(vrs)
+
+    @_guarded("getBoolean", fallback=_zeros(False))
+    def get_boolean(self, vrs):
+        return super().get_boolean(vrs)
+
+    @_guarded("getString", fallback=_zeros(""))
+    def get_string(self, vrs):
+        return super().get_string(vrs)
+
+    @_guarded("setReal")
+    def set_real(self, vrs, values):
+        self._set_values("setReal", vrs, values, "Real")
+
+    @_guarded("setInteger")
+    def set_integer(self, vrs, values):
+        self._set_values("setInteger", vrs, values, "Integer")
+
+    @_guarded("setBoolean")
+    def set_boolean(self, vrs, values):
+        self._fail(f"valueReferences {list(vrs)!r}: this FMU has no Boolean variable")
+
+    @_guarded("setString")
+    def set_string(self, vrs, values):
+        self._fail(f"valueReferences {list(vrs)!r}: this FMU has no String variable")
+
+    # -- setting values ------------------------------------------------------------
+    def _set_values(self, call, vrs, values, kind):
+        names = self._names(vrs, kind)
+        values = list(values)
+        if len(values) != len(names):
+            self._fail(f"{len(names)} valueReferences but {len(values)} values")
+        if self._phase in (TERMINATED, ERROR):
+            self._fail(f"{call} of {', '.join(names)} refused: not allowed in the {self._phase} state")
+        for name, value in zip(names, values):
+            if name == self.input_name:
+                self._check_input(value)
+            elif name not in self._parameter_names():
+                self._fail(f"{call}: {name} is an output and cannot be set")
+            elif self._phase == STEPPING:
+                self._fail(f"{call} of {name} = {value!r} refused: {name} is a fixed parameter and cannot be set "
+                           f"after initialisation ({name} stays {getattr(self, name)!r})")
+        for name, value in zip(names, values):
+            setattr(self, name, int(value) if kind == "Integer" else float(value))
+
+    def _check_input(self, value):
+        name = self.input_name
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and abs(value) <= MAX_INPUT):
+            self._fail(f"at t = {self._time!r}: {name} = {value!r} is out of range: the input {name} must be "
+                       f"a finite number of magnitude <= {MAX_INPUT:g}")
+
+    # -- FMU state -------------------------------------------------------------------
+    @classmethod
+    def _state_table(cls):
+        """{(module, qualname): class} of every class this FMU's state may hold (see :mod:`.state`)."""
+        table = getattr(cls, "_state_table_cache", None)
+        if table is None or table[0] is not cls:
+            classes = set(STATE_BASE_CLASSES) | set(cls.state_classes)
+            solver_class = getattr(cls, "solver_class", None) or _LinearSystem
+            classes.update(klass for klass in solver_class.__mro__ if klass is not object)
+            table = (cls, {(klass.__module__, klass.__qualname__): klass for klass in classes})
+            cls._state_table_cache = table
+        return table[1]
+
+    @classmethod
+    def _package(cls):
+        return cls.__module__.rpartition(".")[0] or cls.__module__
+
+    def _facade_values(self):
+        values = {name: getattr(self, name) for name in self._parameter_names() + (self.input_name,)}
+        values.update(_phase=self._phase, _start_time=self._start_time, _time=self._time)
+        return values
+
+    @_guarded("getFMUstate", fallback=lambda self: _state.RefusedState("the state could not be taken"))
+    def _get_fmu_state(self):
+        self._expect("getFMUstate", INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED)
+        solver = None if self.solver is None else _state.copy_solver(self.solver)
+        return _state.FMUState(type(self).__name__, self._package(), self._facade_values(), solver)
+
+    @_guarded("setFMUstate")
+    def _set_fmu_state(self, state):
+        if isinstance(state, _state.RefusedState):
+            self._fail(f"the state was refused when it was deserialized: {state.refused}")
+        if not isinstance(state, _state.FMUState):
+            self._fail(f"{type(state).__name__} is not a state of this FMU")
+        if state.model != type(self).__name__ or state.package != self._package():
+            self._fail(f"the state is one of {state.package}.{state.model}, not of this FMU "
+                       f"({self._package()}.{type(self).__name__})")
+        values = state.values
+        expected = set(self._facade_values())
+        if set(values) != expected:
+            self._fail("the state's facade values do not match this FMU's variables")
+        solver = state.solver
+        solver_class = self._solver_type()
+        if not (solver is None or type(solver) is solver_class):
+            self._fail(f"the state's solver is a {type(solver).__name__}, not a {solver_class.__name__}")
+        phase = values["_phase"]
+        if phase not in (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED) or \
+                (solver is None) != (phase in (INSTANTIATED, INITIALIZATION)):
+            self._fail("the state's phase does not match its solver")
+        for name in self._parameter_names() + (self.input_name,):
+            if type(values[name]) is not type(getattr(self, name)):
+                self._fail(f"the state's {name} is a {type(values[name]).__name__}")
+        for name in ("_start_time", "_time"):
+            if not (type(values[name]) is float and math.isfinite(values[name])):
+                self._fail(f"the state's {name} is not a finite float")
+        self.solver = None if solver is None else _state.copy_solver(solver)
+        for name, value in values.items():
+            if not name.startswith("_"):
+                setattr(self, name, value)
+        self._start_time, self._time = values["_start_time"], values["_time"]
+        self._phase = phase
+        self._restored()
+
+    def _restored(self):
+        """Recompute what the facade derives from the solver after a state is set."""
+        if self.solver is not None:
+            self._refresh()
+
+    @classmethod
+    def _fmu_state_to_bytes(cls, state):
+        try:
+            if isinstance(state, _state.RefusedState):
+                return _state.MAGIC + b"refused: " + state.refused.encode("utf-8", "replace")
+            return _state.encode(state, cls._state_table())
+        except Exception as error:  # noqa: BLE001 - never out of a callback: bytes that deserialize as refused
+            return _state.MAGIC + f"refused: the state could not be serialized ({error})".encode("utf-8", "replace")
+
+    @classmethod
+    def _fmu_state_from_bytes(cls, data):
+        try:
+            return _state.decode(data, cls.__name__, cls._package(), cls._state_table())
+        except _state.StateRefused as error:
+            return _state.RefusedState(f"serialized state refused: {error}")
+        except Exception as error:  # noqa: BLE001
+            return _state.RefusedState(f"serialized state refused: {type(error).__name__}: {error}")
+
+    # -- hooks ---------------------------------------------------------------------
+    def _solver_type(self):
+        return self.solver_class
+
+    def _make_solver(self):
+        raise NotImplementedError
+
+    def _parameter_names(self):
+        """Names of the parameters (fixed: settable only before exitInitializationMode)."""
+        raise NotImplementedError
+
+    def _names(self, vrs, kind):
+        raise NotImplementedError
+
+    def _get_real(self, vrs):
+        return Fmi2Slave.get_real(self, vrs)
+
+    def _get_integer(self, vrs):
+        return Fmi2Slave.get_integer(self, vrs)
+
+    def _broken(self):
+        """A step failed half-way: keep the outputs of the last good point."""
+
+    def _finite(self):
+        """Whether the outputs after a step are finite."""
         return True
 
     def _refresh(self):
@@ -110,11 +420,14 @@ class PlantFMU(SolverFMU):
             FACADES.append(cls)
         cls._layout = cls.layout()
         cls._settable = frozenset(name for name, _kind, causality, *_ in cls._layout if causality != "output")
+        cls._parameters = tuple(name for name, _kind, causality, *_ in cls._layout if causality == "parameter")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._values = {}
         self._fourier = None
+        self._rotation = None
+        self._frozen = False
         for name, default, *_ in self.parameters + EXCITATION:
             setattr(self, name, float(default))
         self.harmonics = MAX_HARMONIC
@@ -150,10 +463,10 @@ class PlantFMU(SolverFMU):
             return getattr(self, name)
         if name[:2] in ("Ic", "Is"):
             if self._fourier is None and self.solver is not None:
-                self._fourier = {}
-                for k, integral in enumerate(self.solver.integrals()):
-                    self._fourier[f"Ic{k}"] = integral.real
-                    self._fourier[f"Is{k}"] = -integral.imag
+                fourier = self._integrals()
+                if not all(math.isfinite(value) for value in fourier.values()):
+                    self._fail(f"the Fourier integrals at t = {self._time!r} overflow a float")
+                self._fourier = fourier
             return (self._fourier or {}).get(name, 0.0)
         return self._values.get(name, 0)
 
@@ -166,23 +479,14 @@ class PlantFMU(SolverFMU):
             names.append(table[vr][0])
         return names
 
-    def get_real(self, vrs):
+    def _get_real(self, vrs):
         return [float(self._value(name)) for name in self._names(vrs, "Real")]
 
-    def get_integer(self, vrs):
+    def _get_integer(self, vrs):
         return [int(self._value(name)) for name in self._names(vrs, "Integer")]
 
-    def _set(self, vrs, values, kind, convert):
-        for name, value in zip(self._names(vrs, kind), values):
-            if name not in self._settable:
-                raise TypeError(f"{name} is an output and cannot be set")
-            setattr(self, name, convert(value))
-
-    def set_real(self, vrs, values):
-        self._set(vrs, values, "Real", float)
-
-    def set_integer(self, vrs, values):
-        self._set(vrs, values, "Integer", int)
+    def _parameter_names(self):
+        return self._parameters
 
     # -- declarations used by the builder ------------------------------------
     @classmethod
@@ -192,7 +496,8 @@ class PlantFMU(SolverFMU):
         for k in range(MAX_HARMONIC + 1):
             for part, wave in (("c", "cos"), ("s", "sin")):
                 fourier.append((f"I{part}{k}", f"{unit}.s",
-                                f"running integral of {signal}(t) {wave}({k} omega t) dt from 0", False))
+                                f"running integral of {signal}(t) {wave}({k} omega t) dt from the start time "
+                                f"(absolute phase)", False))
         events = ("events", None, "number of events (mode changes, impacts) so far", True)
         return tuple(cls.outputs) + (events,) + tuple(fourier)
 
@@ -204,14 +509,53 @@ class PlantFMU(SolverFMU):
         table.update({name: unit for name, unit, _d, is_int in cls.all_outputs() if unit and not is_int})
         return table
 
+    @classmethod
+    def limits(cls):
+        """{name: (min, max)}: the class's ``ranges`` plus the excitation's, harmonics' and the input's."""
+        table = {"omega": (0.0, None), "phi": (-PHASE_LIMIT, PHASE_LIMIT), "harmonics": (0, MAX_HARMONIC),
+                 "f": (-MAX_INPUT, MAX_INPUT)}
+        table.update(cls.ranges)
+        return table
+
     # -- FMI ------------------------------------------------------------------
-    def exit_initialization_mode(self):
+    def _make_solver(self):
         kwargs = {name: getattr(self, name) for name, *_ in self.parameters + EXCITATION}
-        try:
-            self.solver = self.solver_class(f=self.f, harmonics=self.harmonics, **self.solver_kwargs(kwargs))
-        except PlantError as error:
-            self._fail(f"invalid parameter: {error}")
-        self._refresh()
+        t0 = self._start_time
+        if t0 != 0.0:  # the solver's time starts at 0: F cos(omega t + phi) = F cos(omega (t - t0) + phi')
+            kwargs["phi"] = kwargs["phi"] + kwargs["omega"] * t0
+        self._rotation = None
+        solver = self.solver_class(f=self.f, harmonics=self.harmonics, **self.solver_kwargs(kwargs))
+        if t0 != 0.0:  # I_k from t0 in absolute phase: exp(-i k omega t0) times the solver's own
+            self._rotation = [cmath.exp(-1j * k * self.omega * t0) for k in range(solver.harmonics + 1)]
+        return solver
+
+    def _integrals(self):
+        """{Ick, Isk: value} from the solver's running integrals (rotated to absolute phase)."""
+        fourier = {}
+        integrals = self.solver.integrals()
+        if self._rotation is not None:
+            integrals = [value * rot for value, rot in zip(integrals, self._rotation)]
+        for k, integral in enumerate(integrals):
+            fourier[f"Ic{k}"] = integral.real
+            fourier[f"Is{k}"] = -integral.imag
+        return fourier
+
+    def _restored(self):
+        self._frozen = False
+        self._rotation = None
+        t0 = self._start_time
+        if self.solver is not None and t0 != 0.0:
+            self._rotation = [cmath.exp(-1j * k * self.omega * t0) for k in range(self.solver.harmonics + 1)]
+        super()._restored()
+
+    def _broken(self):
+        # the solver stopped half-way: outputs stay at the last good point; the integrals too, if known
+        if self._fourier is None:
+            self._fourier = {}
+        self._frozen = True  # the Error state, until a state is set (or the instance reset)
+
+    def _finite(self):
+        return all(math.isfinite(value) for value in self._values.values())
 
     @classmethod
     def solver_kwargs(cls, kwargs):
@@ -219,6 +563,8 @@ class PlantFMU(SolverFMU):
         return kwargs
 
     def _refresh(self):
+        if getattr(self, "_frozen", False):
+            return
         values = self._values
         values.update(zip((name for name, *_ in self.outputs), self.output_values()))
         values["events"] = self.solver.events
@@ -232,6 +578,8 @@ class FrictionMass(PlantFMU):
     """Mass with Coulomb, viscous and static friction (exact stick-slip), force input f."""
 
     solver_class = _FrictionMass
+    ranges = {"M": (0.0, None), "B": (0.0, None), "Fc": (0.0, None), "Fs": (0.0, None), "Dv": (0.0, None)}
+    feedthrough = {"Ff": "dependent", "mode": "dependent"}  # stuck: Ff = u; a new f can break away at once
     parameters = (
         ("M", 1.0, "kg", "mass (> 0)"),
         ("B", 0.5, "N.s/m", "viscous friction coefficient (>= 0)"),
@@ -257,6 +605,7 @@ class TwoMassBacklash(PlantFMU):
 
     solver_class = _TwoMassBacklash
     output_signal = ("x1", "m")
+    ranges = {"M1": (0.0, None), "M2": (0.0, None), "h": (0.0, None), "eps": (0.0, 1.0), "gap0": (-1.0, None)}
     parameters = (
         ("M1", 1.0, "kg", "mass 1, the output side (> 0)"),
         ("M2", 1.0, "kg", "mass 2, driven by the force (> 0)"),
@@ -292,6 +641,7 @@ class StaticBacklash(PlantFMU):
 
     solver_class = _StaticBacklash
     output_signal = ("y", "m")
+    ranges = {"M": (0.0, None), "k": (0.0, None), "h": (0.0, None)}
     parameters = (
         ("M", 2.0, "kg", "mass (> 0)"),
         ("k", 1.0, None, "slope of the backlash element (> 0)"),
@@ -314,6 +664,8 @@ class LinearSystem(SolverFMU):
     """Linear transfer function G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an), exact for a held input u."""
 
     input_name = "u"
+    ranges = {"order": (1, _MAX_ORDER)}
+    feedthrough = {"y": "fixed"}  # y = C x + D u, D = b0 a fixed parameter
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -367,11 +719,20 @@ class LinearSystem(SolverFMU):
                 return 0.0
         return solver.output(self.u if math.isfinite(self.u) else None)
 
-    def exit_initialization_mode(self):
-        try:
-            self.solver = self._make_solver()
-        except PlantError as error:
-            self._fail(f"invalid parameter: {error}")
+    def _solver_type(self):
+        return _LinearSystem
+
+    def _parameter_names(self):
+        return tuple(var.name for var in self.vars.values() if var.causality == Fmi2Causality.parameter)
+
+    def _names(self, vrs, kind):
+        names = []
+        for vr in vrs:
+            var = self.vars.get(vr)
+            if var is None or type(var).__name__ != kind:
+                raise TypeError(f"Variable with valueReference={vr} is not of type {kind}!")
+            names.append(var.name)
+        return names
 
 
 PRODUCTION = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem)

@@ -15,7 +15,7 @@ stops (v reaching the band) are first zeros of the closed-form velocity.
 
 from .contract import EventKind, FrictionOutput
 from .exact import Motion
-from .piecewise import PiecewisePlant, Search, check
+from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, check
 
 HOLD, SLIDE, PUSH = "hold", "slide", "push"
 
@@ -93,11 +93,7 @@ class FrictionMass(PiecewisePlant):
         self.mode, self.direction = PUSH, s
         motion = self._motion(t, x, v, 0.0, self.drive.f - s * self.Fs)
         t_release = self.drive.crossing(t, s * self.Fs, rising=s < 0)
-
-        def gap_to_edge(tt):
-            _, vv = motion.state(tt)
-            return self.Dv - s * vv, -s * motion.acceleration(tt, vv)
-
+        gap_to_edge = VelocitySearch(motion, -s, self.Dv)  # Dv - s v, -s v'
         search = Search(gap_to_edge, motion.curvature_bound(), t, EventKind.EDGE)
         self._begin(t, motion, t_release, EventKind.RELEASE, [search])
 
@@ -107,13 +103,9 @@ class FrictionMass(PiecewisePlant):
         motion = self._motion(t, x, v, self.B / self.M, self.drive.f - s * self.Fc)
         # Leaving the band edge, s*v - Dv > 0 is proven while s*u > Fc + B Dv.
         t_from = self.drive.crossing(t, s * self.edge_force, rising=s < 0) if departing else t
-
-        def speed_above_band(tt):
-            _, vv = motion.state(tt)
-            return s * vv - self.Dv, s * motion.acceleration(tt, vv)
-
+        speed_above_band = VelocitySearch(motion, s, -self.Dv)  # s v - Dv, s v'
         # with damping, K is a function of t: the initial velocity's part of v'' decays
-        K = motion.curvature_bound if self.B else motion.curvature_bound()
+        K = CurvatureBound(motion) if self.B else motion.curvature_bound()
         search = Search(speed_above_band, K, t_from, EventKind.BAND)
         self._begin(t, motion, searches=[search])
 

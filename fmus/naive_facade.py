@@ -28,6 +28,7 @@ class NaiveFrictionMass(FrictionMass):
     """
 
     solver_class = _NaiveFrictionMass
+    ranges = dict(FrictionMass.ranges, dt=(0.0, None))
     parameters = FrictionMass.parameters + (DT_PARAMETER,)
 
 
@@ -40,6 +41,7 @@ class NaiveTwoMassBacklash(TwoMassBacklash):
     """
 
     solver_class = _NaiveTwoMassBacklash
+    ranges = dict(TwoMassBacklash.ranges, dt=(0.0, None))
     parameters = TwoMassBacklash.parameters + (DT_PARAMETER,)
 
 
@@ -51,6 +53,7 @@ class NaiveStaticBacklash(StaticBacklash):
     """
 
     solver_class = _NaiveStaticBacklash
+    ranges = dict(StaticBacklash.ranges, dt=(0.0, None))
     parameters = StaticBacklash.parameters + (DT_PARAMETER,)
 
 

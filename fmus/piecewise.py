@@ -51,6 +51,67 @@ class Search:
         self.fun, self.K, self.t_from, self.kind = fun, K, t_from, kind
 
 
+class VelocitySearch:
+    """Search function ``t -> (offset + sign v, sign v')`` of a motion's velocity (``offset`` None: no offset).
+
+    A small class rather than a closure, so that a solver's state is plain data
+    (copied and serialised exactly, see :mod:`.state`).
+    """
+
+    __slots__ = ("motion", "sign", "offset")
+
+    def __init__(self, motion, sign, offset=None):
+        self.motion, self.sign, self.offset = motion, sign, offset
+
+    def __call__(self, t):
+        motion, sign = self.motion, self.sign
+        _, v = motion.state(t)
+        g = sign * v if self.offset is None else self.offset + sign * v
+        return g, sign * motion.acceleration(t, v)
+
+
+class PositionSearch:
+    """Search function ``t -> (x, v)`` (``wall`` None) or ``(wall - x, -v)`` of a motion's position."""
+
+    __slots__ = ("motion", "wall")
+
+    def __init__(self, motion, wall=None):
+        self.motion, self.wall = motion, wall
+
+    def __call__(self, t):
+        x, v = self.motion.state(t)
+        return (x, v) if self.wall is None else (self.wall - x, -v)
+
+
+class EdgeSearch:
+    """Search function ``t -> (s (edge - x), -s v)``: the distance of a motion's position to an edge."""
+
+    __slots__ = ("motion", "s", "edge")
+
+    def __init__(self, motion, s, edge):
+        self.motion, self.s, self.edge = motion, s, edge
+
+    def __call__(self, t):
+        x, v = self.motion.state(t)
+        return self.s * (self.edge - x), -self.s * v
+
+
+class CurvatureBound:
+    """``t -> motion.curvature_bound(t)``: a search's bound K as plain data (not a bound method)."""
+
+    __slots__ = ("motion",)
+
+    def __init__(self, motion):
+        self.motion = motion
+
+    def __call__(self, t=None):
+        return self.motion.curvature_bound(t)
+
+
+SEARCH_CLASSES = (Search, VelocitySearch, PositionSearch, EdgeSearch, CurvatureBound)
+"""The classes a pending search is made of (what a solver's state may hold besides Drive and Motion)."""
+
+
 class PiecewisePlant:
     """Base class: advance through events exactly and keep the Fourier integrals."""
 

@@ -9,7 +9,7 @@ of the closed-form velocity. The output is y; it starts centred, y = k x0.
 
 from .contract import EventKind, StaticBacklashOutput
 from .exact import Motion
-from .piecewise import PiecewisePlant, Search, check
+from .piecewise import EdgeSearch, PiecewisePlant, Search, VelocitySearch, check
 
 ENGAGE = {1: EventKind.ENGAGE_UP, -1: EventKind.ENGAGE_DOWN}  # the edge x reaches -> the event
 EDGE = {kind: s for s, kind in ENGAGE.items()}
@@ -50,10 +50,7 @@ class StaticBacklash(PiecewisePlant):
         self._begin(t, output, searches=self._edge_searches(t, skip=leaving))
         if leaving:
             # x cannot return to the edge it left before -s*v falls back to zero.
-            def away(tt):
-                _, vv = mass.state(tt)
-                return -leaving * vv, -leaving * mass.acceleration(tt, vv)
-
+            away = VelocitySearch(mass, -leaving)  # -s v, -s v'
             t_from = t if -leaving * v > 0.0 else self.drive.crossing(t, 0.0, rising=leaving > 0)
             self._searches.append(Search(away, mass.curvature_bound(), t_from, EventKind.APEX))
 
@@ -65,12 +62,7 @@ class StaticBacklash(PiecewisePlant):
             if s == skip:
                 continue
             edge = y / self.k + s * 0.5 * self.h
-
-            def distance(tt, s=s, edge=edge):
-                xx, vv = mass.state(tt)
-                return s * (edge - xx), -s * vv
-
-            searches.append(Search(distance, K, t, ENGAGE[s]))
+            searches.append(Search(EdgeSearch(mass, s, edge), K, t, ENGAGE[s]))  # s (edge - x), -s v
         return searches
 
     def _engage(self, t, x, v, s):
@@ -80,11 +72,7 @@ class StaticBacklash(PiecewisePlant):
         shift = s * 0.5 * self.h
         k = self.k
         output = Motion(t, k * (x - shift), k * v, 0.0, k * mass.a, k * mass.b, mass.omega, mass.phi)
-
-        def speed(tt):
-            _, vv = mass.state(tt)
-            return s * vv, s * mass.acceleration(tt, vv)
-
+        speed = VelocitySearch(mass, s)  # s v, s v'
         t_from = t if s * v > 0.0 else self.drive.crossing(t, 0.0, rising=s < 0)
         self._begin(t, output, searches=[Search(speed, mass.curvature_bound(), t_from, EventKind.REVERSE)])
 

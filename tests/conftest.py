@@ -38,28 +38,34 @@ def fmus():
 _KEEP_ALIVE = []  # raw instances are never freed: after a fatal status pythonfmu 0.7.0 would free twice
 
 
+def new_instance(path, name="raw"):
+    """(FMU2Slave instantiated through fmpy's raw FMI 2.0 API, its model description, its log [(status, text)])."""
+    directory, description = unpacked(path)
+    messages = []
+
+    def log(_env, _instance, status, _category, text):
+        messages.append((status, text.decode()))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=directory,
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+    fmu.instantiate(loggingOn=True, callbacks=callbacks)
+    _KEEP_ALIVE.append((fmu, callbacks))
+    return fmu, description, messages
+
+
 @pytest.fixture
 def raw_fmu(fmus):
     """make(model) -> (instance initialised at t = 0 through fmpy's raw FMI 2.0 API, its log messages)."""
 
     def make(model):
-        directory, description = unpacked(fmus[model])
-        messages = []
-
-        def log(_env, _instance, status, _category, text):
-            messages.append((status, text.decode()))
-
-        callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(log)
-        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        fmu = FMU2Slave(guid=description.guid, unzipDirectory=directory,
-                        modelIdentifier=description.coSimulation.modelIdentifier, instanceName="raw")
-        fmu.instantiate(loggingOn=True, callbacks=callbacks)
+        fmu, _, messages = new_instance(fmus[model])
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
-        _KEEP_ALIVE.append((fmu, callbacks))
         return fmu, messages
 
     return make

@@ -194,3 +194,59 @@ def test_nan_communication_time_is_refused_by_the_fmu(raw_fmu):
     with pytest.raises(Exception, match="fmi2DoStep failed"):
         fmu.doStep(math.nan, 0.1)
     assert (3, "FrictionMass: doStep at t = nan, but the FMU is at t = 0.0") in messages
+
+
+ALL_MODELS = MODELS + ["LinearSystem", "NaiveFrictionMass", "NaiveTwoMassBacklash", "NaiveStaticBacklash"]
+RANGES = {  # model: {variable: (min, max)} the model description must state
+    "FrictionMass": {"M": ("0.0", None), "B": ("0.0", None), "Fs": ("0.0", None), "omega": ("0.0", None),
+                     "harmonics": ("0", "10")},
+    "TwoMassBacklash": {"eps": ("0.0", "1.0"), "gap0": ("-1.0", None), "M1": ("0.0", None), "h": ("0.0", None)},
+    "StaticBacklash": {"k": ("0.0", None), "h": ("0.0", None), "harmonics": ("0", "10")},
+    "LinearSystem": {"order": ("1", "8")},
+    "NaiveFrictionMass": {"dt": ("0.0", None), "M": ("0.0", None)},
+}
+FEEDTHROUGH = {"FrictionMass": {"Ff", "mode"}, "NaiveFrictionMass": {"Ff", "mode"}, "LinearSystem": {"y"}}  # outputs the input feeds directly
+
+
+@pytest.mark.parametrize("model", ALL_MODELS)
+def test_model_description_states_ranges_dependencies_and_state_support(fmus, model):
+    import xml.etree.ElementTree as ET
+
+    with zipfile.ZipFile(fmus[model]) as archive:
+        root = ET.fromstring(archive.read("modelDescription.xml"))
+    cosimulation = root.find("CoSimulation")
+    assert cosimulation.get("canGetAndSetFMUstate") == "true"
+    assert cosimulation.get("canSerializeFMUstate") == "true"
+    variables = list(root.find("ModelVariables"))
+    for name, (low, high) in RANGES.get(model, {}).items():
+        element = next(scalar for scalar in variables if scalar.get("name") == name)[0]
+        assert (element.get("min"), element.get("max")) == (low, high), name
+    index = {str(i): scalar for i, scalar in enumerate(variables, start=1)}
+    inputs = [i for i, scalar in index.items() if scalar.get("causality") == "input"]
+    outputs = root.find("ModelStructure/Outputs")
+    assert len(outputs) == sum(scalar.get("causality") == "output" for scalar in variables)
+    for unknown in outputs:
+        name = index[unknown.get("index")].get("name")
+        if name in FEEDTHROUGH.get(model, ()):
+            assert unknown.get("dependencies") == inputs[0] and unknown.get("dependenciesKind"), name
+        else:
+            assert unknown.get("dependencies") == "", name  # a state: the input does not feed it directly
+    assert len(root.find("ModelStructure/InitialUnknowns")) == len(outputs)
+
+
+@pytest.mark.parametrize("model", ALL_MODELS)
+def test_fmu_manipulation_toolbox_check_finds_no_error(fmus, model):
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    fmutool = shutil.which("fmutool") or str(Path(sys.executable).with_name("fmutool"))
+    if not Path(fmutool).exists():
+        pytest.skip("fmu-manipulation-toolbox is not installed (pip install .[test])")
+    run = subprocess.run([fmutool, "-input", str(fmus[model]), "-check"], capture_output=True, text=True, timeout=120)
+    report = run.stdout + run.stderr
+    assert run.returncode == 0, report
+    assert "seems to be compliant with FMI-2.0" in report, report
+    assert "No semantic error" in report, report
+    assert "ERROR" not in report, report
