@@ -46,7 +46,10 @@ import functools
 import hashlib
 import importlib
 import os
+import shutil
+import subprocess
 import sys
+import sysconfig
 import tempfile
 import uuid
 import xml.etree.ElementTree as ET
@@ -63,7 +66,7 @@ __all__ = ["build", "build_all", "source_hash", "sources", "recorded_hash", "Bui
 
 FMUS_DIR = Path(facade.__file__).resolve().parent
 PACKAGE = "dfwb.fmus"
-BUILDER_REVISION = "3"
+BUILDER_REVISION = "4"  # 4: the FMI shim (build_fmus/shim/fmi2_shim.c) is binaries/linux64/<Model>.so
 HASH_PREFIX = "dfwb-sources-"
 INIT = '"""dfwb solver modules bundled into one FMU (only those its facade needs)."""\n'
 SCRIPT = '''"""dfwb {model} FMU: the facade from the bundled, hash-named solver package."""
@@ -226,10 +229,11 @@ def sources(model):
 
 
 def source_hash(model):
-    """Hash of everything that goes into the FMU of ``model``: its bundled sources, pythonfmu, this builder."""
+    """Hash of everything that goes into the FMU of ``model``: its sources, the shim, pythonfmu, this builder."""
     digest = hashlib.sha256()
     for name, content in sources(model).items():
         digest.update(name.encode() + b"\0" + content + b"\0")
+    digest.update(SHIM_SOURCE.read_bytes() + b"\0")
     digest.update(pythonfmu.__version__.encode() + BUILDER_REVISION.encode())
     return digest.hexdigest()[:16]
 
@@ -246,7 +250,7 @@ def recorded_hash(fmu_path):
 
 
 def finish_model_description(xml_bytes, model, digest):
-    """Units, UnitDefinitions, InitialUnknowns and a deterministic GUID."""
+    """Units, UnitDefinitions, min/max, the FMU-state flags, ModelStructure and a deterministic GUID."""
     root = ET.fromstring(xml_bytes)
     root.set("guid", "{%s}" % uuid.uuid5(uuid.NAMESPACE_URL, f"dfwb/{model.__name__}/{digest}"))
     root.set("version", HASH_PREFIX + digest)
@@ -268,16 +272,120 @@ def finish_model_description(xml_bytes, model, digest):
     if used:  # the schema wants at least one Unit in a UnitDefinitions
         position = list(root).index(root.find("CoSimulation")) + 1
         root.insert(position, definitions)
-    structure = root.find("ModelStructure")
-    for child in list(structure):
-        structure.remove(child)
-    indices = [str(i) for i, scalar in enumerate(variables, start=1) if scalar.get("causality") == "output"]
-    for section in ("Outputs", "InitialUnknowns"):
-        node = ET.SubElement(structure, section)
-        for index in indices:
-            ET.SubElement(node, "Unknown", index=index)
+    _set_limits(variables, model)
+    cosimulation = root.find("CoSimulation")
+    cosimulation.set("canGetAndSetFMUstate", "true")  # the facades copy their solver exactly (dfwb.fmus.state)
+    cosimulation.set("canSerializeFMUstate", "true")
+    _set_structure(root.find("ModelStructure"), variables, model)
     ET.indent(root)
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+SHIM_SOURCE = Path(__file__).resolve().parent / "shim" / "fmi2_shim.c"
+SHIM_SUFFIX = ".pythonfmu.so"  # pythonfmu's own linux64 binary, next to the shim: <Model>.pythonfmu.so
+PYTHON_RECORD = "resources/dfwb_python.txt"  # the libpython the shim loads first in a host without Python
+
+
+def _compiler():
+    """The C compiler for the shim: $CC, else cc, gcc or clang on PATH (BuildError if none)."""
+    for name in ([os.environ["CC"]] if os.environ.get("CC") else []) + ["cc", "gcc", "clang"]:
+        found = shutil.which(name.split()[0])
+        if found:
+            return [found] + name.split()[1:]
+    raise BuildError("building the FMUs needs a C compiler for the FMI shim (build_fmus/shim/fmi2_shim.c): "
+                     "no $CC, cc, gcc or clang on PATH")
+
+
+@functools.lru_cache(maxsize=4)
+def _shim_binary(source_digest):
+    """The compiled shim (bytes), compiled once per process for each shim source."""
+    import fmpy
+
+    headers = Path(fmpy.__file__).resolve().parent / "c-code"  # fmi2Functions.h & co. (FMI 2.0)
+    if not (headers / "fmi2Functions.h").is_file():
+        raise BuildError(f"building the FMUs needs the FMI 2.0 headers of fmpy: no fmi2Functions.h in {headers}")
+    with tempfile.TemporaryDirectory(prefix="dfwb_shim_") as tmp:
+        binary = Path(tmp) / "shim.so"
+        command = _compiler() + ["-std=gnu99", "-shared", "-fPIC", "-O2", "-fvisibility=hidden",
+                                 f"-I{headers}", "-o", str(binary), str(SHIM_SOURCE), "-ldl", "-lpthread"]
+        run = subprocess.run(command, capture_output=True, text=True)
+        if run.returncode != 0:
+            raise BuildError(f"compiling the FMI shim failed ({' '.join(command)}):\n{run.stderr.strip()}")
+        return binary.read_bytes()
+
+
+def shim_binary():
+    """The shim for binaries/linux64 (see build_fmus/shim/fmi2_shim.c), cached by the hash of its source."""
+    return _shim_binary(hashlib.sha256(SHIM_SOURCE.read_bytes()).hexdigest())
+
+
+def python_record():
+    """resources/dfwb_python.txt: the shared libpython of the Python that builds (empty line if static)."""
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    for key in ("INSTSONAME", "LDLIBRARY"):
+        name = sysconfig.get_config_var(key) or ""
+        if ".so" in name and Path(libdir, name).is_file():
+            return f"{Path(libdir, name)}\n"
+    return "\n"
+
+
+def _package_linux64(item, data, target):
+    """Write pythonfmu's linux64 binary as <Model>.pythonfmu.so and the shim as <Model>.so."""
+    inner = item.filename[:-len(".so")] + SHIM_SUFFIX
+    moved = zipfile.ZipInfo(inner, item.date_time)
+    moved.compress_type, moved.external_attr = item.compress_type, item.external_attr
+    target.writestr(moved, data)
+    target.writestr(item, shim_binary())
+
+
+def _limit_text(value, kind):
+    return str(int(value)) if kind == "Integer" else repr(float(value))
+
+
+def _set_limits(variables, model):
+    """``min``/``max`` of every variable the facade declares a range for (``model.limits()``)."""
+    limits = model.limits()
+    names = {scalar.get("name") for scalar in variables}
+    unknown = sorted(set(limits) - names)
+    if unknown:
+        raise BuildError(f"{model.__name__}: ranges declared for {unknown}, which are not variables")
+    for scalar in variables:
+        bounds = limits.get(scalar.get("name"))
+        if bounds is None:
+            continue
+        element = scalar[0]  # <Real> or <Integer>
+        for attribute, value in zip(("min", "max"), bounds):
+            if value is not None:
+                element.set(attribute, _limit_text(value, element.tag))
+
+
+def _set_structure(structure, variables, model):
+    """Outputs with their dependencies on the input, and InitialUnknowns.
+
+    An output that the input does not feed directly (a continuous state such
+    as x, v, gap, y, or a counter) has ``dependencies=""``; one the facade
+    names in ``feedthrough`` lists the input's index with that
+    dependenciesKind. InitialUnknowns lists the same outputs without a
+    dependency list (at initialisation they depend on the parameters and the
+    input: all the knowns).
+    """
+    for child in list(structure):
+        structure.remove(child)
+    index = {scalar.get("name"): i for i, scalar in enumerate(variables, start=1)}
+    feedthrough = model.feedthrough
+    unknown = sorted(set(feedthrough) - set(index))
+    if unknown or model.input_name not in index:
+        raise BuildError(f"{model.__name__}: feedthrough names {unknown} or input {model.input_name!r} unknown")
+    outputs = [scalar.get("name") for scalar in variables if scalar.get("causality") == "output"]
+    node = ET.SubElement(structure, "Outputs")
+    for name in outputs:
+        attributes = {"index": str(index[name]), "dependencies": ""}
+        if name in feedthrough:
+            attributes.update(dependencies=str(index[model.input_name]), dependenciesKind=feedthrough[name])
+        ET.SubElement(node, "Unknown", attributes)
+    node = ET.SubElement(structure, "InitialUnknowns")
+    for name in outputs:
+        ET.SubElement(node, "Unknown", index=str(index[name]))
 
 
 def build_one(model, out_dir, digest=None):
@@ -302,7 +410,17 @@ def build_one(model, out_dir, digest=None):
                 data = source.read(item.filename)
                 if item.filename == "modelDescription.xml":
                     data = finish_model_description(data, model, digest)
+                if item.filename.startswith("binaries/linux64/") and item.filename.endswith(".so"):
+                    _package_linux64(item, data, target)  # win64: pythonfmu's dll as is (untested)
+                    continue
                 target.writestr(item, data)
+            record = zipfile.ZipInfo(PYTHON_RECORD, source.getinfo("modelDescription.xml").date_time)
+            record.compress_type = zipfile.ZIP_DEFLATED
+            target.writestr(record, python_record())
+            # documentation/, not sources/: fmpy would list a "c-code" platform for sources/ (the shim alone is no FMU)
+            shim_source = zipfile.ZipInfo("documentation/fmi2_shim.c", record.date_time)
+            shim_source.compress_type = zipfile.ZIP_DEFLATED
+            target.writestr(shim_source, SHIM_SOURCE.read_bytes())
         partial.replace(dest)
     return dest
 

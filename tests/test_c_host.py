@@ -10,20 +10,16 @@ functions itself, and must produce the very numbers of the fmpy path
 inside the FMU, so they agree to 1e-12 relative -- and must see the FMU's
 own error message and an error status when a parameter is out of range.
 
-What the host process needs (pythonfmu 0.7.0 FMUs; this belongs in the README):
-
-* ``LD_PRELOAD=<LIBDIR>/libpython3.X.so`` -- the FMU's .so embeds CPython but
-  does not link libpython (its ``Py_*`` symbols are undefined, resolved from
-  whatever process loads it), so a non-Python host must preload the shared
-  libpython of the Python that built the FMU. With a statically linked
-  interpreter (no libpython3.X.so) there is nothing to preload: the test skips.
-* ``PYTHONHOME=<sys.base_prefix>`` -- the embedded interpreter otherwise
-  looks for its standard library next to the host executable and fails in
-  fmi2Instantiate ("No module named ...").
-
-Nothing else: the subprocess gets only these two variables (no PYTHONPATH,
-no virtualenv, no PATH); the FMU finds its own code and its copy of
-pythonfmu in its resources/ folder.
+What the host process needs: nothing. binaries/linux64/<id>.so is dfwb's FMI shim
+(build_fmus/shim/fmi2_shim.c), which loads a libpython itself when the process
+has none (the one that built the FMU, recorded in resources/dfwb_python.txt,
+else libpython3.13 ... 3.10 from the library path) and gives it its home, before
+loading pythonfmu's binary (<id>.pythonfmu.so; its ``Py_*`` symbols are
+undefined). So the host runs with an empty environment: no LD_PRELOAD, no
+PYTHONHOME, no PYTHONPATH, no PATH; the FMU finds its own code and its copy of
+pythonfmu in its resources/ folder. The old recipe still works and is tested
+once: ``LD_PRELOAD=<LIBDIR>/libpython3.X.so`` and ``PYTHONHOME=<sys.base_prefix>``
+(with a preloaded libpython the shim loads none and sets no home).
 """
 
 import shutil
@@ -61,7 +57,13 @@ def host(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def host_env():
-    """The whole environment of the host process: libpython preloaded and PYTHONHOME."""
+    """The whole environment of the host process: empty (the shim finds libpython and its home)."""
+    return {}
+
+
+@pytest.fixture(scope="module")
+def preload_env():
+    """The environment of the pre-shim recipe: libpython preloaded and PYTHONHOME."""
     libdir = sysconfig.get_config_var("LIBDIR") or ""
     names = [sysconfig.get_config_var(key) or "" for key in ("LDLIBRARY", "INSTSONAME")]
     shared = [Path(libdir, name) for name in names if ".so" in name and Path(libdir, name).is_file()]
@@ -100,8 +102,9 @@ def test_c_host_matches_fmpy(fmus, host, host_env, tmp_path, model, stop_time, s
                                    atol=1e-12 * np.max(np.abs(expected)), err_msg=f"{model}.{name}")
 
 
-def test_c_host_reports_bad_parameter(fmus, host, host_env, tmp_path):
-    run = run_host(host, host_env, fmus["TwoMassBacklash"], tmp_path, 1.0, 0.01,
+def test_c_host_reports_bad_parameter(fmus, host, preload_env, tmp_path):
+    """With libpython preloaded (the recipe before the shim) the FMU's error reaches the host."""
+    run = run_host(host, preload_env, fmus["TwoMassBacklash"], tmp_path, 1.0, 0.01,
                    {"F": 50.0, "omega": 20.0, "eps": 1.5}, ["x1"])
     assert run.returncode != 0
     assert "eps = 1.5 is out of range" in run.stderr  # the FMU's own message, via the logger

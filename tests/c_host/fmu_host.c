@@ -9,7 +9,10 @@
    after every step. Any status other than fmi2OK ends it with exit code 1 and a message
    on stderr; logging is on, so the FMU's own messages reach stderr too.
 
-   Build: cc -I<fmpy>/c-code fmu_host.c -o fmu_host -ldl -lm   (headers: FMI 2.0, as shipped with fmpy) */
+   Build: cc -I<fmpy>/c-code fmu_host.c -o fmu_host -ldl -lm   (headers: FMI 2.0, as shipped with fmpy)
+
+   The host needs no Python environment (no LD_PRELOAD, no PYTHONHOME): dfwb's FMI shim in the
+   FMU loads libpython itself (build_fmus/shim/fmi2_shim.c). */
 
 #include <dlfcn.h>
 #include <math.h>

@@ -1,0 +1,580 @@
+/* dfwb FMI 2.0 co-simulation shim: binaries/linux64/<model>.so of every dfwb FMU (linux64 only).
+
+   pythonfmu 0.7.0's own binary sits next to this one as <model>.pythonfmu.so; every fmi2
+   function of FMI 2.0 co-simulation is exported here and forwarded to it. The shim adds:
+
+   1. Errors are fmi2Error. The inner FMU is instantiated with the shim's callbacks (its
+      logging always on) and the worst status logged during each forwarded call is kept: a
+      call that returned fmi2OK, fmi2Warning or fmi2Discard while a message of status
+      fmi2Error was logged returns fmi2Error. Messages of status fmi2Warning or worse always
+      reach the host's logger; fmi2OK messages only while the host has logging on
+      (fmi2Instantiate's loggingOn, fmi2SetDebugLogging). Log categories are not filtered:
+      fmi2SetDebugLogging's list is ignored, only its loggingOn flag counts. A '%' in a
+      message is doubled (the host's logger takes the message as a printf format).
+
+   2. The FMI 2.0 state machine. After a call returned fmi2Error the instance is in the
+      Error state: only fmi2Reset, fmi2FreeInstance, fmi2SetFMUstate, fmi2GetFMUstate,
+      fmi2FreeFMUstate, the serialization functions, fmi2SetDebugLogging and the getters
+      (fmi2Get<Type>, fmi2Get*Status, for diagnosis) are forwarded; any other call returns
+      fmi2Error with a message naming it. fmi2Reset and a successful fmi2SetFMUstate leave
+      the Error state. After fmi2Terminate only fmi2Reset, fmi2FreeInstance, the getters
+      and the state functions are accepted. After an inner fmi2Fatal (pythonfmu has then
+      released its Python objects) everything but fmi2FreeInstance returns fmi2Fatal, and
+      fmi2FreeInstance frees only the shim's memory: pythonfmu's instance is leaked on
+      purpose, because freeing it would release those objects a second time.
+
+   3. No Python runtime in the host. pythonfmu's binary embeds CPython without linking
+      libpython. If the process has no Py_IsInitialized, fmi2Instantiate loads a libpython
+      (RTLD_GLOBAL) before the inner binary: first the one named on the first line of
+      resources/dfwb_python.txt (the Python that built the FMU), then libpython3.13.so.1.0
+      down to libpython3.10.so.1.0 from the default library path. Unless PYTHONHOME is set,
+      the home of the loaded library (the nearest ancestor folder with lib/python3.X/os.py)
+      is given to Py_SetPythonHome, so no environment variable is needed. If no libpython
+      loads, fmi2Instantiate logs one fmi2Fatal message and returns NULL.
+
+   Build: cc -shared -fPIC -O2 -fvisibility=hidden -I<fmpy>/c-code -o <model>.so fmi2_shim.c -ldl -lpthread */
+
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <limits.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <wchar.h>
+
+#include "fmi2Functions.h"
+
+#define INNER_SUFFIX ".pythonfmu.so"
+#define PYTHON_RECORD "dfwb_python.txt"
+#define PHASE_VR 0x7FFFFFFFu /* the facade's private integer: its phase (fmus/facade.py PHASE_VR) */
+
+/* ------------------------------------------------------------------ the inner binary */
+
+#define INNER_FUNCTIONS(X)                                                                   \
+    X(fmi2SetDebugLogging) X(fmi2Instantiate) X(fmi2FreeInstance) X(fmi2SetupExperiment)     \
+    X(fmi2EnterInitializationMode) X(fmi2ExitInitializationMode) X(fmi2Terminate)            \
+    X(fmi2Reset) X(fmi2GetReal) X(fmi2GetInteger) X(fmi2GetBoolean) X(fmi2GetString)         \
+    X(fmi2SetReal) X(fmi2SetInteger) X(fmi2SetBoolean) X(fmi2SetString) X(fmi2GetFMUstate)   \
+    X(fmi2SetFMUstate) X(fmi2FreeFMUstate) X(fmi2SerializedFMUstateSize)                     \
+    X(fmi2SerializeFMUstate) X(fmi2DeSerializeFMUstate) X(fmi2GetDirectionalDerivative)      \
+    X(fmi2SetRealInputDerivatives) X(fmi2GetRealOutputDerivatives) X(fmi2DoStep)             \
+    X(fmi2CancelStep) X(fmi2GetStatus) X(fmi2GetRealStatus) X(fmi2GetIntegerStatus)          \
+    X(fmi2GetBooleanStatus) X(fmi2GetStringStatus)
+
+#define FIELD(name) name##TYPE *name;
+static struct { INNER_FUNCTIONS(FIELD) } inner;
+#undef FIELD
+
+static void *inner_library;
+static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static void locate_self(void) {}
+
+/* ------------------------------------------------------------------ an instance */
+
+enum phase { INSTANTIATED, INITIALIZING, STEPPING, TERMINATED };
+
+typedef struct {
+    fmi2Component inner;                  /* pythonfmu's instance */
+    fmi2CallbackFunctions host;           /* the host's callbacks (copied) */
+    fmi2CallbackFunctions own;            /* given to pythonfmu: it keeps a pointer to them */
+    char *name;
+    int logging_on;                       /* the host's wish for fmi2OK messages */
+    int worst;                            /* worst status logged during the current call */
+    int error;                            /* in the FMI Error state */
+    int fatal;                            /* pythonfmu returned fmi2Fatal: its instance is unusable */
+    enum phase phase;
+} Shim;
+
+/* Pass one message to the host's logger (the message is text: '%' doubled for its printf). */
+static void to_host(Shim *s, fmi2Status status, const char *category, const char *message) {
+    if (!s->host.logger) return;
+    if (status < fmi2Warning && !s->logging_on) return;
+    const char *text = message ? message : "";
+    char *escaped = NULL;
+    if (strchr(text, '%')) {
+        size_t n = strlen(text);
+        escaped = malloc(2 * n + 1);
+        if (escaped) {
+            char *out = escaped;
+            for (const char *p = text; *p; p++) {
+                *out++ = *p;
+                if (*p == '%') *out++ = '%';
+            }
+            *out = '\0';
+            text = escaped;
+        } else {
+            text = "(a message with '%' that could not be copied)";
+        }
+    }
+    s->host.logger(s->host.componentEnvironment, s->name ? s->name : "", status, category ? category : "", text);
+    free(escaped);
+}
+
+/* The logger pythonfmu calls (its messages carry no format arguments: taken as text). */
+static void inner_logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
+                         fmi2String category, fmi2String message, ...) {
+    (void)instance;
+    Shim *s = (Shim *)env;
+    if (!s) return;
+    if ((int)status > s->worst && status <= fmi2Pending) s->worst = (int)status;
+    to_host(s, status, category, message);
+}
+
+static void shim_log(Shim *s, fmi2Status status, const char *format, ...) {
+    char text[2048];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(text, sizeof text, format, args);
+    va_end(args);
+    to_host(s, status, status >= fmi2Error ? "logStatusError" : "logAll", text);
+}
+
+/* ------------------------------------------------------------------ call discipline */
+
+enum rule {
+    ANYTIME,      /* getters, state functions, debug logging: also in the Error state */
+    NORMAL,       /* refused in the Error state and after fmi2Terminate */
+};
+
+/* Whether call `what` may go to pythonfmu; if not, *refused is the status to return. */
+static int admit(Shim *s, const char *what, enum rule rule, fmi2Status *refused) {
+    if (!s) return 0;
+    if (s->fatal) {
+        shim_log(s, fmi2Fatal, "%s: the FMU had a fatal error; only fmi2FreeInstance may be called", what);
+        *refused = fmi2Fatal;
+        return 0;
+    }
+    if (rule == ANYTIME) return 1;
+    if (s->error) {
+        shim_log(s, fmi2Error, "%s: the FMU is in the error state; call fmi2Reset, fmi2SetFMUstate or "
+                 "fmi2FreeInstance", what);
+        *refused = fmi2Error;
+        return 0;
+    }
+    if (s->phase == TERMINATED) {
+        shim_log(s, fmi2Error, "%s: the FMU is terminated; only fmi2Reset, fmi2FreeInstance and the getters "
+                 "may be called", what);
+        s->error = 1;
+        *refused = fmi2Error;
+        return 0;
+    }
+    return 1;
+}
+
+/* The status of a forwarded call, from pythonfmu's and the worst one logged during it. */
+static fmi2Status settle(Shim *s, const char *what, fmi2Status status) {
+    if (status == fmi2Fatal) {
+        s->fatal = 1;
+        shim_log(s, fmi2Fatal, "%s: fatal error inside the FMU; only fmi2FreeInstance may be called", what);
+        return fmi2Fatal;
+    }
+    if ((status == fmi2OK || status == fmi2Warning || status == fmi2Discard) && s->worst >= fmi2Error)
+        status = fmi2Error;
+    if (status == fmi2Error) s->error = 1;
+    return status;
+}
+
+#define BEGIN(s) ((s)->worst = fmi2OK)
+
+#define FORWARD(c, function, rule, ...)                                                     \
+    Shim *s = (Shim *)(c);                                                                  \
+    fmi2Status refused = fmi2Error;                                                         \
+    if (!s) return fmi2Error;                                                               \
+    if (!admit(s, #function, rule, &refused)) return refused;                               \
+    if (!inner.function) {                                                                  \
+        shim_log(s, fmi2Error, "%s is not provided by the FMU", #function);                 \
+        s->error = 1;                                                                       \
+        return fmi2Error;                                                                   \
+    }                                                                                       \
+    BEGIN(s);                                                                               \
+    fmi2Status status = settle(s, #function, inner.function(s->inner, __VA_ARGS__));
+
+/* ------------------------------------------------------------------ Python runtime */
+
+/* The folder of resources, from a file: URI (file:///a/b, file:/a/b; %XX decoded). */
+static int resource_folder(const char *uri, char *out, size_t size) {
+    if (!uri) return 0;
+    const char *p = uri;
+    if (strncmp(p, "file://", 7) == 0) {
+        p += 7;
+        if (*p != '/') { /* file://host/path: only localhost */
+            if (strncmp(p, "localhost/", 10) != 0) return 0;
+            p += 9;
+        }
+    } else if (strncmp(p, "file:", 5) == 0) {
+        p += 5;
+    }
+    size_t n = 0;
+    for (; *p && n + 1 < size; p++) {
+        unsigned int byte;
+        if (p[0] == '%' && p[1] && p[2] && sscanf(p + 1, "%2x", &byte) == 1) {
+            out[n++] = (char)byte;
+            p += 2;
+        } else {
+            out[n++] = *p;
+        }
+    }
+    out[n] = '\0';
+    while (n > 1 && out[n - 1] == '/') out[--n] = '\0';
+    return n > 0;
+}
+
+static int is_file(const char *path) {
+    struct stat info;
+    return stat(path, &info) == 0 && S_ISREG(info.st_mode);
+}
+
+/* Py_SetPythonHome(<ancestor of the library with lib/python3.X/os.py>) unless PYTHONHOME is set. */
+static void set_python_home(void *python) {
+    static wchar_t home_w[PATH_MAX];
+    if (getenv("PYTHONHOME")) return;
+    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    void *any = dlsym(python, "Py_IsInitialized");
+    Dl_info info;
+    if (!get_version || !any || !dladdr(any, &info) || !info.dli_fname) return;
+    int major = 0, minor = 0;
+    if (sscanf(get_version(), "%d.%d", &major, &minor) != 2) return;
+    char folder[PATH_MAX];
+    if (!realpath(info.dli_fname, folder)) snprintf(folder, sizeof folder, "%s", info.dli_fname);
+    for (int level = 0; level < 5; level++) {
+        char *slash = strrchr(folder, '/');
+        if (!slash) return;
+        *slash = '\0';
+        char landmark[PATH_MAX + 64];
+        snprintf(landmark, sizeof landmark, "%s/lib/python%d.%d/os.py", folder[0] ? folder : "", major, minor);
+        if (is_file(landmark)) {
+            const char *home = folder[0] ? folder : "/";
+            void (*set_home)(const wchar_t *) = (void (*)(const wchar_t *))dlsym(python, "Py_SetPythonHome");
+            if (set_home && mbstowcs(home_w, home, PATH_MAX - 1) != (size_t)-1) {
+                home_w[PATH_MAX - 1] = L'\0';
+                set_home(home_w);
+            } else {
+                setenv("PYTHONHOME", home, 0);
+            }
+            return;
+        }
+    }
+}
+
+/* Make sure the process has CPython; on failure, `why` says what was tried. */
+static int ensure_python(const char *resources, char *why, size_t size) {
+    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized")) return 1;
+    char candidates[6][PATH_MAX];
+    int n = 0;
+    char record[PATH_MAX + 32];
+    snprintf(record, sizeof record, "%s/%s", resources, PYTHON_RECORD);
+    FILE *file = fopen(record, "r");
+    if (file) {
+        if (fgets(candidates[n], PATH_MAX, file)) {
+            candidates[n][strcspn(candidates[n], "\r\n")] = '\0';
+            if (candidates[n][0]) n++;
+        }
+        fclose(file);
+    }
+    for (int minor = 13; minor >= 10; minor--) snprintf(candidates[n++], PATH_MAX, "libpython3.%d.so.1.0", minor);
+    size_t used = (size_t)snprintf(why, size, "this process has no Python runtime and none could be loaded; tried:");
+    for (int i = 0; i < n; i++) {
+        void *python = dlopen(candidates[i], RTLD_NOW | RTLD_GLOBAL);
+        if (python) {
+            set_python_home(python);
+            return 1;
+        }
+        const char *error = dlerror();
+        if (used < size) used += (size_t)snprintf(why + used, size - used, " %s (%s);", candidates[i], error ? error : "?");
+    }
+    if (used < size)
+        snprintf(why + used, size - used, " workaround: start the host with LD_PRELOAD=<LIBDIR>/libpython3.X.so "
+                 "of a Python 3.10 to 3.13 with a shared libpython");
+    return 0;
+}
+
+/* dlopen pythonfmu's binary (next to this one) once; on failure, `why` says why. */
+static int load_inner(char *why, size_t size) {
+    if (inner_library) return 1;
+    Dl_info info;
+    if (!dladdr((void *)&locate_self, &info) || !info.dli_fname) {
+        snprintf(why, size, "cannot find the path of the FMU's binary");
+        return 0;
+    }
+    char path[PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s", info.dli_fname);
+    size_t n = strlen(path);
+    if (n > 3 && strcmp(path + n - 3, ".so") == 0) path[n - 3] = '\0';
+    strncat(path, INNER_SUFFIX, sizeof path - strlen(path) - 1);
+    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!library) {
+        const char *error = dlerror();
+        snprintf(why, size, "cannot load %s: %s", path, error ? error : "?");
+        return 0;
+    }
+#define LOOKUP(name) inner.name = (name##TYPE *)dlsym(library, #name);
+    INNER_FUNCTIONS(LOOKUP)
+#undef LOOKUP
+    if (!inner.fmi2Instantiate || !inner.fmi2FreeInstance) {
+        snprintf(why, size, "%s exports no fmi2Instantiate/fmi2FreeInstance", path);
+        return 0;
+    }
+    inner_library = library; /* never closed: pythonfmu's interpreter thread lives in it */
+    return 1;
+}
+
+/* ------------------------------------------------------------------ FMI 2.0 */
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn) {
+    Shim *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    if (functions) s->host = *functions;
+    s->name = strdup(instanceName ? instanceName : "");
+    s->logging_on = loggingOn != fmi2False;
+    s->own.logger = inner_logger;
+    s->own.allocateMemory = s->host.allocateMemory ? s->host.allocateMemory : calloc;
+    s->own.freeMemory = s->host.freeMemory ? s->host.freeMemory : free;
+    s->own.stepFinished = NULL;
+    s->own.componentEnvironment = s;
+
+    char why[4096], resources[PATH_MAX];
+    int ok;
+    pthread_mutex_lock(&load_lock);
+    if (!resource_folder(fmuResourceLocation, resources, sizeof resources)) {
+        snprintf(why, sizeof why, "fmuResourceLocation %s is not a file: URI",
+                 fmuResourceLocation ? fmuResourceLocation : "(NULL)");
+        ok = 0;
+    } else {
+        ok = ensure_python(resources, why, sizeof why) && load_inner(why, sizeof why);
+    }
+    pthread_mutex_unlock(&load_lock);
+    if (!ok) {
+        shim_log(s, fmi2Fatal, "fmi2Instantiate: %s", why);
+        free(s->name);
+        free(s);
+        return NULL;
+    }
+    BEGIN(s);
+    s->inner = inner.fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &s->own, visible,
+                                     fmi2True);
+    if (!s->inner) {
+        free(s->name);
+        free(s);
+        return NULL;
+    }
+    s->phase = INSTANTIATED;
+    return s;
+}
+
+void fmi2FreeInstance(fmi2Component c) {
+    Shim *s = (Shim *)c;
+    if (!s) return;
+    if (!s->fatal && s->inner) {
+        BEGIN(s);
+        inner.fmi2FreeInstance(s->inner);
+    } /* else: leaked on purpose (pythonfmu released its objects at the fatal error) */
+    free(s->name);
+    free(s);
+}
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[]) {
+    (void)nCategories;
+    (void)categories;
+    Shim *s = (Shim *)c;
+    if (!s) return fmi2Error;
+    s->logging_on = loggingOn != fmi2False; /* pythonfmu's own logging stays on, unfiltered */
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    FORWARD(c, fmi2SetupExperiment, NORMAL, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)
+    return status;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2EnterInitializationMode", NORMAL, &refused)) return refused;
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2EnterInitializationMode", inner.fmi2EnterInitializationMode(s->inner));
+    if (status <= fmi2Warning) s->phase = INITIALIZING;
+    return status;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2ExitInitializationMode", NORMAL, &refused)) return refused;
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2ExitInitializationMode", inner.fmi2ExitInitializationMode(s->inner));
+    if (status <= fmi2Warning) s->phase = STEPPING;
+    return status;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2Terminate", NORMAL, &refused)) return refused;
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2Terminate", inner.fmi2Terminate(s->inner));
+    if (status <= fmi2Warning) s->phase = TERMINATED;
+    return status;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2Reset", ANYTIME, &refused)) return refused; /* refused only after fmi2Fatal */
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2Reset", inner.fmi2Reset(s->inner));
+    if (status <= fmi2Warning) {
+        s->error = 0;
+        s->phase = INSTANTIATED;
+    }
+    return status;
+}
+
+#define GETTER(function, type)                                                                    \
+    fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, type value[]) { \
+        FORWARD(c, function, ANYTIME, vr, nvr, value)                                             \
+        return status;                                                                            \
+    }
+GETTER(fmi2GetReal, fmi2Real)
+GETTER(fmi2GetInteger, fmi2Integer)
+GETTER(fmi2GetBoolean, fmi2Boolean)
+GETTER(fmi2GetString, fmi2String)
+
+#define SETTER(function, type)                                                                          \
+    fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const type value[]) { \
+        FORWARD(c, function, NORMAL, vr, nvr, value)                                                    \
+        return status;                                                                                  \
+    }
+SETTER(fmi2SetReal, fmi2Real)
+SETTER(fmi2SetInteger, fmi2Integer)
+SETTER(fmi2SetBoolean, fmi2Boolean)
+SETTER(fmi2SetString, fmi2String)
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    FORWARD(c, fmi2GetFMUstate, ANYTIME, FMUstate)
+    return status;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2SetFMUstate", ANYTIME, &refused)) return refused;
+    s->error = 0; /* a restored state leaves the Error state; settle() re-enters it if this fails */
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2SetFMUstate", inner.fmi2SetFMUstate(s->inner, FMUstate));
+    if (status == fmi2OK || status == fmi2Warning) {
+        /* The restored state carries its own phase of the call sequence (an instance that was never
+           initialised may take a state saved mid-run): ask the facade, at its private value
+           reference PHASE_VR (fmus/facade.py), and follow it. */
+        const fmi2ValueReference phase_vr = PHASE_VR;
+        fmi2Integer phase = -1;
+        BEGIN(s);
+        if (settle(s, "fmi2SetFMUstate", inner.fmi2GetInteger(s->inner, &phase_vr, 1, &phase)) != fmi2OK) return fmi2Error;
+        switch (phase) {
+        case 0: s->phase = INSTANTIATED; break;
+        case 1: s->phase = INITIALIZING; break;
+        case 2: s->phase = STEPPING; break;
+        case 3: s->phase = TERMINATED; break;
+        default:
+            shim_log(s, fmi2Error, "fmi2SetFMUstate: the restored state has no valid phase (%d)", (int)phase);
+            s->error = 1;
+            return fmi2Error;
+        }
+    }
+    return status;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    FORWARD(c, fmi2FreeFMUstate, ANYTIME, FMUstate)
+    return status;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
+    FORWARD(c, fmi2SerializedFMUstateSize, ANYTIME, FMUstate, size)
+    return status;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
+                                 size_t size) {
+    FORWARD(c, fmi2SerializeFMUstate, ANYTIME, FMUstate, serializedState, size)
+    return status;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *FMUstate) {
+    FORWARD(c, fmi2DeSerializeFMUstate, ANYTIME, serializedState, size, FMUstate)
+    return status;
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
+    FORWARD(c, fmi2GetDirectionalDerivative, ANYTIME, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
+            dvUnknown)
+    return status;
+}
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[]) {
+    FORWARD(c, fmi2SetRealInputDerivatives, NORMAL, vr, nvr, order, value)
+    return status;
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[]) {
+    FORWARD(c, fmi2GetRealOutputDerivatives, ANYTIME, vr, nvr, order, value)
+    return status;
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                      fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2DoStep", NORMAL, &refused)) return refused;
+    if (s->phase != STEPPING) {
+        shim_log(s, fmi2Error, "fmi2DoStep: called before fmi2ExitInitializationMode");
+        s->error = 1;
+        return fmi2Error;
+    }
+    BEGIN(s);
+    return settle(s, "fmi2DoStep",
+                  inner.fmi2DoStep(s->inner, currentCommunicationPoint, communicationStepSize,
+                                   noSetFMUStatePriorToCurrentPoint));
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c) {
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2CancelStep", NORMAL, &refused)) return refused;
+    BEGIN(s);
+    return settle(s, "fmi2CancelStep", inner.fmi2CancelStep(s->inner));
+}
+
+#define STATUS_GETTER(function, type)                                                   \
+    fmi2Status function(fmi2Component c, const fmi2StatusKind kind, type *value) {      \
+        FORWARD(c, function, ANYTIME, kind, value)                                      \
+        return status;                                                                  \
+    }
+STATUS_GETTER(fmi2GetStatus, fmi2Status)
+STATUS_GETTER(fmi2GetRealStatus, fmi2Real)
+STATUS_GETTER(fmi2GetIntegerStatus, fmi2Integer)
+STATUS_GETTER(fmi2GetBooleanStatus, fmi2Boolean)
+STATUS_GETTER(fmi2GetStringStatus, fmi2String)
