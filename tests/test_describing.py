@@ -137,3 +137,26 @@ def test_results_serialise_with_the_documented_fields(friction):
         assert name in data
     assert isinstance(data["periodic"], bool) and isinstance(data["periods"], int)
     assert np.all(np.isfinite(data["harmonics"])) and len(data["harmonics"]) == 11
+
+
+def test_a_refused_run_keeps_its_instance_and_the_next_run_is_exact(fmus):
+    """fmi2Error leaves the instance usable: the session resets it instead of instantiating anew."""
+    from dfwb.fmi.session import _ABANDONED, FMUSession
+    from dfwb.fmi.simulation import FMUError
+
+    def run(session, values):
+        session.start(values)
+        for _ in range(4):
+            session.step(0.25, {"f": 3.0})
+        return session.reals(["x", "v", "Ic1"]) + session.integers(["events"])
+
+    session, fresh = FMUSession(fmus["FrictionMass"]), FMUSession(fmus["FrictionMass"])
+    abandoned = len(_ABANDONED)
+    with pytest.raises(FMUError, match="M = -1.0 is out of range"):
+        session.start({"M": -1.0})
+    instance = session._fmu
+    session.start({"F": 10.0})
+    with pytest.raises(FMUError, match="the input f must be a finite number"):
+        session.step(0.25, {"f": math.nan})
+    assert session._fmu is instance and len(_ABANDONED) == abandoned
+    assert run(session, {"F": 10.0, "omega": 1.5}) == run(fresh, {"F": 10.0, "omega": 1.5})

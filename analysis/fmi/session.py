@@ -5,8 +5,10 @@ matters: instantiating a pythonfmu FMU takes ~30 ms, ``fmi2Reset`` and a new
 initialisation ~0.2 ms. :class:`FMUSession` keeps one instance and resets
 it. Every FMI call is checked; a refused call raises
 :class:`~dfwb.fmi.simulation.FMUError` with the FMU's name, the time and the
-FMU's own message. After a failure the instance is abandoned, never freed:
-pythonfmu 0.7.0 would release its objects twice.
+FMU's own message. A call refused with fmi2Error leaves the instance usable
+(the FMUs' shim keeps it in FMI's Error state until ``fmi2Reset``), so the
+next run resets it; after anything worse the instance is abandoned, never
+freed: pythonfmu 0.7.0 would release its objects twice after a fatal error.
 """
 
 import itertools
@@ -25,6 +27,7 @@ from dfwb.fmi.simulation import FMUError, unpacked
 
 _ABANDONED = []  # failed instances stay referenced for the life of the process
 _COUNTER = itertools.count()
+ERROR = 3  # fmi2Error
 
 class FMUSession:
     """A reusable co-simulation instance of one FMU."""
@@ -57,8 +60,11 @@ class FMUSession:
         return self._fmu
 
     def _fail(self, what, error):
-        _ABANDONED.append((self._fmu, self._callbacks))
-        self._fmu = None
+        if getattr(error, "status", None) == ERROR:  # refused: reset before the next run
+            self._needs_reset = True
+        else:
+            _ABANDONED.append((self._fmu, self._callbacks))
+            self._fmu = None
         if stop.requested():  # a Ctrl-C or kill that landed inside the FMU's Python code
             raise KeyboardInterrupt
         reason = "; ".join(self.messages) or str(error)
