@@ -25,14 +25,55 @@ __all__ = ["describing_function", "limit_cycles", "transfer_function", "run_scen
 ArrayLike = Union[float, Sequence, np.ndarray]
 
 
+def _leaves(value, limit):
+    """The numbers in a nested list/tuple/range, counted without building them (stops past ``limit``)."""
+    total, stack = 0, [value]
+    while stack and total <= limit:
+        item = stack.pop()
+        if isinstance(item, np.ndarray):
+            total += item.size
+        elif isinstance(item, range):
+            total += len(item)
+        elif isinstance(item, (list, tuple)):
+            stack.extend(item)
+        else:
+            total += 1
+    return total
+
+
+def _reals(name, value):
+    """``value`` as a float array: real numbers only (no bool, complex, text or objects), counted before it is built."""
+    if _leaves(value, MAX_POINTS) > MAX_POINTS:
+        raise InputError(f"{name} has more than {MAX_POINTS} points: at most {MAX_POINTS} in one call "
+                         "(split it, or use dfwb.sweep)")
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.dtype.kind not in "iuf":
+        raise InputError(f"{name} = {_short(value)} is not a number or an array of numbers "
+                         "(real ones: no bool, complex, text or None)")
+    if array.size > MAX_POINTS:
+        raise InputError(f"{name} has {array.size} points: at most {MAX_POINTS} in one call "
+                         "(split it, or use dfwb.sweep)")
+    return array.astype(float)
+
+
+def _short(value):
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _integer(name, value):
+    """An integer option (a Python or numpy integer, not a bool), as int."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name} = {_short(value)} is not an integer")
+    return int(value)
+
+
 def _grid(F: ArrayLike, omega: ArrayLike) -> tuple:
     """F and omega as float arrays broadcast against each other; InputError if they are not."""
-    arrays = []
-    for name, value in (("F", F), ("omega", omega)):
-        try:
-            arrays.append(np.asarray(value, dtype=float))
-        except (TypeError, ValueError):
-            raise InputError(f"{name} = {value!r} is not a number or an array of numbers") from None
+    arrays = [_reals("F", F), _reals("omega", omega)]
     try:
         F, omega = np.broadcast_arrays(*arrays)
     except ValueError:
@@ -102,14 +143,16 @@ def describing_function(plant: str, F: ArrayLike, omega: ArrayLike, *, drive: st
     F_grid, omega_grid = _grid(F, omega)
     for F_value, omega_value in zip(F_grid.flat, omega_grid.flat):  # every point before anything runs
         check_point(float(F_value), float(omega_value))
+    options = {name: _integer(name, value) for name, value in
+               (("samples_per_period", samples_per_period), ("max_periods", max_periods), ("harmonics", harmonics))}
+    engine = DFEngine(spec.name, fmu_dir=fmu_dir, drive=drive, **options)  # checks the options (an empty grid too)
+    harmonics = engine.harmonics
     shape = F_grid.shape
     N = np.zeros(shape, dtype=complex)
     amplitudes = np.zeros(shape + (harmonics + 1,))
     periodic = np.zeros(shape, dtype=bool)
     points = []
     if F_grid.size:
-        engine = DFEngine(spec.name, fmu_dir=fmu_dir, drive=drive, samples_per_period=samples_per_period,
-                          max_periods=max_periods, harmonics=harmonics)
         for index in np.ndindex(shape):
             result = engine.point(float(F_grid[index]), float(omega_grid[index]), checked)
             N[index], periodic[index] = result.N, result.periodic
@@ -144,20 +187,35 @@ def transfer_function(G: Any):
     """
     import control as ct
 
-    from dfwb.engine.transfer import check_transfer_function, from_coefficients, parse_transfer_function
+    from dfwb.engine.transfer import MAX_DEGREE, check_transfer_function, from_coefficients, parse_transfer_function
 
     if isinstance(G, str):
         return parse_transfer_function(G)
     if isinstance(G, (ct.TransferFunction, ct.StateSpace)):
-        return check_transfer_function(G)
+        text = f"the {type(G).__name__} {G.name!r}"  # str(G) is a multi-line table
+        if G.ninputs != 1 or G.noutputs != 1:
+            raise InputError(f"G(s) = {text} must have one input and one output (it has {G.ninputs} and "
+                             f"{G.noutputs})")
+        if isinstance(G, ct.StateSpace):
+            if G.nstates > MAX_DEGREE:
+                raise InputError(f"G(s) = {text} has {G.nstates} states: a degree of at most {MAX_DEGREE} is allowed")
+            if not all(np.all(np.isfinite(np.asarray(m, dtype=complex))) for m in (G.A, G.B, G.C, G.D)):
+                raise InputError(f"G(s) = {text} has matrix entries that are not finite")
+            if not G.isctime():
+                raise InputError(f"G(s) = {text} must be a continuous-time system (dt = 0), not dt = {G.dt}")
+        return check_transfer_function(G, text)
     if isinstance(G, (tuple, list)) and len(G) == 2:
-        num, den = G
         try:
-            num, den = [float(c) for c in np.atleast_1d(num)], [float(c) for c in np.atleast_1d(den)]
-        except (TypeError, ValueError):
-            raise InputError(f"G = {G!r}: num and den must be lists of numbers") from None
-        return from_coefficients(num, den, names=("num", "den"))
-    raise InputError(f"G = {G!r} is not a controller: give an expression in s, (num, den), "
+            num, den = (_reals(name, part) for name, part in zip(("num", "den"), G))
+        except InputError as error:
+            raise InputError(f"G = {_short(G)}: num and den must be lists of real numbers ({error})") from None
+        if num.ndim > 1 or den.ndim > 1:
+            raise InputError(f"G = {_short(G)}: num and den must be flat lists of real numbers")
+        if max(num.size, den.size) > MAX_DEGREE + 1:
+            raise InputError(f"G = {_short(G)}: a polynomial of degree {max(num.size, den.size) - 1}, "
+                             f"at most {MAX_DEGREE} is allowed")
+        return from_coefficients(np.atleast_1d(num).tolist(), np.atleast_1d(den).tolist(), names=("num", "den"))
+    raise InputError(f"G = {_short(G)} is not a controller: give an expression in s, (num, den), "
                      "or a python-control TransferFunction or StateSpace")
 
 
@@ -215,9 +273,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
     except (TypeError, ValueError):
         raise InputError(f"F_range = {F_range!r} and omega_range = {omega_range!r} must be (low, high) pairs "
                          "of numbers") from None
-    for name, value in (("n_F", n_F), ("n_omega", n_omega)):
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise InputError(f"{name} = {value!r} is not an integer")
+    n_F, n_omega = _integer("n_F", n_F), _integer("n_omega", n_omega)
     engine = DFEngine(spec.name, fmu_dir=fmu_dir)
     found = search(spec.name, controller, checked, ranges[0], ranges[1], n_F, n_omega, engine=engine,
                    progress=progress)
@@ -264,9 +320,20 @@ def run_scene(scene: Union[str, Path, Any], out_dir: Optional[Union[str, Path]] 
     >>> outcome.points, outcome.computed
     (2, 2)
     """
-    from dfwb.studies.runner import run_scene as run
+    import os
 
-    return run(scene, out_dir, jobs, dask, cache, fmu_dir, progress)
+    from dfwb.fmi.location import fmu_folder
+    from dfwb.studies.runner import run_scene as run
+    from dfwb.studies.scene import Scene
+
+    paths = (str, os.PathLike)
+    if not isinstance(scene, paths + (Scene,)):
+        raise InputError(f"scene = {_short(scene)} is not a scene: give a path to a scene file, or a Scene")
+    if out_dir is not None and not isinstance(out_dir, paths):
+        raise InputError(f"out_dir = {_short(out_dir)} is not a folder: give a path")
+    if not isinstance(cache, paths + (bool,)):
+        raise InputError(f"cache = {_short(cache)}: give True, False or a folder")
+    return run(scene, out_dir, jobs, dask, cache, None if fmu_dir is None else fmu_folder(fmu_dir), progress)
 
 
 def grid(F: Sequence[float], omega: Sequence[float], params: Optional[dict] = None,

@@ -112,6 +112,8 @@ def check_transfer_function(G, text=None):
         raise InputError(f"G(s) = {text} has a zero denominator")
     if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
         raise InputError(f"G(s) = {text} has coefficients that are not finite")
+    if len(den) - 1 > MAX_DEGREE:
+        raise InputError(f"G(s) = {text} has degree {len(den) - 1}: at most {MAX_DEGREE} is allowed")
     if len(num) > len(den):
         raise InputError(f"G(s) = {text} is improper (numerator degree {len(num) - 1} > denominator degree "
                          f"{len(den) - 1}): a controller must be proper")

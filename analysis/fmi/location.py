@@ -15,13 +15,23 @@ from pathlib import Path
 from dfwb.base.files import user_cache_dir
 from dfwb.fmus.piecewise import PlantError
 
-__all__ = ["default_fmu_dir", "fmu_path", "models", "build_fmus"]
+__all__ = ["default_fmu_dir", "fmu_folder", "fmu_path", "models", "build_fmus"]
 
 
 def default_fmu_dir():
     """``$DFWB_FMU_DIR`` if set, else the user's cache folder ``.../dfwb/fmus``."""
     chosen = os.environ.get("DFWB_FMU_DIR")
-    return Path(chosen) if chosen else user_cache_dir() / "fmus"
+    return Path(chosen).expanduser().absolute() if chosen else user_cache_dir() / "fmus"
+
+
+def fmu_folder(fmu_dir=None):
+    """The FMU folder asked for (None: :func:`default_fmu_dir`); PlantError unless it is a path."""
+    if fmu_dir is None:
+        return default_fmu_dir()
+    if not isinstance(fmu_dir, (str, os.PathLike)) or not isinstance(os.fspath(fmu_dir), str) \
+            or not os.fspath(fmu_dir):
+        raise PlantError(f"fmu_dir = {fmu_dir!r} is not a folder: give a path (str or pathlib.Path)")
+    return Path(fmu_dir)
 
 
 def models(naive=False):
@@ -49,12 +59,11 @@ def fmu_path(model, fmu_dir=None):
     """Path of one FMU (a registry Plant, or a model name like "LinearSystem"), built first if missing or stale."""
     from dfwb.build_fmus.builder import build
 
-    fmu_dir = default_fmu_dir() if fmu_dir is None else Path(fmu_dir)
-    return build(fmu_dir, [_model(model)], report=lambda message: None)[0]
+    return build(fmu_folder(fmu_dir), [_model(model)], report=lambda message: None)[0]
 
 
 def build_fmus(fmu_dir=None, naive=False, force=False, report=print):
     """Build the FMUs of :func:`models` into ``fmu_dir`` (default :func:`default_fmu_dir`); their paths."""
     from dfwb.build_fmus.builder import build
 
-    return build(default_fmu_dir() if fmu_dir is None else fmu_dir, models(naive), force=force, report=report)
+    return build(fmu_folder(fmu_dir), models(naive), force=force, report=report)

@@ -24,6 +24,8 @@ Examples
 {'M': 2.0}
 """
 
+import numbers
+import re
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional
 
@@ -31,8 +33,10 @@ from dfwb.fmus.piecewise import PlantError, check
 
 __all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "PLANTS", "RANGES", "check_range"]
 
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")  # a plant's name: a CLI word, a scene value, a file name
 RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
 _CHECKED = {}  # (plant, model, parameter items) -> validated parameters: sweeps repeat the same sets
+MAX_CHECKED = 4096  # parameter sets remembered
 
 # The parameter ranges the engine accepts: (low, high, unit). Masses, clearances, slopes,
 # forces and velocities: the edges ``dfwb stress`` covers and the engine computes (the
@@ -159,6 +163,17 @@ class Plant:
     linear: Optional[tuple] = None
 
     def __post_init__(self):
+        from dfwb.fmus.facade import PlantFMU
+
+        if not (isinstance(self.name, str) and NAME.fullmatch(self.name)):
+            raise PlantError(f"plant name {self.name!r}: letters, digits, _ . + - (not first), like 'friction'")
+        if not (isinstance(self.model, type) and issubclass(self.model, PlantFMU)):
+            raise PlantError(f"plant {self.name!r}: model {self.model!r} is not an FMU facade "
+                             "(a subclass of dfwb.fmus.facade.PlantFMU)")
+        for what in ("section", "modes"):
+            value = getattr(self, what)
+            if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) for v in value)):
+                raise PlantError(f"plant {self.name!r}: {what} {value!r} is not a tuple of output names")
         names = {name for name, *_ in self.model.all_outputs()}
         defaults = self.defaults()
         for what, wanted in (("output", [self.output]), ("section", self.section), ("modes", self.modes),
@@ -207,6 +222,8 @@ class Plant:
     def check(self, params):
         """Validated {name: float}; raises PlantError naming the value and what is allowed."""
         allowed = sorted(self.defaults())
+        if not isinstance(params, Mapping):
+            raise PlantError(f"params = {params!r:.80} is not a mapping of parameter names to numbers")
         values = {}
         for name, value in params.items():
             if name in RESERVED:
@@ -214,6 +231,8 @@ class Plant:
                                  f"(allowed: {', '.join(allowed)})")
             if name not in allowed:
                 raise PlantError(f"unknown parameter {name!r} for plant {self.name} (allowed: {', '.join(allowed)})")
+            if isinstance(value, bool) or not isinstance(value, (str, numbers.Real)):  # not 1 for True, no j dropped
+                raise PlantError(f"{name} = {value!r:.80} is not a number")
             try:
                 values[name] = float(value)
             except (TypeError, ValueError, OverflowError):
@@ -227,8 +246,14 @@ class Plant:
 
     def checked(self, params):
         """:meth:`check`, done once per distinct parameter set in a process."""
-        key = (self.name, self.model, tuple(sorted(params.items())))
+        try:  # the types are in the key: True == 1, yet M=True is refused and M=1 is not
+            key = (self.name, self.model, frozenset((k, type(v), v) for k, v in params.items()))
+            hash(key)
+        except (AttributeError, TypeError):  # not a mapping, or an unhashable value: check() names it
+            return self.check(params)
         if key not in _CHECKED:
+            if len(_CHECKED) >= MAX_CHECKED:  # a long-running process sees many sets: start over
+                _CHECKED.clear()
             _CHECKED[key] = self.check(params)
         return dict(_CHECKED[key])
 
@@ -250,21 +275,25 @@ PLANTS: dict = {}
 def register(entry):
     """Add a plant to the registry and return the entry.
 
-    A name may be registered again only for the same FMU model (a module
+    A name may be registered again only with an equal entry (a module
     imported twice); another plant of that name is an error.
     """
     if not isinstance(entry, Plant):
-        raise TypeError(f"register() takes a Plant, not {type(entry).__name__}")
+        raise PlantError(f"register() takes a dfwb.Plant, not {type(entry).__name__} {entry!r:.60}")
     known = PLANTS.get(entry.name)
-    if known is not None and known.model is not entry.model:
-        raise PlantError(f"a plant named {entry.name!r} is registered already (FMU {known.fmu_name})")
+    if known is not None and known is not entry and (known.model is not entry.model or known != entry):
+        raise PlantError(f"a plant named {entry.name!r} is registered already (FMU {known.fmu_name}): "
+                         "choose another name")
     PLANTS[entry.name] = entry
     return entry
 
 
 def unregister(name):
-    """Remove a plant from the registry (tests that add one take it out again)."""
-    PLANTS.pop(name, None)
+    """Remove a plant that was registered (tests that add one take it out again); not one dfwb ships."""
+    entry = plant(name)
+    if entry.model.__module__.startswith("dfwb."):
+        raise PlantError(f"plant {entry.name!r} is built into dfwb and cannot be unregistered")
+    PLANTS.pop(entry.name, None)
 
 
 def names():

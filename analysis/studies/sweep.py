@@ -19,16 +19,18 @@ names) and :func:`run_sweep` returns the records.
 import itertools
 import json
 import math
+import numbers
 import os
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 from tqdm import tqdm
 
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
-from dfwb.engine.describing import COLUMNS, check_point, from_row, to_row
-from dfwb.fmi.location import fmu_path
+from dfwb.engine.describing import COLUMNS, DRIVES, check_point, from_row, to_row
+from dfwb.fmi.location import fmu_folder, fmu_path
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import plant as find_plant
 from dfwb.studies.executor import Chunk, Executor, chunked
@@ -46,13 +48,36 @@ def check_size(size, what="the sweep"):
         raise PlantError(f"{what} has {size} points: at most {MAX_POINTS} (split it)")
 
 
+def _values(what, values):
+    """A list (tuple, range, array) of values, not text and not a lazy iterator that may never end."""
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or not hasattr(values, "__getitem__"):
+        raise PlantError(f"{what} = {values!r:.80} is not a list of numbers")
+    return values
+
+
+def _mapping(what, value):
+    if value is not None and not isinstance(value, Mapping):
+        raise PlantError(f"{what} = {value!r:.80} is not a mapping of parameter names to values (or None)")
+    return dict(value or {})
+
+
+def _real(what, value):
+    """A real number (int, float, numpy's), as float: not a bool, complex or text."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise PlantError(f"{what} = {value!r:.80} is not a real number")
+    return float(value)
+
+
 def grid(Fs, omegas, params=None, grid_params=None):
     """The sweep's points, F the outer loop: [(F, omega, {name: value})]; refused beyond MAX_POINTS."""
-    grid_params = grid_params or {}
+    Fs, omegas, params = _values("F", Fs), _values("omega", omegas), _mapping("params", params)
+    grid_params = _mapping("grid_params", grid_params)
+    for name, values in grid_params.items():
+        _values(f"grid_params[{name!r}]", values)
     names = sorted(grid_params)
     check_size(grid_size(len(Fs), len(omegas), *(len(grid_params[n]) for n in names)))
     combos = [dict(zip(names, values)) for values in itertools.product(*(grid_params[n] for n in names))]
-    return [(F, omega, dict(params or {}, **combo)) for F in Fs for combo in combos for omega in omegas]
+    return [(F, omega, dict(params, **combo)) for F in Fs for combo in combos for omega in omegas]
 
 
 def key(F, omega, params):
@@ -83,10 +108,26 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
         One record per point (:meth:`dfwb.engine.describing.DFResult.as_dict`).
     """
     spec = find_plant(plant)
-    check_size(len(points))
-    points = [(float(F), float(omega), spec.checked(params)) for F, omega, params in points]  # numbers, not text
-    for F, omega, _ in points:  # everything is checked before anything runs
+    plant = spec.name
+    check_size(len(_values("points", points)))
+    checked = []
+    for point in points:  # everything is checked before anything runs or is written
+        if not (isinstance(point, (tuple, list)) and len(point) == 3):
+            raise PlantError(f"point {point!r:.80} is not (F, omega, params)")
+        F, omega = _real("F", point[0]), _real("omega", point[1])
         check_point(F, omega)
+        checked.append((F, omega, spec.checked(_mapping("params", point[2]))))
+    points = checked
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral) or jobs < 1):
+        raise PlantError(f"jobs = {jobs!r:.80} is not a number of workers: an integer >= 1, or None for all cores")
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise PlantError(f"out_dir = {out_dir!r:.80} is not a folder: give a path")
+    fmu_dir = fmu_folder(fmu_dir)
+    if drive not in DRIVES:
+        raise PlantError(f"drive {drive!r:.80} is not allowed (allowed: {', '.join(DRIVES)})")
+    if isinstance(samples_per_period, bool) or not isinstance(samples_per_period, numbers.Integral) \
+            or samples_per_period < 4:
+        raise PlantError(f"samples_per_period = {samples_per_period!r:.80} is out of range: an integer >= 4")
     out_dir = Path(out_dir)
     definition = {"plant": plant, "drive": drive,
                   "samples_per_period": samples_per_period if drive == "input" else None,
