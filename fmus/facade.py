@@ -99,6 +99,16 @@ def _guarded(call, fallback=None):
     return decorate
 
 
+def _attribute(obj, dotted):
+    """obj.a.b for "a.b" (a missing attribute: a private marker that equals nothing else)."""
+    for name in dotted.split("."):
+        obj = getattr(obj, name, _MISSING)
+    return obj
+
+
+_MISSING = object()
+
+
 def _zeros(value):
     return lambda self, vrs, *rest: [value] * len(vrs)
 
@@ -142,6 +152,8 @@ class SolverFMU(Fmi2Slave):
     """{output name: dependenciesKind} of the outputs the input feeds directly (the others depend on no input)."""
     state_classes = ()
     """Extra classes a solver's state holds (beyond its own class, Drive, Motion and the searches)."""
+    fixed_solver_attributes = ()
+    """Solver attributes a run never changes (dotted: drive.F): a restored solver's must equal a new one's."""
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -344,6 +356,8 @@ class SolverFMU(Fmi2Slave):
         for name in ("_start_time", "_time"):
             if not (type(values[name]) is float and math.isfinite(values[name])):
                 self._fail(f"the state's {name} is not a finite float")
+        if solver is not None:
+            self._check_solver_state(values, solver)
         self.solver = None if solver is None else _state.copy_solver(solver)
         for name, value in values.items():
             if not name.startswith("_"):
@@ -351,6 +365,47 @@ class SolverFMU(Fmi2Slave):
         self._start_time, self._time = values["_start_time"], values["_time"]
         self._phase = phase
         self._restored()
+
+    def _check_solver_state(self, values, solver):
+        """StepRefused unless a restored solver is one these parameter values and this time can produce.
+
+        Well-typed is not enough: a crafted solver with 10**9 harmonics, an order of 10**6 or a time
+        of -1e308 would make the next step or getter run for hours or exhaust memory. A new solver is
+        made from the state's parameters (their own checks apply) and the solver's
+        ``fixed_solver_attributes`` must equal its, exactly; its time must be the state's time.
+        """
+        try:
+            fresh = self._solver_from(values)
+        except PlantError as error:
+            self._fail(f"the state's parameters are refused: {error}")
+        for name in self.fixed_solver_attributes:
+            mine, theirs = _attribute(fresh, name), _attribute(solver, name)
+            if type(mine) is not type(theirs) or mine != theirs:
+                self._fail(f"the state's solver does not match its parameters ({name})")
+        t = getattr(solver, "t", None)
+        if not (type(t) is float and t == values["_time"] - values["_start_time"]):
+            self._fail("the state's solver time does not match the state's time")
+        self._check_solver_times(solver)
+
+    def _solver_from(self, values):
+        """A new solver from a state's parameter values (this instance's own values are kept)."""
+        names = [name for name in values if not name.startswith("_")]
+        saved = {name: getattr(self, name) for name in names}
+        saved_start, saved_rotation = self._start_time, getattr(self, "_rotation", None)
+        try:
+            for name in names:
+                setattr(self, name, values[name])
+            self._start_time = values["_start_time"]
+            return self._make_solver()
+        finally:
+            for name, value in saved.items():
+                setattr(self, name, value)
+            self._start_time = saved_start
+            if hasattr(self, "_rotation"):
+                self._rotation = saved_rotation
+
+    def _check_solver_times(self, solver):
+        """Further checks of a restored solver (a subclass's); StepRefused if one fails."""
 
     def _restored(self):
         """Recompute what the facade derives from the solver after a state is set."""
@@ -413,6 +468,8 @@ class PlantFMU(SolverFMU):
     parameters = ()  # (name, default, unit, description)
     outputs = ()  # (name, unit, description, is_integer)
     output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
+    fixed_solver_attributes = ("period", "harmonics", "event_log", "drive.F", "drive.omega", "drive.phi")
+    piecewise_solver = True  # a PiecewisePlant: its piece start and searched time are checked too
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -548,6 +605,18 @@ class PlantFMU(SolverFMU):
             self._rotation = [cmath.exp(-1j * k * self.omega * t0) for k in range(self.solver.harmonics + 1)]
         super()._restored()
 
+    def _check_solver_times(self, solver):
+        # what bounds a step's work: the integrals' length, the piece's start and the searched time
+        integrals, t = getattr(solver, "_integrals", None), solver.t
+        t_piece, searched = getattr(solver, "_t_piece", None), getattr(solver, "_searched", None)
+        if not (type(integrals) is list and len(integrals) == solver.harmonics + 1):
+            self._fail("the state's Fourier integrals do not match its harmonics")
+        if not self.piecewise_solver:  # a fixed-step twin (naive_facade): its t and dt bound a step's work
+            return
+        if not (type(t_piece) is float and type(searched) is float
+                and 0.0 <= t_piece <= t and t_piece <= searched <= t + solver.period):
+            self._fail("the state's piece times do not match its time")
+
     def _broken(self):
         # the solver stopped half-way: outputs stay at the last good point; the integrals too, if known
         if self._fourier is None:
@@ -578,6 +647,7 @@ class FrictionMass(PlantFMU):
     """Mass with Coulomb, viscous and static friction (exact stick-slip), force input f."""
 
     solver_class = _FrictionMass
+    fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "B", "Fc", "Fs", "Dv", "edge_force")
     ranges = {"M": (0.0, None), "B": (0.0, None), "Fc": (0.0, None), "Fs": (0.0, None), "Dv": (0.0, None)}
     feedthrough = {"Ff": "dependent", "mode": "dependent"}  # stuck: Ff = u; a new f can break away at once
     parameters = (
@@ -604,6 +674,7 @@ class TwoMassBacklash(PlantFMU):
     """Two masses with a clearance h and impacts of restitution eps, force input f on M2."""
 
     solver_class = _TwoMassBacklash
+    fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M1", "M2", "h", "eps", "total", "r1", "r2", "tol_h")
     output_signal = ("x1", "m")
     ranges = {"M1": (0.0, None), "M2": (0.0, None), "h": (0.0, None), "eps": (0.0, 1.0), "gap0": (-1.0, None)}
     parameters = (
@@ -640,6 +711,7 @@ class StaticBacklash(PlantFMU):
     """Mass M driven by the force, followed by a backlash element of slope k and width h."""
 
     solver_class = _StaticBacklash
+    fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "k", "h")
     output_signal = ("y", "m")
     ranges = {"M": (0.0, None), "k": (0.0, None), "h": (0.0, None)}
     parameters = (
@@ -665,6 +737,7 @@ class LinearSystem(SolverFMU):
 
     input_name = "u"
     ranges = {"order": (1, _MAX_ORDER)}
+    fixed_solver_attributes = ("order", "b", "a", "D", "C")
     feedthrough = {"y": "fixed"}  # y = C x + D u, D = b0 a fixed parameter
 
     def __init__(self, **kwargs):
@@ -721,6 +794,11 @@ class LinearSystem(SolverFMU):
 
     def _solver_type(self):
         return _LinearSystem
+
+    def _check_solver_times(self, solver):
+        x = getattr(solver, "x", None)
+        if not (type(x) is list and len(x) == solver.order):
+            self._fail("the state's solver state vector does not match its order")
 
     def _parameter_names(self):
         return tuple(var.name for var in self.vars.values() if var.causality == Fmi2Causality.parameter)

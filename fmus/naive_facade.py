@@ -18,6 +18,8 @@ from .naive import NaiveStaticBacklash as _NaiveStaticBacklash
 from .naive import NaiveTwoMassBacklash as _NaiveTwoMassBacklash
 
 DT_PARAMETER = ("dt", 1e-3, "s", "internal fixed step of the naive integrator (> 0)")
+NAIVE_FIXED = ("harmonics", "dt", "omega", "drive.F", "drive.omega", "drive.phi")
+"""Attributes of a fixed-step solver that a run never changes (see facade.SolverFMU._check_solver_state)."""
 
 
 class NaiveFrictionMass(FrictionMass):
@@ -28,6 +30,8 @@ class NaiveFrictionMass(FrictionMass):
     """
 
     solver_class = _NaiveFrictionMass
+    fixed_solver_attributes = NAIVE_FIXED + ("M", "B", "Fc", "Fs", "Dv", "band")
+    piecewise_solver = False
     ranges = dict(FrictionMass.ranges, dt=(0.0, None))
     parameters = FrictionMass.parameters + (DT_PARAMETER,)
 
@@ -41,6 +45,8 @@ class NaiveTwoMassBacklash(TwoMassBacklash):
     """
 
     solver_class = _NaiveTwoMassBacklash
+    fixed_solver_attributes = NAIVE_FIXED + ("M1", "M2", "h", "eps")
+    piecewise_solver = False
     ranges = dict(TwoMassBacklash.ranges, dt=(0.0, None))
     parameters = TwoMassBacklash.parameters + (DT_PARAMETER,)
 
@@ -53,6 +59,8 @@ class NaiveStaticBacklash(StaticBacklash):
     """
 
     solver_class = _NaiveStaticBacklash
+    fixed_solver_attributes = NAIVE_FIXED + ("M", "k", "h")
+    piecewise_solver = False
     ranges = dict(StaticBacklash.ranges, dt=(0.0, None))
     parameters = StaticBacklash.parameters + (DT_PARAMETER,)
 

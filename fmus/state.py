@@ -37,7 +37,9 @@ import pickle
 
 MAGIC = b"dfwb-fmu-state\n"
 FORMAT = 1
-MAX_BYTES = 1 << 22  # 4 MiB: a solver state is a few kB (LinearSystem's transition cache a few tens of kB)
+MAX_BYTES = 1 << 18  # 256 kB: a solver state is a few kB (LinearSystem's full transition cache 45 kB); a
+# pickle builds objects of ~60-220 bytes from one-byte opcodes before they are checked, so this also bounds
+# the memory a crafted state takes (4 MiB of EMPTY_LIST opcodes took 370 MB)
 MAX_NODES = 200_000  # objects visited when a restored state is checked
 
 
@@ -149,6 +151,9 @@ def check_graph(root, table):
         elif kind is complex:
             if math.isnan(obj.real) or math.isnan(obj.imag):
                 raise StateRefused("the state holds a NaN")
+        elif kind is int:
+            if obj.bit_length() > 64:  # a counter or an index: no larger (an output is a 32-bit fmi2Integer)
+                raise StateRefused("the state holds an integer of more than 64 bits")
         elif kind in SCALARS:
             pass
         elif kind in (list, tuple):

@@ -32,6 +32,20 @@
       is given to Py_SetPythonHome, so no environment variable is needed. If no libpython
       loads, fmi2Instantiate logs one fmi2Fatal message and returns NULL.
 
+   4. Arguments are checked before pythonfmu sees them (it would crash, or fail with fmi2Fatal):
+      fmi2Instantiate returns NULL, with one fmi2Fatal message, for a fmuType other than
+      fmi2CoSimulation, a fmuGUID other than the guid in <resources>/../modelDescription.xml and
+      a resource folder without pythonfmu's slavemodule.txt and the script it names. pythonfmu
+      gets the instance name with every byte that is not UTF-8 replaced by '?' ("" for NULL), and
+      the resource folder as file://<decoded path> (it decodes only %20, only in file:// URIs).
+      fmi2Error (the Error state): a NULL array with nvr > 0 in a getter or setter, a NULL or
+      non-UTF-8 string in fmi2SetString, a NULL value of fmi2Get*Status, a NULL FMU state or
+      pointer to one, a deserialization from NULL or of more than MAX_STATE_BYTES bytes, a
+      serialization buffer smaller than fmi2SerializedFMUstateSize. fmi2FreeFMUstate sets
+      *FMUstate to NULL (a second free is then ignored, as a NULL state is). fmi2SerializeFMUstate
+      serializes into a buffer of the exact size and copies it (pythonfmu copies `size` bytes,
+      reading past its own bytes when the host's buffer is larger).
+
    Build: cc -shared -fPIC -O2 -fvisibility=hidden -I<fmpy>/c-code -o <model>.so fmi2_shim.c -ldl -lpthread */
 
 #define _GNU_SOURCE
@@ -50,6 +64,7 @@
 #define INNER_SUFFIX ".pythonfmu.so"
 #define PYTHON_RECORD "dfwb_python.txt"
 #define PHASE_VR 0x7FFFFFFFu /* the facade's private integer: its phase (fmus/facade.py PHASE_VR) */
+#define MAX_STATE_BYTES ((size_t)1 << 20) /* a serialized state is at most tens of kB; fmus/state.py: 256 kB */
 
 /* ------------------------------------------------------------------ the inner binary */
 
@@ -193,6 +208,13 @@ static fmi2Status settle(Shim *s, const char *what, fmi2Status status) {
     BEGIN(s);                                                                               \
     fmi2Status status = settle(s, #function, inner.function(s->inner, __VA_ARGS__));
 
+/* Refuse a call for a bad argument: fmi2Error with a message, the Error state. */
+static fmi2Status refuse(Shim *s, const char *what, const char *why) {
+    shim_log(s, fmi2Error, "%s: %s", what, why);
+    s->error = 1;
+    return fmi2Error;
+}
+
 /* ------------------------------------------------------------------ Python runtime */
 
 /* The folder of resources, from a file: URI (file:///a/b, file:/a/b; %XX decoded). */
@@ -292,6 +314,51 @@ static int ensure_python(const char *resources, char *why, size_t size) {
     return 0;
 }
 
+/* Whether fmuGUID is the guid of <resources>/../modelDescription.xml (not found: not checked). */
+static int guid_matches(const char *resources, const char *guid, char *why, size_t size) {
+    if (!guid) {
+        snprintf(why, size, "fmuGUID is NULL");
+        return 0;
+    }
+    char path[PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s/../modelDescription.xml", resources);
+    FILE *file = fopen(path, "rb");
+    if (!file) return 1;
+    static char text[1 << 16]; /* the guid is an attribute of the root element, in the first lines */
+    size_t n = fread(text, 1, sizeof text - 1, file);
+    fclose(file);
+    text[n] = '\0';
+    const char *found = strstr(text, " guid=\"");
+    if (!found) return 1;
+    found += 7;
+    const char *end = strchr(found, '"');
+    if (!end) return 1;
+    size_t length = (size_t)(end - found);
+    if (strlen(guid) == length && strncmp(found, guid, length) == 0) return 1;
+    snprintf(why, size, "fmuGUID %.200s is not this FMU's guid %.*s (a modelDescription.xml of another FMU?)",
+             guid, (int)(length < 200 ? length : 200), found);
+    return 0;
+}
+
+/* Whether resources holds pythonfmu's slavemodule.txt and the script it names (pythonfmu crashes
+   on a folder without them, e.g. a wrong fmuResourceLocation). */
+static int resources_ok(const char *resources, char *why, size_t size) {
+    char path[PATH_MAX + 64], module[256];
+    snprintf(path, sizeof path, "%s/slavemodule.txt", resources);
+    FILE *file = fopen(path, "r");
+    int ok = file && fgets(module, sizeof module, file);
+    if (file) fclose(file);
+    if (ok) {
+        module[strcspn(module, "\r\n")] = '\0';
+        snprintf(path, sizeof path, "%s/%s.py", resources, module);
+        ok = module[0] && !strchr(module, '/') && is_file(path);
+    }
+    if (!ok)
+        snprintf(why, size, "fmuResourceLocation %.1000s is not this FMU's resources folder (no slavemodule.txt "
+                 "naming a script there)", resources);
+    return ok;
+}
+
 /* dlopen pythonfmu's binary (next to this one) once; on failure, `why` says why. */
 static int load_inner(char *why, size_t size) {
     if (inner_library) return 1;
@@ -322,6 +389,48 @@ static int load_inner(char *why, size_t size) {
     return 1;
 }
 
+/* Length of the UTF-8 character at p[0] (n bytes left), 0 if the bytes there are not valid UTF-8. */
+static size_t utf8_char(const unsigned char *p, size_t n) {
+    unsigned char c = p[0];
+    size_t len = c < 0x80 ? 1 : (c >= 0xC2 && c <= 0xDF) ? 2 : (c >= 0xE0 && c <= 0xEF) ? 3
+               : (c >= 0xF0 && c <= 0xF4) ? 4 : 0;
+    if (len == 0 || len > n) return 0;
+    for (size_t k = 1; k < len; k++)
+        if ((p[k] & 0xC0) != 0x80) return 0;
+    if (len == 3 && ((c == 0xE0 && p[1] < 0xA0) || (c == 0xED && p[1] > 0x9F))) return 0; /* overlong, surrogate */
+    if (len == 4 && ((c == 0xF0 && p[1] < 0x90) || (c == 0xF4 && p[1] > 0x8F))) return 0; /* overlong, > U+10FFFF */
+    return len;
+}
+
+/* Whether text is valid UTF-8 (pythonfmu makes Python strs of strings and fails fatally, or crashes, on
+   anything else). */
+static int utf8_valid(const char *text) {
+    const unsigned char *p = (const unsigned char *)text;
+    size_t n = strlen(text);
+    for (size_t i = 0, len; i < n; i += len)
+        if (!(len = utf8_char(p + i, n - i))) return 0;
+    return 1;
+}
+
+/* A copy of text with every byte that is not part of valid UTF-8 replaced by '?' (NULL: ""). */
+static char *utf8_copy(const char *text) {
+    const unsigned char *p = (const unsigned char *)(text ? text : "");
+    size_t n = strlen((const char *)p);
+    char *out = malloc(n + 1);
+    if (!out) return NULL;
+    for (size_t i = 0, len; i < n; i += len) {
+        len = utf8_char(p + i, n - i);
+        if (len) {
+            memcpy(out + i, p + i, len);
+        } else {
+            out[i] = '?';
+            len = 1;
+        }
+    }
+    out[n] = '\0';
+    return out;
+}
+
 /* ------------------------------------------------------------------ FMI 2.0 */
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -334,7 +443,11 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     Shim *s = calloc(1, sizeof *s);
     if (!s) return NULL;
     if (functions) s->host = *functions;
-    s->name = strdup(instanceName ? instanceName : "");
+    s->name = utf8_copy(instanceName);
+    if (!s->name) {
+        free(s);
+        return NULL;
+    }
     s->logging_on = loggingOn != fmi2False;
     s->own.logger = inner_logger;
     s->own.allocateMemory = s->host.allocateMemory ? s->host.allocateMemory : calloc;
@@ -345,9 +458,15 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     char why[4096], resources[PATH_MAX];
     int ok;
     pthread_mutex_lock(&load_lock);
-    if (!resource_folder(fmuResourceLocation, resources, sizeof resources)) {
-        snprintf(why, sizeof why, "fmuResourceLocation %s is not a file: URI",
+    if (fmuType != fmi2CoSimulation) {
+        snprintf(why, sizeof why, "fmuType %d refused: this FMU is for co-simulation (fmi2CoSimulation) only",
+                 (int)fmuType);
+        ok = 0;
+    } else if (!resource_folder(fmuResourceLocation, resources, sizeof resources)) {
+        snprintf(why, sizeof why, "fmuResourceLocation %.1000s is not a file: URI",
                  fmuResourceLocation ? fmuResourceLocation : "(NULL)");
+        ok = 0;
+    } else if (!resources_ok(resources, why, sizeof why) || !guid_matches(resources, fmuGUID, why, sizeof why)) {
         ok = 0;
     } else {
         ok = ensure_python(resources, why, sizeof why) && load_inner(why, sizeof why);
@@ -360,8 +479,17 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return NULL;
     }
     BEGIN(s);
-    s->inner = inner.fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation, &s->own, visible,
-                                     fmi2True);
+    /* pythonfmu takes the URI minus "file://", with only %20 decoded: give it the decoded folder */
+    char *uri = malloc(strlen(resources) + 8);
+    if (!uri) {
+        free(s->name);
+        free(s);
+        return NULL;
+    }
+    strcpy(uri, "file://");
+    strcat(uri, resources);
+    s->inner = inner.fmi2Instantiate(s->name, fmuType, fmuGUID, uri, &s->own, visible, fmi2True);
+    free(uri);
     if (!s->inner) {
         free(s->name);
         free(s);
@@ -445,8 +573,14 @@ fmi2Status fmi2Reset(fmi2Component c) {
     return status;
 }
 
+/* A NULL array with nvr > 0 (pythonfmu would read or write through it). */
+#define CHECK_ARRAYS(c, function, vr, nvr, value)                                                  \
+    if ((c) && (nvr) > 0 && (!(vr) || !(value)) && !((Shim *)(c))->fatal)                        \
+        return refuse((Shim *)(c), #function, "a NULL valueReference or value array with nvr > 0");
+
 #define GETTER(function, type)                                                                    \
     fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, type value[]) { \
+        CHECK_ARRAYS(c, function, vr, nvr, value)                                                 \
         FORWARD(c, function, ANYTIME, vr, nvr, value)                                             \
         return status;                                                                            \
     }
@@ -457,15 +591,26 @@ GETTER(fmi2GetString, fmi2String)
 
 #define SETTER(function, type)                                                                          \
     fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const type value[]) { \
+        CHECK_ARRAYS(c, function, vr, nvr, value)                                                       \
         FORWARD(c, function, NORMAL, vr, nvr, value)                                                    \
         return status;                                                                                  \
     }
 SETTER(fmi2SetReal, fmi2Real)
 SETTER(fmi2SetInteger, fmi2Integer)
 SETTER(fmi2SetBoolean, fmi2Boolean)
-SETTER(fmi2SetString, fmi2String)
+
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
+    CHECK_ARRAYS(c, fmi2SetString, vr, nvr, value)
+    if (c && !((Shim *)c)->fatal)
+        for (size_t i = 0; i < nvr; i++)
+            if (!value[i] || !utf8_valid(value[i]))
+                return refuse((Shim *)c, "fmi2SetString", "a value that is NULL or not UTF-8 text");
+    FORWARD(c, fmi2SetString, NORMAL, vr, nvr, value)
+    return status;
+}
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    if (c && !FMUstate && !((Shim *)c)->fatal) return refuse((Shim *)c, "fmi2GetFMUstate", "FMUstate is NULL");
     FORWARD(c, fmi2GetFMUstate, ANYTIME, FMUstate)
     return status;
 }
@@ -475,6 +620,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     fmi2Status refused = fmi2Error;
     if (!s) return fmi2Error;
     if (!admit(s, "fmi2SetFMUstate", ANYTIME, &refused)) return refused;
+    if (!FMUstate) return refuse(s, "fmi2SetFMUstate", "FMUstate is NULL");
     s->error = 0; /* a restored state leaves the Error state; settle() re-enters it if this fails */
     BEGIN(s);
     fmi2Status status = settle(s, "fmi2SetFMUstate", inner.fmi2SetFMUstate(s->inner, FMUstate));
@@ -501,25 +647,68 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    FORWARD(c, fmi2FreeFMUstate, ANYTIME, FMUstate)
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2FreeFMUstate", ANYTIME, &refused)) return refused;
+    if (!FMUstate) return refuse(s, "fmi2FreeFMUstate", "the pointer to the FMUstate is NULL");
+    if (!*FMUstate) return fmi2OK; /* the standard: a NULL state is ignored */
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2FreeFMUstate", inner.fmi2FreeFMUstate(s->inner, FMUstate));
+    if (status <= fmi2Warning) *FMUstate = NULL; /* freed: a second free is harmless */
     return status;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
+    if (c && (!FMUstate || !size) && !((Shim *)c)->fatal)
+        return refuse((Shim *)c, "fmi2SerializedFMUstateSize", "FMUstate or size is NULL");
     FORWARD(c, fmi2SerializedFMUstateSize, ANYTIME, FMUstate, size)
     return status;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
-    FORWARD(c, fmi2SerializeFMUstate, ANYTIME, FMUstate, serializedState, size)
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2SerializeFMUstate", ANYTIME, &refused)) return refused;
+    if (!FMUstate || !serializedState) return refuse(s, "fmi2SerializeFMUstate", "FMUstate or the buffer is NULL");
+    size_t needed = 0;
+    BEGIN(s);
+    fmi2Status status = settle(s, "fmi2SerializeFMUstate", inner.fmi2SerializedFMUstateSize(s->inner, FMUstate, &needed));
+    if (status > fmi2Warning) return status;
+    if (size < needed) {
+        shim_log(s, fmi2Error, "fmi2SerializeFMUstate: a buffer of %zu bytes, but the state needs %zu "
+                 "(fmi2SerializedFMUstateSize)", size, needed);
+        s->error = 1;
+        return fmi2Error;
+    }
+    fmi2Byte *exact = malloc(needed ? needed : 1); /* pythonfmu copies exactly the size it is given */
+    if (!exact) return refuse(s, "fmi2SerializeFMUstate", "out of memory");
+    BEGIN(s);
+    status = settle(s, "fmi2SerializeFMUstate", inner.fmi2SerializeFMUstate(s->inner, FMUstate, exact, needed));
+    if (status <= fmi2Warning) memcpy(serializedState, exact, needed);
+    free(exact);
     return status;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
-    FORWARD(c, fmi2DeSerializeFMUstate, ANYTIME, serializedState, size, FMUstate)
-    return status;
+    Shim *s = (Shim *)c;
+    fmi2Status refused = fmi2Error;
+    if (!s) return fmi2Error;
+    if (!admit(s, "fmi2DeSerializeFMUstate", ANYTIME, &refused)) return refused;
+    if (!FMUstate || (!serializedState && size > 0))
+        return refuse(s, "fmi2DeSerializeFMUstate", "the bytes or the pointer to the FMUstate is NULL");
+    if (size > MAX_STATE_BYTES) {
+        shim_log(s, fmi2Error, "fmi2DeSerializeFMUstate: %zu bytes refused: a serialized state of this FMU "
+                 "is at most %zu bytes", size, MAX_STATE_BYTES);
+        s->error = 1;
+        return fmi2Error;
+    }
+    BEGIN(s);
+    return settle(s, "fmi2DeSerializeFMUstate",
+                  inner.fmi2DeSerializeFMUstate(s->inner, serializedState ? serializedState : "", size, FMUstate));
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
@@ -570,6 +759,7 @@ fmi2Status fmi2CancelStep(fmi2Component c) {
 
 #define STATUS_GETTER(function, type)                                                   \
     fmi2Status function(fmi2Component c, const fmi2StatusKind kind, type *value) {      \
+        if (c && !value && !((Shim *)c)->fatal) return refuse((Shim *)c, #function, "value is NULL"); \
         FORWARD(c, function, ANYTIME, kind, value)                                      \
         return status;                                                                  \
     }
