@@ -276,15 +276,17 @@ def register(entry):
     """Add a plant to the registry and return the entry.
 
     A name may be registered again only with the same facts (a module
-    imported twice makes new functions for the same plant); another plant of
-    that name is an error.
+    imported twice makes new functions for the same plant), and the first
+    entry stays; another plant of that name is an error.
     """
     if not isinstance(entry, Plant):
         raise PlantError(f"register() takes a dfwb.Plant, not {type(entry).__name__} {entry!r:.60}")
     known = PLANTS.get(entry.name)
-    if known is not None and known is not entry and _facts(known) != _facts(entry):
-        raise PlantError(f"a plant named {entry.name!r} is registered already (FMU {known.fmu_name}): "
-                         "choose another name")
+    if known is not None:
+        if _facts(known) != _facts(entry):
+            raise PlantError(f"a plant named {entry.name!r} is registered already (FMU {known.fmu_name}): "
+                             "choose another name")
+        return known  # the same plant again: the first entry stays
     PLANTS[entry.name] = entry
     return entry
 
