@@ -474,17 +474,22 @@ OPS = st.sampled_from(["new", "free", "init", "init", "reset", "setup", "enter",
 
 
 @settings(max_examples=int(os.environ.get("DFWB_ATTACK_EXAMPLES", "12")), deadline=None, suppress_health_check=list(HealthCheck))
-@given(st.lists(st.tuples(OPS, st.integers(0, 1000), st.integers(0, 1000)), min_size=20, max_size=400))
-def test_random_call_sequences(info, ops):
-    """Random FMI call sequences over up to 50 instances of every model: every status is OK or Error."""
-    env_ops = json.dumps(ops)
-    os.environ["ATTACK_OPS"] = env_ops
+def _run_sequence(info, ops):
+    """Run the call sequence ``ops`` in a host subprocess; it must exit 0 with every status OK or Error."""
+    os.environ["ATTACK_OPS"] = json.dumps(ops)
     try:
         code, out, stderr = host(info, SEQUENCE, timeout=60)
     finally:
         del os.environ["ATTACK_OPS"]
     assert code == 0, f"the host died ({code}) at:\n{stderr[-1500:]}"
     assert out["bad"] == [] and out["fatal"] == [], out
+    return out
+
+
+@given(st.lists(st.tuples(OPS, st.integers(0, 1000), st.integers(0, 1000)), min_size=20, max_size=400))
+def test_random_call_sequences(info, ops):
+    """Random FMI call sequences over up to 50 instances of every model: every status is OK or Error."""
+    _run_sequence(info, ops)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -494,13 +499,7 @@ def test_long_random_call_sequences(info, seed):
     names = sorted(set(OPS.wrapped_strategy.elements if hasattr(OPS, "wrapped_strategy") else OPS.elements))
     weights = [{"step": 30, "init": 6, "reset": 6, "new": 1, "free": 1}.get(name, 2) for name in names]
     ops = [(rng.choices(names, weights)[0], rng.randrange(1001), rng.randrange(1001)) for _ in range(1500)]
-    os.environ["ATTACK_OPS"] = json.dumps(ops)
-    try:
-        code, out, stderr = host(info, SEQUENCE, timeout=60)
-    finally:
-        del os.environ["ATTACK_OPS"]
-    assert code == 0, f"the host died ({code}) at:\n{stderr[-1500:]}"
-    assert out["bad"] == [] and out["fatal"] == [], out
+    out = _run_sequence(info, ops)
     assert out.get("steps", 0) > 10 and out.get("initialised", 0) > 10, out
 
 
