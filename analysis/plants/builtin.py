@@ -8,7 +8,7 @@ only when a reference is asked for.
 
 import math
 
-from dfwb.fmus import facade, naive_facade
+from dfwb.fmus import facade, loops, naive_facade
 from dfwb.plants.registry import Demo, Plant, register
 from dfwb.plants.stress_profiles import BACKLASH as BACKLASH_STRESS
 from dfwb.plants.stress_profiles import FRICTION as FRICTION_STRESS
@@ -58,6 +58,7 @@ FRICTION = register(Plant(
     naive=naive_facade.NaiveFrictionMass,
     reference=_reference("friction"),
     scipy=_scipy("friction"),
+    loop=loops.FrictionLoop,
     stress=FRICTION_STRESS,
     bench={"quick": [(10.0, 1.0, {}), (30.0, 5.0, {})],
            "full": [(10.0, 1.0, {}), (30.0, 1.0, {}), (50.0, 0.5, {}), (20.0, 5.0, {}), (10.0, 0.1, {})]},
@@ -75,6 +76,7 @@ BACKLASH = register(Plant(
     naive=naive_facade.NaiveTwoMassBacklash,
     reference=_reference("backlash"),
     scipy=_scipy("backlash"),
+    loop=loops.BacklashLoop,
     stress=BACKLASH_STRESS,
     bench={"quick": [(50.0, 20.0, {"eps": 0.5}), (30.0, 25.0, {"eps": 0.2})],
            "full": [(50.0, 20.0, {"eps": 0.5}), (50.0, 20.0, {"eps": 0.8}), (50.0, 40.0, {"eps": 0.2}),
@@ -91,6 +93,7 @@ STATIC_BACKLASH = register(Plant(
     naive=naive_facade.NaiveStaticBacklash,
     reference=_static_backlash_reference,
     scipy=_static_backlash_scipy,
+    loop=loops.StaticBacklashLoop,
     stress=STATIC_BACKLASH_STRESS,
     bench={"quick": [(50.0, 20.0, {})],
            "full": [(50.0, 20.0, {}), (50.0, 10.0, {}), (5.0, 2.0, {})]},

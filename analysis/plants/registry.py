@@ -138,6 +138,10 @@ class Plant:
         complex``, its describing function there, given every parameter (the
         defaults filled in); the contract suite (tests/test_contract.py)
         checks the engine against it.
+    loop : type or None
+        The exact closed loop of the plant with a linear controller (a
+        :class:`dfwb.fmus.loops.FeedbackLoop`): what ``dfwb limit-cycle
+        --exact`` shoots periodic orbits of; None: no exact loop.
     """
 
     name: str
@@ -161,6 +165,7 @@ class Plant:
     demo: Optional[Demo] = None
     masses: tuple = ()
     linear: Optional[tuple] = None
+    loop: Optional[type] = None
 
     def __post_init__(self):
         from dfwb.fmus.facade import PlantFMU
@@ -295,7 +300,7 @@ def _facts(entry):
     """An entry's data, without its functions (which a second import of its module makes anew)."""
     return (entry.model, entry.output, entry.section, entry.modes, entry.initial, entry.shifts, entry.position,
             entry.summary, entry.counter, entry.never_engaged, entry.ranges, entry.masses, entry.naive,
-            entry.variants, entry.bench, entry.demo)
+            entry.variants, entry.bench, entry.demo, entry.loop)
 
 
 def unregister(name):

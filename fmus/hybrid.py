@@ -1,0 +1,342 @@
+"""Exact integration of a piecewise-affine hybrid system: X' = A X + c in each mode, events where g(X) = 0.
+
+A plant in feedback with a linear controller is, between events, linear
+time-invariant: the plant's mode fixes its equations, the controller is
+linear, and nothing depends on time explicitly. So each *piece* of the motion
+is X(t) = exp(A (t - t0)) X0 + (affine part), and every event (a velocity
+reaching zero, a force reaching the break-away level, a gap closing) is the
+first zero of a linear function g(X) = L.X + l0 along it.
+
+Pieces are walked in *chunks* of length h anchored at the piece start, with
+rho h <= 1 where rho is a balanced norm of A (a power-of-two diagonal
+similarity, so every bound below is rigorous). On a chunk the state is its
+Taylor series, truncated where the remainder is below 2^-60 of the first
+term:
+
+    X(a + tau) = X(a) + sum_k A^(k-1) X'(a) tau^k / k!
+
+so each event function is a polynomial in tau whose coefficients are dot
+products with the rows L A^(k-1) / k! (cached per mode). Its first zero is
+found by :func:`~.exact.first_root` from a bound on its second derivative, so
+no event is ever stepped over, and refined to machine precision. The chunk
+grid depends only on the piece start, never on where an importer asks for
+the state: results are bit-identical for any communication step.
+
+An event leaves the state on a boundary; the next mode's function for that
+boundary is zero there. Such a *departing* function is searched, on the
+first chunk, as g / tau^j with j its leading coefficients that vanish within
+rounding, so the departure itself is not an event and an immediate return is.
+
+Every loop is bounded: a chunk's search by MAX_EVALUATIONS, the events of a
+step by EVENTS_PER_CHUNK per chunk it spans, and a step's chunks by its
+length (a time beyond TIME_LIMIT chunks of the fastest mode is refused).
+
+Plain Python (``math``) only: this module runs inside the FMUs.
+"""
+
+import math
+
+from .exact import EPS, PlantError, first_root
+
+TAYLOR_RADIUS = 1.0  # rho h: the Taylor terms decrease from the first
+TAYLOR_TOLERANCE = 2.0 ** -60  # relative truncation of a chunk's series
+MAX_TERMS = 40
+EVENTS_PER_CHUNK = 10_000
+TIME_LIMIT = 1e12  # chunks of the fastest mode in [0, t]: beyond, ulp(t) is a sizeable part of a chunk
+TREND_ROUNDING = 64.0 * EPS  # a Taylor coefficient within this (relative to its scale) is zero
+SECTION_UP, SECTION_DOWN = "section+", "section-"  # crossings of a watched function (re-anchor, not events)
+SECTION = (SECTION_UP, SECTION_DOWN)
+
+
+def _matvec(A, x):
+    return [sum(a * b for a, b in zip(row, x)) for row in A]
+
+
+def _dot(a, b):
+    return sum(x * y for x, y in zip(a, b))
+
+
+def balance(A):
+    """Powers of two d_i such that D^-1 A D (D = diag(d)) has rows and columns of like size (LAPACK's gebal).
+
+    Exact (powers of two) and bounded: at most 60 sweeps, each scaling by at most 2^+-1 per entry.
+    """
+    n = len(A)
+    d = [1.0] * n
+    for _ in range(60):
+        changed = False
+        for i in range(n):
+            col = sum(abs(A[j][i]) * d[i] / d[j] for j in range(n) if j != i)  # of D^-1 A D
+            row = sum(abs(A[i][j]) * d[j] / d[i] for j in range(n) if j != i)
+            if col == 0.0 or row == 0.0:
+                continue
+            f = 1.0
+            while col < row / 2.0 and f < 2.0 ** 30:
+                col, row, f = col * 2.0, row / 2.0, f * 2.0
+            while col > row * 2.0 and f > 2.0 ** -30:
+                col, row, f = col / 2.0, row * 2.0, f / 2.0
+            if f != 1.0 and (col + row) < 0.95 * (col / f + row * f):
+                d[i] *= f
+                changed = True
+        if not changed:
+            break
+    return d
+
+
+class Mode:
+    """One mode: X' = A X + c, and its event functions ``(kind, L, l0)``: events where L.X + l0 falls to zero.
+
+    Derived once: the chunk length h, the number of Taylor terms, the step
+    matrix Psi = sum_k A^(k-1) h^k / k! (X(a + h) = X(a) + Psi X'(a)), and for
+    each event function the rows L A^(k-1) / k! and their absolute values.
+    """
+
+    __slots__ = ("key", "A", "c", "events", "h", "terms", "psi", "rows", "abs_rows", "absA", "scale")
+
+    def __init__(self, key, A, c, events):
+        self.key, self.A, self.c, self.events = key, A, c, tuple(events)
+        n = len(A)
+        d = balance(A)
+        rho = max(sum(abs(A[i][j]) * d[j] / d[i] for j in range(n)) for i in range(n))
+        self.scale = d
+        # A = 0: X' is constant and one term is exact on any chunk
+        self.h = h = TAYLOR_RADIUS / rho if rho > 0.0 else 1.0
+        terms, term = 1, 1.0
+        while rho > 0.0 and terms < MAX_TERMS and term > TAYLOR_TOLERANCE:
+            terms += 1
+            term *= TAYLOR_RADIUS / terms
+        self.terms = terms
+        self.absA = [[abs(a) for a in row] for row in A]
+        # Psi by Horner: h (I + A h/2 (I + A h/3 (...)))
+        P = [[1.0 if i == j else 0.0 for j in range(n)] for i in range(n)]
+        for k in range(self.terms, 1, -1):
+            AP = [[_dot(A[i], [P[m][j] for m in range(n)]) for j in range(n)] for i in range(n)]
+            P = [[(1.0 if i == j else 0.0) + AP[i][j] * h / k for j in range(n)] for i in range(n)]
+        self.psi = [[value * h for value in row] for row in P]
+        self.rows, self.abs_rows = [], []
+        for _kind, L, _l0 in self.events:
+            rows, abs_rows, r, ra = [], [], list(L), [abs(v) for v in L]
+            for k in range(1, self.terms + 1):
+                rows.append([v / math.factorial(k) for v in r])
+                abs_rows.append([v / math.factorial(k) for v in ra])
+                r = [_dot(r, [A[m][j] for m in range(n)]) for j in range(n)]
+                ra = [_dot(ra, [self.absA[m][j] for m in range(n)]) for j in range(n)]
+            self.rows.append(rows)
+            self.abs_rows.append(abs_rows)
+
+    def derivative(self, X):
+        return [_dot(row, X) + ci for row, ci in zip(self.A, self.c)]
+
+    def state(self, X, dX, tau):
+        """X(a + tau) from X(a) and X'(a), 0 <= tau <= h, by the Taylor series (Horner)."""
+        krylov = [dX]
+        for _ in range(self.terms - 1):
+            krylov.append(_matvec(self.A, krylov[-1]))
+        acc = krylov[-1]
+        for k in range(self.terms - 1, 0, -1):
+            f = tau / (k + 1)
+            acc = [kv + f * a for kv, a in zip(krylov[k - 1], acc)]
+        return [x + tau * a for x, a in zip(X, acc)]
+
+    def step(self, X, dX):
+        """X(a + h)."""
+        return [x + _dot(row, dX) for x, row in zip(X, self.psi)]
+
+    def coefficients(self, index, X, dX):
+        """Taylor coefficients [g, g'/1!, g''/2!, ...] of event function ``index`` at X, and their rounding scales."""
+        _kind, L, l0 = self.events[index]
+        coeffs = [_dot(L, X) + l0] + [_dot(row, dX) for row in self.rows[index]]
+        size = [abs(a) for a in _matvec(self.absA, [abs(x) for x in X])]
+        size = [s + abs(ci) for s, ci in zip(size, self.c)]
+        scales = [_dot([abs(v) for v in L], [abs(x) for x in X]) + abs(l0)]
+        scales += [_dot(row, size) for row in self.abs_rows[index]]
+        return coeffs, scales
+
+
+def trend(coeffs, scales):
+    """The sign of a function just after a point, from its Taylor coefficients there (0: zero within rounding)."""
+    for value, scale in zip(coeffs, scales):
+        if abs(value) > TREND_ROUNDING * scale:
+            return 1 if value > 0.0 else -1
+    return 0
+
+
+class Polynomial:
+    """``tau -> (p, p')`` of sum c_i tau^i (Horner): an event function on a chunk, as plain data."""
+
+    __slots__ = ("c",)
+
+    def __init__(self, c):
+        self.c = c
+
+    def __call__(self, tau):
+        p, dp = 0.0, 0.0
+        for value in reversed(self.c):
+            dp = dp * tau + p
+            p = p * tau + value
+        return p, dp
+
+    def curvature_bound(self, h):
+        """A bound on |p''| over [0, h] (plus a margin for the series' truncated tail)."""
+        c = self.c
+        total = sum(i * (i - 1) * abs(c[i]) * h ** (i - 2) for i in range(2, len(c)))
+        return 1.0001 * total + 1e-300
+
+
+class HybridSolver:
+    """Walk a hybrid system through its events exactly.
+
+    Subclasses give the modes (:meth:`system`, returning A, c and the event
+    functions of a mode key) and the switching logic (:meth:`_fire`, called
+    at an event with the state; it returns the next mode key, the state and
+    the index of the departing event function or None), and call
+    :meth:`start`.
+    """
+
+    def __init__(self, section=None):
+        self.t = 0.0
+        self.events = 0
+        self.event_log = None  # a list to record (time, kind) of every event
+        self._modes = {}
+        self._section = section  # (L, l0): watch the upward zero crossings of L.X + l0
+        self._watching = None  # the kind of the section function searched (the other is negative)
+        self.crossings = []  # (t, X) at every upward crossing of the section
+
+    def start(self, t0, X0, key, departing=None):
+        """Begin at t0 in mode ``key`` (``departing``: the index of an event function that is zero at X0).
+
+        Started on the section, the section's function leaves zero as a departing one (no crossing at t0).
+        """
+        self.t = t0
+        departing = () if departing is None else (departing,)
+        if self._section is not None:
+            mode = self.mode(key)
+            up = len(mode.events) - 2
+            coeffs, scales = mode.coefficients(up, X0, mode.derivative(X0))
+            self._watching = SECTION_UP if trend(coeffs, scales) > 0 else SECTION_DOWN
+            if abs(coeffs[0]) <= TREND_ROUNDING * scales[0]:
+                departing += (up if self._watching is SECTION_UP else up + 1,)
+        self._begin(t0, list(X0), key, departing)
+
+    # -- modes ----------------------------------------------------------------
+    def mode(self, key):
+        mode = self._modes.get(key)
+        if mode is None:
+            A, c, events = self.system(key)
+            if self._section is not None:
+                L, l0 = self._section
+                events = list(events) + [(SECTION_UP, [-v for v in L], -l0), (SECTION_DOWN, list(L), l0)]
+            mode = self._modes[key] = Mode(key, A, c, events)
+        return mode
+
+    def system(self, key):
+        raise NotImplementedError
+
+    def _fire(self, t, kind, X):
+        raise NotImplementedError
+
+    def after(self, key, index, X):
+        """Sign of event function ``index`` of mode ``key`` just after X (its trend where it is zero)."""
+        mode = self.mode(key)
+        return trend(*mode.coefficients(index, X, mode.derivative(X)))
+
+    def function_index(self, key, kind):
+        return next(i for i, event in enumerate(self.mode(key).events) if event[0] == kind)
+
+    # -- pieces and chunks --------------------------------------------------------
+    def _begin(self, t, X, key, departing):
+        for x in X:
+            if not math.isfinite(x):
+                raise PlantError(f"the state became non-finite at t = {t!r} s ({X}): the loop diverges beyond "
+                                 f"floating point")
+        self.key = key
+        self._mode = self.mode(key)
+        self._departing = departing
+        self._chunk_start(t, X, first=True)
+
+    def _chunk_start(self, t, X, first=False):
+        self._a, self._X = t, X
+        self._dX = self._mode.derivative(X)
+        self._b = t + self._mode.h
+        self._first = first
+        self._event = None
+        self._searched = False
+
+    def _search(self):
+        """The first event in the current chunk: (tau, kind) or None."""
+        mode, X, dX = self._mode, self._X, self._dX
+        h = mode.h
+        best = None
+        for index, (kind, _L, _l0) in enumerate(mode.events):
+            if kind in SECTION and kind != self._watching:
+                continue
+            coeffs, scales = mode.coefficients(index, X, dX)
+            if self._first and index in self._departing:
+                j = 1
+                while j < len(coeffs) and abs(coeffs[j]) <= TREND_ROUNDING * scales[j]:
+                    j += 1
+                if j == len(coeffs):
+                    continue  # identically zero within rounding: it stays on the boundary, not an event
+                coeffs = coeffs[j:]
+            poly = Polynomial(coeffs)
+            limit = h if best is None else best[0]
+            tau = first_root(poly, 0.0, limit, poly.curvature_bound(limit))
+            if tau is not None and (best is None or tau < best[0]):
+                best = (tau, kind)
+        return best
+
+    def advance(self, t_end, stop_at_section=False):
+        """Integrate exactly from self.t to t_end, firing every event on the way.
+
+        With ``stop_at_section``, stop early at the next upward crossing of the
+        section (then ``self.crossings[-1]`` holds it).
+        """
+        if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end >= self.t):
+            raise PlantError(f"t_end = {t_end!r} is out of range: the end of a step must be a finite number >= "
+                             f"the current time {self.t!r}")
+        fastest = min(mode.h for mode in self._modes.values())
+        if t_end > TIME_LIMIT * fastest:
+            raise PlantError(f"t_end = {t_end!r} s is out of range: at most {TIME_LIMIT * fastest:.6g} s "
+                             f"({TIME_LIMIT:g} chunks of the fastest mode, where a float still resolves them)")
+        limit = EVENTS_PER_CHUNK * (1.0 + (t_end - self.t) / fastest)
+        fired = 0
+        while True:
+            if not self._searched:
+                self._event = self._search()
+                self._searched = True
+            if self._event is not None and self._a + self._event[0] <= t_end:
+                tau, kind = self._event
+                fired += 1
+                if fired > limit:
+                    raise PlantError(f"more than {EVENTS_PER_CHUNK} events per chunk between t = {self.t!r} and "
+                                     f"{self._a + tau!r} s (last event: {kind}): the motion chatters below the "
+                                     f"solver's resolution")
+                t = self._a + tau
+                X = self._mode.state(self._X, self._dX, tau)
+                if kind in SECTION:  # not an event of the system: watch the other direction from here
+                    if kind is SECTION_UP:
+                        self.crossings.append((t, X))
+                    self._watching = SECTION_DOWN if kind is SECTION_UP else SECTION_UP
+                    self._begin(t, X, self.key, (self.function_index(self.key, self._watching),))
+                    if stop_at_section and kind is SECTION_UP:
+                        t_end = t
+                        break
+                    continue
+                key, X, departing = self._fire(t, kind, X)
+                departing = () if departing is None else (departing,)
+                self.events += 1
+                if self.event_log is not None:
+                    self.event_log.append((t, kind))
+                self._begin(t, X, key, departing)
+                continue
+            if self._b > t_end:
+                break
+            self._chunk_start(self._b, self._mode.step(self._X, self._dX))
+        self.t = t_end
+
+    def state(self):
+        """The state X at self.t."""
+        tau = self.t - self._a
+        if tau == 0.0:
+            return list(self._X)
+        return self._mode.state(self._X, self._dX, tau)
