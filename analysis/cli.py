@@ -201,14 +201,18 @@ def cmd_limit_cycle(args):
 
     F_range = check_range("--F-range", args.F_range, F_RANGE)
     omega_range = check_range("--omega-range", args.omega_range, OMEGA_RANGE)
+    problem = None
+    if args.exact:
+        from dfwb.engine.periodic import LoopProblem
 
+        problem = LoopProblem(args.plant, G, params)  # refused before the map is computed
     engine = DFEngine(args.plant, args.fmus)
     found = search(args.plant, G, params, F_range, omega_range, engine=engine, progress=not args.json)
     cycles = found.cycles
     report = {"plant": args.plant, "G": {"num": [float(c) for c in G.num[0][0]],
                                          "den": [float(c) for c in G.den[0][0]]},
               "params": params, "predictions": [c.as_dict() for c in cycles]}
-    runs = []
+    runs, true_cycles, links = [], [], []
     if args.verify:
         from dfwb.engine.closed_loop import verify
 
@@ -217,24 +221,48 @@ def cmd_limit_cycle(args):
             outcome, run = verify(args.plant, G, cycle, params, args.samples_per_period, fmu_dir=args.fmus)
             report["verification"].append(outcome)
             runs.append((cycle, run))
+    if problem is not None:
+        from dfwb.engine.periodic import find_cycles
+        from dfwb.engine.periodic import report as exact_report
+
+        progress = None if args.json else (lambda origin: print(f"  exact loop: from {origin}", file=sys.stderr))
+        true_cycles, links = find_cycles(problem, cycles, progress=progress)
+        report["predictions"], report["cycles"] = exact_report(cycles, true_cycles, links)
     if args.plot:
         from dfwb.plotting.plots import limit_cycle_figure
 
-        limit_cycle_figure(plot, G, found.F_grid, found.omega_grid, found.N_grid, cycles, runs)
+        limit_cycle_figure(plot, G, found.F_grid, found.omega_grid, found.N_grid, cycles, runs, true_cycles)
     if args.json:
         json.dump(report, sys.stdout, indent=1)
         sys.stdout.write("\n")
-    else:
-        print(f"{len(cycles)} limit cycle(s) of {args.plant} under G(s) in F {F_range}, omega {omega_range}")
-        for i, c in enumerate(cycles):
-            line = (f"  F = {c.F:.8g} N, omega = {c.omega:.8g} rad/s, period {c.period:.6g} s, amplitude "
-                    f"{c.amplitude_x:.6g}, {'stable' if c.stable else 'unstable'}, distortion {c.distortion:.3g}")
-            if args.verify:
-                v = report["verification"][i]
-                line += (f"\n    judge: {'settled' if v['settled'] else 'NOT settled'} at F = {v['F']:.6g}, "
-                         f"omega = {v['omega']:.6g} (errors {v['rel_error_F']:.2%}, {v['rel_error_omega']:.2%})")
-            print(line)
+        return 0
+    print(f"{len(cycles)} limit cycle(s) of {args.plant} under G(s) predicted in F {F_range}, omega {omega_range}")
+    for i, c in enumerate(cycles):
+        line = (f"  [{i}] F = {c.F:.8g} N, omega = {c.omega:.8g} rad/s, period {c.period:.6g} s, amplitude "
+                f"{c.amplitude_x:.6g}, {'stable' if c.stable else 'unstable'}, distortion {c.distortion:.3g}")
+        if args.verify:
+            v = report["verification"][i]
+            line += (f"\n    judge: {'settled' if v['settled'] else 'NOT settled'} at F = {v['F']:.6g}, "
+                     f"omega = {v['omega']:.6g} (errors {v['rel_error_F']:.2%}, {v['rel_error_omega']:.2%})")
+        if problem is not None:
+            j = links[i]
+            line += ("\n    no true cycle near it: a false alarm" if j is None else
+                     "\n    true cycle [{}]: DF error omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
+                     .format(j, **report["predictions"][i]["error"]))
+        print(line)
+    if problem is not None:
+        print(f"{len(true_cycles)} true cycle(s) of the exact closed loop (shooting, Floquet multipliers):")
+        for j, c in enumerate(true_cycles):
+            which = "not predicted by the DF" if c.prediction is None else f"prediction [{c.prediction}]"
+            print(f"  [{j}] omega = {c.omega:.10g} rad/s, period {c.period:.10g} s, amplitude {c.amplitude_x:.10g}, "
+                  f"F = {c.F:.10g} N, {'stable' if c.stable else 'unstable'} (|multipliers| "
+                  f"{', '.join(f'{m:.3g}' for m in c.multipliers)}), {_per_period(c.counts)}, residual "
+                  f"{c.residual:.1e}; {which}")
     return 0
+
+
+def _per_period(counts):
+    return ", ".join(f"{value} {name}" for name, value in counts.items()) + " per period"
 
 
 def _plot_path(text):
@@ -388,6 +416,9 @@ def parser():
     cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=(0.05, 100.0), metavar=("LO", "HI"),
                        help="frequencies searched [rad/s] (default: %(default)s)")
     cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
+    cycle.add_argument("--exact", action="store_true",
+                       help="find the true cycles of the exact closed loop (shooting, Floquet stability) and the "
+                            "DF's errors against them")
     cycle.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                        help="co-simulation steps per predicted period with --verify (default: %(default)s)")
     cycle.add_argument("--plot", action=_Once, help="write the Nyquist (and time-response) figure to this PNG")

@@ -220,7 +220,7 @@ def transfer_function(G: Any):
 
 
 def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_range: tuple = (0.1, 100.0),
-                 n_F: int = 16, n_omega: int = 48, fmu_dir: Optional[Union[str, Path]] = None,
+                 n_F: int = 16, n_omega: int = 48, exact: bool = False, fmu_dir: Optional[Union[str, Path]] = None,
                  progress: bool = False, **params: float) -> LimitCycleResponse:
     """The limit cycles of a plant under negative feedback through a controller G(s).
 
@@ -242,6 +242,10 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
         Frequencies searched [rad/s].
     n_F, n_omega : int, keyword-only
         The DF map's size (2 to 1000 each).
+    exact : bool, keyword-only
+        Also find the true cycles of the exact closed loop (shooting from the
+        predictions and from simulations, Floquet stability; :mod:`dfwb.engine.periodic`)
+        and link each prediction to its true cycle.
     fmu_dir : path, optional, keyword-only
         Where the FMUs are.
     progress : bool, keyword-only
@@ -253,7 +257,9 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
     -------
     LimitCycleResponse
         ``.predictions`` (list of :class:`~dfwb.engine.limit_cycles.Cycle`, sorted by F),
-        the DF map (``.F_grid``, ``.omega_grid``, ``.N_grid``) and ``.plot()``.
+        the DF map (``.F_grid``, ``.omega_grid``, ``.N_grid``) and ``.plot()``; with
+        ``exact``, ``.cycles`` (list of :class:`~dfwb.engine.periodic.TrueCycle`) and
+        ``.links`` (for each prediction the index of its true cycle, or None).
 
     Examples
     --------
@@ -262,6 +268,10 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
     ...                              omega_range=(0.1, 50))
     >>> [(round(c.F, 6), round(c.omega, 6), c.stable) for c in response.predictions]
     [(0.248573, 0.913732, True)]
+    >>> exact = dfwb.limit_cycles("backlash", "200*(s+2)/(s+20)", F_range=(0.01, 100), omega_range=(0.1, 60),
+    ...                           n_F=8, n_omega=24, exact=True, eps=0.2)
+    >>> [(round(c.omega, 6), round(c.amplitude_x, 7), c.stable) for c in exact.cycles], exact.links
+    ([(7.92883, 0.028911, True)], [0])
     """
     from dfwb.engine.limit_cycles import search
 
@@ -274,11 +284,24 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
         raise InputError(f"F_range = {F_range!r} and omega_range = {omega_range!r} must be (low, high) pairs "
                          "of numbers") from None
     n_F, n_omega = _integer("n_F", n_F), _integer("n_omega", n_omega)
+    if not isinstance(exact, bool):
+        raise InputError(f"exact = {exact!r} must be True or False")
+    problem = None
+    if exact:
+        from dfwb.engine.periodic import LoopProblem
+
+        problem = LoopProblem(spec.name, controller, checked)
     engine = DFEngine(spec.name, fmu_dir=fmu_dir)
     found = search(spec.name, controller, checked, ranges[0], ranges[1], n_F, n_omega, engine=engine,
                    progress=progress)
+    cycles, links = [], []
+    if problem is not None:
+        from dfwb.engine.periodic import find_cycles
+
+        cycles, links = find_cycles(problem, found.cycles)
     return LimitCycleResponse(plant=spec.name, params=checked, G=controller, predictions=found.cycles,
-                              F_grid=found.F_grid, omega_grid=found.omega_grid, N_grid=found.N_grid)
+                              F_grid=found.F_grid, omega_grid=found.omega_grid, N_grid=found.N_grid,
+                              cycles=cycles, links=links)
 
 
 def run_scene(scene: Union[str, Path, Any], out_dir: Optional[Union[str, Path]] = None, *,

@@ -139,6 +139,12 @@ class LimitCycleResponse:
         The DF map's frequencies [rad/s].
     N_grid : ndarray of complex
         N on the map [m/N], shape ``(len(F_grid), len(omega_grid))``.
+    cycles : list of dfwb.engine.periodic.TrueCycle
+        With ``exact=True``: the exact closed loop's periodic orbits (``omega``, ``period``,
+        ``amplitude_x``, ``F``, ``stable``, ``multipliers``, ``prediction``, ``as_dict()``).
+    links : list
+        With ``exact=True``: for each prediction the index of its true cycle in ``cycles``, or
+        None (no true cycle near it: a false alarm).
     """
 
     plant: str
@@ -148,6 +154,8 @@ class LimitCycleResponse:
     F_grid: np.ndarray = field(repr=False)
     omega_grid: np.ndarray = field(repr=False)
     N_grid: np.ndarray = field(repr=False)
+    cycles: list = field(default_factory=list)
+    links: list = field(default_factory=list)
 
     def plot(self, ax=None, curves: int = 6) -> list:
         """Nyquist plot: G(jw), -1/N(F, w) for ``curves`` forces of the map, the predictions marked.
@@ -162,7 +170,8 @@ class LimitCycleResponse:
         Returns
         -------
         list of matplotlib.lines.Line2D
-            G(jw) first, then the -1/N curves, then one marker per prediction (filled: stable).
+            G(jw) first, then the -1/N curves, then one marker per prediction (filled: stable),
+            then one star per true cycle (``exact=True``).
 
         Examples
         --------
@@ -176,4 +185,4 @@ class LimitCycleResponse:
         from dfwb.plotting.plots import get_axes, limit_cycle_plane
 
         return limit_cycle_plane(get_axes(ax, figsize=(6.5, 5)), self.G, self.F_grid, self.omega_grid,
-                                 self.N_grid, self.predictions, curves)
+                                 self.N_grid, self.predictions, curves, true_cycles=self.cycles)

@@ -179,9 +179,11 @@ def scene_figure(out_dir, figure, data, traces, scene):
     return save(fig, Path(out_dir), figure.name)
 
 
-def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6):
+def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6, true_cycles=()):
     """The Nyquist plane of a limit-cycle search: G(jw), -1/N(F, w) for ``curves`` forces of the map, the
-    predicted cycles marked (filled: stable); returns the lines. ``ax`` None draws into a new figure."""
+    predicted cycles marked (circles, filled: stable) and the exact loop's true cycles (stars at G(jw) of
+    their frequency, where the loop's first harmonics put them exactly, filled: stable; a grey line joins
+    a prediction to its true cycle); returns the lines. ``ax`` None draws into a new figure."""
     ax = get_axes(ax, figsize=(6.5, 5))
     fine = np.geomspace(omega_grid[0], omega_grid[-1], 600)
     Gjw = np.array([complex(G(1j * w)) for w in fine])
@@ -196,7 +198,15 @@ def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6):
         point = -1.0 / c.N
         lines += ax.plot(point.real, point.imag, "o", ms=8, mfc="r" if c.stable else "w", mec="r",
                          label=f"{'stable' if c.stable else 'unstable'}: F = {c.F:.4g} N, w = {c.omega:.4g} rad/s")
-    span = max([abs(-1.0 / c.N) for c in cycles] + [1.0])
+    for c in true_cycles:
+        point = complex(G(1j * c.omega))
+        lines += ax.plot(point.real, point.imag, "*", ms=13, mfc="b" if c.stable else "w", mec="b",
+                         label=f"true, {'stable' if c.stable else 'unstable'}: F = {c.F:.4g} N, w = {c.omega:.4g} rad/s"
+                               + ("" if c.prediction is not None else " (not predicted)"))
+        if c.prediction is not None and c.prediction < len(cycles):
+            predicted = -1.0 / cycles[c.prediction].N
+            ax.plot([predicted.real, point.real], [predicted.imag, point.imag], color="0.5", lw=0.8)
+    span = max([abs(-1.0 / c.N) for c in cycles] + [abs(complex(G(1j * c.omega))) for c in true_cycles] + [1.0])
     ax.set_xlim(-3 * span, 3 * span)
     ax.set_ylim(-3 * span, 3 * span)
     ax.set_xlabel("Re [N/m]")
@@ -207,11 +217,37 @@ def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6):
     return lines
 
 
-def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=()):
-    """Nyquist plane (:func:`limit_cycle_plane`) and the judge's runs, written to ``path`` (PNG and SVG)."""
-    panels = 2 if runs else 1
+def true_cycle_response(ax, true_cycles):
+    """Each true cycle over one period: the output y and the force f, each over its first-harmonic amplitude."""
+    ax = get_axes(ax, figsize=(6.5, 5))
+    lines = []
+    for c in true_cycles:
+        trace = c.trace
+        t = trace["t"] / c.period
+        kind = "stable" if c.stable else "unstable"
+        line, = ax.plot(t, (trace["y"] - c.level) / c.amplitude_x, lw=1.2,
+                        label=f"y / {c.amplitude_x:.4g} m ({kind}, w = {c.omega:.4g})")
+        lines.append(line)
+        lines += ax.plot(t, trace["f"] / c.F, lw=0.9, ls="--", color=line.get_color(), label=f"f / {c.F:.4g} N")
+        for time, _kind in trace["events"]:
+            if 0.0 < time < c.period:
+                ax.axvline(time / c.period, ls=":", lw=0.6, color=line.get_color())
+    ax.set_xlabel("t / period (dotted: events: stick, break-away, impacts, engagements)")
+    ax.set_ylabel("over the first-harmonic amplitude")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title("the truth: the exact closed loop's periodic orbits over one period", fontsize=9)
+    return lines
+
+
+def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=(), true_cycles=()):
+    """Nyquist plane (:func:`limit_cycle_plane`), the judge's runs and the true cycles over a period,
+    written to ``path`` (PNG and SVG)."""
+    panels = 1 + bool(runs) + bool(true_cycles)
     figure, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 5), squeeze=False)
-    limit_cycle_plane(axes[0][0], G, F_grid, omega_grid, N_grid, cycles)
+    limit_cycle_plane(axes[0][0], G, F_grid, omega_grid, N_grid, cycles, true_cycles=true_cycles)
+    if true_cycles:
+        true_cycle_response(axes[0][-1], true_cycles)
     if runs:
         ax = axes[0][1]
         for (cycle, run) in runs:
