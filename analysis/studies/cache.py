@@ -67,6 +67,13 @@ def code_revision():
     return revision(COMPUTING)
 
 
+def solver_revision():
+    """Revision of the exact solvers that run in this process, not through an FMU (the exact closed loop)."""
+    from dfwb import fmus
+
+    return revision((".",), Path(fmus.__file__).resolve().parent)
+
+
 def drawing_revision():
     """Revision of the code that draws figures (part of a cached figure's key)."""
     return revision(DRAWING)

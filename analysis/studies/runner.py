@@ -36,7 +36,7 @@ from dfwb.base.runlog import RunLog
 from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
 from dfwb.fmi.location import fmu_path
 from dfwb.plants import plant as find_plant
-from dfwb.studies.cache import Cache, CacheWarning, NoCache, code_revision, digest, drawing_revision
+from dfwb.studies.cache import Cache, CacheWarning, NoCache, code_revision, digest, drawing_revision, solver_revision
 from dfwb.studies.executor import Chunk, Executor, chunked
 from dfwb.studies.scene import PAPER_FIGURES, Point, Scene, load_scene
 from dfwb.studies.sweep import MAX_POINTS
@@ -254,9 +254,36 @@ class SceneRun:
                     checks.append(outcome)
                     runs.append((cycle, run))
                     display.advance(task, 1)
+            true_cycles, links = self.exact(lc, G, params, cycles) if lc.exact else ([], [])
             results[lc.name] = {"G": G, "cycles": cycles, "verification": checks, "runs": runs,
+                                "true_cycles": true_cycles, "links": links,
                                 "F_grid": found.F_grid, "omega_grid": found.omega_grid, "N_grid": found.N_grid}
         return results
+
+    def exact(self, lc, G, params, cycles):
+        """(true cycles, links) of the exact closed loop around the predictions, cached."""
+        from dfwb.engine.periodic import LoopProblem, TrueCycle, find_cycles
+
+        key = {"kind": "exact", "code": self.code, "solvers": solver_revision(), "plant": lc.plant, "params": params,
+               "G": [G.num[0][0].tolist(), G.den[0][0].tolist()],
+               "predictions": [[c.F, c.omega, c.amplitude_x] for c in cycles]}
+        value = self.cache.get(key)
+        if value is None:
+            found, links = find_cycles(LoopProblem(lc.plant, G, params), cycles)
+            value = {"cycles": [dict(c.as_dict(), trace={"t": c.trace["t"].tolist(), "y": c.trace["y"].tolist(),
+                                                         "f": c.trace["f"].tolist(),
+                                                         "events": [[t, str(k)] for t, k in c.trace["events"]]})
+                                for c in found], "links": links}
+            self.cache.put(key, _finite(value))
+        else:
+            self.outcome.cache_hits += 1
+        true_cycles = []
+        for entry in value["cycles"]:
+            trace = entry["trace"]
+            entry = dict(entry, trace={"t": np.array(trace["t"]), "y": np.array(trace["y"]),
+                                       "f": np.array(trace["f"]), "events": [tuple(e) for e in trace["events"]]})
+            true_cycles.append(TrueCycle(**entry))
+        return true_cycles, value["links"]
 
     def judge(self, lc, G, params, cycle):
         """(outcome, the run's last 10 periods) of the co-simulation judge of one cycle, cached."""
@@ -359,10 +386,18 @@ class SceneRun:
             self.write(f"traces/{name}.csv", buffer.getvalue())
         document = {"title": self.scene.title, "series": data,
                     "traces": {name: f"traces/{name}.csv" for name in traces},
-                    "limit_cycles": {name: _finite({"predictions": [c.as_dict() for c in r["cycles"]],
-                                                    "verification": r["verification"]})
-                                     for name, r in cycles.items()}}
+                    "limit_cycles": {name: _finite(self.cycle_document(r)) for name, r in cycles.items()}}
         self.write("results.json", json.dumps(document))
+
+    @staticmethod
+    def cycle_document(r):
+        """A limit cycle's results.json entry: predictions and judge, and with ``exact`` the true cycles."""
+        from dfwb.engine.periodic import report
+
+        document = {"predictions": [c.as_dict() for c in r["cycles"]], "verification": r["verification"]}
+        if r["true_cycles"] or r["links"]:
+            document["predictions"], document["cycles"] = report(r["cycles"], r["true_cycles"], r["links"])
+        return document
 
     def draw(self, data, traces, cycles, fingerprint):
         """Draw each figure, or copy it from the cache when this very run drew it before.
@@ -417,12 +452,14 @@ class SceneRun:
             for name, png in zip(figure.series, pngs):
                 r = cycles[name]
                 plots.limit_cycle_figure(self.out / png, r["G"], r["F_grid"], r["omega_grid"], r["N_grid"],
-                                         r["cycles"], r["runs"])
+                                         r["cycles"], r["runs"], r["true_cycles"])
             return []
         plots.scene_figure(self.out, figure, data, traces, self.scene)
         return []
 
     def write_summary(self, data, cycles):
+        from dfwb.engine.periodic import relative_errors
+
         o, scene = self.outcome, self.scene
         lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
         # every DF point is computed, resumed or a cache hit; cache_hits also counts traces and judge runs
@@ -463,6 +500,22 @@ class SceneRun:
                              f"| {judged} |")
             if not r["cycles"]:
                 lines.append("| no cycle in the ranges | | | | | | | |")
+            if r["true_cycles"] or r["links"]:
+                lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
+                          "multipliers), and the DF's relative errors against them:", "",
+                          "| true w [rad/s] | amplitude | F [N] | stable | max multiplier | per period "
+                          "| DF prediction | DF error w | DF error amplitude | DF error F |", "|---" * 10 + "|"]
+                for c in r["true_cycles"]:
+                    errors = "not predicted | | | |"
+                    if c.prediction is not None:
+                        e = relative_errors(r["cycles"][c.prediction], c)
+                        errors = f"{c.prediction} | {e['omega']:+.2%} | {e['amplitude_x']:+.2%} | {e['F']:+.2%} |"
+                    counts = ", ".join(f"{v} {k}" for k, v in c.counts.items())
+                    lines.append(f"| {c.omega:.8g} | {c.amplitude_x:.6g} | {c.F:.6g} | {c.stable} | "
+                                 f"{max(c.multipliers):.3g} | {counts} | {errors}")
+                missed = [i for i, j in enumerate(r["links"]) if j is None]
+                if missed:
+                    lines.append(f"\nPrediction(s) {missed}: no true cycle near them (false alarms).")
         self.write("summary.md", "\n".join(lines) + "\n")
 
 

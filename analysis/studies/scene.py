@@ -225,7 +225,8 @@ class Trace(Strict):
 
 
 class LimitCycle(Strict):
-    """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation."""
+    """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation
+    (``verify``) and against the exact closed loop's true cycles (``exact``)."""
 
     name: Name
     plant: PlantName
@@ -238,11 +239,14 @@ class LimitCycle(Strict):
     n_F: Annotated[int, Field(ge=2, le=1000)] = 16
     n_omega: Annotated[int, Field(ge=2, le=1000)] = 48
     verify: bool = False
+    exact: bool = False
     samples_per_period: Annotated[int, Field(ge=16, le=100_000)] = 512
 
     @model_validator(mode="after")
     def _consistent(self):
         _check_plant(self.plant, self.params)
+        if self.exact and find_plant(self.plant).loop is None:
+            raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop")
         for key in ("F_range", "omega_range"):
             lo, hi = getattr(self, key)
             if not lo < hi:
