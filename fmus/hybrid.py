@@ -91,7 +91,8 @@ class Mode:
     each event function the rows L A^(k-1) / k! and their absolute values.
     """
 
-    __slots__ = ("key", "A", "c", "events", "h", "terms", "psi", "rows", "abs_rows", "absA", "scale")
+    __slots__ = ("key", "A", "c", "events", "h", "terms", "psi", "rows", "abs_rows", "absA", "scale", "reach",
+                 "norms", "tail", "curvature_tail")
 
     def __init__(self, key, A, c, events):
         self.key, self.A, self.c, self.events = key, A, c, tuple(events)
@@ -123,6 +124,27 @@ class Mode:
                 ra = [_dot(ra, [self.absA[m][j] for m in range(n)]) for j in range(n)]
             self.rows.append(rows)
             self.abs_rows.append(abs_rows)
+        # What a chunk can change: |g(a + tau) - g(a)| <= reach . |X'(a)| + |L D|_1 |D^-1 X'(a)|_inf tail
+        # (the series' truncated terms, bounded in the balanced norm, rho h <= 1)
+        self.reach = [[sum(row[j] * h ** k for k, row in enumerate(abs_rows, start=1)) for j in range(n)]
+                      for abs_rows in self.abs_rows]
+        self.norms = [sum(abs(v) * dj for v, dj in zip(L, d)) for _kind, L, _l0 in self.events]
+        self.tail = 2.0 * h / math.factorial(self.terms + 1)
+        self.curvature_tail = 2.0 * rho / math.factorial(self.terms - 1) if self.terms > 1 else 0.0
+
+    def balanced_size(self, dX):
+        """|D^-1 X'|_inf: the size of X' in the norm the Taylor bounds use."""
+        return max(abs(v) / dj for v, dj in zip(dX, self.scale))
+
+    def cannot_fire(self, index, X, dX, size):
+        """Whether event function ``index`` provably stays positive over the chunk from X (X' = dX)."""
+        _kind, L, l0 = self.events[index]
+        g = _dot(L, X) + l0
+        if g <= 0.0:
+            return False
+        change = _dot(self.reach[index], [abs(v) for v in dX]) + self.norms[index] * size * self.tail
+        rounding = TREND_ROUNDING * (_dot([abs(v) for v in L], [abs(x) for x in X]) + abs(l0))
+        return g > 1.001 * change + rounding
 
     def derivative(self, X):
         return [_dot(row, X) + ci for row, ci in zip(self.A, self.c)]
@@ -176,11 +198,11 @@ class Polynomial:
             p = p * tau + value
         return p, dp
 
-    def curvature_bound(self, h):
-        """A bound on |p''| over [0, h] (plus a margin for the series' truncated tail)."""
+    def curvature_bound(self, h, tail=0.0):
+        """A bound on |p''| over [0, h], plus ``tail`` (the bound on the truncated series' part)."""
         c = self.c
         total = sum(i * (i - 1) * abs(c[i]) * h ** (i - 2) for i in range(2, len(c)))
-        return 1.0001 * total + 1e-300
+        return 1.0001 * total + tail + 1e-300
 
 
 class HybridSolver:
@@ -193,11 +215,11 @@ class HybridSolver:
     :meth:`start`.
     """
 
-    def __init__(self, section=None):
+    def __init__(self, section=None, modes=None):
         self.t = 0.0
         self.events = 0
         self.event_log = None  # a list to record (time, kind) of every event
-        self._modes = {}
+        self._modes = {} if modes is None else modes  # shared by solvers of one system and section
         self._section = section  # (L, l0): watch the upward zero crossings of L.X + l0
         self._watching = None  # the kind of the section function searched (the other is negative)
         self.crossings = []  # (t, X) at every upward crossing of the section
@@ -266,12 +288,17 @@ class HybridSolver:
         """The first event in the current chunk: (tau, kind) or None."""
         mode, X, dX = self._mode, self._X, self._dX
         h = mode.h
+        size = mode.balanced_size(dX)
         best = None
         for index, (kind, _L, _l0) in enumerate(mode.events):
             if kind in SECTION and kind != self._watching:
                 continue
+            departing = self._first and index in self._departing
+            if not departing and mode.cannot_fire(index, X, dX, size):
+                continue
             coeffs, scales = mode.coefficients(index, X, dX)
-            if self._first and index in self._departing:
+            j = 0
+            if departing:
                 j = 1
                 while j < len(coeffs) and abs(coeffs[j]) <= TREND_ROUNDING * scales[j]:
                     j += 1
@@ -280,7 +307,8 @@ class HybridSolver:
                 coeffs = coeffs[j:]
             poly = Polynomial(coeffs)
             limit = h if best is None else best[0]
-            tau = first_root(poly, 0.0, limit, poly.curvature_bound(limit))
+            tail = mode.norms[index] * size * mode.curvature_tail / h ** j  # g / tau^j: its tail is no larger
+            tau = first_root(poly, 0.0, limit, poly.curvature_bound(limit, tail))
             if tau is not None and (best is None or tau < best[0]):
                 best = (tau, kind)
         return best

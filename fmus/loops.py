@@ -66,7 +66,7 @@ class FeedbackLoop(HybridSolver):
         q[self.OUTPUT] += d
         return q
 
-    def __init__(self, b, a, q0, z0=None, state=None, section=None):
+    def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None):
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
@@ -86,7 +86,7 @@ class FeedbackLoop(HybridSolver):
             L = [0.0] * (m + n)
             L[self.OUTPUT] = 1.0
             watch = (L, -float(section))
-        super().__init__(watch)
+        super().__init__(watch, modes)
         key, X0, departing = self.initial(list(q0) + z0)
         self.start(0.0, X0, key, departing)
 
@@ -147,7 +147,7 @@ class FrictionLoop(FeedbackLoop):
         return [output.x, output.v]
 
     def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
-                 section=None):
+                 section=None, modes=None):
         check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
         check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
         check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
@@ -157,7 +157,7 @@ class FrictionLoop(FeedbackLoop):
         check("v0", v0, True, "v0 must be a finite number (m/s)")
         self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
         self.sticks = 0
-        super().__init__(b, a, (x0, v0), z0, state, section)
+        super().__init__(b, a, (x0, v0), z0, state, section, modes)
 
     def plant_mode(self, key):
         M = self.M
@@ -206,7 +206,7 @@ class BacklashLoop(FeedbackLoop):
         return [output.x1, output.v1, output.gap, output.v2 - output.v1]
 
     def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
-                 state=None, section=None):
+                 state=None, section=None, modes=None):
         check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
         check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
         check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
@@ -221,7 +221,7 @@ class BacklashLoop(FeedbackLoop):
         self.impacts = 0
         if state is not None:
             check("gap", state[2], lambda: 0.0 <= state[2] <= h, f"the gap must be in [0, h] = [0, {h!r}] (m)")
-        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section)
+        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes)
 
     def plant_mode(self, key):
         if key == FREE:
@@ -286,7 +286,7 @@ class StaticBacklashLoop(FeedbackLoop):
         q[2] += d
         return q
 
-    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None):
+    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None):
         check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
         check("k", k, lambda: k > 0.0, "k must be > 0")
         check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
@@ -298,7 +298,7 @@ class StaticBacklashLoop(FeedbackLoop):
             play = state[0] - state[2] / k
             check("x - y/k", play, lambda: abs(play) <= 0.5 * h * (1.0 + 1e-9),
                   f"the play x - y/k must be within +-h/2 = {0.5 * h!r} (m)")
-        super().__init__(b, a, (x0, v0, k * x0), z0, state, section)
+        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes)
 
     def plant_mode(self, key):
         M, k, half = self.M, self.k, 0.5 * self.h

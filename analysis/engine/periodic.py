@@ -149,15 +149,22 @@ class LoopProblem:
         checked = spec.check(dict(params or {}))
         self.params = {k: v for k, v in checked.items() if k not in self.cls.initial_parameters}
         self.output = self.cls.OUTPUT
+        self._modes = {}  # section level -> the modes its solvers share (built once, not per period)
         self.solver(None)  # refuses the controller (order, coefficients) and the parameters now
 
     # -- solvers ----------------------------------------------------------------------
     def solver(self, state, level=None):
         """A loop solver from ``state`` (None: the plant's default start), watching y rise through ``level``."""
         try:
-            return self.cls(self.b, self.a, **self.params, state=state, section=level)
+            return self._make(state, level)
         except PlantError as error:
             raise InputError(str(error)) from None
+
+    def _make(self, state, level):
+        level = None if level is None else float(level)
+        state = None if state is None else [float(x) for x in state]  # numpy scalars would slow the solver
+        modes = self._modes.setdefault(level, {})
+        return self.cls(self.b, self.a, **self.params, state=state, section=level, modes=modes)
 
     def rest_start(self, position):
         """The state with the plant displaced by ``position`` (its output coordinate), all else at rest."""
@@ -181,8 +188,8 @@ class LoopProblem:
         """
         if min_time is None:
             min_time = 1e-12 * max_time
-        try:  # Python floats: numpy scalars would slow the pure-Python solver several times
-            solver = self.cls(self.b, self.a, **self.params, state=[float(x) for x in X], section=float(level))
+        try:
+            solver = self._make(X, level)
         except PlantError:
             return None
         while solver.t < max_time:
@@ -254,8 +261,13 @@ class LoopProblem:
         r, T = residual(u)
         if r is None:
             return None
+        J = None
         for iteration in range(1, max_iterations + 1):
             if np.abs(r).max() <= tol:
+                if J is not None:  # one more chord step (the last Jacobian, one period) polishes to rounding
+                    polished, T_polished = residual(u + np.linalg.solve(J, -r))
+                    if polished is not None and np.abs(polished).max() < np.abs(r).max():
+                        u, r, T = u + np.linalg.solve(J, -r), polished, T_polished
                 return self._finish(u * scale, level, T, scale, np.abs(r).max(), iteration - 1)
             J = self._jacobian(residual, u, r, FD_STEP)
             if J is None:
@@ -324,7 +336,7 @@ class LoopProblem:
                          multipliers=multipliers, residual=float(res), iterations=iterations, state=X, level=level,
                          harmonics=harmonics, counts=counts, trace=trace)
 
-    def level(self, X, period=None, samples=256):
+    def level(self, X, period=None, samples=64):
         """The middle of the output's swing over [0, period] (default: up to 4 returns found by sampling)."""
         solver = self.solver(X)
         span = period or 10.0
