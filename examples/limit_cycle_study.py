@@ -5,7 +5,9 @@ force = -G(s) x. Harmonic balance G(jw) N(F, w) = -1 on the plant's exact
 describing function predicts a limit cycle for each gain K; the study prints
 how its amplitude and frequency move with K and draws the Nyquist plane of
 the nominal loop. The controller is given three ways (an expression, num/den
-and a python-control transfer function) to show they are the same.
+and a python-control transfer function) to show they are the same. Last, the
+truth: the exact closed loop's periodic orbit (``exact=True``), with the DF's
+errors against it.
 
 Run it as ``python examples/limit_cycle_study.py [OUT_DIR]``; it writes
 ``limit_cycle_nyquist.png`` into OUT_DIR (default: the current folder).
@@ -44,8 +46,21 @@ def main(out_dir="."):
         if not response.predictions:
             print(f"{K:4g} | no limit cycle in the ranges")
 
+    # The truth behind the prediction: the exact closed loop's periodic orbits, and the DF's errors.
+    truth = dfwb.limit_cycles("static-backlash", "20*(s+2)/(s+20)", exact=True, **RANGES)
+    for i, j in enumerate(truth.links):
+        if j is None:
+            print(f"prediction {i}: no true cycle near it (a false alarm)")
+            continue
+        true, predicted = truth.cycles[j], truth.predictions[i]
+        print(f"prediction {i}: true cycle omega = {true.omega:.8g} rad/s, amplitude {true.amplitude_x:.6g} m, "
+              f"{'stable' if true.stable else 'unstable'} (Floquet |multipliers| "
+              f"{', '.join(f'{m:.3g}' for m in true.multipliers)}); DF error in omega "
+              f"{predicted.omega / true.omega - 1:+.2%}, "
+              f"in amplitude {predicted.amplitude_x / true.amplitude_x - 1:+.2%}")
+
     figure, ax = plt.subplots(figsize=(6.5, 5))
-    nominal.plot(ax=ax)
+    truth.plot(ax=ax)  # the predictions (circles) and the true cycles (stars)
     figure.savefig(out_dir / "limit_cycle_nyquist.png", dpi=100)
     plt.close(figure)
     return nominal

@@ -254,7 +254,11 @@ class SceneRun:
                     checks.append(outcome)
                     runs.append((cycle, run))
                     display.advance(task, 1)
-            true_cycles, links = self.exact(lc, G, params, cycles) if lc.exact else ([], [])
+            true_cycles, links = [], []
+            if lc.exact:
+                task = display.add(f"{lc.name}: exact loop", 1, 0, 0)
+                true_cycles, links = self.exact(lc, G, params, cycles)
+                display.advance(task, 1)
             results[lc.name] = {"G": G, "cycles": cycles, "verification": checks, "runs": runs,
                                 "true_cycles": true_cycles, "links": links,
                                 "F_grid": found.F_grid, "omega_grid": found.omega_grid, "N_grid": found.N_grid}
