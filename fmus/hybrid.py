@@ -164,14 +164,24 @@ class Mode:
         """X(a + h)."""
         return [x + _dot(row, dX) for x, row in zip(X, self.psi)]
 
-    def coefficients(self, index, X, dX):
-        """Taylor coefficients [g, g'/1!, g''/2!, ...] of event function ``index`` at X, and their rounding scales."""
+    def coefficients(self, index, X, dX, dt=0.0):
+        """Taylor coefficients [g, g'/1!, g''/2!, ...] of event function ``index`` at X, and their rounding scales.
+
+        ``dt``: how far the instant of X is uncertain (an event located to the
+        ulp of its time): a coefficient moves by (k + 1) c_(k+1) dt with it,
+        which its scale includes (a force found zero at a release is zero
+        within that, not a sign to act on).
+        """
         _kind, L, l0 = self.events[index]
         coeffs = [_dot(L, X) + l0] + [_dot(row, dX) for row in self.rows[index]]
         size = [abs(a) for a in _matvec(self.absA, [abs(x) for x in X])]
         size = [s + abs(ci) for s, ci in zip(size, self.c)]
         scales = [_dot([abs(v) for v in L], [abs(x) for x in X]) + abs(l0)]
         scales += [_dot(row, size) for row in self.abs_rows[index]]
+        if dt:
+            shift = dt / TREND_ROUNDING
+            for k in range(len(coeffs) - 1):
+                scales[k] += (k + 1) * abs(coeffs[k + 1]) * shift
         return coeffs, scales
 
 
@@ -222,6 +232,7 @@ class HybridSolver:
         self._modes = {} if modes is None else modes  # shared by solvers of one system and section
         self._section = section  # (L, l0): watch the upward zero crossings of L.X + l0
         self._watching = None  # the kind of the section function searched (the other is negative)
+        self._time_rounding = 0.0  # how far the current instant is uncertain (4 ulp of the last event's time)
         self.crossings = []  # (t, X) at every upward crossing of the section
 
     def start(self, t0, X0, key, departing=None):
@@ -230,6 +241,7 @@ class HybridSolver:
         Started on the section, the section's function leaves zero as a departing one (no crossing at t0).
         """
         self.t = t0
+        self._time_rounding = 4.0 * EPS * abs(t0)
         departing = () if departing is None else (departing,)
         if self._section is not None:
             mode = self.mode(key)
@@ -258,25 +270,28 @@ class HybridSolver:
         raise NotImplementedError
 
     def after(self, key, index, X):
-        """Sign of event function ``index`` of mode ``key`` just after X (its trend where it is zero)."""
+        """Sign of event function ``index`` of mode ``key`` just after X (its trend where it is zero).
+
+        Called at an event (or the start): X's instant is known to the ulp of the time.
+        """
         mode = self.mode(key)
-        return trend(*mode.coefficients(index, X, mode.derivative(X)))
+        return trend(*mode.coefficients(index, X, mode.derivative(X), self._time_rounding))
 
     def function_index(self, key, kind):
         return next(i for i, event in enumerate(self.mode(key).events) if event[0] == kind)
 
     # -- pieces and chunks --------------------------------------------------------
     def _begin(self, t, X, key, departing):
-        for x in X:
-            if not math.isfinite(x):
-                raise PlantError(f"the state became non-finite at t = {t!r} s ({X}): the loop diverges beyond "
-                                 f"floating point")
         self.key = key
         self._mode = self.mode(key)
         self._departing = departing
         self._chunk_start(t, X, first=True)
 
     def _chunk_start(self, t, X, first=False):
+        for x in X:
+            if not math.isfinite(x):
+                raise PlantError(f"the state became non-finite at t = {t!r} s ({X}): the loop diverges beyond "
+                                 f"floating point")
         self._a, self._X = t, X
         self._dX = self._mode.derivative(X)
         self._b = t + self._mode.h
@@ -290,15 +305,17 @@ class HybridSolver:
         h = mode.h
         size = mode.balanced_size(dX)
         best = None
+        dt = self._time_rounding if self._first else 0.0
         for index, (kind, _L, _l0) in enumerate(mode.events):
             if kind in SECTION and kind != self._watching:
                 continue
             departing = self._first and index in self._departing
             if not departing and mode.cannot_fire(index, X, dX, size):
                 continue
-            coeffs, scales = mode.coefficients(index, X, dX)
+            coeffs, scales = mode.coefficients(index, X, dX, dt)
             j = 0
-            if departing:
+            if departing or abs(coeffs[0]) <= TREND_ROUNDING * scales[0]:
+                # on the boundary (left by the last event, or reached at the chunk's start): its trend decides
                 j = 1
                 while j < len(coeffs) and abs(coeffs[j]) <= TREND_ROUNDING * scales[j]:
                     j += 1
@@ -308,7 +325,12 @@ class HybridSolver:
             poly = Polynomial(coeffs)
             limit = h if best is None else best[0]
             tail = mode.norms[index] * size * mode.curvature_tail / h ** j  # g / tau^j: its tail is no larger
-            tau = first_root(poly, 0.0, limit, poly.curvature_bound(limit, tail))
+            try:
+                tau = first_root(poly, 0.0, limit, poly.curvature_bound(limit, tail))
+            except PlantError:
+                raise PlantError(f"the search for the event {kind} on [{self._a!r}, {self._a + limit!r}] s needed "
+                                 f"more than the bounded number of evaluations: the motion cannot be resolved at "
+                                 f"the loop's scale") from None
             if tau is not None and (best is None or tau < best[0]):
                 best = (tau, kind)
         return best
@@ -319,7 +341,8 @@ class HybridSolver:
         With ``stop_at_section``, stop early at the next upward crossing of the
         section (then ``self.crossings[-1]`` holds it).
         """
-        if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end >= self.t):
+        if not (isinstance(t_end, (int, float)) and not isinstance(t_end, bool) and math.isfinite(t_end)
+                and t_end >= self.t):
             raise PlantError(f"t_end = {t_end!r} is out of range: the end of a step must be a finite number >= "
                              f"the current time {self.t!r}")
         fastest = min(mode.h for mode in self._modes.values())
@@ -341,6 +364,7 @@ class HybridSolver:
                                      f"solver's resolution")
                 t = self._a + tau
                 X = self._mode.state(self._X, self._dX, tau)
+                self._time_rounding = 4.0 * EPS * abs(t)
                 if kind in SECTION:  # not an event of the system: watch the other direction from here
                     if kind is SECTION_UP:
                         self.crossings.append((t, X))

@@ -60,6 +60,9 @@ class FeedbackLoop(HybridSolver):
         """The loop's plant coordinates q from the open-loop solver's ``output()``."""
         raise NotImplementedError
 
+    def check_coordinates(self, q):
+        """Refuse plant coordinates that are no state of the plant (PlantError naming them)."""
+
     def translate(self, q, d):
         """q with the plant moved so that its output moves by d (the plant is translation invariant)."""
         q = list(q)
@@ -76,6 +79,7 @@ class FeedbackLoop(HybridSolver):
             q0, z0 = list(state[:m]), list(state[m:])
             for name, value in zip(self.coordinates, q0):
                 check(name, value, True, f"{name} must be a finite number")
+            self.check_coordinates(q0)
         z0 = [0.0] * n if z0 is None else list(z0)
         check("length of z0", len(z0), len(z0) == n, f"z0 needs {n} components (the controller's order)")
         for i, value in enumerate(z0, start=1):
@@ -219,9 +223,10 @@ class BacklashLoop(FeedbackLoop):
         self.r2 = M2 / (M1 + M2)
         self.tol_h = 1e-12 * h
         self.impacts = 0
-        if state is not None:
-            check("gap", state[2], lambda: 0.0 <= state[2] <= h, f"the gap must be in [0, h] = [0, {h!r}] (m)")
         super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes)
+
+    def check_coordinates(self, q):
+        check("gap", q[2], lambda: 0.0 <= q[2] <= self.h, f"the gap must be in [0, h] = [0, {self.h!r}] (m)")
 
     def plant_mode(self, key):
         if key == FREE:
@@ -294,11 +299,12 @@ class StaticBacklashLoop(FeedbackLoop):
         check("v0", v0, True, "v0 must be a finite number (m/s)")
         self.M, self.k, self.h = M, k, h
         self.engagements = 0
-        if state is not None:
-            play = state[0] - state[2] / k
-            check("x - y/k", play, lambda: abs(play) <= 0.5 * h * (1.0 + 1e-9),
-                  f"the play x - y/k must be within +-h/2 = {0.5 * h!r} (m)")
         super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes)
+
+    def check_coordinates(self, q):
+        play = q[0] - q[2] / self.k
+        check("x - y/k", play, lambda: abs(play) <= 0.5 * self.h * (1.0 + 1e-9),
+              f"the play x - y/k must be within +-h/2 = {0.5 * self.h!r} (m)")
 
     def plant_mode(self, key):
         M, k, half = self.M, self.k, 0.5 * self.h

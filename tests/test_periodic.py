@@ -161,7 +161,7 @@ def test_the_command_line_reports_the_truth_beside_the_prediction(fmus, capsys, 
     from dfwb.cli import main
 
     argv = ["limit-cycle", "static-backlash", "--G", "20*(s+2)/(s+20)", "--F-range", "0.01", "100",
-            "--omega-range", "0.1", "50", "--exact", "--fmus", str(fmus)]
+            "--omega-range", "0.1", "50", "--exact", "--fmus", str(fmus["StaticBacklash"].parent)]
     assert main(argv + ["--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert set(report) >= {"plant", "G", "params", "predictions", "cycles"}
@@ -186,7 +186,8 @@ def test_the_command_line_refuses_a_loop_it_cannot_integrate(fmus, capsys):
     from dfwb.cli import main
 
     with pytest.raises(SystemExit) as exit_:
-        main(["limit-cycle", "friction", "--G", "10 + 5/s", "--set", "Dv=0.01", "--exact", "--fmus", str(fmus)])
+        main(["limit-cycle", "friction", "--G", "10 + 5/s", "--set", "Dv=0.01", "--exact",
+              "--fmus", str(fmus["FrictionMass"].parent)])
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Dv" in err[0]

@@ -1,0 +1,529 @@
+"""Independent scipy reference for the plants in feedback with a linear controller (the closed loops).
+
+Why this module exists
+----------------------
+:mod:`dfwb.fmus.loops` integrates a plant in negative feedback with a linear
+controller G(s) exactly, piece by piece, with its own Taylor-series event
+search. Such a solver needs a judge that shares none of its machinery. This
+module is that judge: the same physics written the way a careful control
+engineer would write it with scipy alone, ``scipy.integrate.solve_ivp``
+(DOP853, rtol = 1e-12 and a tight absolute tolerance by default) between
+events, every mode switch a *terminal* event located by solve_ivp's own root
+finding on its dense output, the switching logic applied by hand at each
+event and the integration restarted from there. The tests compare the event
+sequences, the event times and the final states of the two.
+
+It imports only numpy, scipy, the controller's matrices
+(:meth:`dfwb.fmus.linear_system.LinearSystem.matrices`, which also checks b
+and a) and the error classes; nothing of :mod:`dfwb.fmus.hybrid` or
+:mod:`dfwb.fmus.loops`.
+
+The loop (docs/models.md, section 4)
+------------------------------------
+``f = -G(s) y``, ``G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an)``,
+y the plant's output, f the force on the plant. The controller state z is the
+controllable canonical form (``z1' = z2, ..., zn' = -an z1 - ... - a1 zn + y``)
+and ``f = -(C z + D y)``. The loop's state is the plant's coordinates followed
+by z:
+
+* ``"friction"``: (x, v, z), y = x. CVS friction (no Karnopp band): sliding
+  ``M v' = f - Fc sgn(v) - B v`` until v reaches 0 (event ``"band"``); at
+  v = 0 the mass sticks (v = 0 held, x constant) while ``|f| <= Fs`` and breaks
+  away in the direction of f when ``|f|`` reaches Fs (``"break+"``/``"break-"``).
+* ``"backlash"``: (x1, v1, gap, w = v2 - v1, z), y = x1, the force on M2. Free
+  flight (``v1' = 0``, ``w' = f / M2``) until the gap reaches 0 (``"gap 0"``) or
+  h (``"gap h"``): Newton's impact (paper eq. 8-10, momentum kept, the relative
+  velocity reversed and scaled by eps). At the wall the masses are merged
+  (contact, ``(M1 + M2) v1' = f``) when f presses them together and the next
+  bounce would rise no more than ``ZENO * h`` (``0.5 w^2 M2 <= ZENO h |f|``:
+  the accumulation of impacts is over); contact ends when f stops pressing
+  (``"release"``).
+* ``"static-backlash"``: (x, v, y, z), the mass M driven by f and a geometric
+  backlash of slope k and total play h giving y. In the play y is held; at an
+  edge (``"engage+"``/``"engage-"``) y follows ``k (x -+ h/2)`` until v
+  reverses (``"reverse"``).
+
+A piece starts on the boundary it has just left, where solve_ivp sees a zero
+of that boundary's event function. Where the departure is at zero speed (a
+gap after a release or a plastic impact, x at an edge of the play after v
+reversed) the function is armed ``DEPARTURE_SLACK * h`` beyond the boundary,
+so rounding cannot fire it (a genuine return is found that much late: about
+1e-16 m / its speed). An event found at the very start of a piece anyway (the
+step overshot a quick return to v = 0 or a bounce) makes the piece integrate
+again with a 16 times smaller first step, at most ``RETRIES`` times; a bounce
+starts with its first step at an eighth of its estimated duration.
+Every loop is bounded: a run by ``max_events`` events (:class:`RunError`
+beyond), the retries by ``RETRIES``.
+"""
+
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from dfwb.base.errors import RunError
+from dfwb.fmus.exact import PlantError
+from dfwb.fmus.linear_system import LinearSystem
+
+__all__ = ["closed_loop_reference", "PLANTS", "DEFAULTS", "ZENO"]
+
+PLANTS = ("friction", "backlash", "static-backlash")
+# the plants' parameters and their defaults (those of dfwb.fmus.loops and docs/models.md)
+DEFAULTS = {
+    "friction": {"M": 1.0, "B": 0.5, "Fc": 5.0, "Fs": 7.0, "Dv": 0.0, "x0": 0.0, "v0": 0.0},
+    "backlash": {"M1": 1.0, "M2": 1.0, "h": 0.1, "eps": 0.5, "x1_0": 0.0, "v1_0": 0.0, "v2_0": 0.0,
+                 "gap0": None},
+    "static-backlash": {"M": 2.0, "k": 1.0, "h": 0.1, "x0": 0.0, "v0": 0.0},
+}
+COORDINATES = {"friction": ("x", "v"), "backlash": ("x1", "v1", "gap", "w"), "static-backlash": ("x", "v", "y")}
+ZENO = 1e-12  # contact once the next bounce would rise no more than ZENO * h
+MAX_EVENTS = 100_000
+RETRIES = 12  # smaller first steps tried when an event is found at the start of a piece
+DEPARTURE_SLACK = 1e-15  # a gap leaving a wall at zero speed may dip this much (times h) by rounding
+
+
+def _check(name, value, ok, allowed):
+    """PlantError naming the value unless it is a finite real number and ``ok(value)``."""
+    if not (isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
+            and math.isfinite(value) and ok(value)):
+        raise PlantError(f"{name} = {value!r} is out of range: {allowed}")
+    return float(value)
+
+
+def _event(fun, direction):
+    """A terminal solve_ivp event ``fun(t, X)`` crossing zero in ``direction``."""
+    fun.terminal = True
+    fun.direction = direction
+    return fun
+
+
+class _Loop:
+    """A plant's modes and switching logic around one controller; :meth:`run` walks the events."""
+
+    def __init__(self, b, a, X0, p, method, rtol, atol, max_step, max_events):
+        Ac, Bc, C, D = LinearSystem(b, a).matrices()  # checks the order, the lengths and the values
+        self.Ac, self.Bc = np.array(Ac, dtype=float), np.array(Bc, dtype=float)
+        self.C, self.D = np.array(C, dtype=float), float(D)
+        self.n = len(Ac)
+        self.m = len(X0) - self.n
+        self.p = p
+        self.method, self.rtol, self.max_step, self.max_events = method, rtol, max_step, max_events
+        scale = max(float(np.max(np.abs(X0[:self.m]))), self.length(), 1e-3)
+        self.atol = 1e-3 * rtol * scale if atol is None else atol
+        self.X = np.array(X0, dtype=float)
+        self.t = 0.0
+        self.log = []
+        self.counts = {}
+        self.nfev = 0
+        self.first_step = None  # a cap on the next piece's first step (a bounce's duration)
+
+    # -- the controller ---------------------------------------------------------------
+    def force(self, X):
+        """f = -(C z + D y)."""
+        return -(self.C @ X[self.m:] + self.D * X[self.OUTPUT])
+
+    def force_rate(self, X, dX):
+        """df/dt from the state and its derivative."""
+        return -(self.C @ dX[self.m:] + self.D * dX[self.OUTPUT])
+
+    def controller(self, X):
+        """z' = Ac z + Bc y."""
+        return self.Ac @ X[self.m:] + self.Bc * X[self.OUTPUT]
+
+    def length(self):
+        return 0.0
+
+    # -- the walk -------------------------------------------------------------------------
+    def _solve(self, rhs, t_end, events, first_step):
+        kwargs = {} if first_step is None else {"first_step": min(first_step, t_end - self.t)}
+        sol = solve_ivp(rhs, (self.t, t_end), self.X, method=self.method, rtol=self.rtol, atol=self.atol,
+                        events=events, max_step=self.max_step, **kwargs)
+        self.nfev += sol.nfev
+        if sol.status == -1:
+            raise RunError(f"solve_ivp failed at t = {sol.t[-1]!r} s in mode {self.mode_name()}: {sol.message}")
+        return sol
+
+    def run(self, t_end):
+        while self.t < t_end:
+            rhs, events, kinds = self.system()
+            first = self.first_step
+            self.first_step = None
+            for retry in range(RETRIES + 1):
+                sol = self._solve(rhs, t_end, events, first)
+                if sol.status != 1:
+                    break
+                which = min((float(te[0]), i) for i, te in enumerate(sol.t_events) if te.size)
+                if which[0] > self.t or retry == RETRIES:
+                    break
+                # found at the piece's start: the departure itself, or a return within the first step
+                first = (t_end - self.t if first is None else first) / 16.0
+            if sol.status != 1:
+                self.t, self.X = t_end, sol.y[:, -1].copy()
+                break
+            t_ev, index = which
+            if len(self.log) >= self.max_events:
+                raise RunError(f"more than {self.max_events} events before t = {t_ev!r} s (last: "
+                               f"{kinds[index]}): the motion chatters")
+            self.t, self.X = t_ev, sol.y_events[index][0].copy()
+            self.log.append((t_ev, kinds[index]))
+            self.fire(kinds[index])
+        return self
+
+
+class _Friction(_Loop):
+    """Mass with CVS friction: modes "stick" (v = 0 held), +1 / -1 (sliding with sgn v)."""
+
+    OUTPUT = 0
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.counts = {"sticks": 0}
+        if self.X[1] != 0.0:
+            self.mode = 1 if self.X[1] > 0.0 else -1
+        else:
+            self.rest()  # a stick phase from t = 0 counts as one
+
+    def mode_name(self):
+        return {0: "stick", 1: "slide+", -1: "slide-"}[self.mode]
+
+    def length(self):
+        return self.p["Fs"] / max(1.0, abs(self.D))  # the play of x while the force stays below Fs
+
+    def rhs_for(self, s):
+        M, B, Fc = self.p["M"], self.p["B"], self.p["Fc"]
+
+        def rhs(t, X):
+            dX = np.empty_like(X)
+            if s == 0:
+                dX[0] = dX[1] = 0.0
+            else:
+                dX[0] = X[1]
+                dX[1] = (self.force(X) - s * Fc - B * X[1]) / M
+            dX[2:] = self.controller(X)
+            return dX
+        return rhs
+
+    def rest(self):
+        """v = 0: stick while |f| <= Fs, else slide in the direction of f (|f| = Fs: the way f is heading)."""
+        self.X[1] = 0.0
+        f, Fs = self.force(self.X), self.p["Fs"]
+        if abs(f) == Fs:
+            f += self.force_rate(self.X, self.rhs_for(0)(self.t, self.X))
+        if abs(f) > Fs:
+            self.mode = 1 if f > 0.0 else -1
+        else:
+            self.mode = 0
+            self.counts["sticks"] += 1
+
+    def system(self):
+        s = self.mode
+        if s == 0:
+            Fs = self.p["Fs"]
+            events = [_event(lambda t, X: self.force(X) - Fs, 1), _event(lambda t, X: self.force(X) + Fs, -1)]
+            return self.rhs_for(0), events, ["break+", "break-"]
+        return self.rhs_for(s), [_event(lambda t, X: X[1], -s)], ["band"]
+
+    def fire(self, kind):
+        if kind == "band":
+            self.rest()
+        else:
+            self.X[1] = 0.0
+            self.mode = 1 if kind == "break+" else -1
+
+
+class _Backlash(_Loop):
+    """Two masses with clearance h: modes "free" and ("contact", -1) at gap 0 / ("contact", +1) at gap h."""
+
+    OUTPUT = 0
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.counts = {"impacts": 0}
+        self.departing = None  # the wall just left at zero speed (its event armed a rounding below it)
+        gap, h = self.X[2], self.p["h"]
+        self.mode = "free"
+        if gap <= 0.0 or gap >= h:
+            self.at_wall(-1 if gap <= 0.0 else 1)
+
+    def mode_name(self):
+        return self.mode if self.mode == "free" else f"contact{'-+'[self.mode[1] > 0]}"
+
+    def length(self):
+        return self.p["h"]
+
+    def rhs_for(self, mode):
+        M1, M2 = self.p["M1"], self.p["M2"]
+
+        def rhs(t, X):
+            dX = np.empty_like(X)
+            f = self.force(X)
+            dX[0] = X[1]
+            if mode == "free":
+                dX[1], dX[2], dX[3] = 0.0, X[3], f / M2
+            else:
+                dX[1], dX[2], dX[3] = f / (M1 + M2), 0.0, 0.0
+            dX[4:] = self.controller(X)
+            return dX
+        return rhs
+
+    def pressing(self, sigma):
+        """f pushes M2 into the wall ``sigma`` (f = 0: the way f is heading)."""
+        f = self.force(self.X)
+        if f == 0.0:
+            f = self.force_rate(self.X, self.rhs_for(("contact", sigma))(self.t, self.X))
+        return sigma * f > 0.0
+
+    def at_wall(self, sigma):
+        """At the wall ``sigma`` after any impact: contact if pressed with a negligible bounce, else free."""
+        M1, M2, h = self.p["M1"], self.p["M2"], self.p["h"]
+        X = self.X
+        X[2] = 0.0 if sigma < 0 else h
+        w = X[3]
+        if self.pressing(sigma) and 0.5 * w * w * M2 <= ZENO * h * abs(self.force(X)):
+            v2 = X[1] + w
+            X[1] = (M1 * X[1] + M2 * v2) / (M1 + M2)  # the centre of mass's velocity
+            X[3] = 0.0
+            self.mode = ("contact", sigma)
+            return
+        self.mode = "free"
+        if w == 0.0:
+            self.departing = sigma
+        elif self.pressing(sigma):  # a bounce: start within it
+            self.first_step = 0.25 * abs(w) * M2 / abs(self.force(X))
+
+    def system(self):
+        h = self.p["h"]
+        if self.mode == "free":
+            low = h * DEPARTURE_SLACK if self.departing == -1 else 0.0
+            high = h * DEPARTURE_SLACK if self.departing == 1 else 0.0
+            self.departing = None
+            events = [_event(lambda t, X: X[2] + low, -1), _event(lambda t, X: X[2] - h - high, 1)]
+            return self.rhs_for("free"), events, ["gap 0", "gap h"]
+        sigma = self.mode[1]
+        return self.rhs_for(self.mode), [_event(lambda t, X: sigma * self.force(X), -1)], ["release"]
+
+    def fire(self, kind):
+        if kind == "release":
+            sigma = self.mode[1]
+            self.X[2] = 0.0 if sigma < 0 else self.p["h"]
+            self.X[3] = 0.0
+            self.mode = "free"
+            self.departing = sigma
+            return
+        sigma = -1 if kind == "gap 0" else 1
+        M1, M2, eps = self.p["M1"], self.p["M2"], self.p["eps"]
+        v1, w = self.X[1], self.X[3]
+        if sigma * w > 0.0:  # closing: Newton's law of impact (paper eq. 8-10)
+            v2 = v1 + w
+            v1n = (v1 * (M1 - eps * M2) + v2 * M2 * (1.0 + eps)) / (M1 + M2)
+            v2n = (v1 * M1 * (1.0 + eps) + v2 * (M2 - eps * M1)) / (M1 + M2)
+            self.X[1], self.X[3] = v1n, v2n - v1n
+            self.counts["impacts"] += 1
+        self.at_wall(sigma)
+
+
+class _StaticBacklash(_Loop):
+    """Mass and geometric backlash: modes "free" (y held) and ("engaged", +1 / -1) (y = k (x -+ h/2))."""
+
+    OUTPUT = 2
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.counts = {"engagements": 0}
+        self.departing = None  # the edge just left (its event armed a rounding beyond it)
+        k, h = self.p["k"], self.p["h"]
+        play = self.X[0] - self.X[2] / k
+        self.mode = "free"
+        for s in (1, -1):
+            if s * play >= 0.5 * h * (1.0 - 1e-12):
+                self.engage(s, count=False)
+                break
+
+    def mode_name(self):
+        return self.mode if self.mode == "free" else f"engaged{'-+'[self.mode[1] > 0]}"
+
+    def length(self):
+        return self.p["h"]
+
+    def rhs_for(self, mode):
+        M, k = self.p["M"], self.p["k"]
+
+        def rhs(t, X):
+            dX = np.empty_like(X)
+            dX[0] = X[1]
+            dX[1] = self.force(X) / M
+            dX[2] = 0.0 if mode == "free" else k * X[1]
+            dX[3:] = self.controller(X)
+            return dX
+        return rhs
+
+    def snap(self, s):
+        """Put y exactly on the edge s of the play."""
+        self.X[2] = self.p["k"] * (self.X[0] - s * 0.5 * self.p["h"])
+
+    def engage(self, s, count=True):
+        """At the edge s: engaged if x moves on (v = 0: if f pushes on), else free."""
+        self.snap(s)
+        v = self.X[1]
+        if s * v > 0.0 or (v == 0.0 and s * self.force(self.X) > 0.0):
+            self.mode = ("engaged", s)
+            self.counts["engagements"] += count
+        else:
+            self.mode = "free"
+            self.departing = s
+
+    def system(self):
+        k, half = self.p["k"], 0.5 * self.p["h"]
+        if self.mode == "free":
+            up = half + self.p["h"] * DEPARTURE_SLACK if self.departing == 1 else half
+            down = half + self.p["h"] * DEPARTURE_SLACK if self.departing == -1 else half
+            self.departing = None
+            events = [_event(lambda t, X: X[0] - X[2] / k - up, 1),
+                      _event(lambda t, X: X[0] - X[2] / k + down, -1)]
+            return self.rhs_for("free"), events, ["engage+", "engage-"]
+        s = self.mode[1]
+        return self.rhs_for(self.mode), [_event(lambda t, X: X[1], -s)], ["reverse"]
+
+    def fire(self, kind):
+        if kind == "reverse":
+            self.snap(self.mode[1])
+            self.X[1] = 0.0
+            self.departing = self.mode[1]
+            self.mode = "free"
+            return
+        self.engage(1 if kind == "engage+" else -1)
+
+
+_CLASSES = {"friction": _Friction, "backlash": _Backlash, "static-backlash": _StaticBacklash}
+
+
+def _parameters(plant, params):
+    """The plant's parameters with the defaults filled in, checked (PlantError naming a bad one)."""
+    p = dict(DEFAULTS[plant])
+    for name, value in (params or {}).items():
+        if name not in p and name != "z0":
+            raise PlantError(f"{name!r} is not a parameter of the {plant} loop: it has {sorted(p)} and z0")
+        p[name] = value
+    positive = (lambda v: v > 0.0, "must be > 0")
+    finite = (lambda v: True, "must be a finite number")
+    rules = {
+        "friction": {"M": positive, "B": (lambda v: v >= 0.0, "must be >= 0"),
+                     "Fc": (lambda v: v >= 0.0, "must be >= 0"), "Fs": (lambda v: v >= p["Fc"], "must be >= Fc"),
+                     "Dv": (lambda v: v == 0.0, "must be 0 (exact stick, the CVS model)"),
+                     "x0": finite, "v0": finite},
+        "backlash": {"M1": positive, "M2": positive, "h": positive,
+                     "eps": (lambda v: 0.0 <= v <= 1.0, "must be in [0, 1]"),
+                     "x1_0": finite, "v1_0": finite, "v2_0": finite},
+        "static-backlash": {"M": positive, "k": positive, "h": positive, "x0": finite, "v0": finite},
+    }[plant]
+    for name, (ok, allowed) in rules.items():
+        p[name] = _check(name, p[name], ok, allowed)
+    if plant == "backlash":
+        h = p["h"]
+        p["gap0"] = 0.5 * h if p["gap0"] is None else p["gap0"]
+        p["gap0"] = _check("gap0", p["gap0"], lambda v: 0.0 <= v <= h, f"must be in [0, h] = [0, {h!r}]")
+    return p
+
+
+def _initial_state(plant, p, n, state):
+    """The loop's state at t = 0: ``state`` checked, or the plant's initial values and z0 (zeros)."""
+    names = COORDINATES[plant]
+    if state is None:
+        q = {"friction": lambda: [p["x0"], p["v0"]],
+             "backlash": lambda: [p["x1_0"], p["v1_0"], p["gap0"], p["v2_0"] - p["v1_0"]],
+             "static-backlash": lambda: [p["x0"], p["v0"], p["k"] * p["x0"]]}[plant]()
+        z0 = [0.0] * n if p.get("z0") is None else list(p["z0"])
+        if len(z0) != n:
+            raise PlantError(f"length of z0 = {len(z0)} is out of range: the controller's order is {n}")
+        state = q + z0
+    state = list(state)
+    if len(state) != len(names) + n:
+        raise PlantError(f"length of state = {len(state)} is out of range: the {plant} loop has "
+                         f"{len(names)} plant coordinates {names} and {n} controller states")
+    labels = list(names) + [f"z{i}" for i in range(1, n + 1)]
+    X = [_check(label, value, lambda v: True, "must be a finite number") for label, value in zip(labels, state)]
+    if plant == "backlash":
+        h = p["h"]
+        _check("gap", X[2], lambda v: 0.0 <= v <= h, f"the gap must be in [0, h] = [0, {h!r}]")
+    if plant == "static-backlash":
+        play = X[0] - X[2] / p["k"]
+        _check("x - y/k", play, lambda v: abs(v) <= 0.5 * p["h"] * (1.0 + 1e-9),
+               f"the play must be within +-h/2 = {0.5 * p['h']!r}")
+    return X
+
+
+def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
+                          max_step=np.inf, max_events=MAX_EVENTS):
+    """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
+
+    Parameters
+    ----------
+    plant : str
+        ``"friction"``, ``"backlash"`` or ``"static-backlash"``.
+    b, a : sequence of float
+        ``G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an)``: ``b`` has
+        n + 1 coefficients, ``a`` has n (1 <= n <= 8), all finite.
+    t_end : float
+        The end time (s), finite and >= 0.
+    params : dict, optional
+        The plant's parameters (see ``DEFAULTS[plant]``; missing ones take the
+        defaults), plus ``"z0"``, the controller's initial state (zeros).
+        friction: M, B, Fc, Fs, Dv (must be 0), x0, v0; backlash: M1, M2, h,
+        eps, x1_0, v1_0, v2_0, gap0 (h/2); static-backlash: M, k, h, x0, v0
+        (y starts at k x0).
+    state : sequence of float, optional
+        The whole loop state at t = 0, the plant's coordinates then z, as
+        ``dfwb.fmus.loops`` orders it (friction: x, v; backlash: x1, v1, gap,
+        w = v2 - v1; static-backlash: x, v, y); it overrides the initial values
+        in ``params``.
+    method : str
+        solve_ivp's method.
+    rtol : float
+        Relative tolerance.
+    atol : float or array, optional
+        Absolute tolerance; default ``1e-3 * rtol`` times the plant's length
+        scale (the largest of the initial coordinates, h, and 1e-3).
+    max_step : float
+        solve_ivp's largest step (no limit by default).
+    max_events : int
+        The most events allowed before t_end.
+
+    Returns
+    -------
+    dict
+        ``state`` (the loop state at t_end, a list), ``events`` (a list of
+        ``(t, kind)``, kind a string as ``dfwb.fmus.contract.EventKind``
+        spells it: "band", "break+", "break-", "gap 0", "gap h", "release",
+        "engage+", "engage-", "reverse"), ``mode`` (the final mode's name),
+        ``counts`` (sticks, impacts or engagements), ``nfev`` (right-hand side
+        evaluations), ``t`` (= t_end). Counted as dfwb.fmus.loops counts them:
+        stick phases including one from t = 0, impacts, engagements by an
+        event (not one at t = 0).
+
+    Raises
+    ------
+    PlantError
+        A plant name, coefficient, parameter, state or t_end out of range (the
+        message names it).
+    RunError
+        More than ``max_events`` events, or solve_ivp failing.
+
+    Examples
+    --------
+    >>> r = closed_loop_reference("friction", [30.0, 60.0], [0.0], 2.0, {"x0": 0.3})
+    >>> [kind for _t, kind in r["events"]][:3]
+    ['band', 'break+', 'band']
+    """
+    if plant not in _CLASSES:
+        raise PlantError(f"plant = {plant!r} is out of range: one of {PLANTS}")
+    n = len(list(a))
+    LinearSystem(b, a)  # checks the controller before anything else
+    _check("t_end", t_end, lambda v: v >= 0.0, "must be a finite number >= 0 (s)")
+    if not (isinstance(max_events, int) and max_events >= 0):
+        raise PlantError(f"max_events = {max_events!r} is out of range: a whole number >= 0")
+    p = _parameters(plant, params)
+    X0 = _initial_state(plant, p, n, state)
+    loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
+    loop.run(float(t_end))
+    return {"state": [float(v) for v in loop.X], "events": list(loop.log), "mode": loop.mode_name(),
+            "counts": dict(loop.counts), "nfev": loop.nfev, "t": float(t_end)}
