@@ -134,7 +134,8 @@ def _fmus(out_dir):
 
 
 def cmd_build(args):
-    """Build the production FMUs (the registry's plants and LinearSystem); ``--naive``: their fixed-step twins too."""
+    """Build the production FMUs (the registry's plants, LinearSystem and the exact closed loops); ``--naive``: the
+    plants' fixed-step twins too."""
     from dfwb.fmi.location import build_fmus
 
     build_fmus(args.out, naive=args.naive, force=args.force)
@@ -367,7 +368,8 @@ def parser():
     commands = top.add_subparsers(dest="command", required=True)
 
     build = commands.add_parser("build",
-                                help="build the FMUs, plants and controller (skips those whose sources are unchanged)")
+                                help="build the FMUs: plants, controller and exact closed loops (skips those "
+                                     "whose sources are unchanged)")
     build.add_argument("--out", action=_Once, type=Path, default=None, help=f"output folder (default: {FMU_DIR_HELP})")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.add_argument("--naive", action="store_true", help="also build the benchmark's fixed-step twins")

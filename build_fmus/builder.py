@@ -363,7 +363,8 @@ def _set_structure(structure, variables, model):
     """Outputs with their dependencies on the input, and InitialUnknowns.
 
     An output that the input does not feed directly (a continuous state such
-    as x, v, gap, y, or a counter) has ``dependencies=""``; one the facade
+    as x, v, gap, y, or a counter; every output of an FMU without input,
+    ``input_name`` None) has ``dependencies=""``; one the facade
     names in ``feedthrough`` lists the input's index with that
     dependenciesKind. InitialUnknowns lists the same outputs without a
     dependency list (at initialisation they depend on the parameters and the
@@ -374,7 +375,8 @@ def _set_structure(structure, variables, model):
     index = {scalar.get("name"): i for i, scalar in enumerate(variables, start=1)}
     feedthrough = model.feedthrough
     unknown = sorted(set(feedthrough) - set(index))
-    if unknown or model.input_name not in index:
+    if unknown or (model.input_name is not None and model.input_name not in index) \
+            or (feedthrough and model.input_name is None):
         raise BuildError(f"{model.__name__}: feedthrough names {unknown} or input {model.input_name!r} unknown")
     outputs = [scalar.get("name") for scalar in variables if scalar.get("causality") == "output"]
     node = ET.SubElement(structure, "Outputs")

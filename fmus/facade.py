@@ -139,7 +139,8 @@ class SolverFMU(Fmi2Slave):
       the same build accepts (see :mod:`.state`).
 
     A subclass creates ``self.solver`` at the end of initialisation; doStep
-    hands it the input named ``input_name``, held over the step.
+    hands it the input named ``input_name``, held over the step (``input_name``
+    None: an FMU without input, a closed system the solver only advances).
     """
 
     input_name = "f"
@@ -168,7 +169,12 @@ class SolverFMU(Fmi2Slave):
     @classmethod
     def limits(cls):
         """{name: (min, max)} of the model description (:attr:`ranges`, the input's bound)."""
-        return dict({cls.input_name: (-MAX_INPUT, MAX_INPUT)}, **cls.ranges)
+        return dict({name: (-MAX_INPUT, MAX_INPUT) for name in cls._input_names()}, **cls.ranges)
+
+    @classmethod
+    def _input_names(cls):
+        """(input_name,), or () for an FMU without input."""
+        return () if cls.input_name is None else (cls.input_name,)
 
     # -- errors ---------------------------------------------------------------
     def _refuse(self, call, message):
@@ -201,13 +207,18 @@ class SolverFMU(Fmi2Slave):
     @_guarded("exitInitializationMode")
     def exit_initialization_mode(self):
         self._expect("exitInitializationMode", INITIALIZATION)
-        self._check_input(getattr(self, self.input_name))
+        for name in self._input_names():
+            self._check_input(getattr(self, name))
         try:
             self.solver = self._make_solver()
         except PlantError as error:
             self._fail(f"invalid parameter: {error}")
-        self._phase = STEPPING
         self._refresh()
+        if not self._finite():
+            self.solver = None
+            self._fail("invalid parameters: the outputs at the start overflow a float (a force or a mass "
+                       "out of scale)")
+        self._phase = STEPPING
 
     @_guarded("doStep", fallback=lambda self, *args: False)
     def do_step(self, current_time, step_size):
@@ -224,7 +235,8 @@ class SolverFMU(Fmi2Slave):
             self._fail(f"doStep at t = {current_time!r}, but the FMU is at t = {now!r}")
         end = max(current_time + step_size, now)
         try:
-            solver.set_input(getattr(self, self.input_name))
+            if self.input_name is not None:
+                solver.set_input(getattr(self, self.input_name))
             solver.advance(end - self._start_time)  # the solver's own time starts at 0
         except PlantError as error:
             self._broken()
@@ -319,7 +331,7 @@ class SolverFMU(Fmi2Slave):
         return cls.__module__.rpartition(".")[0] or cls.__module__
 
     def _facade_values(self):
-        values = {name: getattr(self, name) for name in self._parameter_names() + (self.input_name,)}
+        values = {name: getattr(self, name) for name in self._parameter_names() + self._input_names()}
         values.update(_phase=self._phase, _start_time=self._start_time, _time=self._time)
         return values
 
@@ -350,7 +362,7 @@ class SolverFMU(Fmi2Slave):
         if phase not in (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED) or \
                 (solver is None) != (phase in (INSTANTIATED, INITIALIZATION)):
             self._fail("the state's phase does not match its solver")
-        for name in self._parameter_names() + (self.input_name,):
+        for name in self._parameter_names() + self._input_names():
             if type(values[name]) is not type(getattr(self, name)):
                 self._fail(f"the state's {name} is a {type(values[name]).__name__}")
         for name in ("_start_time", "_time"):
@@ -482,6 +494,7 @@ class PlantFMU(SolverFMU):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._values = {}
+        self._overflow = False
         self._fourier = None
         self._rotation = None
         self._frozen = False
@@ -624,7 +637,7 @@ class PlantFMU(SolverFMU):
         self._frozen = True  # the Error state, until a state is set (or the instance reset)
 
     def _finite(self):
-        return all(math.isfinite(value) for value in self._values.values())
+        return not self._overflow
 
     @classmethod
     def solver_kwargs(cls, kwargs):
@@ -634,9 +647,12 @@ class PlantFMU(SolverFMU):
     def _refresh(self):
         if getattr(self, "_frozen", False):
             return
-        values = self._values
-        values.update(zip((name for name, *_ in self.outputs), self.output_values()))
-        values["events"] = self.solver.events
+        new = dict(zip((name for name, *_ in self.outputs), self.output_values()))
+        new["events"] = self.solver.events
+        self._overflow = not all(math.isfinite(value) for value in new.values())
+        if self._overflow and self._values:
+            return  # the outputs stay those of the last good point (never NaN)
+        self._values.update(new)
         self._fourier = None
 
     def output_values(self):

@@ -250,3 +250,18 @@ def test_fmu_manipulation_toolbox_check_finds_no_error(fmus, model):
     assert "seems to be compliant with FMI-2.0" in report, report
     assert "No semantic error" in report, report
     assert "ERROR" not in report, report
+
+
+def test_outputs_that_overflow_are_refused_never_served(fmus):
+    """A force and a mass out of scale: exitInitializationMode fails with the reason logged, no NaN output."""
+    from conftest import new_instance
+    from fmpy.fmi1 import FMICallException
+
+    fmu, description, messages = new_instance(fmus["FrictionMass"], "overflow")
+    vr = {v.name: v.valueReference for v in description.modelVariables}
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.setReal([vr["M"], vr["F"]], [1e-300, 1e100])
+    with pytest.raises(FMICallException):
+        fmu.exitInitializationMode()
+    assert any("overflow" in text for _status, text in messages)

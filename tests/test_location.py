@@ -6,7 +6,7 @@ import sys
 
 from dfwb.build_fmus import builder
 from dfwb.fmi import location
-from dfwb.fmus import facade, naive_facade
+from dfwb.fmus import facade, loop_facade, naive_facade
 
 
 def test_default_folder_follows_dfwb_fmu_dir_then_xdg_cache_home_then_home(tmp_path, monkeypatch):
@@ -39,10 +39,10 @@ def test_fmu_path_builds_only_the_fmu_asked_for(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["LinearSystem.fmu"]
 
 
-def test_models_are_the_registry_plants_and_the_controller_the_twins_when_asked():
+def test_models_are_the_registry_plants_the_controller_and_the_loops_the_twins_when_asked():
     production = location.models()
-    assert set(production) == set(facade.PRODUCTION)
-    assert set(location.models(naive=True)) == set(facade.PRODUCTION + naive_facade.NAIVE)
+    assert set(production) == set(facade.PRODUCTION + loop_facade.LOOPS)
+    assert set(location.models(naive=True)) == set(facade.PRODUCTION + loop_facade.LOOPS + naive_facade.NAIVE)
 
 
 def _copy_sources(tmp_path, monkeypatch):

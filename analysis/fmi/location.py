@@ -35,11 +35,13 @@ def fmu_folder(fmu_dir=None):
 
 
 def models(naive=False):
-    """The facade classes of the registered plants and LinearSystem (the controller); ``naive``: their twins too."""
+    """The facade classes of the registered plants, LinearSystem (the controller) and the closed loops
+    (FrictionMassLoop, TwoMassBacklashLoop, StaticBacklashLoop); ``naive``: the plants' twins too."""
     from dfwb.fmus.facade import LinearSystem
+    from dfwb.fmus.loop_facade import LOOPS
     from dfwb.plants.registry import PLANTS
 
-    found = [entry.model for entry in PLANTS.values()] + [LinearSystem]
+    found = [entry.model for entry in PLANTS.values()] + [LinearSystem] + list(LOOPS)
     if naive:
         found += [entry.naive for entry in PLANTS.values() if entry.naive is not None]
     return list(dict.fromkeys(found))
