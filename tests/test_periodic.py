@@ -15,7 +15,7 @@ import pytest
 
 from dfwb.engine import periodic
 from dfwb.engine.limit_cycles import Cycle
-from dfwb.engine.periodic import LoopProblem, find_cycles, link, relative_errors
+from dfwb.engine.periodic import LoopProblem, find_cycles, follow_gain, link, relative_errors
 from dfwb.plants.loop_reference import closed_loop_reference
 
 # (plant, G, params, rest start): the four examples' loops and five more controllers
@@ -191,3 +191,15 @@ def test_the_command_line_refuses_a_loop_it_cannot_integrate(fmus, capsys):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Dv" in err[0]
+
+
+def test_a_cycle_continued_in_the_gain_is_the_cycle_of_that_gain(stable_cycles):
+    problem, cycle = stable_cycles["friction_pid"]
+    (k, stiffer), = follow_gain(problem, cycle, [1.2])
+    assert k == 1.2 and stiffer is not None and stiffer.stable
+    direct = LoopProblem("friction", 1.2 * problem.G)
+    settled = direct.settle(direct.rest_start(0.3), period=2.0)
+    reference = direct.shoot(*settled, period=2.0)
+    for key in ("omega", "amplitude_x", "F"):
+        assert getattr(stiffer, key) == pytest.approx(getattr(reference, key), rel=1e-9)
+    assert stiffer.omega < cycle.omega  # a stiffer PID hunts slower and smaller here

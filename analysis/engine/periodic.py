@@ -16,10 +16,11 @@ multipliers are 0.
 
 Starts: the describing function's own prediction (the plant's periodic
 orbit under the predicted F cos(wt), with the controller in its harmonic
-steady state; see :func:`df_start`), and simulations from small and large
-amplitudes that are run until their section crossings settle
-(:func:`settle`). :func:`find_cycles` collects every distinct cycle and
-links each to the prediction it corresponds to.
+steady state; see :meth:`LoopProblem.df_start`), simulations from small and
+large amplitudes that are run until their section crossings settle
+(:meth:`LoopProblem.settle`), and a known cycle continued in the
+controller's gain (:func:`follow_gain`). :func:`find_cycles` collects every
+distinct cycle and links each to the prediction it corresponds to.
 
 Examples
 --------
@@ -525,6 +526,26 @@ def find_cycles(problem, predictions=(), amplitudes=None, settle_periods=200, pr
         if j is not None:
             cycles[j].prediction = i
     return cycles, links
+
+
+def follow_gain(problem, cycle, gains):
+    """The cycle continued in the controller's gain: [(k, the cycle of k G or None)] for each k in ``gains``.
+
+    Each gain's loop is shot from the previous gain's cycle (natural
+    parameter continuation), so a branch is followed whether it is stable or
+    not, up to where it ends (a fold, or a cycle that stops engaging): there,
+    and beyond, None. The gains are taken in the order given; start next to 1
+    for the first step to begin on ``cycle``.
+    """
+    branch, previous = [], cycle
+    for k in gains:
+        if previous is None:
+            branch.append((k, None))
+            continue
+        scaled = LoopProblem(problem.spec.name, k * problem.G, problem.params)
+        previous = scaled.shoot(previous.state, previous.level, previous.period)
+        branch.append((k, previous))
+    return branch
 
 
 def link(predictions, cycles):
