@@ -67,7 +67,7 @@ def test_a_cycle_is_periodic_to_the_residual_and_for_scipy(stable_cycles, name):
                                       state=cycle.state)
     swing = _swing(problem, cycle)
     error = np.abs(np.array(reference["state"]) - np.array(cycle.state)) / swing
-    assert error.max() < 1e-7, (name, error)
+    assert error.max() < 1e-10, (name, error)  # seen: 1e-13 to 2e-12
     assert len(reference["events"]) == cycle.counts["events"]
 
 
