@@ -229,6 +229,12 @@ def cmd_limit_cycle(args):
         progress = None if args.json else (lambda origin: print(f"  exact loop: from {origin}", file=sys.stderr))
         true_cycles, links = find_cycles(problem, cycles, progress=progress)
         report["predictions"], report["cycles"] = exact_report(cycles, true_cycles, links)
+        if args.verify:  # the judge against the truth
+            from dfwb.engine.closed_loop import judge_errors
+
+            for outcome, j in zip(report["verification"], links):
+                outcome["error_vs_true"] = (judge_errors(outcome, true_cycles[j])
+                                            if j is not None and outcome["settled"] else None)
     if args.plot:
         from dfwb.plotting.plots import limit_cycle_figure
 
@@ -244,7 +250,11 @@ def cmd_limit_cycle(args):
         if args.verify:
             v = report["verification"][i]
             line += (f"\n    judge: {'settled' if v['settled'] else 'NOT settled'} at F = {v['F']:.6g}, "
-                     f"omega = {v['omega']:.6g} (errors {v['rel_error_F']:.2%}, {v['rel_error_omega']:.2%})")
+                     f"omega = {v['omega']:.6g} (off the prediction by {v['rel_error_F']:.2%}, "
+                     f"{v['rel_error_omega']:.2%})" + ("" if v["settled"] else f": {v['reason']}"))
+            if v.get("error_vs_true"):
+                line += ("; against the true cycle: omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
+                         .format(**v["error_vs_true"]))
         if problem is not None:
             j = links[i]
             line += ("\n    no true cycle near it: a false alarm" if j is None else

@@ -1,4 +1,4 @@
-"""The shipped limit-cycle examples: predicted, judged by co-simulation, plotted.
+"""The shipped limit-cycle examples: the DF's prediction, the co-simulation judge, and the exact truth.
 
 1. PID position control of the friction mass: integral action and static
    friction make the mass hunt (a stable cycle, and an unstable one above it).
@@ -8,21 +8,26 @@
    eps = 0.2 and eps = 0.8.
 
 Each example is a scene, ``scenes/lc_<name>.toml`` (``dfwb run`` runs one with
-the cache); ``dfwb examples [--out DIR]`` runs them all and adds a convergence
-study of the judge, writing ``example_<name>.png`` and ``examples.md``.
+the cache). ``dfwb examples [--out DIR]`` runs them all: the harmonic balance
+on the exact DF (:mod:`dfwb.engine.limit_cycles`), the judge (plant FMU and
+LinearSystem.fmu co-simulated at a fixed step, :mod:`dfwb.engine.closed_loop`)
+and the true cycles of the exact closed loop (:mod:`dfwb.engine.periodic`),
+then the judge's step study against the truth with Richardson's
+extrapolation; it writes ``example_<name>.png``, ``examples.md`` and
+``examples.json``.
 """
 
 import json
 from pathlib import Path
 
-from dfwb.engine.closed_loop import measure, run_loop, verify
+from dfwb.engine.closed_loop import judge_errors, step_study, verify
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.limit_cycles import search
-from dfwb.plants import plant as find_plant
+from dfwb.engine.periodic import LoopProblem, find_cycles, relative_errors
 from dfwb.plotting.plots import limit_cycle_figure
 from dfwb.studies.scene import load_scene, shipped_scenes
 
-CONVERGENCE = (128, 256, 512, 1024, 2048)  # steps per predicted period
+STEP_STUDY = (256, 512, 1024, 2048)  # steps per true period
 
 
 def examples():
@@ -30,58 +35,92 @@ def examples():
     return [cycle for path in shipped_scenes("lc_") for cycle in load_scene(path).limit_cycle]
 
 
+def _percent(value):
+    return "-" if value is None else f"{value:+.2%}"
+
+
 def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
-    """Predict, verify and plot every example; return the path of examples.md."""
+    """Predict, judge, find the truth, study the judge's step and plot every example; return examples.md's path."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    lines = ["# Limit-cycle examples", "",
-             "Predicted by harmonic balance on the exact DF (Newton, Loeb's criterion for stability), judged by "
-             f"co-simulating plant FMU + LinearSystem.fmu at {samples_per_period} steps per predicted period, from "
-             "the predicted amplitude and from 1.5 times it.", "",
-             "| example | G(s) | params | F [N] | w [rad/s] | amplitude | stable | distortion | judge F | judge w "
-             "| error F | error w | settled (near, perturbed) |", "|---" * 13 + "|"]
-    results = {}
+    lines = ["# Limit-cycle examples: the DF, the judge and the truth", "",
+             "**DF**: harmonic balance on the exact describing function (Newton, Loeb's criterion). **Judge**: "
+             f"plant FMU + LinearSystem.fmu co-simulated at {samples_per_period} steps per predicted period from the "
+             "predicted amplitude. **Truth**: the exact closed loop's periodic orbits (shooting to a residual of "
+             "1e-10, Floquet multipliers). Errors are relative to the true cycle.", "",
+             "| example | G(s) | params | DF w | DF X | DF stable | judge w | judge X | settled | true w | true X "
+             "| true stable | max multiplier | DF error w | DF error X | DF error F | judge error w | judge error X |",
+             "|---" * 18 + "|"]
+    results, studies = {}, []
     for example in examples():
         name, plant, text, params = example.name, example.plant, example.G, example.params
-        F_range, omega_range = example.F_range, example.omega_range
         G = example.transfer_function()
-        found = search(plant, G, params, F_range, omega_range, engine=DFEngine(plant))
-        cycles = found.cycles
-        runs, checks = [], []
-        for cycle in cycles:
+        found = search(plant, G, params, example.F_range, example.omega_range, engine=DFEngine(plant))
+        predictions = found.cycles
+        checks, runs = [], []
+        for cycle in predictions:
             outcome, run = verify(plant, G, cycle, params, samples_per_period)
-            runs.append((cycle, run))
             checks.append(outcome)
-            lines.append(f"| {name} | {text} | {json.dumps(params)} | {cycle.F:.6g} | {cycle.omega:.6g} | "
-                         f"{cycle.amplitude_x:.4g} | {cycle.stable} | {cycle.distortion:.3g} | {outcome['F']:.4g} | "
-                         f"{outcome['omega']:.4g} | {outcome['rel_error_F']:.1%} | {outcome['rel_error_omega']:.1%} | "
-                         f"{outcome['settled']}, {outcome['perturbed']['settled']} |")
-        if not cycles:
-            lines.append(f"| {name} | {text} | {json.dumps(params)} | no cycle | | | | | | | | | |")
+            runs.append((cycle, run))
+        truths, links = find_cycles(LoopProblem(plant, G, params), predictions)
+        for i, (cycle, check) in enumerate(zip(predictions, checks)):
+            j = links[i]
+            judged = (f"{check['omega']:.5g} | {check['amplitude_x']:.4g} | {check['settled']}" if check["omega"]
+                      else "- | - | no")
+            if j is None:
+                truth = "no true cycle near it (a false alarm) | | | |"
+                errors = "| | | |"
+            else:
+                true = truths[j]
+                e, judge = relative_errors(cycle, true), judge_errors(check, true) if check["omega"] else {}
+                truth = f"{true.omega:.7g} | {true.amplitude_x:.6g} | {true.stable} | {max(true.multipliers):.3g}"
+                errors = (f"{_percent(e['omega'])} | {_percent(e['amplitude_x'])} | {_percent(e['F'])} | "
+                          f"{_percent(judge.get('omega'))} | {_percent(judge.get('amplitude_x'))}")
+            lines.append(f"| {name} | {text} | {json.dumps(params)} | {cycle.omega:.5g} | {cycle.amplitude_x:.4g} | "
+                         f"{cycle.stable} | {judged} | {truth} | {errors} |")
+        for true in truths:
+            if true.prediction is None:
+                lines.append(f"| {name} | {text} | {json.dumps(params)} | not predicted | | | | | | "
+                             f"{true.omega:.7g} | {true.amplitude_x:.6g} | {true.stable} | "
+                             f"{max(true.multipliers):.3g} | | | | | |")
+        if not predictions and not truths:
+            lines.append(f"| {name} | {text} | {json.dumps(params)} | no cycle | | | | | | none found | | | | | | | "
+                         "| |")
+        for true in (t for t in truths if t.stable):
+            study = step_study(plant, G, true, params, STEP_STUDY)
+            studies.append((name, true, study))
         png = limit_cycle_figure(out_dir / f"example_{name}.png", G, found.F_grid, found.omega_grid, found.N_grid,
-                                 cycles, runs)
-        results[name] = {"predictions": [c.as_dict() for c in cycles], "verification": checks, "cycles": cycles}
-        report(f"{png}: {len(cycles)} cycle(s)")
-    lines += ["", "## Convergence of the judge as the communication step shrinks", "",
-              "The co-simulation holds each signal over a step (a delay of half a step on average); its error "
-              "vanishes with the step. Stable cycles, near start, measured F and w:", "",
-              "| example | steps per period | F [N] | w [rad/s] | settled |", "|---|---|---|---|---|"]
-    for example in examples():
-        name, plant, params = example.name, example.plant, example.params
-        for cycle in (c for c in results[name]["cycles"] if c.stable):
-            for samples in CONVERGENCE:
-                run = run_loop(plant, example.transfer_function(), params, cycle.period / samples,
-                               40 * cycle.period, {find_plant(plant).loop_start: cycle.amplitude_x})
-                found = measure(run, rtol=5e-3)
-                lines.append(f"| {name} | {samples} | {found.F:.5g} | {found.omega:.5g} | {found.settled} |")
-            lines.append(f"| {name} | prediction | {cycle.F:.5g} | {cycle.omega:.5g} | |")
-    lines += ["", "An unstable cycle is not expected to be reproduced: the judge's runs leave it (to the stable "
-              "cycle or to rest). Where no cycle is listed, none was found in the ranges; for eps = 0.8 the "
-              "only sign change of 1 + G N lies where the plant's response is not periodic.", ""]
+                                 predictions, runs, truths)
+        results[name] = {"predictions": [dict(c.as_dict(), true_cycle=j) for c, j in zip(predictions, links)],
+                         "verification": checks, "cycles": [c.as_dict() for c in truths]}
+        report(f"{png}: {len(predictions)} prediction(s), {len(truths)} true cycle(s)")
+    lines += ["", "## The judge's step against the truth", "",
+              "The co-simulation holds each signal over a step, a first-order error in the step; Richardson's "
+              "extrapolation (first order, from the three finest settled steps, where the sequence is monotone "
+              "and its observed order near 1) removes it. Stable true cycles, runs from rest at the true "
+              "amplitude:", "",
+              "| example | steps per period | judge w | judge X | settled | error w | error X | error F |",
+              "|---|---|---|---|---|---|---|---|"]
+    for name, true, study in studies:
+        for run in study.runs:
+            e = judge_errors(run, true) if run.settled else {}
+            lines.append(f"| {name} | {run.samples} | {run.omega:.6g} | {run.amplitude_x:.5g} | {run.settled} | "
+                         f"{_percent(e.get('omega'))} | {_percent(e.get('amplitude_x'))} | {_percent(e.get('F'))} |")
+        r = study.richardson
+        if r is not None:
+            e = judge_errors(r, true)
+            orders = ", ".join(f"{q} {p:.2f}" for q, p in r.orders.items() if q != "samples" and p is not None)
+            w, x = ("-" if v is None else f"{v:.7g}" for v in (r.omega, r.amplitude_x))
+            lines.append(f"| {name} | Richardson (orders {orders}) | {w} | {x} | | "
+                         f"{_percent(e['omega'])} | {_percent(e['amplitude_x'])} | {_percent(e['F'])} |")
+        else:
+            lines.append(f"| {name} | Richardson: {study.reason} | | | | | | |")
+        lines.append(f"| {name} | truth | {true.omega:.8g} | {true.amplitude_x:.7g} | | | | |")
+        results[name]["step_study"] = study.as_dict()
+    lines += ["", "An unstable cycle is not reproduced by a simulation (the judge's runs leave it): only shooting "
+              "finds it. A true cycle marked 'not predicted' is one the DF misses.", ""]
     lines += [f"![{example.name}](example_{example.name}.png)" for example in examples()]
-    for entry in results.values():
-        entry.pop("cycles")
-    (out_dir / "examples.json").write_text(json.dumps(results, indent=1))
+    (out_dir / "examples.json").write_text(json.dumps(results, indent=1, default=str))
     path = out_dir / "examples.md"
     path.write_text("\n".join(lines) + "\n")
     return path

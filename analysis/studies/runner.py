@@ -462,6 +462,7 @@ class SceneRun:
         return []
 
     def write_summary(self, data, cycles):
+        from dfwb.engine.closed_loop import judge_errors
         from dfwb.engine.periodic import relative_errors
 
         o, scene = self.outcome, self.scene
@@ -508,12 +509,16 @@ class SceneRun:
                 lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
                           "multipliers), and the DF's relative errors against them:", "",
                           "| true w [rad/s] | amplitude | F [N] | stable | max multiplier | per period "
-                          "| DF prediction | DF error w | DF error amplitude | DF error F |", "|---" * 10 + "|"]
+                          "| DF prediction | DF error w | DF error amplitude | DF error F | judge error w "
+                          "| judge error amplitude |", "|---" * 12 + "|"]
                 for c in r["true_cycles"]:
-                    errors = "not predicted | | | |"
+                    errors = "not predicted | | | | | |"
                     if c.prediction is not None:
                         e = relative_errors(r["cycles"][c.prediction], c)
-                        errors = f"{c.prediction} | {e['omega']:+.2%} | {e['amplitude_x']:+.2%} | {e['F']:+.2%} |"
+                        errors = f"{c.prediction} | {e['omega']:+.2%} | {e['amplitude_x']:+.2%} | {e['F']:+.2%} | "
+                        v = r["verification"][c.prediction] if r["verification"] else None
+                        j = judge_errors(v, c) if v and v["settled"] else None
+                        errors += (f"{j['omega']:+.2%} | {j['amplitude_x']:+.2%} |" if j else "- | - |")
                     counts = ", ".join(f"{v} {k}" for k, v in c.counts.items())
                     lines.append(f"| {c.omega:.8g} | {c.amplitude_x:.6g} | {c.F:.6g} | {c.stable} | "
                                  f"{max(c.multipliers):.3g} | {counts} | {errors}")
