@@ -193,6 +193,27 @@ def trend(coeffs, scales):
     return 0
 
 
+class Budget:
+    """Chunks a study may still integrate: the bound on its work where the importer does not set one.
+
+    A loop whose controller is much faster than its motion (a pole at -1e6
+    around a 1 s cycle) needs millions of chunks per period; a study refuses
+    it in one line instead of running for hours.
+    """
+
+    __slots__ = ("left", "total")
+
+    def __init__(self, chunks):
+        self.left = self.total = int(chunks)
+
+    def spend(self, t, h):
+        self.left -= 1
+        if self.left < 0:
+            raise PlantError(f"the exact loop needed more than {self.total} chunks of integration (at t = {t:.6g} s "
+                             f"a chunk is {h:.3g} s): the controller's or the plant's fastest time scale is too far "
+                             f"below the motion's for this study")
+
+
 class Polynomial:
     """``tau -> (p, p')`` of sum c_i tau^i (Horner): an event function on a chunk, as plain data."""
 
@@ -225,11 +246,12 @@ class HybridSolver:
     :meth:`start`.
     """
 
-    def __init__(self, section=None, modes=None):
+    def __init__(self, section=None, modes=None, budget=None):
         self.t = 0.0
         self.events = 0
         self.event_log = None  # a list to record (time, kind) of every event
         self._modes = {} if modes is None else modes  # shared by solvers of one system and section
+        self._budget = budget  # a Budget of chunks shared by the solvers of one study (None: unbounded)
         self._section = section  # (L, l0): watch the upward zero crossings of L.X + l0
         self._watching = None  # the kind of the section function searched (the other is negative)
         self._time_rounding = 0.0  # how far the current instant is uncertain (4 ulp of the last event's time)
@@ -383,6 +405,8 @@ class HybridSolver:
                 continue
             if self._b > t_end:
                 break
+            if self._budget is not None:
+                self._budget.spend(self._b, self._mode.h)
             self._chunk_start(self._b, self._mode.step(self._X, self._dX))
         self.t = t_end
 

@@ -48,6 +48,11 @@ class FeedbackLoop(HybridSolver):
     Subclasses describe each mode by the plant's part (:meth:`plant_mode`):
     q' = P q + p + phi f, and event functions Lq.q + Lf f + l0; this class
     couples them with the controller into the loop's A, c and L.
+
+    ``state`` (the whole loop state) overrides the initial values; ``section``
+    watches the output rising through that level (``crossings``); ``modes``
+    (a dict) and ``budget`` (a :class:`~.hybrid.Budget`) are shared by the
+    solvers of one study.
     """
 
     coordinates = ()
@@ -69,7 +74,7 @@ class FeedbackLoop(HybridSolver):
         q[self.OUTPUT] += d
         return q
 
-    def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None):
+    def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None):
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
@@ -90,7 +95,7 @@ class FeedbackLoop(HybridSolver):
             L = [0.0] * (m + n)
             L[self.OUTPUT] = 1.0
             watch = (L, -float(section))
-        super().__init__(watch, modes)
+        super().__init__(watch, modes, budget)
         key, X0, departing = self.initial(list(q0) + z0)
         self.start(0.0, X0, key, departing)
 
@@ -151,7 +156,7 @@ class FrictionLoop(FeedbackLoop):
         return [output.x, output.v]
 
     def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
-                 section=None, modes=None):
+                 section=None, modes=None, budget=None):
         check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
         check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
         check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
@@ -161,7 +166,7 @@ class FrictionLoop(FeedbackLoop):
         check("v0", v0, True, "v0 must be a finite number (m/s)")
         self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
         self.sticks = 0
-        super().__init__(b, a, (x0, v0), z0, state, section, modes)
+        super().__init__(b, a, (x0, v0), z0, state, section, modes, budget)
 
     def plant_mode(self, key):
         M = self.M
@@ -210,7 +215,7 @@ class BacklashLoop(FeedbackLoop):
         return [output.x1, output.v1, output.gap, output.v2 - output.v1]
 
     def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
-                 state=None, section=None, modes=None):
+                 state=None, section=None, modes=None, budget=None):
         check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
         check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
         check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
@@ -223,7 +228,7 @@ class BacklashLoop(FeedbackLoop):
         self.r2 = M2 / (M1 + M2)
         self.tol_h = 1e-12 * h
         self.impacts = 0
-        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes)
+        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget)
 
     def check_coordinates(self, q):
         check("gap", q[2], lambda: 0.0 <= q[2] <= self.h, f"the gap must be in [0, h] = [0, {self.h!r}] (m)")
@@ -291,7 +296,8 @@ class StaticBacklashLoop(FeedbackLoop):
         q[2] += d
         return q
 
-    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None):
+    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None,
+                 budget=None):
         check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
         check("k", k, lambda: k > 0.0, "k must be > 0")
         check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
@@ -299,7 +305,7 @@ class StaticBacklashLoop(FeedbackLoop):
         check("v0", v0, True, "v0 must be a finite number (m/s)")
         self.M, self.k, self.h = M, k, h
         self.engagements = 0
-        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes)
+        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes, budget)
 
     def check_coordinates(self, q):
         play = q[0] - q[2] / self.k

@@ -203,3 +203,12 @@ def test_a_cycle_continued_in_the_gain_is_the_cycle_of_that_gain(stable_cycles):
     for key in ("omega", "amplitude_x", "F"):
         assert getattr(stiffer, key) == pytest.approx(getattr(reference, key), rel=1e-9)
     assert stiffer.omega < cycle.omega  # a stiffer PID hunts slower and smaller here
+
+
+def test_a_study_of_a_loop_too_stiff_for_its_budget_stops_in_one_line():
+    from dfwb.fmus.exact import PlantError
+
+    problem = LoopProblem("friction", "20 + 100/s + 2*s/(1e-4*s+1)", max_chunks=20_000)
+    with pytest.raises(PlantError, match="more than 20000 chunks"):
+        find_cycles(problem, [])
+    assert problem.budget.left < 0

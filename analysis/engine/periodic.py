@@ -39,6 +39,7 @@ import numpy as np
 from dfwb.base.errors import InputError
 from dfwb.engine.transfer import check_transfer_function
 from dfwb.fmus.exact import PlantError
+from dfwb.fmus.hybrid import Budget
 from dfwb.plants import plant as find_plant
 
 RESIDUAL_TOL = 1e-10  # |P(X) - X| / swing, at convergence
@@ -51,6 +52,7 @@ MAX_RETURN_PERIODS = 20.0  # a return to the section later than this many period
 SETTLE_RTOL = 1e-3  # successive section crossings this close (scaled): settled enough to shoot
 SAME_CYCLE = 1e-6  # two cycles with w and X this close (relative) are one
 LINK_FACTOR = 2.0  # a prediction and a true cycle within this factor in w and X may be linked
+MAX_CHUNKS = 2_000_000  # a problem's work (under a minute): the examples' loops need 2e4 to 2e5
 
 
 def _coefficients(G):
@@ -133,9 +135,12 @@ class LoopProblem:
         The controller (negative feedback), proper, order 1..8.
     params : dict, optional
         Plant parameters (initial-value parameters are ignored: starts are states).
+    max_chunks : int, optional
+        The work the problem may do, in Taylor chunks of the exact loop over
+        all its runs (about 10 to 30 us each); beyond, PlantError.
     """
 
-    def __init__(self, plant, G, params=None):
+    def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS):
         spec = find_plant(plant)
         if spec.loop is None:
             raise InputError(f"plant {spec.name!r} has no exact closed loop (--exact): it is available for "
@@ -151,6 +156,7 @@ class LoopProblem:
         self.params = {k: v for k, v in checked.items() if k not in self.cls.initial_parameters}
         self.output = self.cls.OUTPUT
         self._modes = {}  # section level -> the modes its solvers share (built once, not per period)
+        self.budget = Budget(max_chunks)  # every solver of this problem draws on it: the study's work is bounded
         self.solver(None)  # refuses the controller (order, coefficients) and the parameters now
 
     # -- solvers ----------------------------------------------------------------------
@@ -165,7 +171,7 @@ class LoopProblem:
         level = None if level is None else float(level)
         state = None if state is None else [float(x) for x in state]  # numpy scalars would slow the solver
         modes = self._modes.setdefault(level, {})
-        return self.cls(self.b, self.a, **self.params, state=state, section=level, modes=modes)
+        return self.cls(self.b, self.a, **self.params, state=state, section=level, modes=modes, budget=self.budget)
 
     def rest_start(self, position):
         """The state with the plant displaced by ``position`` (its output coordinate), all else at rest."""
@@ -542,7 +548,7 @@ def follow_gain(problem, cycle, gains):
         if previous is None:
             branch.append((k, None))
             continue
-        scaled = LoopProblem(problem.spec.name, k * problem.G, problem.params)
+        scaled = LoopProblem(problem.spec.name, k * problem.G, problem.params, problem.budget.total)
         previous = scaled.shoot(previous.state, previous.level, previous.period)
         branch.append((k, previous))
     return branch
