@@ -503,7 +503,7 @@ def main(argv=None):
     args = top.parse_args(argv)
     prog = f"dfwb {args.command}"
     if args.command in FIGURE_COMMANDS and (args.command != "limit-cycle" or args.plot):
-        from dfwb.plotting.plots import use_batch_backend
+        from dfwb.plotting.backend import use_batch_backend
 
         use_batch_backend()  # figures go to files, in batch: no display is needed
     shown = warnings.showwarning

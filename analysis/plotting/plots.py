@@ -13,20 +13,15 @@ import io
 import json
 from pathlib import Path
 
-import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
 from dfwb.base.files import write_atomic
+from dfwb.plotting.backend import use_batch_backend  # noqa: F401 (here too, for callers of plots)
 
 RE_INVERSE = "Re{-1/N} [N/m]"
 IM_INVERSE = "Im{-1/N} [N/m]"
 OMEGA = "omega [rad/s]"
-
-
-def use_batch_backend():
-    """Select matplotlib's Agg backend: figures are written to files, never shown (no display needed)."""
-    matplotlib.use("Agg")
 
 
 def get_axes(ax=None, **subplots):

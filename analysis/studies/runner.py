@@ -462,9 +462,6 @@ class SceneRun:
         return []
 
     def write_summary(self, data, cycles):
-        from dfwb.engine.closed_loop import judge_errors
-        from dfwb.engine.periodic import relative_errors
-
         o, scene = self.outcome, self.scene
         lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
         # every DF point is computed, resumed or a cache hit; cache_hits also counts traces and judge runs
@@ -506,6 +503,9 @@ class SceneRun:
             if not r["cycles"]:
                 lines.append("| no cycle in the ranges | | | | | | | |")
             if r["true_cycles"] or r["links"]:
+                from dfwb.engine.closed_loop import judge_errors
+                from dfwb.engine.periodic import relative_errors
+
                 lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
                           "multipliers), and the DF's relative errors against them:", "",
                           "| true w [rad/s] | amplitude | F [N] | stable | max multiplier | per period "
