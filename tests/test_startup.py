@@ -1,0 +1,48 @@
+"""What a cached re-run of a scene loads: never the heavy libraries it does not need.
+
+A scene whose points and figures are all in the cache, written into a new
+folder, only copies: it must not import python-control (only the limit
+cycles need it) nor pyplot (the figures come from the cache). Measured with
+the command line in a fresh process, as a user runs it.
+"""
+
+import os
+import subprocess
+import sys
+
+SCENE = """title = "two points"
+[[series]]
+name = "friction"
+plant = "friction"
+F = [10.0]
+omega = [1.0, 2.0]
+
+[[figure]]
+name = "nyquist"
+kind = "nyquist"
+series = ["friction"]
+"""
+
+PROBE = """
+import sys
+from dfwb.cli import main
+code = main(["run", sys.argv[1], "--out", sys.argv[2], "--cache", sys.argv[3], "--fmus", sys.argv[4]])
+print("LOADED", "control" in sys.modules, "matplotlib.pyplot" in sys.modules, code)
+"""
+
+
+def _run(tmp_path, scene, out, fmus):
+    env = dict(os.environ, MPLCONFIGDIR=str(tmp_path / "mpl"))
+    done = subprocess.run([sys.executable, "-c", PROBE, str(scene), str(out), str(tmp_path / "cache"), str(fmus)],
+                          capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.split("LOADED")[-1].split()
+
+
+def test_a_cached_rerun_imports_neither_control_nor_pyplot(fmus, tmp_path):
+    scene = tmp_path / "two.toml"
+    scene.write_text(SCENE)
+    folder = fmus["FrictionMass"].parent
+    assert _run(tmp_path, scene, tmp_path / "first", folder) == ["False", "True", "0"]  # it draws
+    assert _run(tmp_path, scene, tmp_path / "second", folder) == ["False", "False", "0"]
+    assert (tmp_path / "second" / "nyquist.png").stat().st_size > 10_000
