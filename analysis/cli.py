@@ -327,7 +327,7 @@ def _cache(args):
 
 def cmd_run(args):
     from dfwb.base.files import UnsafePath, inside
-    from dfwb.studies.runner import run_scene
+    from dfwb.studies.runner import phase_times, run_scene
     from dfwb.studies.scene import load_scene
 
     scenes = [(path, load_scene(path)) for path in args.scenes]  # every scene is checked before any runs
@@ -352,7 +352,7 @@ def cmd_run(args):
             others = o.cache_hits - df_hits
             print(f"{o.out_dir}/summary.md: {o.points} points ({o.computed} computed, {df_hits} cached, "
                   f"{o.resumed} resumed)" + (f", {others} trace(s) and closed-loop run(s) cached" if others else "")
-                  + f", {len(o.figures)} figure(s), {o.seconds:.1f} s")
+                  + f", {len(o.figures)} figure(s), {o.seconds:.1f} s ({phase_times(o.phases)})")
     return 0
 
 

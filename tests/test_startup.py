@@ -46,3 +46,15 @@ def test_a_cached_rerun_imports_neither_control_nor_pyplot(fmus, tmp_path):
     assert _run(tmp_path, scene, tmp_path / "first", folder) == ["False", "True", "0"]  # it draws
     assert _run(tmp_path, scene, tmp_path / "second", folder) == ["False", "False", "0"]
     assert (tmp_path / "second" / "nyquist.png").stat().st_size > 10_000
+
+
+def test_a_run_says_where_its_time_went(fmus, tmp_path):
+    from dfwb.studies.runner import phase_times, run_scene
+    from dfwb.studies.scene import parse_scene
+
+    outcome = run_scene(parse_scene(SCENE), tmp_path / "out", jobs=1, cache=tmp_path / "cache",
+                        fmu_dir=fmus["FrictionMass"].parent)
+    assert {"start", "points", "traces", "limit cycles", "results", "figures"} == set(outcome.phases)
+    assert 0.0 < sum(outcome.phases.values()) <= outcome.seconds
+    assert outcome.phases["figures"] > 0.0 and "figures" in phase_times(outcome.phases)
+    assert phase_times(outcome.phases) in (tmp_path / "out" / "summary.md").read_text()

@@ -13,7 +13,7 @@ from pathlib import Path
 from dfwb.base.files import read_bytes, write_atomic
 from dfwb.plants.closed_forms import validity_frequencies
 from dfwb.studies.paper import EPS_FIG8, EPS_FIG9, FRICTION_F
-from dfwb.studies.runner import run_scene
+from dfwb.studies.runner import phase_times, run_scene
 from dfwb.studies.scene import load_scene, shipped_scenes
 
 __all__ = ["run_paper", "paper_scenes", "write_report", "timing_line"]
@@ -107,13 +107,16 @@ def run_paper(out_dir="out/paper", jobs=None, fmu_dir=None, progress=True, repor
     earlier = earlier_seconds(out_dir)  # before anything is rewritten: a rerun keeps the computing run's time
     sections = []
     computed = 0
+    phases = {}
     for path, scene in paper_scenes():
         outcome = run_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress)
         sections += outcome.sections
         computed += outcome.computed
+        for name, value in outcome.phases.items():
+            phases[name] = phases.get(name, 0.0) + value
     sections.sort(key=lambda section: section[1].name)  # figure order
     seconds = time.perf_counter() - started
     path = write_report(out_dir, sections, seconds, computed, earlier)
     report(f"{path} and {len(sections)} figures written in {seconds:.1f} s"
-           + ("" if computed else " (from the cache)"))
+           + ("" if computed else " (from the cache)") + (f": {phase_times(phases)}" if phases else ""))
     return path
