@@ -1,0 +1,106 @@
+"""Compile dfwb's exact core in C (``fmus/native/*.c``) into a shared library for ctypes.
+
+:func:`build_core` compiles the sources with the system C compiler into
+``<out_dir>/libdfwb_core-<hash>.so``. The hash covers the compiler command,
+the flags and every source (name and contents), so a library whose name
+matches is reused as it is, and an edited source or flag builds a new one
+next to it. The library is written to a temporary name and renamed into
+place (atomic: a concurrent build or reader never sees half a file).
+
+Flags: ``-O2 -std=c99 -fPIC -shared``, with ``-ffp-contract=off`` (no fused
+multiply-add: every operation rounds as the Python oracle's does) and
+``-fvisibility=hidden`` (only the ``DFWB_API`` functions of ``dfwb_core.h``
+are exported); never ``-ffast-math``. The tests add ``-Wall -Wextra -Werror``.
+
+Examples
+--------
+>>> from dfwb.build_fmus.core import sources
+>>> [path.name for path in sources()]
+['dfwb_core.h', 'exact.c', 'exact.h', 'friction.c']
+"""
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from .builder import BuildError
+
+__all__ = ["build_core", "sources", "compiler", "NATIVE_DIR", "FLAGS", "CoreBuildError"]
+
+# dfwb.fmus's native/ folder: ../fmus next to this package, in a checkout and in an installed wheel alike
+NATIVE_DIR = Path(__file__).resolve().parent.parent / "fmus" / "native"
+FLAGS = ("-O2", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fvisibility=hidden")
+LIBS = ("-lm",)
+PREFIX = "libdfwb_core-"
+
+
+class CoreBuildError(BuildError):
+    """The C core cannot be compiled: no compiler, or the compiler failed (the message says which, in one line)."""
+
+
+def sources():
+    """The C sources and headers of the core, sorted by name."""
+    folder = NATIVE_DIR
+    found = sorted(path for path in folder.iterdir() if path.suffix in (".c", ".h")) if folder.is_dir() else []
+    if not any(path.suffix == ".c" for path in found):
+        raise CoreBuildError(f"no C sources of the core in {folder}")
+    return found
+
+
+def compiler():
+    """The C compiler as a command list: $CC, else cc, gcc or clang on PATH (CoreBuildError if none)."""
+    for name in ([os.environ["CC"]] if os.environ.get("CC") else []) + ["cc", "gcc", "clang"]:
+        words = name.split()
+        found = shutil.which(words[0]) if words else None
+        if found:
+            return [found] + words[1:]
+    raise CoreBuildError("building the C core needs a C compiler: no $CC, cc, gcc or clang on PATH")
+
+
+def _digest(command, files):
+    h = hashlib.sha256()
+    h.update("\0".join(command).encode())
+    for path in files:
+        h.update(b"\0" + path.name.encode() + b"\0")
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def build_core(out_dir, extra_flags=()):
+    """Compile the core into ``out_dir/libdfwb_core-<hash>.so`` (reused if present) and return its path.
+
+    ``extra_flags`` are added to :data:`FLAGS` (and to the hash), e.g.
+    ``("-Wall", "-Wextra", "-Werror")``. Raises :class:`CoreBuildError` (a
+    ``dfwb.build_fmus.BuildError``, hence a ``DfwbError``) with a one-line
+    message when no compiler is found or the compilation fails.
+    """
+    out_dir = Path(out_dir)
+    files = sources()
+    cc = compiler()
+    flags = list(FLAGS) + [str(flag) for flag in extra_flags]
+    target = out_dir / f"{PREFIX}{_digest(cc + flags + list(LIBS), files)}.so"
+    if target.is_file():
+        return target
+    out_dir.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=".so.tmp", dir=out_dir)
+    os.close(handle)
+    try:
+        command = cc + flags + ["-o", temporary] + [str(p) for p in files if p.suffix == ".c"] + list(LIBS)
+        try:
+            run = subprocess.run(command, capture_output=True, text=True, cwd=files[0].parent)
+        except OSError as error:
+            raise CoreBuildError(f"compiling the C core failed: {' '.join(cc)}: {error}") from None
+        if run.returncode != 0:
+            lines = [line.strip() for line in run.stderr.splitlines() if line.strip()]
+            first = next((line for line in lines if "error" in line), lines[0] if lines else "no message")
+            raise CoreBuildError(f"compiling the C core failed (exit {run.returncode}, "
+                                 f"{len(lines)} lines of diagnostics): {first}")
+        os.chmod(temporary, 0o755)
+        os.replace(temporary, target)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+    return target
