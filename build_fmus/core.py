@@ -1,4 +1,4 @@
-"""Compile dfwb's exact core in C (``fmus/native/*.c``) into a shared library for ctypes.
+"""Compile dfwb's exact plant solvers in C (``fmus/native/*.c``) into a shared library for ctypes.
 
 :func:`build_core` compiles the sources with the system C compiler into
 ``<out_dir>/libdfwb_core-<hash>.so``. The hash covers the compiler command,
@@ -16,7 +16,7 @@ Examples
 --------
 >>> from dfwb.build_fmus.core import sources
 >>> [path.name for path in sources()]
-['dfwb_core.h', 'exact.c', 'exact.h', 'friction.c']
+['backlash.c', 'dfwb_core.h', 'exact.c', 'exact.h', 'friction.c', 'plant.c', 'plant.h', 'static_backlash.c']
 """
 
 import hashlib

@@ -7,12 +7,15 @@ grid of amplitudes, frequencies and Karnopp bands), they count the same
 events at every communication point and give outputs and Fourier integrals
 equal to 1e-13 relative (in practice bit for bit; the share is printed).
 Every refusal of the Python solver is a refusal of the C core, with the same
-message; a copy continues exactly as the original. The library is compiled
-once per session with -Wall -Wextra -Werror.
+message; a copy (copy(), copy.copy, copy.deepcopy, pickle, the state as bytes)
+continues exactly as the original, and the event log equals Python's. The
+library is compiled once per session with -Wall -Wextra -Werror. (The state
+bytes' refusals and fuzzing, for all three plants: tests/test_native_backlash.py.)
 """
 
 import copy
 import math
+import pickle
 import random
 import shutil
 import statistics
@@ -96,8 +99,9 @@ class Agreement:
                 f"({100 * share:.4f} %), max relative difference {self.worst:.3g}")
 
 
-def _step_both(case, core, agreement, where):
-    """Run the Python and the C solver through a stress case's points (inputs set before each step)."""
+def _step_both(case, core, agreement, where, restore=False):
+    """Run the Python and the C solver through a stress case's points (inputs set before each step); with
+    ``restore`` the C solver is replaced by one read back from its state bytes at every point."""
     a, b = FrictionMass(**case.params), core.FrictionMass(**case.params)
     agreement.compare(f"{where} t=0", a, b)
     for j, t in enumerate(case.times):
@@ -107,6 +111,10 @@ def _step_both(case, core, agreement, where):
         a.advance(t)
         b.advance(t)
         agreement.compare(f"{where} t={t!r}", a, b)
+        if restore:
+            data = b.to_bytes()
+            b = type(b).from_bytes(data)
+            assert b.to_bytes() == data, f"{where} t={t!r}: the state read back writes other bytes"
     return a, b
 
 
@@ -304,20 +312,50 @@ def test_copy_continues_identically(core):
         plant.advance(3.3 * period)
         plant.set_input(2.0)
         plant.advance(5.1 * period)
-    python_copy, native_copy, native_copy2 = copy.deepcopy(python), native.copy(), copy.copy(native)
-    assert type(native_copy) is type(native)
+    python_copy = copy.deepcopy(python)
+    clones = {"copy()": native.copy(), "copy.copy": copy.copy(native), "copy.deepcopy": copy.deepcopy(native),
+              "pickle": pickle.loads(pickle.dumps(native)), "from_bytes": type(native).from_bytes(native.to_bytes())}
+    assert all(type(clone) is type(native) for clone in clones.values())
     native.set_input(-50.0)  # the original moves on: the copies must not
     native.advance(9.0 * period)
     agreement = Agreement()
     for j, k in enumerate(range(1, 97)):
         t = 5.1 * period + k * period / 16
-        for plant in (python_copy, native_copy, native_copy2):
+        for plant in [python_copy, *clones.values()]:
             plant.set_input(3.0 * math.sin(j / 5.0))
             plant.advance(t)
-        agreement.compare(f"copy t={t!r}", python_copy, native_copy)
-        agreement.compare(f"copy.copy t={t!r}", python_copy, native_copy2)
-    assert agreement.events > 30
-    assert native.events != native_copy.events or native.output() != native_copy.output()
+        for how, clone in clones.items():
+            agreement.compare(f"{how} t={t!r}", python_copy, clone)
+    assert agreement.events > 30 and agreement.identical == agreement.values
+    assert native.events != clones["copy()"].events or native.output() != clones["copy()"].output()
+
+
+def test_state_round_trip_continues_identically(core, friction_cases):
+    """At every point of every other friction stress case the C solver is replaced by one read back from
+    its bytes: the run stays identical to Python's (no honest state is refused, nothing is lost)."""
+    agreement = Agreement()
+    for case in friction_cases[0][::2]:
+        _step_both(case, core, agreement, case.note, restore=True)
+    print(f"\n{agreement.summary('friction restored from bytes at every point')}")
+    assert agreement.identical == agreement.values and agreement.points > 5000
+
+
+def test_event_log_equals_python(core, friction_cases):
+    """Every counted event as (t, EventKind), to the bit and in order, as FrictionMass.event_log has it."""
+    logged = 0
+    for case in friction_cases[0][::3]:
+        logs = []
+        for plant in (FrictionMass(**case.params), core.FrictionMass(**case.params)):
+            plant.event_log = []
+            for j, t in enumerate(case.times):
+                if case.inputs is not None:
+                    plant.set_input(case.inputs[j])
+                plant.advance(t)
+            assert len(plant.event_log) == plant.events
+            logs.append([(_bits(t), kind) for t, kind in plant.event_log])
+        assert logs[1] == logs[0], case.note
+        logged += len(logs[0])
+    assert logged > 200
 
 
 # -- the binding -------------------------------------------------------------------------
@@ -329,10 +367,12 @@ def test_solver_protocol(core):
     assert plant.integrals() == [0j] * 11
     assert NativeFrictionMass(harmonics=2, core=core).integrals() == [0j] * 3
     assert load(core.path) is core
-    with pytest.raises(TypeError, match="cannot be pickled"):
-        import pickle
-
-        pickle.dumps(plant)
+    assert plant.period == 2 * math.pi and plant.event_log is None
+    drive = core.FrictionMass(F=-2.0, f=1.0, omega=3.0).drive  # a negative amplitude: a phase shift of pi
+    assert (drive.f, drive.F, drive.omega, drive.phi) == (1.0, 2.0, 3.0, math.pi)
+    plant.advance(1.0)
+    clone = pickle.loads(pickle.dumps(plant))
+    assert type(clone) is type(plant) and clone.to_bytes() == plant.to_bytes() and clone.t == 1.0
 
 
 def test_build_reuses_and_refuses(core, tmp_path, monkeypatch):

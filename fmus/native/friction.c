@@ -15,23 +15,19 @@
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "plant.h"
 
 enum { HOLD, SLIDE, PUSH };
 
-/* EventKind (fmus/contract.py); NONE: a piece without an analytic event */
-enum { KIND_NONE, BREAK_UP, BREAK_DOWN, RELEASE, EDGE, BAND };
-
-static const char *kind_name(int kind)
-{
-    switch (kind) {
-    case BREAK_UP: return "break+";
-    case BREAK_DOWN: return "break-";
-    case RELEASE: return "release";
-    case EDGE: return "edge";
-    case BAND: return "band";
-    default: return "None";
-    }
-}
+/* EventKind (fmus/contract.py, DFWB_EVENT_*); NONE: a piece without an analytic event */
+enum {
+    KIND_NONE = 0,
+    BREAK_UP = DFWB_EVENT_BREAK_UP,
+    BREAK_DOWN = DFWB_EVENT_BREAK_DOWN,
+    RELEASE = DFWB_EVENT_RELEASE,
+    EDGE = DFWB_EVENT_EDGE,
+    BAND = DFWB_EVENT_BAND
+};
 
 /* A pending search on the piece's own motion: VelocitySearch(motion, sign, offset) with the bound
  * K (a number) or, when ``bounded``, CurvatureBound(motion) (a function of t). */
@@ -64,6 +60,7 @@ struct dfwb_friction {
     int found_kind;
     dfwb_cx integrals[DFWB_HARMONICS_MAX + 1];
     dfwb_stack stack; /* first_root's workspace (not copied) */
+    dfwb_log log;     /* the caller's event log (not state) */
 };
 
 /* the search functions on the piece's motion (ctx: the instance) */
@@ -80,36 +77,9 @@ static double curvature_bound(const void *ctx, double t, dfwb_err *err)
     return dfwb_motion_curvature_bound(&((const dfwb_friction *)ctx)->output, 1, t, err);
 }
 
-static void err_init(dfwb_err *err, char *buf, size_t len)
-{
-    err->buf = buf;
-    err->len = len;
-    err->code = DFWB_OK;
-    err->overflow = NULL;
-    if (buf != NULL && len > 0)
-        buf[0] = '\0';
-}
-
-/* The status an API call returns: an overflow first (Python raised OverflowError there), else the refusal. */
-static int err_finish(dfwb_err *err, int rc)
-{
-    if (err->overflow != NULL) {
-        const char *message = err->overflow;
-        err->code = DFWB_OK; /* the overflow came first: its message replaces a later refusal's */
-        return dfwb_fail(err, DFWB_E_MATH, "%s", message);
-    }
-    return rc;
-}
-
-/* check(name, value, ok, allowed): refused unless a finite number and ok. */
-static int check(dfwb_err *err, const char *name, double value, int ok, const char *allowed)
-{
-    char r[DFWB_REPR_SIZE];
-    if (isfinite(value) && ok)
-        return DFWB_OK;
-    dfwb_repr(value, r);
-    return dfwb_fail(err, DFWB_E_VALUE, "%s = %s is out of range: %s", name, r, allowed);
-}
+#define err_init dfwb_err_init
+#define err_finish dfwb_err_finish
+#define check dfwb_check
 
 /* -- pieces ------------------------------------------------------------------------------- */
 static void begin(dfwb_friction *p, double t, double analytic, int analytic_kind)
@@ -460,7 +430,7 @@ int dfwb_friction_advance(dfwb_friction *p, double t_end, char *errbuf, size_t e
         int has, kind;
         double t_event;
         rc = next_event(p, t_end, &has, &t_event, &kind, &err);
-        if (rc != DFWB_OK || !has)
+        if (rc != DFWB_OK || !has || err.overflow != NULL)
             break;
         fired += 1.0;
         if (fired > limit) {
@@ -470,15 +440,16 @@ int dfwb_friction_advance(dfwb_friction *p, double t_end, char *errbuf, size_t e
             rc = dfwb_fail(&err, DFWB_E_LIMIT,
                            "more than %d events per period between t = %s and t = %s (last event: %s); the "
                            "motion chatters below the plant's resolution",
-                           DFWB_EVENTS_PER_PERIOD_LIMIT, rt, rte, kind_name(kind));
+                           DFWB_EVENTS_PER_PERIOD_LIMIT, rt, rte, dfwb_event_name(kind));
             break;
         }
         rc = fire(p, t_event, kind, &err);
-        if (rc != DFWB_OK)
+        if (rc != DFWB_OK || err.overflow != NULL) /* Python raised there: not counted */
             break;
         p->events += 1; /* every friction event changes the motion */
+        dfwb_log_add(&p->log, t_event, kind);
     }
-    if (rc == DFWB_OK)
+    if (rc == DFWB_OK && err.overflow == NULL)
         p->t = t_end;
     return err_finish(&err, rc);
 }
@@ -519,6 +490,14 @@ long long dfwb_friction_events(const dfwb_friction *p) { return p == NULL ? -1 :
 
 int dfwb_friction_harmonics(const dfwb_friction *p) { return p == NULL ? -1 : p->harmonics; }
 
+double dfwb_friction_period(const dfwb_friction *p) { return p == NULL ? NAN : p->period; }
+
+void dfwb_friction_drive(const dfwb_friction *p, double out[4])
+{
+    if (p != NULL && out != NULL)
+        dfwb_drive_values(&p->drive, out);
+}
+
 dfwb_friction *dfwb_friction_copy(const dfwb_friction *p)
 {
     dfwb_friction *q;
@@ -530,6 +509,10 @@ dfwb_friction *dfwb_friction_copy(const dfwb_friction *p)
     memcpy(q, p, sizeof *q);
     q->stack.data = NULL; /* a workspace of its own */
     q->stack.cap = 0;
+    if (!dfwb_log_copy(&q->log, &p->log)) {
+        free(q);
+        return NULL;
+    }
     return q;
 }
 
@@ -538,5 +521,190 @@ void dfwb_friction_free(dfwb_friction *p)
     if (p == NULL)
         return;
     dfwb_stack_free(&p->stack);
+    dfwb_log_free(&p->log);
     free(p);
+}
+
+void dfwb_friction_log(dfwb_friction *p, size_t capacity)
+{
+    if (p != NULL)
+        dfwb_log_enable(&p->log, capacity);
+}
+
+size_t dfwb_friction_log_read(dfwb_friction *p, double *t, int *kind, size_t max)
+{
+    return p == NULL ? 0 : dfwb_log_read(&p->log, t, kind, max);
+}
+
+unsigned long long dfwb_friction_log_dropped(const dfwb_friction *p) { return p == NULL ? 0 : p->log.dropped; }
+
+/* -- state as bytes ---------------------------------------------------------------------------- */
+static void state_io(dfwb_io *io, dfwb_friction *p)
+{
+    int k;
+    if (!io->reading) { /* canonical bytes: nothing stale */
+        if (!p->nsearch)
+            memset(&p->search, 0, sizeof p->search);
+        if (!p->has_found) {
+            p->found_t = 0.0;
+            p->found_kind = 0;
+        }
+    }
+    dfwb_io_f64(io, &p->M);
+    dfwb_io_f64(io, &p->B);
+    dfwb_io_f64(io, &p->Fc);
+    dfwb_io_f64(io, &p->Fs);
+    dfwb_io_f64(io, &p->Dv);
+    dfwb_io_f64(io, &p->drive.f);
+    dfwb_io_f64(io, &p->drive.F);
+    dfwb_io_f64(io, &p->drive.omega);
+    dfwb_io_f64(io, &p->drive.phi);
+    dfwb_io_int(io, &p->harmonics);
+    dfwb_io_f64(io, &p->t);
+    dfwb_io_i64(io, &p->events);
+    dfwb_io_int(io, &p->mode);
+    dfwb_io_int(io, &p->direction);
+    dfwb_io_f64(io, &p->t_piece);
+    dfwb_io_motion(io, &p->output);
+    dfwb_io_f64(io, &p->analytic);
+    dfwb_io_int(io, &p->analytic_kind);
+    dfwb_io_int(io, &p->nsearch);
+    dfwb_io_f64(io, &p->search.sign);
+    dfwb_io_f64(io, &p->search.offset);
+    dfwb_io_int(io, &p->search.bounded);
+    dfwb_io_f64(io, &p->search.K);
+    dfwb_io_f64(io, &p->search.t_from);
+    dfwb_io_int(io, &p->search.kind);
+    dfwb_io_f64(io, &p->searched);
+    dfwb_io_int(io, &p->has_found);
+    dfwb_io_f64(io, &p->found_t);
+    dfwb_io_int(io, &p->found_kind);
+    for (k = 0; k <= DFWB_HARMONICS_MAX; k++) {
+        dfwb_io_f64(io, &p->integrals[k].re);
+        dfwb_io_f64(io, &p->integrals[k].im);
+    }
+}
+
+static size_t payload_size(void)
+{
+    dfwb_friction scratch;
+    dfwb_io io;
+    memset(&scratch, 0, sizeof scratch);
+    dfwb_io_writer(&io, NULL);
+    state_io(&io, &scratch);
+    return io.pos;
+}
+
+int dfwb_friction_to_bytes(const dfwb_friction *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
+                           size_t errlen)
+{
+    dfwb_err err;
+    dfwb_friction copy;
+    dfwb_io io;
+    const size_t payload = payload_size(), needed = DFWB_STATE_HEADER + payload;
+    int rc;
+    err_init(&err, errbuf, errlen);
+    if (size == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_friction_to_bytes: NULL size");
+    *size = needed;
+    if (buf == NULL) /* a size query (p may be NULL) */
+        return DFWB_OK;
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_friction_to_bytes: NULL instance");
+    rc = dfwb_state_buffer(needed, buflen, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    copy = *p; /* canonicalised while written: p stays as it is */
+    dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
+    state_io(&io, &copy);
+    dfwb_state_header(buf, DFWB_PLANT_FRICTION, payload);
+    return DFWB_OK;
+}
+
+static int validate(dfwb_friction *p, dfwb_err *err)
+{
+    const search_t *s = &p->search;
+    int rc;
+    p->stack.data = NULL;
+    p->stack.cap = 0;
+    memset(&p->log, 0, sizeof p->log);
+    if ((rc = dfwb_state_check(err, "M", p->M, isfinite(p->M) && p->M > 0.0, "must be > 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "B", p->B, isfinite(p->B) && p->B >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "Fc", p->Fc, isfinite(p->Fc) && p->Fc >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "Fs", p->Fs, isfinite(p->Fs) && p->Fs >= p->Fc, "must be >= Fc")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "Dv", p->Dv, isfinite(p->Dv) && p->Dv >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check_common(&p->drive, p->harmonics, p->t, p->events, err)) != DFWB_OK)
+        return rc;
+    p->period = DFWB_TWO_PI / p->drive.omega;
+    p->edge_force = p->Fc + p->B * p->Dv;
+    if ((rc = dfwb_state_check_integrals(p->integrals, p->harmonics, err)) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "mode", p->mode, p->mode == HOLD || p->mode == SLIDE || p->mode == PUSH,
+                                      "must be 0 (hold), 1 (slide) or 2 (push)")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "direction", p->direction, -1 <= p->direction && p->direction <= 1,
+                                      "must be -1, 0 or 1")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "has_found", p->has_found, p->has_found == 0 || p->has_found == 1,
+                                      "must be 0 or 1")) != DFWB_OK
+        || (rc = dfwb_state_check_piece(p->t, p->period, p->t_piece, p->searched, p->analytic, p->has_found,
+                                        p->found_t, err)) != DFWB_OK
+        || (rc = dfwb_state_motion(&p->output, "output", &p->drive, p->t, err)) != DFWB_OK
+        || (rc = dfwb_state_check(err, "output motion's t0", p->output.t0, p->output.t0 == p->t_piece,
+                                  "must be the piece's start t_piece")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "analytic_kind", p->analytic_kind, p->analytic_kind == KIND_NONE
+                                      || p->analytic_kind == BREAK_UP || p->analytic_kind == BREAK_DOWN
+                                      || p->analytic_kind == RELEASE, "must be none, break+, break- or release"))
+               != DFWB_OK)
+        return rc;
+    if (!isinf(p->analytic) && p->analytic_kind == KIND_NONE)
+        return dfwb_fail(err, DFWB_E_STATE, "the state's analytic event is out of range: a finite one has a kind");
+    if (!(p->mode == HOLD ? p->nsearch == 0 && p->direction == 0
+          : p->nsearch == 1 && p->direction != 0
+                && s->kind == (p->mode == PUSH ? EDGE : BAND)
+                && (p->mode == PUSH ? p->analytic_kind == RELEASE : p->analytic_kind == KIND_NONE)))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's piece is out of range: its searches and events do not "
+                         "match its mode");
+    if (p->nsearch) {
+        if (!((s->sign == 1.0 || s->sign == -1.0) && isfinite(s->offset) && (s->bounded == 0 || s->bounded == 1)
+              && s->K >= 0.0 /* +inf allowed */ && s->t_from >= p->t_piece /* +inf allowed */))
+            return dfwb_fail(err, DFWB_E_STATE, "the state's search is out of range: needs sign +-1, a finite "
+                             "offset, K >= 0 and t_from >= t_piece");
+        if (p->has_found && p->found_kind != s->kind)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's found event is out of range: its kind is not the "
+                             "search's");
+    } else {
+        if (s->sign != 0.0 || s->offset != 0.0 || s->bounded != 0 || s->K != 0.0 || s->t_from != 0.0 || s->kind != 0)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's search is out of range: an unused search must be zeros");
+        if (p->has_found)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's found event is out of range: there is no search");
+    }
+    if (!p->has_found && !(p->found_t == 0.0 && p->found_kind == 0))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's found event is out of range: must be 0 when none is found");
+    return DFWB_OK;
+}
+
+int dfwb_friction_from_bytes(const unsigned char *buf, size_t len, dfwb_friction **out, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_friction *p;
+    dfwb_io io;
+    const size_t payload = payload_size();
+    int rc;
+    err_init(&err, errbuf, errlen);
+    if (out == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_friction_from_bytes: NULL out");
+    *out = NULL;
+    rc = dfwb_state_open(buf, len, DFWB_PLANT_FRICTION, payload, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    p = (dfwb_friction *)calloc(1, sizeof *p);
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_friction)");
+    dfwb_io_reader(&io, buf + DFWB_STATE_HEADER, payload);
+    state_io(&io, p);
+    rc = io.bad_int ? dfwb_fail(&err, DFWB_E_STATE, "the state holds an integer field out of range") : validate(p, &err);
+    if (rc != DFWB_OK) {
+        dfwb_friction_free(p);
+        return rc;
+    }
+    *out = p;
+    return DFWB_OK;
 }

@@ -1,0 +1,469 @@
+/* backlash.c - two masses with a clearance and impacts, integrated exactly: a port of fmus/backlash.py
+ * (TwoMassBacklash) on the piece machinery of plant.c. The API is documented in dfwb_core.h.
+ *
+ * M2 carries the force u = f + F cos(omega t + phi); M1 is free; the gap g = x2 - x1 stays in [0, h].
+ * The state is the centre of mass (one closed form the impacts never touch) and the relative motion
+ * (g, w = g'), g'' = u / M2 between impacts, which are first zeros of the closed-form gap at 0 and h.
+ * An impact is w -> -eps w; when u presses the masses together and the next bounce would rise less than
+ * tol_h = 1e-12 h, they move together until u pulls them apart (an analytic crossing of zero). Leaving a
+ * wall, the gap cannot return to it before the separation speed falls to zero: that apex is searched
+ * first (an uncounted event).
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dfwb_core.h"
+#include "exact.h"
+#include "plant.h"
+
+#define MIN_CLEARANCE 1e-290 /* m: the Zeno tolerance 1e-12 h stays a normal float */
+#define MIN_CLEARANCE_TEXT "1e-290"
+
+enum { FREE = 0, LOWER = 1, UPPER = 2 }; /* the contact output: free, at gap 0, at gap h */
+
+struct dfwb_backlash {
+    dfwb_pw pw; /* first: the piece machinery (its output is x1) */
+    double M1, M2, h, eps, total, r1, r2, tol_h;
+    long long impacts;
+    int contact, departing;
+    dfwb_motion cm;  /* the centre of mass */
+    dfwb_motion gap; /* the relative motion while free (the searches' subject) */
+};
+
+/* SIDE: sigma of a boundary, pressing into it means sigma u > 0 (FREE: 0) */
+static int side_sigma(int side) { return side == LOWER ? -1 : (side == UPPER ? 1 : 0); }
+
+static double wall_of(const dfwb_backlash *p, int side) { return side == LOWER ? 0.0 : p->h; }
+
+/* -- state ---------------------------------------------------------------------------- */
+static void centre(dfwb_backlash *p, double t, double x_cm, double v_cm)
+{
+    const dfwb_drive *d = &p->pw.drive;
+    dfwb_motion_init(&p->cm, t, x_cm, v_cm, 0.0, d->f / p->total, d->F / p->total, d->omega, d->phi);
+}
+
+/* (g, w) at t */
+static void relative(const dfwb_backlash *p, double t, double *g, double *w)
+{
+    if (p->contact == FREE) {
+        dfwb_motion_state(&p->gap, t, g, w);
+        return;
+    }
+    *g = wall_of(p, p->contact);
+    *w = 0.0;
+}
+
+/* -- pieces ------------------------------------------------------------------------------ */
+/* x1's closed form from t: free (a = b = 0) or riding with the centre of mass. */
+static void output_motion(const dfwb_backlash *p, dfwb_motion *m, double t, double g, double w, double a, double b)
+{
+    const dfwb_drive *d = &p->pw.drive;
+    double x_cm, v_cm;
+    dfwb_motion_state(&p->cm, t, &x_cm, &v_cm);
+    dfwb_motion_init(m, t, x_cm - p->r2 * g, v_cm - p->r2 * w, 0.0, a, b, d->omega, d->phi);
+}
+
+static void boundary_searches(dfwb_backlash *p, double t, int skip)
+{
+    const double K = fabs(p->gap.a) + fabs(p->gap.b);
+    if (skip != -1) /* g, w */
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_POSITION, 1.0, 0, 0.0, K, t, DFWB_EVENT_WALL_LOWER);
+    if (skip != 1) /* h - g, -w */
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_POSITION, 1.0, 1, p->h, K, t, DFWB_EVENT_WALL_UPPER);
+}
+
+/* Flight; departing = sigma of the boundary just left (0: none). */
+static int free_flight(dfwb_backlash *p, double t, double g, double w, int departing, dfwb_err *err)
+{
+    const dfwb_drive *d = &p->pw.drive;
+    dfwb_motion out;
+    p->contact = FREE;
+    p->departing = departing;
+    dfwb_motion_init(&p->gap, t, g, w, 0.0, d->f / p->M2, d->F / p->M2, d->omega, d->phi);
+    output_motion(p, &out, t, g, w, 0.0, 0.0);
+    dfwb_pw_begin(&p->pw, t, &out, INFINITY, 0);
+    boundary_searches(p, t, departing);
+    if (departing) {
+        /* the gap cannot return to the boundary it left before the separation speed -sigma w falls to 0 */
+        const double sep = -(double)departing * w;
+        double t_from = t, K;
+        if (!(sep > 0.0)) {
+            const int rc = dfwb_drive_crossing(d, t, 0.0, departing > 0, &t_from, err);
+            if (rc != DFWB_OK)
+                return rc;
+        }
+        K = dfwb_motion_curvature_bound(&p->gap, 0, 0.0, err);
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, -(double)departing, 0, 0.0, K, t_from, DFWB_EVENT_APEX);
+    }
+    return DFWB_OK;
+}
+
+/* The masses move together until u stops pressing them into the boundary. */
+static int contact(dfwb_backlash *p, double t, int side, dfwb_err *err)
+{
+    const dfwb_drive *d = &p->pw.drive;
+    dfwb_motion out;
+    double t_release;
+    int rc;
+    p->contact = side;
+    p->departing = 0;
+    output_motion(p, &out, t, wall_of(p, side), 0.0, d->f / p->total, d->F / p->total);
+    rc = dfwb_drive_crossing(d, t, 0.0, side_sigma(side) < 0, &t_release, err);
+    if (rc != DFWB_OK)
+        return rc;
+    dfwb_pw_begin(&p->pw, t, &out, t_release, DFWB_EVENT_RELEASE);
+    return DFWB_OK;
+}
+
+/* Impact (if closing), then contact or a flight away from the boundary. */
+static int at_boundary(dfwb_backlash *p, double t, int side, double w, dfwb_err *err)
+{
+    const dfwb_drive *d = &p->pw.drive;
+    const int sigma = side_sigma(side);
+    double u;
+    int pressing, pulling;
+    if ((double)sigma * w > 0.0) {
+        w = -p->eps * w;
+        p->impacts += 1;
+    }
+    u = dfwb_drive_u(d, t);
+    pressing = sigma > 0 ? dfwb_drive_above(d, t, 0.0) : dfwb_drive_below(d, t, 0.0);
+    pulling = sigma > 0 ? dfwb_drive_below(d, t, 0.0) : dfwb_drive_above(d, t, 0.0);
+    if ((w == 0.0 && !pulling) || (pressing && 0.5 * w * w * p->M2 <= p->tol_h * fabs(u)))
+        return contact(p, t, side, err);
+    return free_flight(p, t, wall_of(p, side), w, sigma, err);
+}
+
+static int start(dfwb_backlash *p, double t, double g, double w, dfwb_err *err)
+{
+    if (g <= 0.0)
+        return at_boundary(p, t, LOWER, w, err);
+    if (g >= p->h)
+        return at_boundary(p, t, UPPER, w, err);
+    return free_flight(p, t, g, w, 0, err);
+}
+
+/* -- events ---------------------------------------------------------------------------- */
+static int fire(void *plant, double t, int kind, int *counted, dfwb_err *err)
+{
+    dfwb_backlash *p = (dfwb_backlash *)plant;
+    double g, w;
+    if (kind == DFWB_EVENT_APEX) {
+        p->departing = 0;
+        dfwb_pw_set_searches(&p->pw, t);
+        boundary_searches(p, t, 0);
+        *counted = 0;
+        return DFWB_OK;
+    }
+    relative(p, t, &g, &w);
+    dfwb_pw_close_piece(&p->pw, t, err);
+    *counted = 1;
+    if (kind == DFWB_EVENT_RELEASE) {
+        const int side = p->contact;
+        return free_flight(p, t, wall_of(p, side), 0.0, side_sigma(side), err);
+    }
+    return at_boundary(p, t, kind == DFWB_EVENT_WALL_LOWER ? LOWER : UPPER, w, err);
+}
+
+static int restart(void *plant, double t, dfwb_err *err)
+{
+    dfwb_backlash *p = (dfwb_backlash *)plant;
+    double g, w, x_cm, v_cm;
+    relative(p, t, &g, &w);
+    dfwb_motion_state(&p->cm, t, &x_cm, &v_cm);
+    centre(p, t, x_cm, v_cm); /* the new input changes the centre's closed form */
+    if (p->contact != FREE)
+        return at_boundary(p, t, p->contact, 0.0, err);
+    if (p->departing && -(double)p->departing * w <= 0.0) /* still at the wall it was leaving: the force decides */
+        return at_boundary(p, t, p->departing < 0 ? LOWER : UPPER, w, err);
+    if (p->departing)
+        return free_flight(p, t, g, w, p->departing, err);
+    return start(p, t, g, w, err);
+}
+
+/* -- API ------------------------------------------------------------------------------------ */
+int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_backlash *p;
+    double M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics;
+    char rh[DFWB_REPR_SIZE], allowed[96];
+    int rc;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (out == NULL || params == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_new: NULL params or out");
+    *out = NULL;
+    M1 = params[0], M2 = params[1], h = params[2], eps = params[3], F = params[4], omega = params[5];
+    phi = params[6], x1_0 = params[7], v1_0 = params[8], v2_0 = params[9], gap0 = params[10], f = params[11];
+    harmonics = params[12];
+    if ((rc = dfwb_check(&err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "h", h, h >= MIN_CLEARANCE, "h must be >= " MIN_CLEARANCE_TEXT " (m)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "eps", eps, 0.0 <= eps && eps <= 1.0, "eps must be in [0, 1]")) != DFWB_OK)
+        return rc;
+    dfwb_repr(h, rh); /* h is valid here */
+    strcpy(allowed, "gap0 must be in [0, h] = [0, ");
+    strcat(allowed, rh);
+    strcat(allowed, "] (m)");
+    if ((rc = dfwb_check(&err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
+        || (rc = dfwb_check(&err, "x1_0", x1_0, 1, "x1_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check(&err, "v1_0", v1_0, 1, "v1_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check(&err, "v2_0", v2_0, 1, "v2_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK)
+        return rc;
+    p = (dfwb_backlash *)calloc(1, sizeof *p);
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_backlash)");
+    dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
+    p->M1 = M1, p->M2 = M2, p->h = h, p->eps = eps;
+    p->total = M1 + M2;
+    p->r1 = M1 / p->total; /* x1 = x_cm - r2 g, x2 = x_cm + r1 g */
+    p->r2 = M2 / p->total;
+    p->tol_h = 1e-12 * h;
+    p->impacts = 0;
+    p->contact = FREE;
+    p->departing = 0;
+    centre(p, 0.0, x1_0 + p->r2 * gap0, p->r1 * v1_0 + p->r2 * v2_0);
+    rc = dfwb_err_finish(&err, start(p, 0.0, gap0, v2_0 - v1_0, &err));
+    if (rc != DFWB_OK) {
+        dfwb_backlash_free(p);
+        return rc;
+    }
+    *out = p;
+    return DFWB_OK;
+}
+
+int dfwb_backlash_set_input(dfwb_backlash *p, double f, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_set_input: NULL instance");
+    return dfwb_err_finish(&err, dfwb_pw_set_input(&p->pw, f, restart, p, &err));
+}
+
+int dfwb_backlash_advance(dfwb_backlash *p, double t_end, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_advance: NULL instance");
+    return dfwb_err_finish(&err, dfwb_pw_advance(&p->pw, t_end, &p->gap, fire, p, &err));
+}
+
+void dfwb_backlash_output(const dfwb_backlash *p, double out[5])
+{
+    double x1, v1, g, w, x_cm, v_cm;
+    const double t = p == NULL ? 0.0 : p->pw.t;
+    if (p == NULL || out == NULL)
+        return;
+    dfwb_motion_state(&p->pw.output, t, &x1, &v1);
+    relative(p, t, &g, &w);
+    out[0] = x1;
+    out[1] = v1;
+    out[4] = g;
+    if (p->contact != FREE) { /* riding together: one closed form for both */
+        out[2] = x1 + g;
+        out[3] = v1;
+        return;
+    }
+    dfwb_motion_state(&p->cm, t, &x_cm, &v_cm);
+    out[2] = x_cm + p->r1 * g;
+    out[3] = v_cm + p->r1 * w;
+}
+
+int dfwb_backlash_integrals(const dfwb_backlash *p, double *re, double *im, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (p == NULL || re == NULL || im == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_integrals: NULL instance or array");
+    dfwb_pw_integrals(&p->pw, re, im, &err);
+    return dfwb_err_finish(&err, DFWB_OK);
+}
+
+double dfwb_backlash_time(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.t; }
+
+long long dfwb_backlash_events(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.events; }
+
+int dfwb_backlash_harmonics(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
+
+double dfwb_backlash_period(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.period; }
+
+void dfwb_backlash_drive(const dfwb_backlash *p, double out[4])
+{
+    if (p != NULL && out != NULL)
+        dfwb_drive_values(&p->pw.drive, out);
+}
+
+int dfwb_backlash_contact(const dfwb_backlash *p) { return p == NULL ? -1 : p->contact; }
+
+long long dfwb_backlash_impacts(const dfwb_backlash *p) { return p == NULL ? -1 : p->impacts; }
+
+dfwb_backlash *dfwb_backlash_copy(const dfwb_backlash *p)
+{
+    dfwb_backlash *q;
+    if (p == NULL)
+        return NULL;
+    q = (dfwb_backlash *)malloc(sizeof *q);
+    if (q == NULL)
+        return NULL;
+    memcpy(q, p, sizeof *q);
+    if (!dfwb_pw_copied(&q->pw, &p->pw)) {
+        free(q);
+        return NULL;
+    }
+    return q;
+}
+
+void dfwb_backlash_free(dfwb_backlash *p)
+{
+    if (p == NULL)
+        return;
+    dfwb_pw_release(&p->pw);
+    free(p);
+}
+
+void dfwb_backlash_log(dfwb_backlash *p, size_t capacity)
+{
+    if (p != NULL)
+        dfwb_log_enable(&p->pw.log, capacity);
+}
+
+size_t dfwb_backlash_log_read(dfwb_backlash *p, double *t, int *kind, size_t max)
+{
+    return p == NULL ? 0 : dfwb_log_read(&p->pw.log, t, kind, max);
+}
+
+unsigned long long dfwb_backlash_log_dropped(const dfwb_backlash *p) { return p == NULL ? 0 : p->pw.log.dropped; }
+
+/* -- state as bytes ---------------------------------------------------------------------------- */
+static void state_io(dfwb_io *io, dfwb_backlash *p)
+{
+    dfwb_pw_io(io, &p->pw);
+    dfwb_io_f64(io, &p->M1);
+    dfwb_io_f64(io, &p->M2);
+    dfwb_io_f64(io, &p->h);
+    dfwb_io_f64(io, &p->eps);
+    dfwb_io_i64(io, &p->impacts);
+    dfwb_io_int(io, &p->contact);
+    dfwb_io_int(io, &p->departing);
+    dfwb_io_motion(io, &p->cm);
+    dfwb_io_motion(io, &p->gap);
+}
+
+static size_t payload_size(void)
+{
+    dfwb_backlash scratch;
+    dfwb_io io;
+    memset(&scratch, 0, sizeof scratch);
+    dfwb_io_writer(&io, NULL);
+    state_io(&io, &scratch);
+    return io.pos;
+}
+
+int dfwb_backlash_to_bytes(const dfwb_backlash *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
+                           size_t errlen)
+{
+    dfwb_err err;
+    dfwb_backlash copy;
+    dfwb_io io;
+    const size_t payload = payload_size(), needed = DFWB_STATE_HEADER + payload;
+    int rc;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (size == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_to_bytes: NULL size");
+    *size = needed;
+    if (buf == NULL) /* a size query (p may be NULL) */
+        return DFWB_OK;
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_to_bytes: NULL instance");
+    rc = dfwb_state_buffer(needed, buflen, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    copy = *p; /* canonicalised while written (unused searches zeroed): p stays as it is */
+    dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
+    state_io(&io, &copy);
+    dfwb_state_header(buf, DFWB_PLANT_BACKLASH, payload);
+    return DFWB_OK;
+}
+
+/* The plant's own checks of a state read into p (the common part is checked first). */
+static int validate(dfwb_backlash *p, dfwb_err *err)
+{
+    const dfwb_pw *pw = &p->pw;
+    char rh[DFWB_REPR_SIZE], allowed[96];
+    int rc, i;
+    if ((rc = dfwb_pw_validate(&p->pw, err)) != DFWB_OK
+        || (rc = dfwb_state_check(err, "M1", p->M1, isfinite(p->M1) && p->M1 > 0.0, "must be > 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "M2", p->M2, isfinite(p->M2) && p->M2 > 0.0, "must be > 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "h", p->h, isfinite(p->h) && p->h >= MIN_CLEARANCE,
+                                  "must be >= " MIN_CLEARANCE_TEXT)) != DFWB_OK
+        || (rc = dfwb_state_check(err, "eps", p->eps, 0.0 <= p->eps && p->eps <= 1.0, "must be in [0, 1]"))
+               != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "impacts", p->impacts, p->impacts >= 0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "contact", p->contact, p->contact == FREE || p->contact == LOWER
+                                      || p->contact == UPPER, "must be 0, 1 or 2")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "departing", p->departing, -1 <= p->departing && p->departing <= 1,
+                                      "must be -1, 0 or 1")) != DFWB_OK
+        || (rc = dfwb_state_motion(&p->cm, "centre", &pw->drive, pw->t, err)) != DFWB_OK
+        || (rc = dfwb_state_motion(&p->gap, "gap", &pw->drive, pw->t, err)) != DFWB_OK)
+        return rc;
+    if (pw->output.lam != 0.0 || p->cm.lam != 0.0 || p->gap.lam != 0.0)
+        return dfwb_fail(err, DFWB_E_STATE, "the state's motions are out of range: a backlash has no damping");
+    if (p->contact != FREE && !(pw->nsearch == 0 && pw->analytic_kind == DFWB_EVENT_RELEASE && p->departing == 0))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's contact piece is out of range: it must wait for a "
+                         "release alone");
+    if (p->contact == FREE && !(pw->analytic_kind == 0 && isinf(pw->analytic)))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's free piece is out of range: it has no analytic event");
+    dfwb_repr(p->h, rh);
+    strcpy(allowed, "a wall search of a known side (level h = ");
+    strcat(allowed, rh);
+    strcat(allowed, ")");
+    for (i = 0; i < pw->nsearch; i++) {
+        const dfwb_search *s = &pw->searches[i];
+        const int ok = s->kind == DFWB_EVENT_APEX
+                           ? s->type == DFWB_SEARCH_VELOCITY && !s->has_level
+                           : s->type == DFWB_SEARCH_POSITION && s->sign == 1.0
+                                 && ((s->kind == DFWB_EVENT_WALL_LOWER && !s->has_level)
+                                     || (s->kind == DFWB_EVENT_WALL_UPPER && s->has_level && s->level == p->h));
+        if (!ok)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's search %d (kind %d) is out of range: %s", i, s->kind,
+                             allowed);
+    }
+    /* derived, as the constructor computes them */
+    p->total = p->M1 + p->M2;
+    p->r1 = p->M1 / p->total;
+    p->r2 = p->M2 / p->total;
+    p->tol_h = 1e-12 * p->h;
+    return DFWB_OK;
+}
+
+int dfwb_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_backlash **out, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_backlash *p;
+    dfwb_io io;
+    const size_t payload = payload_size();
+    int rc;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (out == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_from_bytes: NULL out");
+    *out = NULL;
+    rc = dfwb_state_open(buf, len, DFWB_PLANT_BACKLASH, payload, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    p = (dfwb_backlash *)calloc(1, sizeof *p);
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_backlash)");
+    dfwb_io_reader(&io, buf + DFWB_STATE_HEADER, payload);
+    state_io(&io, p);
+    rc = io.bad_int ? dfwb_fail(&err, DFWB_E_STATE, "the state holds an integer field out of range") : validate(p, &err);
+    if (rc != DFWB_OK) {
+        dfwb_backlash_free(p);
+        return rc;
+    }
+    *out = p;
+    return DFWB_OK;
+}

@@ -1,0 +1,797 @@
+/* plant.c - what the plants share: errors, the event log, states as bytes, and the piece machinery of
+ * fmus/piecewise.py (PiecewisePlant) for the backlash plants (see plant.h).
+ *
+ * The piece machinery keeps piecewise.py's operation order and bounds: the searches run lazily in chunks
+ * of period/8 anchored at the piece's start, in the order they were added; a step fires at most
+ * EVENTS_PER_PERIOD_LIMIT * (1 + step/period) events.
+ */
+#include "plant.h"
+
+#include <limits.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dfwb_core.h"
+
+/* -- errors ------------------------------------------------------------------------- */
+void dfwb_err_init(dfwb_err *err, char *buf, size_t len)
+{
+    err->buf = buf;
+    err->len = len;
+    err->code = DFWB_OK;
+    err->overflow = NULL;
+    if (buf != NULL && len > 0)
+        buf[0] = '\0';
+}
+
+int dfwb_err_finish(dfwb_err *err, int rc)
+{
+    if (err->overflow != NULL) {
+        const char *message = err->overflow;
+        err->code = DFWB_OK; /* the overflow came first: its message replaces a later refusal's */
+        return dfwb_fail(err, DFWB_E_MATH, "%s", message);
+    }
+    return rc;
+}
+
+int dfwb_check(dfwb_err *err, const char *name, double value, int ok, const char *allowed)
+{
+    char r[DFWB_REPR_SIZE];
+    if (isfinite(value) && ok)
+        return DFWB_OK;
+    dfwb_repr(value, r);
+    return dfwb_fail(err, DFWB_E_VALUE, "%s = %s is out of range: %s", name, r, allowed);
+}
+
+int dfwb_check_drive(dfwb_err *err, double F, double omega, double phi, double f, double harmonics)
+{
+    int rc;
+    if ((rc = dfwb_check(err, "F", F, 1, "F must be a finite number (N)")) != DFWB_OK
+        || (rc = dfwb_check(err, "omega", omega, omega > 0.0, "omega must be > 0 (rad/s)")) != DFWB_OK
+        || (rc = dfwb_check(err, "phi", phi, fabs(phi) <= DFWB_PHASE_LIMIT,
+                            "phi must be in [-" DFWB_PHASE_LIMIT_TEXT ", " DFWB_PHASE_LIMIT_TEXT
+                            "] rad (beyond, a float does not resolve a period)")) != DFWB_OK
+        || (rc = dfwb_check(err, "f", f, 1, "the input f must be a finite number (N)")) != DFWB_OK)
+        return rc;
+    return dfwb_check(err, "harmonics", harmonics, floor(harmonics) == harmonics && 0.0 <= harmonics
+                      && harmonics <= 10.0, "harmonics must be an integer in 0..10");
+}
+
+int dfwb_check_t_end(dfwb_err *err, double t, double t_end)
+{
+    char rt[DFWB_REPR_SIZE], allowed[96];
+    if (isfinite(t_end) && t_end >= t)
+        return DFWB_OK;
+    dfwb_repr(t, rt);
+    strcpy(allowed, "the end of a step must be >= the current time ");
+    strcat(allowed, rt);
+    return dfwb_check(err, "t_end", t_end, 0, allowed);
+}
+
+void dfwb_drive_values(const dfwb_drive *d, double out[4])
+{
+    out[0] = d->f;
+    out[1] = d->F;
+    out[2] = d->omega;
+    out[3] = d->phi;
+}
+
+/* -- names ---------------------------------------------------------------------------- */
+const char *dfwb_event_name(int kind)
+{
+    switch (kind) {
+    case DFWB_EVENT_BREAK_UP: return "break+";
+    case DFWB_EVENT_BREAK_DOWN: return "break-";
+    case DFWB_EVENT_RELEASE: return "release";
+    case DFWB_EVENT_EDGE: return "edge";
+    case DFWB_EVENT_BAND: return "band";
+    case DFWB_EVENT_WALL_LOWER: return "gap 0";
+    case DFWB_EVENT_WALL_UPPER: return "gap h";
+    case DFWB_EVENT_APEX: return "apex";
+    case DFWB_EVENT_ENGAGE_UP: return "engage+";
+    case DFWB_EVENT_ENGAGE_DOWN: return "engage-";
+    case DFWB_EVENT_REVERSE: return "reverse";
+    default: return "None";
+    }
+}
+
+const char *dfwb_plant_name(int kind)
+{
+    switch (kind) {
+    case DFWB_PLANT_FRICTION: return "dfwb_friction";
+    case DFWB_PLANT_BACKLASH: return "dfwb_backlash";
+    case DFWB_PLANT_STATIC_BACKLASH: return "dfwb_static_backlash";
+    default: return "unknown plant";
+    }
+}
+
+/* -- the event log -------------------------------------------------------------------- */
+#define LOG_MAX (((size_t)-1) / 2 / sizeof(dfwb_log_entry))
+
+void dfwb_log_enable(dfwb_log *log, size_t capacity)
+{
+    if (capacity > LOG_MAX)
+        capacity = LOG_MAX;
+    if (capacity == 0) {
+        dfwb_log_free(log);
+        return;
+    }
+    log->capacity = capacity;
+    log->dropped = 0;
+    if (log->n > capacity) { /* a smaller capacity keeps the oldest entries */
+        log->dropped += log->n - capacity;
+        log->n = capacity;
+    }
+}
+
+void dfwb_log_add(dfwb_log *log, double t, int kind)
+{
+    if (log->capacity == 0)
+        return;
+    if (log->n >= log->capacity) {
+        log->dropped += 1;
+        return;
+    }
+    if (log->n == log->cap) {
+        size_t cap = log->cap ? 2 * log->cap : 64;
+        dfwb_log_entry *data;
+        if (cap > log->capacity)
+            cap = log->capacity;
+        data = (dfwb_log_entry *)realloc(log->data, cap * sizeof *data);
+        if (data == NULL) { /* the log never changes the solution: the event is counted as dropped */
+            log->dropped += 1;
+            return;
+        }
+        log->data = data;
+        log->cap = cap;
+    }
+    log->data[log->n].t = t;
+    log->data[log->n].kind = kind;
+    log->n += 1;
+}
+
+size_t dfwb_log_read(dfwb_log *log, double *t, int *kind, size_t max)
+{
+    size_t i, n;
+    if (t == NULL || kind == NULL || max == 0)
+        return log->n;
+    n = max < log->n ? max : log->n;
+    for (i = 0; i < n; i++) {
+        t[i] = log->data[i].t;
+        kind[i] = log->data[i].kind;
+    }
+    if (n < log->n)
+        memmove(log->data, log->data + n, (log->n - n) * sizeof *log->data);
+    log->n -= n;
+    return n;
+}
+
+int dfwb_log_copy(dfwb_log *dst, const dfwb_log *src)
+{
+    dst->data = NULL;
+    dst->n = dst->cap = 0;
+    dst->capacity = src->capacity;
+    dst->dropped = src->dropped;
+    if (src->n > 0) {
+        dst->data = (dfwb_log_entry *)malloc(src->n * sizeof *dst->data);
+        if (dst->data == NULL) {
+            dst->capacity = 0;
+            return 0;
+        }
+        memcpy(dst->data, src->data, src->n * sizeof *dst->data);
+        dst->n = dst->cap = src->n;
+    }
+    return 1;
+}
+
+void dfwb_log_free(dfwb_log *log)
+{
+    free(log->data);
+    log->data = NULL;
+    log->n = log->cap = log->capacity = 0;
+    log->dropped = 0;
+}
+
+/* -- states as bytes ------------------------------------------------------------------ */
+static const unsigned char MAGIC[8] = {'D', 'F', 'W', 'B', 'S', 'T', 'A', 'T'};
+
+static void put_u64(unsigned char *p, uint64_t u)
+{
+    int i;
+    for (i = 0; i < 8; i++)
+        p[i] = (unsigned char)(u >> (8 * i));
+}
+
+static uint64_t get_u64(const unsigned char *p)
+{
+    uint64_t u = 0;
+    int i;
+    for (i = 7; i >= 0; i--)
+        u = (u << 8) | p[i];
+    return u;
+}
+
+static void put_u32(unsigned char *p, uint32_t u)
+{
+    int i;
+    for (i = 0; i < 4; i++)
+        p[i] = (unsigned char)(u >> (8 * i));
+}
+
+static uint32_t get_u32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* zlib's CRC-32 (reflected 0xEDB88320), bit by bit: a state is a few hundred bytes */
+static uint32_t crc32(const unsigned char *p, size_t n)
+{
+    uint32_t crc = 0xFFFFFFFFu;
+    size_t i;
+    int k;
+    for (i = 0; i < n; i++) {
+        crc ^= p[i];
+        for (k = 0; k < 8; k++)
+            crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+    }
+    return crc ^ 0xFFFFFFFFu;
+}
+
+void dfwb_io_writer(dfwb_io *io, unsigned char *out)
+{
+    io->reading = 0;
+    io->out = out;
+    io->in = NULL;
+    io->len = 0;
+    io->pos = 0;
+    io->bad_int = 0;
+}
+
+void dfwb_io_reader(dfwb_io *io, const unsigned char *in, size_t len)
+{
+    io->reading = 1;
+    io->out = NULL;
+    io->in = in;
+    io->len = len;
+    io->pos = 0;
+    io->bad_int = 0;
+}
+
+static void io_u64(dfwb_io *io, uint64_t *u)
+{
+    if (io->reading) {
+        if (io->len - io->pos < 8 || io->pos > io->len) { /* never: the length is checked first */
+            *u = 0;
+            io->bad_int = 1;
+            return;
+        }
+        *u = get_u64(io->in + io->pos);
+    } else if (io->out != NULL) {
+        put_u64(io->out + io->pos, *u);
+    }
+    io->pos += 8;
+}
+
+void dfwb_io_f64(dfwb_io *io, double *x)
+{
+    uint64_t u;
+    if (!io->reading)
+        memcpy(&u, x, 8);
+    io_u64(io, &u);
+    if (io->reading)
+        memcpy(x, &u, 8);
+}
+
+void dfwb_io_i64(dfwb_io *io, long long *x)
+{
+    uint64_t u = 0;
+    if (!io->reading)
+        u = (uint64_t)*x; /* two's complement */
+    io_u64(io, &u);
+    if (io->reading)
+        *x = u <= (uint64_t)LLONG_MAX ? (long long)u : -(long long)(~u) - 1;
+}
+
+void dfwb_io_int(dfwb_io *io, int *x)
+{
+    long long v = *x;
+    dfwb_io_i64(io, &v);
+    if (io->reading) {
+        if (v < INT_MIN || v > INT_MAX) {
+            io->bad_int = 1;
+            v = 0;
+        }
+        *x = (int)v;
+    }
+}
+
+void dfwb_io_motion(dfwb_io *io, dfwb_motion *m)
+{
+    dfwb_io_f64(io, &m->t0);
+    dfwb_io_f64(io, &m->x0);
+    dfwb_io_f64(io, &m->v0);
+    dfwb_io_f64(io, &m->lam);
+    dfwb_io_f64(io, &m->a);
+    dfwb_io_f64(io, &m->b);
+}
+
+void dfwb_state_header(unsigned char *buf, int kind, size_t payload)
+{
+    memcpy(buf, MAGIC, 8);
+    put_u32(buf + 8, (uint32_t)DFWB_CORE_ABI);
+    put_u32(buf + 12, (uint32_t)kind);
+    put_u32(buf + 16, (uint32_t)payload);
+    put_u32(buf + 20, crc32(buf + DFWB_STATE_HEADER, payload));
+}
+
+int dfwb_state_open(const unsigned char *buf, size_t len, int kind, size_t payload, dfwb_err *err)
+{
+    const char *name = dfwb_plant_name(kind);
+    uint32_t abi, their_kind, declared;
+    if (buf == NULL)
+        return dfwb_fail(err, DFWB_E_ARGUMENT, "%s_from_bytes: NULL bytes", name);
+    if (len < DFWB_STATE_HEADER)
+        return dfwb_fail(err, DFWB_E_STATE, "a state of %lu bytes is truncated: its header alone has %d",
+                         (unsigned long)len, DFWB_STATE_HEADER);
+    if (memcmp(buf, MAGIC, 8) != 0)
+        return dfwb_fail(err, DFWB_E_STATE, "these bytes are not a state of the dfwb C core (no DFWBSTAT header)");
+    abi = get_u32(buf + 8);
+    if (abi != (uint32_t)DFWB_CORE_ABI)
+        return dfwb_fail(err, DFWB_E_STATE, "the state was written by core ABI %lu, this core is ABI %d",
+                         (unsigned long)abi, DFWB_CORE_ABI);
+    their_kind = get_u32(buf + 12);
+    if (their_kind != (uint32_t)kind)
+        return dfwb_fail(err, DFWB_E_STATE, "the state is one of a %s, not of a %s",
+                         their_kind <= 3u ? dfwb_plant_name((int)their_kind) : "unknown plant", name);
+    declared = get_u32(buf + 16);
+    if (declared != (uint32_t)payload || len != DFWB_STATE_HEADER + payload)
+        return dfwb_fail(err, DFWB_E_STATE, "a %s state has %lu bytes, these are %lu (declaring %lu): "
+                         "truncated or oversized", name, (unsigned long)(DFWB_STATE_HEADER + payload),
+                         (unsigned long)len, (unsigned long)declared + DFWB_STATE_HEADER);
+    if (get_u32(buf + 20) != crc32(buf + DFWB_STATE_HEADER, payload))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's checksum does not match its bytes: they are damaged");
+    return DFWB_OK;
+}
+
+int dfwb_state_buffer(size_t needed, size_t buflen, dfwb_err *err)
+{
+    if (buflen < needed)
+        return dfwb_fail(err, DFWB_E_ARGUMENT, "a buffer of %lu bytes cannot hold the state's %lu",
+                         (unsigned long)buflen, (unsigned long)needed);
+    return DFWB_OK;
+}
+
+int dfwb_state_check(dfwb_err *err, const char *name, double value, int ok, const char *allowed)
+{
+    char r[DFWB_REPR_SIZE];
+    if (ok)
+        return DFWB_OK;
+    dfwb_repr(value, r);
+    return dfwb_fail(err, DFWB_E_STATE, "the state's %s = %s is out of range: %s", name, r, allowed);
+}
+
+int dfwb_state_check_int(dfwb_err *err, const char *name, long long value, int ok, const char *allowed)
+{
+    if (ok)
+        return DFWB_OK;
+    return dfwb_fail(err, DFWB_E_STATE, "the state's %s = %lld is out of range: %s", name, value, allowed);
+}
+
+int dfwb_state_check_common(const dfwb_drive *d, int harmonics, double t, long long events, dfwb_err *err)
+{
+    int rc;
+    if ((rc = dfwb_state_check(err, "f", d->f, isfinite(d->f), "must be finite")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "F", d->F, isfinite(d->F) && d->F >= 0.0, "must be finite and >= 0"))
+               != DFWB_OK
+        || (rc = dfwb_state_check(err, "omega", d->omega, isfinite(d->omega) && d->omega > 0.0,
+                                  "must be finite and > 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "phi", d->phi, fabs(d->phi) <= DFWB_PHASE_LIMIT,
+                                  "must be within +-" DFWB_PHASE_LIMIT_TEXT)) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "harmonics", harmonics, 0 <= harmonics && harmonics <= DFWB_HARMONICS_MAX,
+                                      "must be in 0..10")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "t", t, isfinite(t) && t >= 0.0
+                                  && fabs(d->omega * t + d->phi) <= DFWB_PHASE_LIMIT,
+                                  "must be >= 0 with the phase omega*t + phi within +-" DFWB_PHASE_LIMIT_TEXT))
+               != DFWB_OK)
+        return rc;
+    return dfwb_state_check_int(err, "events", events, events >= 0, "must be >= 0");
+}
+
+int dfwb_state_check_integrals(const dfwb_cx *integrals, int harmonics, dfwb_err *err)
+{
+    int k;
+    for (k = 0; k <= DFWB_HARMONICS_MAX; k++) {
+        const dfwb_cx z = integrals[k];
+        const int ok = k <= harmonics ? isfinite(z.re) && isfinite(z.im) : z.re == 0.0 && z.im == 0.0;
+        if (!ok)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's Fourier integral I_%d is out of range: %s", k,
+                             k <= harmonics ? "must be finite" : "must be 0 beyond the harmonics");
+    }
+    return DFWB_OK;
+}
+
+int dfwb_state_motion(dfwb_motion *m, const char *name, const dfwb_drive *d, double t, dfwb_err *err)
+{
+    const double fields[6] = {m->t0, m->x0, m->v0, m->lam, m->a, m->b};
+    static const char *const names[6] = {"t0", "x0", "v0", "lam", "a", "b"};
+    char r[DFWB_REPR_SIZE];
+    int i;
+    for (i = 0; i < 6; i++)
+        if (!isfinite(fields[i])) {
+            dfwb_repr(fields[i], r);
+            return dfwb_fail(err, DFWB_E_STATE, "the state's %s motion has %s = %s: must be finite", name,
+                             names[i], r);
+        }
+    if (!(m->lam >= 0.0 && m->t0 >= 0.0 && m->t0 <= t))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's %s motion is out of range: needs lam >= 0 and "
+                         "0 <= t0 <= t", name);
+    dfwb_motion_init(m, m->t0, m->x0, m->v0, m->lam, m->a, m->b, d->omega, d->phi);
+    return DFWB_OK;
+}
+
+int dfwb_state_check_piece(double t, double period, double t_piece, double searched, double analytic,
+                           int has_found, double found_t, dfwb_err *err)
+{
+    int rc;
+    if ((rc = dfwb_state_check(err, "t_piece", t_piece, isfinite(t_piece) && t_piece >= 0.0 && t_piece <= t,
+                               "must be in [0, t]")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "searched", searched, isfinite(searched) && searched >= t_piece
+                                  && searched >= t && searched <= t + period,
+                                  "must be in [max(t_piece, t), t + period]")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "analytic", analytic, analytic >= t_piece, "must be >= t_piece (or inf)"))
+               != DFWB_OK)
+        return rc;
+    if (has_found)
+        return dfwb_state_check(err, "found", found_t, found_t >= t_piece && found_t <= searched,
+                                "must be in [t_piece, searched]");
+    return DFWB_OK;
+}
+
+/* -- the piece machinery ------------------------------------------------------------- */
+void dfwb_pw_init(dfwb_pw *pw, double F, double omega, double phi, double f, double harmonics)
+{
+    int k;
+    dfwb_drive_init(&pw->drive, f, F, omega, phi);
+    pw->period = DFWB_TWO_PI / omega;
+    pw->harmonics = (int)harmonics;
+    pw->t = 0.0;
+    pw->events = 0;
+    for (k = 0; k <= DFWB_HARMONICS_MAX; k++)
+        pw->integrals[k] = dfwb_cx_make(0.0, 0.0);
+    pw->nsearch = 0;
+    pw->has_found = 0;
+    pw->stack.data = NULL;
+    pw->stack.cap = 0;
+    memset(&pw->log, 0, sizeof pw->log);
+}
+
+void dfwb_pw_set_searches(dfwb_pw *pw, double t)
+{
+    pw->nsearch = 0;
+    pw->searched = t;
+    pw->has_found = 0;
+}
+
+void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double analytic, int analytic_kind)
+{
+    pw->t_piece = t;
+    pw->output = *output;
+    pw->analytic = analytic;
+    pw->analytic_kind = analytic_kind;
+    dfwb_pw_set_searches(pw, t);
+}
+
+void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K,
+                        double t_from, int kind)
+{
+    dfwb_search *s;
+    if (pw->nsearch >= DFWB_MAX_SEARCHES) /* never: a piece has at most three */
+        return;
+    s = &pw->searches[pw->nsearch++];
+    s->type = type;
+    s->sign = sign;
+    s->has_level = has_level;
+    s->level = has_level ? level : 0.0;
+    s->K = K;
+    s->t_from = t_from;
+    s->kind = kind;
+}
+
+/* The piece's Fourier integrals from its start to t: out[0] = int x, out[k] = int x exp(-i k w s). */
+static void piece_integrals(const dfwb_pw *pw, double t, dfwb_cx *out, dfwb_err *err)
+{
+    const dfwb_motion *m = &pw->output;
+    double x, v;
+    int k;
+    if (t <= m->t0) {
+        for (k = 0; k <= pw->harmonics; k++)
+            out[k] = dfwb_cx_make(0.0, 0.0);
+        return;
+    }
+    dfwb_motion_state(m, t, &x, &v);
+    out[0] = dfwb_cx_real(dfwb_motion_integral(m, t, err));
+    dfwb_motion_fourier(m, t, pw->harmonics, x, v, out + 1);
+}
+
+void dfwb_pw_close_piece(dfwb_pw *pw, double t, dfwb_err *err)
+{
+    dfwb_cx piece[DFWB_HARMONICS_MAX + 1];
+    int k;
+    piece_integrals(pw, t, piece, err);
+    for (k = 0; k <= pw->harmonics; k++)
+        pw->integrals[k] = dfwb_cx_add(pw->integrals[k], piece[k]);
+}
+
+void dfwb_pw_integrals(const dfwb_pw *pw, double *re, double *im, dfwb_err *err)
+{
+    dfwb_cx piece[DFWB_HARMONICS_MAX + 1];
+    int k;
+    piece_integrals(pw, pw->t, piece, err);
+    for (k = 0; k <= pw->harmonics; k++) {
+        const dfwb_cx z = dfwb_cx_add(pw->integrals[k], piece[k]);
+        re[k] = z.re;
+        im[k] = z.im;
+    }
+}
+
+typedef struct {
+    const dfwb_motion *m;
+    const dfwb_search *s;
+} search_ctx;
+
+static void search_fun(const void *ctx, double t, double *g, double *dg)
+{
+    const search_ctx *c = (const search_ctx *)ctx;
+    const dfwb_search *s = c->s;
+    double x, v;
+    switch (s->type) {
+    case DFWB_SEARCH_VELOCITY: /* VelocitySearch: (offset +) sign v, sign v' */
+        v = dfwb_motion_velocity(c->m, t);
+        *g = s->has_level ? s->level + s->sign * v : s->sign * v;
+        *dg = s->sign * dfwb_motion_acceleration(c->m, t, v);
+        return;
+    case DFWB_SEARCH_POSITION: /* PositionSearch: x, v or wall - x, -v */
+        dfwb_motion_state(c->m, t, &x, &v);
+        if (s->has_level) {
+            *g = s->level - x;
+            *dg = -v;
+        } else {
+            *g = x;
+            *dg = v;
+        }
+        return;
+    default: /* EdgeSearch: s (edge - x), -s v */
+        dfwb_motion_state(c->m, t, &x, &v);
+        *g = s->sign * (s->level - x);
+        *dg = -s->sign * v;
+    }
+}
+
+/* End of the search chunk containing t: a grid of period/8 anchored at the piece start. */
+static int chunk_end(const dfwb_pw *pw, double t, double *end, dfwb_err *err)
+{
+    const double width = pw->period / 8.0;
+    const double n = floor((t - pw->t_piece) / width) + 1.0;
+    char rt[DFWB_REPR_SIZE], rw[DFWB_REPR_SIZE];
+    *end = pw->t_piece + n * width;
+    if (!(*end > t)) {
+        *end = t + width;
+        if (!(*end > t)) { /* the search would not advance */
+            dfwb_repr(t, rt);
+            dfwb_repr(width, rw);
+            return dfwb_fail(err, DFWB_E_LIMIT,
+                             "t = %s is out of range: a search chunk of %s s does not advance past it", rt, rw);
+        }
+    }
+    return DFWB_OK;
+}
+
+/* The piece's next event if it is <= t_end (*has = 1), searching chunk by chunk up to it. */
+static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int *has, double *t_event, int *kind,
+                      dfwb_err *err)
+{
+    double event_t;
+    int event_kind, rc, i;
+    while (!pw->has_found && pw->searched < (t_end < pw->analytic ? t_end : pw->analytic)) {
+        const double a = pw->searched;
+        double b;
+        rc = chunk_end(pw, a, &b, err);
+        if (rc != DFWB_OK)
+            return rc;
+        if (pw->analytic < b)
+            b = pw->analytic;
+        for (i = 0; i < pw->nsearch; i++) {
+            const dfwb_search *s = &pw->searches[i];
+            const double lo = s->t_from > a ? s->t_from : a;
+            if (lo < b) {
+                search_ctx ctx;
+                int found;
+                double root;
+                ctx.m = subject;
+                ctx.s = s;
+                rc = dfwb_first_root(search_fun, NULL, &ctx, lo, b, s->K, &pw->stack, &found, &root, err);
+                if (rc != DFWB_OK)
+                    return rc;
+                if (found && (!pw->has_found || root < pw->found_t)) {
+                    pw->has_found = 1;
+                    pw->found_t = root;
+                    pw->found_kind = s->kind;
+                }
+            }
+        }
+        pw->searched = b;
+    }
+    if (!pw->has_found || pw->analytic <= pw->found_t) {
+        event_t = pw->analytic;
+        event_kind = pw->analytic_kind;
+    } else {
+        event_t = pw->found_t;
+        event_kind = pw->found_kind;
+    }
+    *has = event_t <= t_end;
+    *t_event = event_t;
+    *kind = event_kind;
+    return DFWB_OK;
+}
+
+int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_fire_fn fire, void *plant,
+                    dfwb_err *err)
+{
+    double theta, limit, fired = 0.0;
+    int rc = dfwb_check_t_end(err, pw->t, t_end);
+    if (rc != DFWB_OK)
+        return rc;
+    rc = dfwb_drive_phase(&pw->drive, t_end, "t_end", &theta, err); /* bounds the chunks and every phase */
+    if (rc != DFWB_OK)
+        return rc;
+    limit = DFWB_EVENTS_PER_PERIOD_LIMIT * (1.0 + (t_end - pw->t) / pw->period);
+    for (;;) {
+        int has, kind, counted = 0;
+        double t_event;
+        rc = next_event(pw, subject, t_end, &has, &t_event, &kind, err);
+        if (rc != DFWB_OK || !has || err->overflow != NULL)
+            break;
+        fired += 1.0;
+        if (fired > limit) {
+            char rt[DFWB_REPR_SIZE], rte[DFWB_REPR_SIZE];
+            dfwb_repr(pw->t, rt);
+            dfwb_repr(t_event, rte);
+            rc = dfwb_fail(err, DFWB_E_LIMIT,
+                           "more than %d events per period between t = %s and t = %s (last event: %s); the "
+                           "motion chatters below the plant's resolution",
+                           DFWB_EVENTS_PER_PERIOD_LIMIT, rt, rte, dfwb_event_name(kind));
+            break;
+        }
+        rc = fire(plant, t_event, kind, &counted, err);
+        if (rc != DFWB_OK || err->overflow != NULL) /* Python raised there: not counted */
+            break;
+        if (counted) {
+            pw->events += 1;
+            dfwb_log_add(&pw->log, t_event, kind);
+        }
+    }
+    if (rc == DFWB_OK && err->overflow == NULL)
+        pw->t = t_end;
+    return rc;
+}
+
+int dfwb_pw_set_input(dfwb_pw *pw, double f, dfwb_restart_fn restart, void *plant, dfwb_err *err)
+{
+    int rc = dfwb_check(err, "f", f, 1, "the input f must be a finite number (N)");
+    if (rc != DFWB_OK)
+        return rc;
+    if (f != pw->drive.f) {
+        dfwb_pw_close_piece(pw, pw->t, err);
+        dfwb_drive_init(&pw->drive, f, pw->drive.F, pw->drive.omega, pw->drive.phi);
+        rc = restart(plant, pw->t, err);
+    }
+    return rc;
+}
+
+void dfwb_pw_release(dfwb_pw *pw)
+{
+    dfwb_stack_free(&pw->stack);
+    dfwb_log_free(&pw->log);
+}
+
+int dfwb_pw_copied(dfwb_pw *copy, const dfwb_pw *original)
+{
+    copy->stack.data = NULL; /* a workspace of its own */
+    copy->stack.cap = 0;
+    return dfwb_log_copy(&copy->log, &original->log);
+}
+
+/* -- the common part of a state ----------------------------------------------------------- */
+void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw)
+{
+    int k, i;
+    if (!io->reading) { /* canonical bytes: nothing stale */
+        for (i = pw->nsearch; i < DFWB_MAX_SEARCHES; i++)
+            memset(&pw->searches[i], 0, sizeof pw->searches[i]);
+        if (!pw->has_found) {
+            pw->found_t = 0.0;
+            pw->found_kind = 0;
+        }
+    }
+    dfwb_io_f64(io, &pw->drive.f);
+    dfwb_io_f64(io, &pw->drive.F);
+    dfwb_io_f64(io, &pw->drive.omega);
+    dfwb_io_f64(io, &pw->drive.phi);
+    dfwb_io_int(io, &pw->harmonics);
+    dfwb_io_f64(io, &pw->t);
+    dfwb_io_i64(io, &pw->events);
+    for (k = 0; k <= DFWB_HARMONICS_MAX; k++) {
+        dfwb_io_f64(io, &pw->integrals[k].re);
+        dfwb_io_f64(io, &pw->integrals[k].im);
+    }
+    dfwb_io_f64(io, &pw->t_piece);
+    dfwb_io_motion(io, &pw->output);
+    dfwb_io_f64(io, &pw->analytic);
+    dfwb_io_int(io, &pw->analytic_kind);
+    dfwb_io_int(io, &pw->nsearch);
+    for (i = 0; i < DFWB_MAX_SEARCHES; i++) {
+        dfwb_search *s = &pw->searches[i];
+        dfwb_io_int(io, &s->type);
+        dfwb_io_f64(io, &s->sign);
+        dfwb_io_int(io, &s->has_level);
+        dfwb_io_f64(io, &s->level);
+        dfwb_io_f64(io, &s->K);
+        dfwb_io_f64(io, &s->t_from);
+        dfwb_io_int(io, &s->kind);
+    }
+    dfwb_io_f64(io, &pw->searched);
+    dfwb_io_int(io, &pw->has_found);
+    dfwb_io_f64(io, &pw->found_t);
+    dfwb_io_int(io, &pw->found_kind);
+}
+
+int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
+{
+    int rc, i;
+    pw->stack.data = NULL;
+    pw->stack.cap = 0;
+    memset(&pw->log, 0, sizeof pw->log);
+    rc = dfwb_state_check_common(&pw->drive, pw->harmonics, pw->t, pw->events, err);
+    if (rc != DFWB_OK)
+        return rc;
+    pw->period = DFWB_TWO_PI / pw->drive.omega;
+    if ((rc = dfwb_state_check_integrals(pw->integrals, pw->harmonics, err)) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "has_found", pw->has_found, pw->has_found == 0 || pw->has_found == 1,
+                                      "must be 0 or 1")) != DFWB_OK
+        || (rc = dfwb_state_check_piece(pw->t, pw->period, pw->t_piece, pw->searched, pw->analytic, pw->has_found,
+                                        pw->found_t, err)) != DFWB_OK
+        || (rc = dfwb_state_motion(&pw->output, "output", &pw->drive, pw->t, err)) != DFWB_OK
+        || (rc = dfwb_state_check(err, "output motion's t0", pw->output.t0, pw->output.t0 == pw->t_piece,
+                                  "must be the piece's start t_piece")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "nsearch", pw->nsearch, 0 <= pw->nsearch
+                                      && pw->nsearch <= DFWB_MAX_SEARCHES, "must be in 0..3")) != DFWB_OK)
+        return rc;
+    if (!pw->has_found && !(pw->found_t == 0.0 && pw->found_kind == 0))
+        return dfwb_fail(err, DFWB_E_STATE, "the state's found event is out of range: must be 0 when none is found");
+    for (i = 0; i < DFWB_MAX_SEARCHES; i++) {
+        const dfwb_search *s = &pw->searches[i];
+        if (i >= pw->nsearch) {
+            if (s->type != 0 || s->sign != 0.0 || s->has_level != 0 || s->level != 0.0 || s->K != 0.0
+                || s->t_from != 0.0 || s->kind != 0)
+                return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: an unused search "
+                                 "must be zeros", i);
+            continue;
+        }
+        if (!((s->type == DFWB_SEARCH_VELOCITY || s->type == DFWB_SEARCH_POSITION || s->type == DFWB_SEARCH_EDGE)
+              && (s->sign == 1.0 || s->sign == -1.0) && (s->has_level == 0 || s->has_level == 1)
+              && isfinite(s->level) && (s->has_level || s->level == 0.0) && s->K >= 0.0 /* +inf allowed */
+              && s->t_from >= pw->t_piece /* +inf allowed: it never starts */))
+            return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: needs a known type, "
+                             "sign +-1, a finite level, K >= 0 and t_from >= t_piece", i);
+    }
+    if (pw->has_found) {
+        for (i = 0; i < pw->nsearch; i++)
+            if (pw->searches[i].kind == pw->found_kind)
+                return DFWB_OK;
+        return dfwb_fail(err, DFWB_E_STATE, "the state's found event is out of range: its kind is none of "
+                         "the pending searches'");
+    }
+    return DFWB_OK;
+}

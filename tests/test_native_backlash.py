@@ -1,0 +1,652 @@
+"""The two backlash solvers in C (fmus/native, dfwb.fmus.native_core) against their Python oracles, and what
+the three C solvers offer beyond the Solver protocol: the event log and the state as bytes.
+
+The C solvers port dfwb.fmus.backlash.TwoMassBacklash and dfwb.fmus.static_backlash.StaticBacklash
+keeping their operation order, so they must agree to rounding: stepped identically (the quick stress
+cases of ``dfwb stress`` with their held inputs, a grid, seeded parameters over the whole float range)
+they count the same events, impacts, contacts and engagements at every communication point and give
+outputs and Fourier integrals equal to 1e-13 relative (in practice bit for bit; the share is printed).
+Every refusal of the Python solvers is a refusal in C with the same message. Event logs are equal to
+the bit. A state written as bytes and read back continues bit for bit; bytes that are truncated,
+oversized, of another plant or ABI, damaged, or crafted field by field are refused with one line or
+accepted as a well-formed state, never a crash nor a step without end (the fuzzing runs in a
+subprocess). The library is compiled once per session with -Wall -Wextra -Werror.
+"""
+
+import copy
+import json
+import math
+import pickle
+import random
+import shutil
+import statistics
+import struct
+import subprocess
+import sys
+import time
+import zlib
+from array import array
+
+import pytest
+
+from dfwb.build_fmus.core import build_core
+from dfwb.fmus import native_core
+from dfwb.fmus.backlash import TwoMassBacklash
+from dfwb.fmus.contract import BacklashOutput, EventKind, Solver, StaticBacklashOutput
+from dfwb.fmus.exact import PHASE_LIMIT, PlantError
+from dfwb.fmus.friction import FrictionMass
+from dfwb.fmus.native_core import CoreError, NativeStaticBacklash, NativeTwoMassBacklash, load
+from dfwb.fmus.state import StateRefused
+from dfwb.fmus.static_backlash import StaticBacklash
+from dfwb.plants.stress_kit import Case, InvalidCase, periods
+from dfwb.verify.stress import all_cases
+
+pytestmark = pytest.mark.needs_cc
+
+RTOL = 1e-13
+WARNINGS = ("-Wall", "-Wextra", "-Werror")
+HEADER = 24  # bytes of a state's header: magic, ABI, kind, payload length, CRC-32
+
+PLANTS = {  # stress plant name -> (Python class, NativeCore attribute, counters)
+    "backlash": (TwoMassBacklash, "TwoMassBacklash", ("contact", "impacts")),
+    "static-backlash": (StaticBacklash, "StaticBacklash", ("engaged",)),
+}
+
+
+@pytest.fixture(scope="session")
+def core(tmp_path_factory):
+    """The C core, compiled once per session into a temporary folder (skips without a C compiler)."""
+    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+        pytest.skip("no C compiler (cc) on PATH to build fmus/native")
+    return load(build_core(tmp_path_factory.mktemp("native_backlash"), extra_flags=WARNINGS))
+
+
+@pytest.fixture(scope="session")
+def stress_cases():
+    """{plant: (valid cases, invalid cases)} of the quick stress set."""
+    cases = all_cases(quick=True)
+    out = {}
+    for plant in PLANTS:
+        valid = [c for c in cases if isinstance(c, Case) and c.plant == plant]
+        invalid = [c for c in cases if isinstance(c, InvalidCase) and c.plant == plant]
+        assert len(valid) > 50 and len(invalid) > 30
+        out[plant] = valid, invalid
+    return out
+
+
+def _bits(value):
+    return array("d", [value]).tobytes()
+
+
+class Agreement:
+    """Tally of compared values: how many, how many bit-identical, the largest relative difference."""
+
+    def __init__(self, counters):
+        self.counters = counters
+        self.values = self.identical = self.points = self.events = 0
+        self.worst = 0.0
+
+    def compare(self, where, a, b):
+        """a (Python) and b (C) at one point: same events and counters, values equal to RTOL relative."""
+        self.points += 1
+        assert a.events == b.events, f"{where}: events {a.events} (Python) != {b.events} (C)"
+        assert a.t == b.t, f"{where}: t {a.t!r} != {b.t!r}"
+        for name in self.counters:
+            mine, theirs = getattr(a, name), getattr(b, name)
+            assert mine == theirs and type(theirs) is int, f"{where}: {name} {mine} != {theirs}"
+        out_a, out_b = a.output(), b.output()
+        assert type(out_a) is type(out_b)
+        va = list(out_a) + [c for z in a.integrals() for c in (z.real, z.imag)]
+        vb = list(out_b) + [c for z in b.integrals() for c in (z.real, z.imag)]
+        assert len(va) == len(vb)
+        for i, (x, y) in enumerate(zip(va, vb)):
+            self.values += 1
+            if _bits(x) == _bits(y):
+                self.identical += 1
+                continue
+            if x == y:  # 0.0 and -0.0
+                continue
+            scale = max(abs(x), abs(y))
+            rel = abs(x - y) / scale if scale > 0 else 0.0
+            self.worst = max(self.worst, rel)
+            assert rel <= RTOL, f"{where}: value {i}: {x!r} (Python) != {y!r} (C), relative {rel:.3g}"
+        self.events = max(self.events, a.events)
+
+    def summary(self, label):
+        share = self.identical / self.values if self.values else 1.0
+        return (f"{label}: {self.points} points, {self.values} values, {self.identical} bit-identical "
+                f"({100 * share:.4f} %), max relative difference {self.worst:.3g}")
+
+
+def _native_class(core, plant):
+    return getattr(core, PLANTS[plant][1])
+
+
+def _step_both(plant, case, core, agreement, where, restore=False):
+    """Run the Python and the C solver through a case's points (inputs set before each step); with
+    ``restore`` the C solver is replaced by one read back from its state bytes at every point."""
+    python_class, _, _ = PLANTS[plant]
+    native_class = _native_class(core, plant)
+    a, b = python_class(**case.params), native_class(**case.params)
+    agreement.compare(f"{where} t=0", a, b)
+    for j, t in enumerate(case.times):
+        if case.inputs is not None:
+            a.set_input(case.inputs[j])
+            b.set_input(case.inputs[j])
+        a.advance(t)
+        b.advance(t)
+        agreement.compare(f"{where} t={t!r}", a, b)
+        if restore:
+            data = b.to_bytes()
+            b = native_class.from_bytes(data)
+            assert b.to_bytes() == data, f"{where} t={t!r}: the state read back writes other bytes"
+    return a, b
+
+
+# -- agreement ---------------------------------------------------------------------------
+@pytest.mark.parametrize("plant", list(PLANTS))
+def test_stress_cases_agree(core, stress_cases, plant):
+    agreement = Agreement(PLANTS[plant][2])
+    total_events = impacts = 0
+    for case in stress_cases[plant][0]:
+        a, _ = _step_both(plant, case, core, agreement, case.note)
+        total_events += a.events
+        impacts += getattr(a, "impacts", 0)
+    print(f"\n{agreement.summary(f'{plant} stress cases ({len(stress_cases[plant][0])})')}, {total_events} events"
+          + (f", {impacts} impacts" if plant == "backlash" else ""))
+    assert agreement.points > 10_000 and total_events > 900
+
+
+BACKLASH_GRID = [(F, w, eps) for F in (10.0, 50.0) for w in (5.0, 20.0, 40.0) for eps in (0.0, 0.2, 0.5, 0.8, 1.0)]
+STATIC_GRID = [(F, w) for F in (5.0, 50.0) for w in (2.0, 10.0, 20.0)]
+
+
+def test_grid_agrees(core):
+    lines = []
+    for plant, grid in (("backlash", BACKLASH_GRID), ("static-backlash", STATIC_GRID)):
+        agreement = Agreement(PLANTS[plant][2])
+        events = []
+        for point in grid:
+            params = dict(F=point[0], omega=point[1])
+            if plant == "backlash":
+                params["eps"] = point[2]
+            case = Case(plant, params, *periods(params, 10))
+            a, _ = _step_both(plant, case, core, agreement, f"{plant} {params}")
+            events.append(a.events)
+        lines.append(f"{agreement.summary(f'{plant} grid ({len(grid)} runs)')}, events per run {events}")
+        assert max(events) > 0
+    print("\n" + "\n".join(lines))
+
+
+def _log(rng, lo, hi):
+    return 10.0 ** rng.uniform(lo, hi)
+
+
+def _extreme_backlash(rng):
+    M1 = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -6, 6)
+    M2 = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -6, 6)
+    F = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -6, 6)
+    w = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -4, 4)
+    scale = M2 * w * w
+    X = F / scale if scale > 0.0 else 1.0
+    h = _log(rng, -290, 300) if rng.random() < 0.15 else min(max(X * 10.0 ** rng.uniform(-2, 1), 1e-290), 1e300)
+    h = h if math.isfinite(h) and h > 0.0 else 1.0
+    params = dict(M1=M1, M2=M2, h=h, eps=rng.choice([0.0, 1e-9, 0.3, 0.5, 0.9]), F=rng.choice([F, -F]),
+                  omega=w, phi=rng.uniform(-4, 4), x1_0=rng.choice([0.0, _log(rng, -300, 300)]),
+                  v1_0=rng.choice([0.0, rng.choice([1, -1]) * _log(rng, -300, 300)]),
+                  v2_0=rng.choice([0.0, rng.choice([1, -1]) * _log(rng, -6, 6)]),
+                  gap0=rng.choice([None, 0.0, h, h * rng.random()]), f=rng.choice([0.0, F * rng.uniform(-1, 1)]),
+                  harmonics=rng.randint(0, 10))
+    return params, F, w
+
+
+def _extreme_static(rng):
+    M = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -6, 6)
+    k = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -6, 6)
+    F = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -6, 6)
+    w = _log(rng, -300, 300) if rng.random() < 0.15 else _log(rng, -4, 4)
+    scale = M * w * w
+    X = F / scale if scale > 0.0 else 1.0
+    h = _log(rng, -300, 300) if rng.random() < 0.15 else min(max(X * 10.0 ** rng.uniform(-2, 1), 1e-300), 1e300)
+    h = h if math.isfinite(h) and h > 0.0 else 1.0
+    params = dict(M=M, k=k, h=h, F=rng.choice([F, -F]), omega=w, phi=rng.uniform(-4, 4),
+                  x0=rng.choice([0.0, _log(rng, -300, 300)]),
+                  v0=rng.choice([0.0, rng.choice([1, -1]) * _log(rng, -300, 300)]),
+                  f=rng.choice([0.0, F * rng.uniform(-1, 1)]), harmonics=rng.randint(0, 10))
+    return params, F, w
+
+
+def _trace(make, times, inputs, counters):
+    """(outcome, the values read at every point) of one run; outcome 'ok' or 'Type: message'."""
+    values = []
+
+    def read(plant):
+        values.extend([*plant.output(), *(c for z in plant.integrals() for c in (z.real, z.imag)),
+                       plant.events, plant.t, *(getattr(plant, name) for name in counters)])
+
+    try:
+        plant = make()
+        read(plant)
+        for t, f in zip(times, inputs):
+            if f is not None:
+                plant.set_input(f)
+            plant.advance(t)
+            read(plant)
+    except Exception as error:  # noqa: BLE001 - the C core must raise what Python raises
+        return f"{type(error).__name__}: {error}", values, plant.events if "plant" in locals() else 0
+    return "ok", values, plant.events
+
+
+@pytest.mark.parametrize("plant", list(PLANTS))
+def test_extreme_parameters_agree(core, plant):
+    """Seeded random parameters over the whole float range: the same values (NaN equal to NaN) or the
+    same exception with the same message, wherever Python stops. eps < 1 here (an elastic bounce in a
+    clearance far below the motion's scale chatters up to the events-per-period bound: minutes in Python;
+    eps = 1 is in the stress cases and the grid), and runs whose C twin fires more than 3000 events are
+    left out."""
+    rng = random.Random(20240506)
+    make_params = _extreme_backlash if plant == "backlash" else _extreme_static
+    python_class, _, counters = PLANTS[plant]
+    native_class = _native_class(core, plant)
+    outcomes, skipped = {}, 0
+    for i in range(150):
+        params, F, w = make_params(rng)
+        period = 2.0 * math.pi / w
+        times = sorted(period * rng.uniform(0.0, 3.0) for _ in range(rng.randint(1, 12)))
+        inputs = [rng.choice([None, 0.0, F * rng.uniform(-2.0, 2.0)]) for _ in times]
+        native = _trace(lambda: native_class(**params), times, inputs, counters)
+        if native[2] > 3000 or "events per period" in native[0]:
+            skipped += 1
+            continue
+        python = _trace(lambda: python_class(**params), times, inputs, counters)
+        assert native[0] == python[0], f"case {i} {params}"
+        assert len(native[1]) == len(python[1]), f"case {i} {params}"
+        for x, y in zip(python[1], native[1]):
+            assert x == y or (math.isnan(x) and math.isnan(y)), f"case {i} {params}: {x!r} != {y!r}"
+        kind = python[0].split(":")[0] if python[0] != "ok" else "ok"
+        outcomes[kind] = outcomes.get(kind, 0) + 1
+    print(f"\n{plant} extreme parameters (150 runs, {skipped} left out as chatter): outcomes {outcomes}, "
+          f"identical in C")
+    assert outcomes.get("ok", 0) > 50 and outcomes.get("OverflowError", 0) > 0
+
+
+def test_event_limit_refusal_agrees(core):
+    """A bounce in a clearance of 1e-280 m chatters: both stop at the events-per-period bound, alike."""
+    params = dict(M1=1.0, M2=1.0, h=1e-280, eps=1.0, F=0.0, v1_0=0.0, v2_0=1.0, omega=1.0)
+    python = _trace(lambda: TwoMassBacklash(**params), [1e-262], [None], ("contact", "impacts"))
+    native = _trace(lambda: core.TwoMassBacklash(**params), [1e-262], [None], ("contact", "impacts"))
+    assert python[0].startswith("PlantError: more than 100000 events per period")
+    assert native[:2] == python[:2]
+
+
+# -- refusals ----------------------------------------------------------------------------
+def _refusal(make, action):
+    try:
+        plant = make()
+        action(plant)
+    except PlantError as error:
+        return str(error)
+    return None
+
+
+def _refusal_pair(core, plant, params, action=lambda plant: None):
+    python_class = PLANTS[plant][0]
+    native_class = _native_class(core, plant)
+    return _refusal(lambda: python_class(**params), action), _refusal(lambda: native_class(**params), action)
+
+
+@pytest.mark.parametrize("plant", list(PLANTS))
+def test_every_python_refusal_is_a_c_refusal(core, stress_cases, plant):
+    checked = 0
+    for case in stress_cases[plant][1]:
+        if case.action == "set_input":
+            def action(solver, value=case.value):
+                solver.set_input(value)
+        elif case.action == "advance":
+            def action(solver, value=case.value):
+                solver.advance(1.0)
+                solver.advance(value)
+        else:
+            def action(solver):
+                return None
+        python, native = _refusal_pair(core, plant, case.params, action)
+        assert python is not None and python.startswith(f"{case.name} = "), case.describe()
+        assert native == python, case.describe()
+        checked += 1
+    assert checked == len(stress_cases[plant][1])
+
+
+@pytest.mark.parametrize("plant, params, action, name", [
+    ("backlash", dict(h=1, gap0=2), None, "gap0"),  # ints: named as Python writes them, h in the range too
+    ("backlash", dict(h=0.1, gap0=0.1 * (1 + 1e-15)), None, "gap0"),
+    ("backlash", dict(h=True), None, "h"),
+    ("backlash", dict(h=1e-291), None, "h"),
+    ("backlash", dict(eps=2), None, "eps"),
+    ("backlash", dict(M2=-0.0), None, "M2"),
+    ("backlash", dict(x1_0=None), None, "x1_0"),
+    ("backlash", dict(v2_0="1"), None, "v2_0"),
+    ("backlash", dict(harmonics=10.5), None, "harmonics"),
+    ("backlash", dict(phi=-1e10 * (1 + 1e-15)), None, "phi"),
+    ("backlash", dict(F=50.0, omega=20.0), lambda p: (p.advance(3.0), p.advance(2.5)), "t_end"),
+    ("backlash", dict(F=50.0, omega=20.0), lambda p: (p.advance(3.0), p.set_input(math.nan)), "f"),
+    ("backlash", dict(F=50.0, omega=20.0, phi=5.0), lambda p: p.advance(PHASE_LIMIT / 20.0), "t_end"),
+    ("static-backlash", dict(k=0), None, "k"),
+    ("static-backlash", dict(h=-1e-300), None, "h"),
+    ("static-backlash", dict(M=None), None, "M"),
+    ("static-backlash", dict(v0=math.inf), None, "v0"),
+    ("static-backlash", dict(omega=0), None, "omega"),
+    ("static-backlash", dict(F=50.0, omega=20.0), lambda p: (p.advance(3.0), p.advance(None)), "t_end"),
+    ("static-backlash", dict(F=50.0, omega=20.0), lambda p: p.set_input(True), "f"),
+    ("static-backlash", dict(F=-50.0, omega=2.0, phi=PHASE_LIMIT), lambda p: p.advance(2.0), "t_end"),
+])
+def test_refusals_match(core, plant, params, action, name):
+    python, native = _refusal_pair(core, plant, params, action or (lambda solver: None))
+    assert python is not None and python.startswith(f"{name} = ")
+    assert native == python
+
+
+def test_no_core_no_instance():
+    with pytest.raises(CoreError, match="needs a C core"):
+        NativeTwoMassBacklash(F=1.0)
+    with pytest.raises(CoreError, match="needs a C core"):
+        NativeStaticBacklash.from_bytes(b"")
+
+
+# -- the binding -------------------------------------------------------------------------
+def test_solver_protocol(core):
+    for plant, (python_class, attr, counters) in PLANTS.items():
+        native = getattr(core, attr)()
+        python = python_class()
+        assert isinstance(native, Solver) and native.t == 0.0 and native.events == 0 and native.harmonics == 10
+        assert native.output() == python.output() and type(native.output()) is type(python.output())
+        assert native.integrals() == [0j] * 11 and native.event_log is None
+        assert all(getattr(native, name) == getattr(python, name) for name in counters)
+    assert isinstance(core.TwoMassBacklash(), NativeTwoMassBacklash)
+    assert type(core.TwoMassBacklash(h=0.2).output()) is BacklashOutput
+    assert type(NativeStaticBacklash(harmonics=2, core=core).output()) is StaticBacklashOutput
+    assert NativeStaticBacklash(harmonics=2, core=core).integrals() == [0j] * 3
+    assert core.TwoMassBacklash(h=0.2).output().gap == 0.1  # gap0=None: h/2
+
+
+# -- copies ------------------------------------------------------------------------------
+@pytest.mark.parametrize("plant", list(PLANTS))
+def test_copy_continues_identically(core, plant):
+    python_class, attr, counters = PLANTS[plant]
+    params = dict(F=50.0, omega=20.0, harmonics=10)
+    period = 2 * math.pi / 20.0
+    python, native = python_class(**params), getattr(core, attr)(**params)
+    for solver in (python, native):
+        solver.advance(3.3 * period)
+        solver.set_input(20.0)
+        solver.advance(5.1 * period)
+    python_copy = copy.deepcopy(python)
+    clones = [native.copy(), copy.copy(native), copy.deepcopy(native), pickle.loads(pickle.dumps(native)),
+              type(native).from_bytes(native.to_bytes())]
+    assert all(type(clone) is type(native) for clone in clones)
+    native.set_input(-50.0)  # the original moves on: the copies must not
+    native.advance(9.0 * period)
+    agreement = Agreement(counters)
+    for j, k in enumerate(range(1, 97)):
+        t = 5.1 * period + k * period / 16
+        for solver in [python_copy] + clones:
+            solver.set_input(30.0 * math.sin(j / 5.0))
+            solver.advance(t)
+        for clone in clones:
+            agreement.compare(f"copy t={t!r}", python_copy, clone)
+    assert agreement.events > 10 and agreement.identical == agreement.values
+
+
+# -- the event log -----------------------------------------------------------------------
+def _logged_run(solver, case):
+    solver.event_log = []
+    for j, t in enumerate(case.times):
+        if case.inputs is not None:
+            solver.set_input(case.inputs[j])
+        solver.advance(t)
+    return solver.event_log
+
+
+def test_event_logs_are_equal(core, stress_cases):
+    """Every counted event, (t, EventKind), identical to the bit, in the order Python logs it."""
+    total, kinds = {}, set()
+    for plant, (python_class, attr, _) in PLANTS.items():
+        for case in stress_cases[plant][0][::3]:
+            python = _logged_run(python_class(**case.params), case)
+            native_solver = getattr(core, attr)(**case.params)
+            native = _logged_run(native_solver, case)
+            assert len(native) == len(python) == native_solver.events, case.note
+            assert all(type(t) is float and kind in EventKind for t, kind in native)
+            assert [(_bits(t), kind) for t, kind in native] == [(_bits(t), kind) for t, kind in python], case.note
+            total[plant] = total.get(plant, 0) + len(native)
+            kinds.update(str(kind) for _, kind in native)
+    params = dict(F=10.0, omega=1.0, Dv=1e-3)
+    case = Case("friction", params, *periods(params, 5))
+    native = _logged_run(core.FrictionMass(**params), case)
+    assert native == _logged_run(FrictionMass(**params), case) != []
+    kinds.update(str(kind) for _, kind in native)
+    print(f"\nevent logs equal: {total} events logged, kinds {sorted(kinds)}")
+    assert min(total.values()) > 100 and {"gap 0", "gap h", "engage+", "engage-", "reverse", "edge", "band"} <= kinds
+
+
+def test_event_log_bounds_and_switches(core, monkeypatch):
+    params = dict(F=50.0, omega=20.0)
+    period = 2 * math.pi / 20.0
+    solver = core.TwoMassBacklash(**params)
+    solver.advance(period)  # no log: nothing recorded
+    assert solver.event_log is None and solver.events > 0
+    log = solver.event_log = []
+    solver.advance(2 * period)
+    seen = len(log)
+    assert seen > 0 and solver.event_log is log
+    solver.event_log = None
+    solver.advance(3 * period)
+    assert len(log) == seen
+    monkeypatch.setattr(native_core, "LOG_CAPACITY", 3)
+    solver.event_log = []
+    before = solver.events
+    with pytest.warns(RuntimeWarning, match="were not recorded"):
+        solver.advance(6 * period)
+    assert len(solver.event_log) == 3 and solver.event_log_dropped == solver.events - before - 3
+
+
+# -- the state as bytes ------------------------------------------------------------------
+@pytest.mark.parametrize("plant", list(PLANTS))
+def test_state_round_trip_continues_identically(core, stress_cases, plant):
+    """At every point of every quick stress case the C solver is replaced by one read back from its
+    bytes: the run stays identical to Python's (no honest state is refused, nothing is lost)."""
+    agreement = Agreement(PLANTS[plant][2])
+    for case in stress_cases[plant][0][::2]:
+        _step_both(plant, case, core, agreement, case.note, restore=True)
+    print(f"\n{agreement.summary(f'{plant} restored from bytes at every point')}")
+    assert agreement.identical == agreement.values and agreement.points > 3000
+
+
+def _states(core):
+    """A few honest states of each plant (mid-flight, in contact, engaged, after an input change)."""
+    out = {}
+    for attr, params in (("FrictionMass", dict(F=10.0, omega=1.0, Dv=1e-3)),
+                         ("TwoMassBacklash", dict(F=50.0, omega=20.0, eps=0.5)),
+                         ("StaticBacklash", dict(F=50.0, omega=20.0))):
+        solver = getattr(core, attr)(**params)
+        period = 2 * math.pi / params["omega"]
+        states = []
+        for k in range(1, 9):
+            solver.advance(k * period / 7)
+            if k == 5:
+                solver.set_input(3.0)
+            states.append(solver.to_bytes())
+        out[attr] = states
+    return out
+
+
+def _with_crc(data):
+    data = bytearray(data)
+    data[20:24] = struct.pack("<I", zlib.crc32(bytes(data[HEADER:])))
+    return bytes(data)
+
+
+def test_state_refusals(core):
+    states = _states(core)
+    sizes = {attr: len(s[0]) for attr, s in states.items()}
+    assert sizes == {attr: core.api[plant].state_size
+                     for attr, plant in (("FrictionMass", "friction"), ("TwoMassBacklash", "backlash"),
+                                         ("StaticBacklash", "static_backlash"))}
+    data = states["TwoMassBacklash"][3]
+    cls = core.TwoMassBacklash
+    assert cls.from_bytes(bytearray(data)).to_bytes() == data == cls.from_bytes(memoryview(data)).to_bytes()
+    cases = [
+        (data[:10], "is truncated: its header alone has 24"),
+        (data[:-1], "truncated or oversized"),
+        (data + b"\0", "truncated or oversized"),
+        (data + data, "truncated or oversized"),
+        (b"", "is truncated"),
+        (b"X" + data[1:], "not a state of the dfwb C core"),
+        (data[:8] + struct.pack("<I", 1) + data[12:], "written by core ABI 1, this core is ABI 2"),
+        (data[:8] + struct.pack("<I", 3) + data[12:], "written by core ABI 3"),
+        (states["FrictionMass"][0], "is one of a dfwb_friction, not of a dfwb_backlash"),
+        (states["StaticBacklash"][0], "is one of a dfwb_static_backlash, not of a dfwb_backlash"),
+        (data[:12] + struct.pack("<I", 9) + data[16:], "is one of a unknown plant"),
+        (data[:16] + struct.pack("<I", 10**9) + data[20:], "truncated or oversized"),
+        (data[:-1] + bytes([data[-1] ^ 1]), "checksum does not match"),
+    ]
+    for bad, message in cases:
+        with pytest.raises(StateRefused, match="^[^\n]*" + message.replace("(", r"\(")):
+            cls.from_bytes(bad)
+    with pytest.raises(StateRefused, match="must be bytes, not str"):
+        cls.from_bytes("state")
+    # crafted with a valid checksum: a field out of range is named
+    for index, value, message in ((0, math.nan, "the state's f = nan is out of range"),  # fields: f, F, omega, phi,
+                                  (3, 2e10, "the state's phi = 20000000000.0 is out of range"),  # harmonics, t...
+                                  (5, -1.0, "the state's t = -1.0 is out of range"),
+                                  (2, 1e300, "the state's t = .* is out of range: must be >= 0 with the phase")):
+        crafted = bytearray(data)
+        crafted[HEADER + 8 * index:HEADER + 8 * index + 8] = struct.pack("<d", value)
+        with pytest.raises(StateRefused, match=message):
+            cls.from_bytes(_with_crc(crafted))
+    crafted = bytearray(data)
+    crafted[HEADER + 4 * 8:HEADER + 5 * 8] = struct.pack("<q", 11)  # harmonics
+    with pytest.raises(StateRefused, match="harmonics = 11 is out of range"):
+        cls.from_bytes(_with_crc(crafted))
+    crafted[HEADER + 4 * 8:HEADER + 5 * 8] = struct.pack("<q", 2**40)
+    with pytest.raises(StateRefused, match="integer field out of range"):
+        cls.from_bytes(_with_crc(crafted))
+
+
+FUZZ = r"""
+import json, math, random, struct, sys, zlib
+from array import array
+from dfwb.fmus.native_core import load
+from dfwb.fmus.state import StateRefused
+from dfwb.fmus.exact import PlantError
+
+core = load(sys.argv[1])
+states = json.loads(sys.stdin.read())
+rng = random.Random(5)
+HEADER = 24
+SPECIAL = [math.nan, math.inf, -math.inf, -1.0, 0.0, -0.0, 1.0, 0.5, 2.0, 3.0, 1e308, -1e308, 5e-324, 1e-300, 1e10,
+           2.0 ** 63]
+INTS = [-1, 2, 3, 4, 7, 8, 11, 12, 2**31 - 1, -2**31, 2**62, -2**63]
+tally = {"flips": 0, "refused": 0, "accepted": 0, "stepped": 0, "step refused": 0}
+
+def crc(data):
+    data = bytearray(data)
+    data[20:24] = struct.pack("<I", zlib.crc32(bytes(data[HEADER:])))
+    return bytes(data)
+
+def attempt(cls, data):
+    try:
+        solver = cls.from_bytes(data)
+    except StateRefused as error:
+        assert "\n" not in str(error) and str(error)
+        tally["refused"] += 1
+        return
+    tally["accepted"] += 1
+    assert cls.from_bytes(solver.to_bytes()).to_bytes() == solver.to_bytes()
+    solver.output(); solver.integrals(); solver.copy()
+    solver.event_log = []
+    try:
+        solver.set_input(1.5)
+        solver.advance(solver.t + min(solver.period / 8.0, 1.0))  # the state's own period: a step of honest cost
+        solver.output(); solver.integrals()
+        tally["stepped"] += 1
+    except (PlantError, OverflowError):
+        tally["step refused"] += 1
+
+for attr, entries in states.items():
+    cls = getattr(core, attr)
+    for index, hexdata in enumerate(entries):
+        data = bytes.fromhex(hexdata)
+        n = (len(data) - HEADER) // 8
+        if index == 0:  # every single bit flipped: the checksum refuses them all
+            for bit in range(8 * len(data)):
+                flipped = bytearray(data)
+                flipped[bit // 8] ^= 1 << (bit % 8)
+                try:
+                    cls.from_bytes(bytes(flipped))
+                    raise AssertionError(f"{attr}: bit {bit} flipped and accepted")
+                except StateRefused:
+                    tally["flips"] += 1
+        for i in range(n):  # every field set to each special value, the checksum made valid
+            for value in SPECIAL + INTS:
+                crafted = bytearray(data)
+                raw = struct.pack("<d", value) if isinstance(value, float) else struct.pack("<q", value)
+                crafted[HEADER + 8 * i:HEADER + 8 * i + 8] = raw
+                attempt(cls, crc(crafted))
+        for _ in range(150):  # a few fields at once, from random bits or another honest state
+            crafted = bytearray(data)
+            other = bytes.fromhex(rng.choice(entries))
+            for _ in range(rng.randint(1, 4)):
+                i = rng.randrange(n)
+                source = rng.random()
+                if source < 0.4:
+                    raw = other[HEADER + 8 * i:HEADER + 8 * i + 8]
+                elif source < 0.7:
+                    raw = struct.pack("<d", struct.unpack("<d", bytes(crafted[HEADER + 8 * i:HEADER + 8 * i + 8]))[0]
+                                      * rng.choice([-1.0, 0.5, 2.0, 1 + 1e-15, 1e6]))
+                else:
+                    raw = rng.getrandbits(64).to_bytes(8, "little")
+                crafted[HEADER + 8 * i:HEADER + 8 * i + 8] = raw
+            attempt(cls, crc(crafted))
+        for _ in range(100):  # random payloads behind a valid header
+            attempt(cls, crc(data[:HEADER] + rng.randbytes(len(data) - HEADER)))
+print(json.dumps(tally))
+"""
+
+
+def test_state_fuzzing_never_crashes(core):
+    """Bit flips, fields set to extreme values, fields mixed across states, random payloads (checksums
+    made valid): refused with one line, or accepted as a state whose copy, outputs and next step work and
+    whose bytes read back the same; in a subprocess, so that a crash would fail the test, not end it."""
+    states = {attr: [s.hex() for s in entries[::2]] for attr, entries in _states(core).items()}
+    run = subprocess.run([sys.executable, "-c", FUZZ, str(core.path)], input=json.dumps(states), capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0, f"the fuzzing process failed (exit {run.returncode}): {run.stderr[-2000:]}"
+    tally = json.loads(run.stdout)
+    print(f"\nstate fuzzing: {tally}")
+    assert tally["flips"] > 10_000 and tally["refused"] > 1000 and tally["stepped"] > 100
+
+
+# -- timing (printed, not asserted) --------------------------------------------------------
+def test_time_per_event(core):
+    """Median time per event of one long step (100 periods), Python and C."""
+    lines = []
+    for plant, params in (("backlash", dict(M1=1.0, M2=1.0, h=0.1, eps=0.5, F=50.0, omega=20.0)),
+                          ("static-backlash", dict(M=2.0, k=1.0, h=0.1, F=50.0, omega=20.0))):
+        python_class, attr, _ = PLANTS[plant]
+        stop = 100 * 2 * math.pi / params["omega"]
+
+        def run(cls):
+            solver = cls(**params)
+            start = time.perf_counter()
+            solver.advance(stop)
+            return time.perf_counter() - start, solver.events
+
+        python = [run(python_class) for _ in range(3)]
+        native = [run(getattr(core, attr)) for _ in range(15)]
+        events = python[0][1]
+        assert events == native[0][1] > 0
+        per_python = statistics.median(s for s, _ in python) / events
+        per_native = statistics.median(s for s, _ in native) / events
+        lines.append(f"  {plant:>15}: {events} events, Python {1e6 * per_python:6.1f} us, C {1e6 * per_native:5.2f} us "
+                     f"per event ({per_python / per_native:.0f}x)")
+    print("\none step of 100 periods (F=50, omega=20), median per event:\n" + "\n".join(lines))
