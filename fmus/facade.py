@@ -473,52 +473,24 @@ class SolverFMU(Fmi2Slave):
         """Update cached outputs after a step (nothing to cache by default)."""
 
 
-class PlantFMU(SolverFMU):
-    """Common facade: parameters, the input f, outputs and Fourier integrals."""
+class TableFMU(SolverFMU):
+    """An FMU whose variables are a per-class table, :meth:`layout`, served by get_/set_real and get_/set_integer.
 
-    solver_class = None
-    parameters = ()  # (name, default, unit, description)
-    outputs = ()  # (name, unit, description, is_integer)
-    output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
-    fixed_solver_attributes = ("period", "harmonics", "event_log", "drive.F", "drive.omega", "drive.phi")
-    piecewise_solver = True  # a PiecewisePlant: its piece start and searched time are checked too
+    fmi2Reset creates a new instance, so instances are cheap: pythonfmu's
+    variable objects are made only when a model description is written.
+    Subclasses give :meth:`layout` and :meth:`_value` (an output's value).
+    """
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        if cls.solver_class is not None:
-            FACADES.append(cls)
         cls._layout = cls.layout()
         cls._settable = frozenset(name for name, _kind, causality, *_ in cls._layout if causality != "output")
         cls._parameters = tuple(name for name, _kind, causality, *_ in cls._layout if causality == "parameter")
 
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self._values = {}
-        self._overflow = False
-        self._fourier = None
-        self._rotation = None
-        self._frozen = False
-        for name, default, *_ in self.parameters + EXCITATION:
-            setattr(self, name, float(default))
-        self.harmonics = MAX_HARMONIC
-        self.f = 0.0
-
-    # -- variables -------------------------------------------------------------
-    # fmi2Reset creates a new instance, so instances are cheap: the variables are
-    # a per-class table served by get_/set_real and get_/set_integer, and pythonfmu's
-    # variable objects are made only when a model description is written.
     @classmethod
     def layout(cls):
         """[(name, 'Real' or 'Integer', causality, variability, description)] in value-reference order."""
-        table = [(name, "Real", "parameter", "fixed", description)
-                 for name, _default, _unit, description in cls.parameters + EXCITATION]
-        table.append(("harmonics", "Integer", "parameter", "fixed",
-                      "number of harmonics k whose running Fourier integrals are computed (0..10)"))
-        table.append(("f", "Real", "input", "continuous", "input force, added to the built-in excitation"))
-        for name, _unit, description, is_integer in cls.all_outputs():
-            table.append((name, "Integer" if is_integer else "Real", "output",
-                          "discrete" if is_integer else "continuous", description))
-        return table
+        raise NotImplementedError
 
     def to_xml(self, model_options=dict()):
         if not self.vars:
@@ -529,16 +501,7 @@ class PlantFMU(SolverFMU):
         return super().to_xml(model_options)
 
     def _value(self, name):
-        if name in self._settable:
-            return getattr(self, name)
-        if name[:2] in ("Ic", "Is"):
-            if self._fourier is None and self.solver is not None:
-                fourier = self._integrals()
-                if not all(math.isfinite(value) for value in fourier.values()):
-                    self._fail(f"the Fourier integrals at t = {self._time!r} overflow a float")
-                self._fourier = fourier
-            return (self._fourier or {}).get(name, 0.0)
-        return self._values.get(name, 0)
+        raise NotImplementedError
 
     def _names(self, vrs, kind):
         table = self._layout
@@ -557,6 +520,60 @@ class PlantFMU(SolverFMU):
 
     def _parameter_names(self):
         return self._parameters
+
+
+class PlantFMU(TableFMU):
+    """Common facade: parameters, the input f, outputs and Fourier integrals."""
+
+    solver_class = None
+    parameters = ()  # (name, default, unit, description)
+    outputs = ()  # (name, unit, description, is_integer)
+    output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
+    fixed_solver_attributes = ("period", "harmonics", "event_log", "drive.F", "drive.omega", "drive.phi")
+    piecewise_solver = True  # a PiecewisePlant: its piece start and searched time are checked too
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.solver_class is not None:
+            FACADES.append(cls)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self._values = {}
+        self._overflow = False
+        self._fourier = None
+        self._rotation = None
+        self._frozen = False
+        for name, default, *_ in self.parameters + EXCITATION:
+            setattr(self, name, float(default))
+        self.harmonics = MAX_HARMONIC
+        self.f = 0.0
+
+    # -- variables -------------------------------------------------------------
+    @classmethod
+    def layout(cls):
+        """[(name, 'Real' or 'Integer', causality, variability, description)] in value-reference order."""
+        table = [(name, "Real", "parameter", "fixed", description)
+                 for name, _default, _unit, description in cls.parameters + EXCITATION]
+        table.append(("harmonics", "Integer", "parameter", "fixed",
+                      "number of harmonics k whose running Fourier integrals are computed (0..10)"))
+        table.append(("f", "Real", "input", "continuous", "input force, added to the built-in excitation"))
+        for name, _unit, description, is_integer in cls.all_outputs():
+            table.append((name, "Integer" if is_integer else "Real", "output",
+                          "discrete" if is_integer else "continuous", description))
+        return table
+
+    def _value(self, name):
+        if name in self._settable:
+            return getattr(self, name)
+        if name[:2] in ("Ic", "Is"):
+            if self._fourier is None and self.solver is not None:
+                fourier = self._integrals()
+                if not all(math.isfinite(value) for value in fourier.values()):
+                    self._fail(f"the Fourier integrals at t = {self._time!r} overflow a float")
+                self._fourier = fourier
+            return (self._fourier or {}).get(name, 0.0)
+        return self._values.get(name, 0)
 
     # -- declarations used by the builder ------------------------------------
     @classmethod

@@ -30,10 +30,7 @@ next step (:meth:`LoopFMU._check_solver_state`).
 
 import math
 
-from pythonfmu import Integer, Real
-from pythonfmu.enums import Fmi2Causality, Fmi2Variability
-
-from .facade import FrictionMass, SolverFMU, StaticBacklash, TwoMassBacklash
+from .facade import FrictionMass, StaticBacklash, TableFMU, TwoMassBacklash
 from .hybrid import Mode
 from .linear_system import MAX_ORDER
 from .loops import FREE, STICK
@@ -85,7 +82,7 @@ COMMON_FIXED = ("order", "Ac", "Bc", "C", "D", "event_log", "_section", "_watchi
 """Solver attributes of every loop that a run never changes (a restored solver's must equal a new one's)."""
 
 
-class LoopFMU(SolverFMU):
+class LoopFMU(TableFMU):
     """A plant in feedback with -G(s): no input, the plant's parameters and outputs, the controller's parameters."""
 
     input_name = None
@@ -99,11 +96,6 @@ class LoopFMU(SolverFMU):
     fixed_solver_attributes = COMMON_FIXED
     state_classes = (Mode,)  # the solver's modes (its own classes, EventKind and the base classes are added)
 
-    def __init_subclass__(cls, **kwargs):
-        super().__init_subclass__(**kwargs)
-        cls._layout = cls.layout()
-        cls._parameters = tuple(name for name, _kind, causality, *_ in cls._layout if causality == "parameter")
-
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._values = {}
@@ -114,7 +106,7 @@ class LoopFMU(SolverFMU):
         for name, value in CONTROLLER_DEFAULTS.items():
             setattr(self, name, value)
 
-    # -- variables (a per-class table, as PlantFMU's) -----------------------------
+    # -- variables (TableFMU's per-class table) ------------------------------------
     @classmethod
     def layout(cls):
         """[(name, 'Real' or 'Integer', causality, variability, description)] in value-reference order."""
@@ -141,36 +133,10 @@ class LoopFMU(SolverFMU):
         table.update(cls.ranges)
         return table
 
-    def to_xml(self, model_options=dict()):
-        if not self.vars:
-            for name, kind, causality, variability, description in self.layout():
-                self.register_variable((Integer if kind == "Integer" else Real)(
-                    name, causality=Fmi2Causality[causality], variability=Fmi2Variability[variability],
-                    description=description, getter=lambda name=name: self._value(name)))
-        return super().to_xml(model_options)
-
     def _value(self, name):
         if name in self._parameters:
             return getattr(self, name)
         return self._values.get(name, 0)
-
-    def _names(self, vrs, kind):
-        table = self._layout
-        names = []
-        for vr in vrs:
-            if not 0 <= vr < len(table) or table[vr][1] != kind:
-                raise TypeError(f"Variable with valueReference={vr} is not of type {kind}!")
-            names.append(table[vr][0])
-        return names
-
-    def _get_real(self, vrs):
-        return [float(self._value(name)) for name in self._names(vrs, "Real")]
-
-    def _get_integer(self, vrs):
-        return [int(self._value(name)) for name in self._names(vrs, "Integer")]
-
-    def _parameter_names(self):
-        return self._parameters
 
     # -- the solver --------------------------------------------------------------
     def _controller(self):
