@@ -1,6 +1,7 @@
 """Shared fixtures: the FMUs (plants and controller), built once per test session from the current sources."""
 
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -75,3 +76,14 @@ def raw_fmu(fmus):
 def private_cache(tmp_path_factory):
     """Tests never read or fill the user's cache ($XDG_CACHE_HOME/dfwb): each session gets its own."""
     os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("xdg-cache"))
+
+
+@pytest.fixture(scope="session")
+def core(tmp_path_factory):
+    """The C core (fmus/native), compiled once per session with warnings as errors (skips without a C compiler)."""
+    from dfwb.build_fmus.core import build_core
+    from dfwb.fmus.native_core import load
+
+    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+        pytest.skip("no C compiler (cc) on PATH to build fmus/native")
+    return load(build_core(tmp_path_factory.mktemp("native_core"), extra_flags=("-Wall", "-Wextra", "-Werror")))

@@ -18,7 +18,6 @@ import json
 import math
 import pickle
 import random
-import shutil
 import statistics
 import struct
 import subprocess
@@ -29,13 +28,12 @@ from array import array
 
 import pytest
 
-from dfwb.build_fmus.core import build_core
 from dfwb.fmus import native_core
 from dfwb.fmus.backlash import TwoMassBacklash
 from dfwb.fmus.contract import BacklashOutput, EventKind, Solver, StaticBacklashOutput
 from dfwb.fmus.exact import PHASE_LIMIT, PlantError
 from dfwb.fmus.friction import FrictionMass
-from dfwb.fmus.native_core import CoreError, NativeStaticBacklash, NativeTwoMassBacklash, load
+from dfwb.fmus.native_core import CoreError, NativeStaticBacklash, NativeTwoMassBacklash
 from dfwb.fmus.state import StateRefused
 from dfwb.fmus.static_backlash import StaticBacklash
 from dfwb.plants.stress_kit import Case, InvalidCase, periods
@@ -44,7 +42,6 @@ from dfwb.verify.stress import all_cases
 pytestmark = pytest.mark.needs_cc
 
 RTOL = 1e-13
-WARNINGS = ("-Wall", "-Wextra", "-Werror")
 HEADER = 24  # bytes of a state's header: magic, ABI, kind, payload length, CRC-32
 
 PLANTS = {  # stress plant name -> (Python class, NativeCore attribute, counters)
@@ -53,12 +50,6 @@ PLANTS = {  # stress plant name -> (Python class, NativeCore attribute, counters
 }
 
 
-@pytest.fixture(scope="session")
-def core(tmp_path_factory):
-    """The C core, compiled once per session into a temporary folder (skips without a C compiler)."""
-    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
-        pytest.skip("no C compiler (cc) on PATH to build fmus/native")
-    return load(build_core(tmp_path_factory.mktemp("native_backlash"), extra_flags=WARNINGS))
 
 
 @pytest.fixture(scope="session")

@@ -17,7 +17,6 @@ import copy
 import math
 import pickle
 import random
-import shutil
 import statistics
 import struct
 import time
@@ -36,15 +35,8 @@ from dfwb.verify.stress import all_cases
 pytestmark = pytest.mark.needs_cc
 
 RTOL = 1e-13
-WARNINGS = ("-Wall", "-Wextra", "-Werror")
 
 
-@pytest.fixture(scope="session")
-def core(tmp_path_factory):
-    """The C core, compiled once per session into a temporary folder (skips without a C compiler)."""
-    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
-        pytest.skip("no C compiler (cc) on PATH to build fmus/native")
-    return load(build_core(tmp_path_factory.mktemp("native_core"), extra_flags=WARNINGS))
 
 
 @pytest.fixture(scope="session")

@@ -10,18 +10,7 @@ import os
 import subprocess
 import sys
 
-SCENE = """title = "two points"
-[[series]]
-name = "friction"
-plant = "friction"
-F = [10.0]
-omega = [1.0, 2.0]
-
-[[figure]]
-name = "nyquist"
-kind = "nyquist"
-series = ["friction"]
-"""
+from test_hardening import FIGURE_SCENE as SCENE  # a scene with two points and one figure
 
 PROBE = """
 import sys
