@@ -176,14 +176,8 @@ class LoopProblem:
     def rest_start(self, position):
         """The state with the plant displaced by ``position`` (its output coordinate), all else at rest."""
         solver = self.solver(None)
-        X = solver.state()
-        X = [0.0] * len(X)
-        if self.spec.name == "static-backlash":
-            k = self.params.get("k", 1.0)
-            X[0], X[2] = position / k, position
-        else:
-            X[self.output] = position
-        return X
+        m = len(solver.coordinates)
+        return solver.translate([0.0] * m, position) + [0.0] * solver.order
 
     def first_return(self, X, level, max_time, min_time=None):
         """(state, time) at the first upward crossing of y through ``level`` from X in [min_time, max_time], or None.
@@ -416,11 +410,12 @@ class LoopProblem:
         mean = Y[0].real
         # the first sample after the output rises through its mean
         grid = np.linspace(0.0, T, 257)[1:]
-        before = plant.output()[self._plant_output_index()] - mean
+        output = self.spec.output  # a field of the open-loop solver's output() (named as the FMU's)
+        before = getattr(plant.output(), output) - mean
         t_start = None
         for t in grid:
             plant.advance((periods + 1) * T + float(t))
-            value = plant.output()[self._plant_output_index()] - mean
+            value = getattr(plant.output(), output) - mean
             if before < 0.0 <= value:
                 t_start = plant.t
                 break
@@ -431,10 +426,6 @@ class LoopProblem:
         q = self.solver(None).translate(self.cls.coordinates_of(plant.output()), -mean)
         z = self._controller_state(Y, 0.0, omega, t_start)
         return q + z, T, 0.0
-
-    def _plant_output_index(self):
-        return self.spec.model.all_outputs().index(next(o for o in self.spec.model.all_outputs()
-                                                        if o[0] == self.spec.output))
 
     def _controller_state(self, Y, mean, omega, t):
         """z(t) of the controller driven by y = mean + Re sum_k Y_k exp(jkwt) in its periodic steady state."""
