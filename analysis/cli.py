@@ -136,8 +136,15 @@ def _fmus(out_dir):
 def cmd_build(args):
     """Build the production FMUs (the registry's plants, LinearSystem and the exact closed loops); ``--naive``: the
     plants' fixed-step twins too."""
-    from dfwb.fmi.location import build_fmus
+    from dfwb.fmi.location import NATIVE_FOLDER, build_fmus, fmu_folder
 
+    if args.native:
+        from dfwb.build_fmus.native import build_native
+
+        if args.naive:
+            raise InputError("--native and --naive: the naive twins exist only as pythonfmu FMUs")
+        build_native(args.out if args.out is not None else fmu_folder() / NATIVE_FOLDER, force=args.force)
+        return 0
     build_fmus(args.out, naive=args.naive, force=args.force)
     return 0
 
@@ -370,6 +377,14 @@ def cmd_demo(args):
     return 0
 
 
+def fmu_options(command):
+    """--fmus DIR and --fmu KIND: where the FMUs are, and which kind of plant FMU runs."""
+    command.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
+    command.add_argument("--fmu", action=_Once, choices=("native", "python"), default=None,
+                         help="plant FMUs to run: native (the C core, no Python inside) or python (pythonfmu); "
+                              "the same numbers (default: $DFWB_FMU, else native)")
+
+
 def parser():
     from dfwb.plants import names
 
@@ -383,6 +398,9 @@ def parser():
     build.add_argument("--out", action=_Once, type=Path, default=None, help=f"output folder (default: {FMU_DIR_HELP})")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.add_argument("--naive", action="store_true", help="also build the benchmark's fixed-step twins")
+    build.add_argument("--native", action="store_true",
+                       help="build only the native plant FMUs (C core, no Python needed by the importer) into --out "
+                            "(default: the FMU folder's native/)")
     build.set_defaults(run=cmd_build)
 
     def point_options(command):
@@ -398,8 +416,7 @@ def parser():
                                   "master into the input f, held over each step (default: %(default)s)")
         command.add_argument("--samples-per-period", action=_Once, type=_integer(4, 100_000), default=64,
                              help="communication steps per period with --drive input (default: %(default)s)")
-        command.add_argument("--fmus", action=_Once, type=Path, default=None,
-                             help=f"FMU folder (default: {FMU_DIR_HELP})")
+        fmu_options(command)
 
     df = commands.add_parser("df", help="describing function N(F, omega) of a plant, one point per (F, omega)")
     point_options(df)
@@ -435,7 +452,7 @@ def parser():
                        help="co-simulation steps per predicted period with --verify (default: %(default)s)")
     cycle.add_argument("--plot", action=_Once, help="write the Nyquist (and time-response) figure to this PNG")
     cycle.add_argument("--json", action="store_true", help="print one JSON object")
-    cycle.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
+    fmu_options(cycle)
     cycle.set_defaults(run=cmd_limit_cycle)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
@@ -468,8 +485,7 @@ def parser():
         command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
                              help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
         command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
-        command.add_argument("--fmus", action=_Once, type=Path, default=None,
-                             help=f"FMU folder (default: {FMU_DIR_HELP})")
+        fmu_options(command)
         command.add_argument("--quiet", action="store_true", help="no progress display")
 
     run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
@@ -490,7 +506,7 @@ def parser():
     demo = commands.add_parser("demo", help="drive each FMU with a sine through fmpy and plot the response")
     demo.add_argument("--out", action=_Once, type=Path, default=Path("out"),
                       help="output folder (default: %(default)s)")
-    demo.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
+    fmu_options(demo)
     demo.set_defaults(run=cmd_demo)
     return top
 
@@ -502,6 +518,8 @@ def main(argv=None):
     top = parser()
     args = top.parse_args(argv)
     prog = f"dfwb {args.command}"
+    if getattr(args, "fmu", None):  # the process and its workers run this kind of plant FMU
+        os.environ["DFWB_FMU"] = args.fmu
     if args.command in FIGURE_COMMANDS and (args.command != "limit-cycle" or args.plot):
         from dfwb.plotting.backend import use_batch_backend
 

@@ -87,3 +87,16 @@ def core(tmp_path_factory):
     if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
         pytest.skip("no C compiler (cc) on PATH to build fmus/native")
     return load(build_core(tmp_path_factory.mktemp("native_core"), extra_flags=("-Wall", "-Wextra", "-Werror")))
+
+
+@pytest.fixture(scope="session")
+def native_fmus(tmp_path_factory):
+    """{model name: path} of the native plant FMUs (C core + FMI wrapper), built once per session with warnings
+    as errors (skips without a C compiler)."""
+    from dfwb.build_fmus.native import build_native
+
+    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+        pytest.skip("no C compiler (cc) on PATH to build the native FMUs")
+    paths = build_native(tmp_path_factory.mktemp("native_fmus"), report=lambda message: None,
+                         extra_flags=("-Wall", "-Wextra", "-Werror"))
+    return {path.stem: path for path in paths}

@@ -110,3 +110,29 @@ def test_c_host_reports_bad_parameter(fmus, host, preload_env, tmp_path):
     assert "eps = 1.5 is out of range" in run.stderr  # the FMU's own message, via the logger
     assert "returned status" in run.stderr  # the host names the failed call and its status
     assert run.stdout == ""  # not a single output row from a refused initialisation
+
+
+@pytest.mark.parametrize("model, stop_time, step, start_values, outputs", [
+    ("FrictionMass", 20.0, 0.1, {"F": 10.0, "omega": 1.0}, ["x", "v", "Ff", "Ic1", "Is1"]),
+    ("TwoMassBacklash", 1.0, 0.01, {"F": 50.0, "omega": 20.0, "eps": 0.5}, ["x1", "gap", "Ic1"]),
+    ("StaticBacklash", 10.0, 0.05, {"F": 1.0, "omega": 2.0}, ["y", "Is1"]),
+])
+def test_c_host_runs_native_fmus(native_fmus, fmus, host, tmp_path, model, stop_time, step, start_values, outputs,
+                                 monkeypatch):
+    """The native FMUs need no Python at all (not even the shim's libpython): the host's numbers are the oracle's."""
+    run = run_host(host, {}, native_fmus[model], tmp_path, stop_time, step, start_values, outputs)
+    assert run.returncode == 0, f"C host failed ({run.returncode}):\n{run.stderr}"
+    from_c = np.array([[float(word) for word in line.split()] for line in run.stdout.splitlines()])
+    monkeypatch.setenv("DFWB_FMU_SOLVER", "python")  # the pythonfmu FMU on its pure-Python solver
+    reference = simulate(fmus[model], stop_time, step, start_values, outputs)
+    assert from_c.shape == (len(reference), 1 + len(outputs))
+    for k, name in enumerate(["time"] + outputs):  # %.17g round-trips: bit for bit
+        np.testing.assert_array_equal(from_c[:, k], reference[name], err_msg=f"{model}.{name}")
+
+
+def test_c_host_sees_native_refusal(native_fmus, host, tmp_path):
+    run = run_host(host, {}, native_fmus["TwoMassBacklash"], tmp_path, 1.0, 0.01,
+                   {"F": 50.0, "omega": 20.0, "eps": 1.5}, ["x1"])
+    assert run.returncode != 0
+    assert "eps = 1.5 is out of range" in run.stderr
+    assert run.stdout == ""

@@ -7,6 +7,12 @@ command's ``--fmus DIR`` choose another folder. :func:`fmu_path` builds only
 the FMU it is asked for, and only when it is missing there or was built from
 other sources (each FMU's hash covers the modules it bundles: see
 :mod:`dfwb.build_fmus.builder`).
+
+Two kinds of plant FMUs: ``native`` (the C core with an FMI wrapper, no Python
+inside: :mod:`dfwb.build_fmus.native`), the default, kept in the folder's
+``native/`` subfolder, and ``python`` (pythonfmu). Both give the same numbers,
+bit for bit; ``DFWB_FMU`` or a command's ``--fmu`` chooses. The controller
+and the closed loops exist only as pythonfmu FMUs.
 """
 
 import os
@@ -15,7 +21,10 @@ from pathlib import Path
 from dfwb.base.files import user_cache_dir
 from dfwb.fmus.piecewise import PlantError
 
-__all__ = ["default_fmu_dir", "fmu_folder", "fmu_path", "models", "build_fmus"]
+__all__ = ["default_fmu_dir", "fmu_folder", "fmu_kind", "fmu_path", "models", "build_fmus", "FMU_KINDS"]
+
+FMU_KINDS = ("native", "python")
+NATIVE_FOLDER = "native"
 
 
 def default_fmu_dir():
@@ -32,6 +41,15 @@ def fmu_folder(fmu_dir=None):
             or not os.fspath(fmu_dir):
         raise PlantError(f"fmu_dir = {fmu_dir!r} is not a folder: give a path (str or pathlib.Path)")
     return Path(fmu_dir)
+
+
+def fmu_kind(kind=None):
+    """The kind of plant FMU to run: ``kind``, else ``$DFWB_FMU``, else "native"; PlantError unless in FMU_KINDS."""
+    chosen = kind if kind is not None else os.environ.get("DFWB_FMU") or "native"
+    if chosen not in FMU_KINDS:
+        source = "kind" if kind is not None else "DFWB_FMU"
+        raise PlantError(f"{source} = {chosen!r} is not an FMU kind (allowed: {', '.join(FMU_KINDS)})")
+    return chosen
 
 
 def models(naive=False):
@@ -57,15 +75,30 @@ def _model(model):
     return known[model]
 
 
-def fmu_path(model, fmu_dir=None):
-    """Path of one FMU (a registry Plant, or a model name like "LinearSystem"), built first if missing or stale."""
+def fmu_path(model, fmu_dir=None, kind=None):
+    """Path of one FMU (a registry Plant, or a model name like "LinearSystem"), built first if missing or stale.
+
+    ``kind`` (:func:`fmu_kind`): "native" gives the native FMU of a plant that has one (in the folder's
+    ``native/``), the pythonfmu FMU otherwise; "python" always the pythonfmu FMU.
+    """
+    cls = _model(model)
+    if fmu_kind(kind) == "native":
+        from dfwb.build_fmus.native import build_native, native_models
+
+        if cls in native_models():
+            return build_native(fmu_folder(fmu_dir) / NATIVE_FOLDER, [cls], report=lambda message: None)[0]
     from dfwb.build_fmus.builder import build
 
-    return build(fmu_folder(fmu_dir), [_model(model)], report=lambda message: None)[0]
+    return build(fmu_folder(fmu_dir), [cls], report=lambda message: None)[0]
 
 
 def build_fmus(fmu_dir=None, naive=False, force=False, report=print):
-    """Build the FMUs of :func:`models` into ``fmu_dir`` (default :func:`default_fmu_dir`); their paths."""
+    """Build the FMUs of :func:`models` into ``fmu_dir`` (default :func:`default_fmu_dir`), and the native plant
+    FMUs into its ``native/``; the paths of the former."""
     from dfwb.build_fmus.builder import build
+    from dfwb.build_fmus.native import build_native
 
-    return build(fmu_folder(fmu_dir), models(naive), force=force, report=report)
+    folder = fmu_folder(fmu_dir)
+    paths = build(folder, models(naive), force=force, report=report)
+    build_native(folder / NATIVE_FOLDER, force=force, report=report)
+    return paths

@@ -1,0 +1,231 @@
+"""Build the native FMUs: the plants on the C core with an FMI 2.0 wrapper, no Python inside.
+
+``dfwb build --native`` writes FrictionMass.fmu, TwoMassBacklash.fmu and
+StaticBacklash.fmu whose binary (``binaries/linux64/<Model>.so``) is the C
+core (``fmus/native/*.c``) plus the FMI 2.0 co-simulation wrapper
+``fmus/native/fmu/fmi2_plant.c``, and whose ``sources/`` folder holds all of
+it (an importer can compile the FMU for another platform).
+
+They are twins of the pythonfmu FMUs, not copies: the model description is
+written from the same facade class (:mod:`dfwb.fmus.facade`) by the same
+pass (:func:`~dfwb.build_fmus.builder.finish_model_description`: units,
+ranges, structure), so names, value references, start values and ranges
+agree by construction; the wrapper learns them from ``dfwb_model.h``, a
+header written here from that description (each variable's role: a core
+parameter, the input, an output of the core). Only the CoSimulation element
+differs (no execution tool, memory through the host's callbacks).
+
+A native FMU's hash covers the C sources, the facade and builder modules,
+pythonfmu's version, the compiler command and :data:`NATIVE_REVISION`; an
+FMU whose recorded hash matches is not rebuilt (as for the pythonfmu FMUs).
+"""
+
+import functools
+import hashlib
+import os
+import subprocess
+import tempfile
+import uuid
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+import pythonfmu
+
+from dfwb.fmus import facade
+
+from . import builder
+from .builder import BuildError, finish_model_description, recorded_hash
+from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
+
+__all__ = ["build_native", "native_models", "native_hash", "WRAPPER", "NATIVE_REVISION"]
+
+NATIVE_REVISION = "1"
+WRAPPER = NATIVE_DIR / "fmu" / "fmi2_plant.c"
+GENERATION_TOOL = "dfwb native (C core, fmus/native)"
+
+# Per plant: the core's plant kind, its parameter order (dfwb_core.h) and the order of dfwb_*_output's array.
+KINDS = {
+    "FrictionMass": ("DFWB_PLANT_FRICTION",
+                     ("M", "B", "Fc", "Fs", "Dv", "F", "omega", "phi", "x0", "v0", "f", "harmonics"),
+                     ("x", "v", "Ff", "mode")),
+    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH",
+                        ("M1", "M2", "h", "eps", "F", "omega", "phi", "x1_0", "v1_0", "v2_0", "gap0", "f",
+                         "harmonics"),
+                        ("x1", "v1", "x2", "v2", "gap")),
+    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH",
+                       ("M", "k", "h", "F", "omega", "phi", "x0", "v0", "f", "harmonics"),
+                       ("x", "v", "y")),
+}
+COUNTERS = {"events": "ROLE_EVENTS", "contact": "ROLE_CONTACT", "impacts": "ROLE_IMPACTS",
+            "engaged": "ROLE_ENGAGED"}
+COSIMULATION = {
+    "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
+    "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+    "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+    "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false",
+}
+
+
+def native_models():
+    """The facade classes that have a native FMU (the three plants of :data:`dfwb.fmus.facade.PRODUCTION`)."""
+    return [model for model in facade.PRODUCTION if model.__name__ in KINDS]
+
+
+def _headers():
+    import fmpy
+
+    folder = Path(fmpy.__file__).resolve().parent / "c-code"  # fmi2Functions.h & co. (FMI 2.0)
+    if not (folder / "fmi2Functions.h").is_file():
+        raise BuildError(f"building the native FMUs needs the FMI 2.0 headers of fmpy: no fmi2Functions.h in {folder}")
+    return folder
+
+
+def _command(extra_flags=()):
+    return compiler() + list(FLAGS) + [str(flag) for flag in extra_flags]
+
+
+@functools.lru_cache(maxsize=8)
+def _static_digest():
+    """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
+    digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
+    for path in [WRAPPER, Path(facade.__file__), Path(builder.__file__), Path(__file__)] + sources():
+        digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def native_hash(model, extra_flags=()):
+    """The hash a native FMU of ``model`` records (see the module's docstring)."""
+    if model.__name__ not in KINDS:
+        raise BuildError(f"{model.__name__} has no native FMU (native: {', '.join(KINDS)})")
+    words = "\0".join(_command(extra_flags) + list(LIBS) + [model.__name__, _static_digest()])
+    return hashlib.sha256(words.encode()).hexdigest()[:16]
+
+
+def _description(model, digest):
+    """The finished model description of the pythonfmu FMU, made native (CoSimulation, tool, GUID)."""
+    with tempfile.TemporaryDirectory(prefix="dfwb_native_xml_") as tmp:
+        instance = model(instance_name="native", resources=tmp)
+        raw = ET.tostring(instance.to_xml(), encoding="utf-8")
+    root = ET.fromstring(finish_model_description(raw, model, digest))
+    root.set("generationTool", GENERATION_TOOL)
+    root.set("guid", "{%s}" % uuid.uuid5(uuid.NAMESPACE_URL, f"dfwb/native/{model.__name__}/{digest}"))
+    root.attrib.pop("generationDateAndTime", None)
+    cosimulation = root.find("CoSimulation")
+    cosimulation.attrib.clear()
+    cosimulation.set("modelIdentifier", model.__name__)
+    cosimulation.attrib.update(COSIMULATION)
+    files = ET.SubElement(cosimulation, "SourceFiles")
+    for name in _source_names():
+        if name.endswith(".c"):
+            ET.SubElement(files, "File", name=name)
+    ET.indent(root)
+    return root
+
+
+def _source_names():
+    return [WRAPPER.name, "dfwb_model.h"] + [path.name for path in sources()]
+
+
+def _c_string(text):
+    if any(ch in text for ch in '"\\\n') or not text.isascii():
+        raise BuildError(f"{text!r} cannot be written into dfwb_model.h")
+    return f'"{text}"'
+
+
+def model_header(model, root):
+    """dfwb_model.h for ``model``: its kind, GUID and every variable's name, type, role and start value."""
+    kind, parameters, outputs = KINDS[model.__name__]
+    index = {name: i for i, name in enumerate(parameters)}
+    rows, vr_of = [], {}
+    for vr, scalar in enumerate(root.find("ModelVariables")):
+        name, causality = scalar.get("name"), scalar.get("causality")
+        if int(scalar.get("valueReference")) != vr:
+            raise BuildError(f"{model.__name__}: value references are not 0, 1, 2, ... ({name})")
+        element = scalar[0]
+        integer = int(element.tag == "Integer")
+        start = float(element.get("start", "0"))
+        vr_of[name] = vr
+        if causality == "parameter":
+            role, position = "ROLE_PARAMETER", index[name]
+        elif causality == "input":
+            role, position = "ROLE_INPUT", index[name]
+        elif name in outputs:
+            role, position = "ROLE_OUTPUT", outputs.index(name)
+        elif name in COUNTERS:
+            role, position = COUNTERS[name], 0
+        elif name[:2] in ("Ic", "Is") and name[2:].isdigit():
+            role, position = ("ROLE_COSINE" if name[1] == "c" else "ROLE_SINE"), int(name[2:])
+        else:
+            raise BuildError(f"{model.__name__}: the native wrapper knows no role for the variable {name!r}")
+        rows.append(f"    {{{_c_string(name)}, {integer}, {role}, {position}, {start!r}}},")
+    defines = {"DFWB_MODEL_NAME": _c_string(model.__name__), "DFWB_MODEL_KIND": kind,
+               "DFWB_MODEL_GUID": _c_string(root.get("guid")),
+               "DFWB_MODEL_INPUT_PARAMETER": index["f"], "DFWB_MODEL_PHI_PARAMETER": index["phi"],
+               "DFWB_MODEL_OMEGA_PARAMETER": index["omega"], "DFWB_MODEL_OMEGA_VR": vr_of["omega"]}
+    if "gap0" in index:
+        defines.update(DFWB_MODEL_GAP0_PARAMETER=index["gap0"], DFWB_MODEL_H_PARAMETER=index["h"])
+    lines = [f"/* dfwb_model.h - {model.__name__}: written by build_fmus/native.py from the facade; do not edit. */"]
+    lines += [f"#define {key} {value}" for key, value in defines.items()]
+    lines += ["static const model_variable DFWB_MODEL_VARIABLES[] = {"] + rows + ["};", ""]
+    return "\n".join(lines)
+
+
+def _compile(stage, target, extra_flags):
+    command = (_command(extra_flags) + [f"-I{_headers()}", f"-I{stage}", "-o", str(target)]
+               + [str(stage / name) for name in _source_names() if name.endswith(".c")] + list(LIBS))
+    try:
+        run = subprocess.run(command, capture_output=True, text=True, cwd=stage)
+    except OSError as error:
+        raise BuildError(f"compiling the native FMU failed: {command[0]}: {error}") from None
+    if run.returncode != 0:
+        lines = [line.strip() for line in run.stderr.splitlines() if line.strip()]
+        first = next((line for line in lines if "error" in line), lines[0] if lines else "no message")
+        raise BuildError(f"compiling the native FMU failed (exit {run.returncode}): {first}")
+
+
+def build_one_native(model, out_dir, digest=None, extra_flags=()):
+    """Build ``<out_dir>/<Model>.fmu``, the native FMU of ``model`` (atomic replace); its path."""
+    digest = digest or native_hash(model, extra_flags)
+    root = _description(model, digest)
+    dest = Path(out_dir) / f"{model.__name__}.fmu"
+    with tempfile.TemporaryDirectory(prefix="dfwb_native_") as tmp:
+        stage = Path(tmp) / "sources"
+        stage.mkdir()
+        for path in [WRAPPER] + sources():
+            (stage / path.name).write_bytes(path.read_bytes())
+        (stage / "dfwb_model.h").write_text(model_header(model, root))
+        binary = Path(tmp) / f"{model.__name__}.so"
+        _compile(stage, binary, extra_flags)
+        partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+            archive.writestr("modelDescription.xml",
+                             b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8"))
+            archive.write(binary, f"binaries/linux64/{model.__name__}.so")
+            for name in _source_names():
+                archive.write(stage / name, f"sources/{name}")
+        partial.replace(dest)
+    return dest
+
+
+def build_native(out_dir, models=None, force=False, report=print, extra_flags=()):
+    """Build the native FMUs of ``models`` (default :func:`native_models`) into ``out_dir``; their paths.
+
+    As :func:`dfwb.build_fmus.builder.build`: an FMU whose recorded hash matches
+    is kept (``force`` rebuilds it), ``report`` gets one line per FMU.
+    ``extra_flags`` go to the compiler (and into the hash), e.g. ``("-Wall", "-Werror")``.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for model in native_models() if models is None else models:
+        path = out_dir / f"{model.__name__}.fmu"
+        digest = native_hash(model, extra_flags)
+        if not force and recorded_hash(path) == digest:
+            report(f"{path}: up to date (native)")
+        else:
+            build_one_native(model, out_dir, digest, extra_flags)
+            report(f"{path}: built (native)")
+        paths.append(path)
+    return paths
+
