@@ -29,7 +29,9 @@ kind, length, CRC-32 - then the plain data) and the classmethod ``from_bytes(dat
 them; the C core checks everything it reads and refuses anything else with
 :class:`~.state.StateRefused` (one line). ``copy()``, :func:`copy.copy` and :func:`copy.deepcopy` give
 an independent exact copy; :mod:`pickle` works through the state bytes (the unpickling process loads the
-library from the same path).
+library from the same path). ``a.same_parameters(b)``: whether two solvers of one plant on one core hold
+bit-identical fixed parameters (what a run never changes: not the input f, the time nor the motion), as
+an importer restoring a state checks it against a solver made anew from the state's parameters.
 
 Plain Python (stdlib ``ctypes``) only.
 """
@@ -47,7 +49,7 @@ __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", 
            "CoreError", "PARAMETERS", "BACKLASH_PARAMETERS", "STATIC_BACKLASH_PARAMETERS", "ABI", "LOG_CAPACITY",
            "EVENT_KINDS"]
 
-ABI = 2  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 3  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 PARAMETERS = ("M", "B", "Fc", "Fs", "Dv", "F", "omega", "phi", "x0", "v0", "f", "harmonics")
 BACKLASH_PARAMETERS = ("M1", "M2", "h", "eps", "F", "omega", "phi", "x1_0", "v1_0", "v2_0", "gap0", "f",
                        "harmonics")
@@ -105,6 +107,7 @@ class _Api:
             "harmonics": (c_int, [c_void_p]),
             "period": (c_double, [c_void_p]),
             "drive": (None, [c_void_p, p_double]),
+            "same_parameters": (c_int, [c_void_p, c_void_p]),
             "copy": (c_void_p, [c_void_p]),
             "free": (None, [c_void_p]),
             "log": (None, [c_void_p, c_size_t]),
@@ -315,6 +318,18 @@ class _NativeSolver:
             self.event_log_dropped = dropped
 
     # -- copies and state ----------------------------------------------------------------------
+    def same_parameters(self, other):
+        """Whether ``other`` holds bit-identical fixed parameters: the plant's constants and what is derived
+        from them, the drive's F, omega and phi, the period, the harmonics (-0.0 differs from 0.0; the
+        input f, the time and the motion are not compared). False unless ``other`` is a native solver of
+        the same plant on the same core."""
+        if not (isinstance(other, _NativeSolver) and other._plant == self._plant
+                and getattr(other, "_core", None) is self._core):
+            return False
+        if not (self._handle and other._handle):
+            return False
+        return bool(self._api.same_parameters(self._handle, other._handle))
+
     def copy(self):
         """An independent exact copy (the C instance copied; the event log list copied too)."""
         handle = self._api.copy(self._handle)

@@ -33,7 +33,14 @@ from dfwb.fmus.backlash import TwoMassBacklash
 from dfwb.fmus.contract import BacklashOutput, EventKind, Solver, StaticBacklashOutput
 from dfwb.fmus.exact import PHASE_LIMIT, PlantError
 from dfwb.fmus.friction import FrictionMass
-from dfwb.fmus.native_core import CoreError, NativeStaticBacklash, NativeTwoMassBacklash
+from dfwb.fmus.native_core import (
+    ABI,
+    BACKLASH_PARAMETERS,
+    STATIC_BACKLASH_PARAMETERS,
+    CoreError,
+    NativeStaticBacklash,
+    NativeTwoMassBacklash,
+)
 from dfwb.fmus.state import StateRefused
 from dfwb.fmus.static_backlash import StaticBacklash
 from dfwb.plants.stress_kit import Case, InvalidCase, periods
@@ -359,6 +366,52 @@ def test_solver_protocol(core):
     assert core.TwoMassBacklash(h=0.2).output().gap == 0.1  # gap0=None: h/2
 
 
+# -- fixed parameters --------------------------------------------------------------------
+SAME = {  # plant -> (parameters, {fixed parameter: another value}, {not fixed: another value}, native class)
+    "backlash": (dict(F=50.0, omega=20.0, eps=0.5, harmonics=10),
+                 dict(M1=2.0, M2=0.5, h=0.2, eps=0.25, F=40.0, omega=10.0, phi=0.5, harmonics=3),
+                 dict(x1_0=1.0, v1_0=-2.0, v2_0=3.0, gap0=0.01, f=1.5), NativeTwoMassBacklash),
+    "static-backlash": (dict(F=50.0, omega=20.0, harmonics=10),
+                        dict(M=3.0, k=2.0, h=0.2, F=40.0, omega=10.0, phi=0.5, harmonics=3),
+                        dict(x0=1.0, v0=-2.0, f=1.5), NativeStaticBacklash),
+}
+
+
+@pytest.mark.parametrize("plant", list(PLANTS))
+def test_same_parameters(core, plant):
+    """Equal fixed parameters survive a run, an input change, a copy and the state bytes; a change of any one
+    fixed parameter (as bits: -0.0 is not 0.0) makes them differ; the initial state and the input do not."""
+    params, fixed, free, base = SAME[plant]
+    names = BACKLASH_PARAMETERS if plant == "backlash" else STATIC_BACKLASH_PARAMETERS
+    assert set(fixed) | set(free) == set(names) and not set(fixed) & set(free)
+    cls = _native_class(core, plant)
+    a, b = cls(**params), cls(**params)
+    assert a.same_parameters(b) and b.same_parameters(a) and a.same_parameters(a)
+    period = 2 * math.pi / params["omega"]
+    a.advance(3.3 * period)
+    a.set_input(20.0)
+    a.advance(5.1 * period)
+    assert a.events > 0 and a.same_parameters(b) and b.same_parameters(a)
+    assert a.same_parameters(cls(**dict(params, **free))) and a.same_parameters(base(**params, core=core))
+    restored = cls.from_bytes(a.to_bytes())
+    assert restored.same_parameters(b) and b.same_parameters(restored) and restored.same_parameters(a.copy())
+    for name, value in fixed.items():
+        assert params.get(name) != value
+        other = cls(**dict(params, **{name: value}))
+        assert not a.same_parameters(other) and not other.same_parameters(a), name
+        assert not restored.same_parameters(cls.from_bytes(other.to_bytes())), name
+        assert other.same_parameters(cls.from_bytes(other.to_bytes())), name
+    for name in ("phi", "F") + (("eps",) if plant == "backlash" else ()):
+        assert not cls(**{name: 0.0}).same_parameters(cls(**{name: -0.0})), name
+    assert not cls(F=10.0).same_parameters(cls(F=-10.0))  # stored as a phase shift of pi
+    others = [PLANTS[plant][0](**params), None, 1.0, core.FrictionMass()]
+    others.append(core.StaticBacklash() if plant == "backlash" else core.TwoMassBacklash())
+    for other in others:
+        assert a.same_parameters(other) is False
+    api = core.api[cls._plant]
+    assert api.same_parameters(None, a._handle) == 0 == api.same_parameters(a._handle, None)
+
+
 # -- copies ------------------------------------------------------------------------------
 @pytest.mark.parametrize("plant", list(PLANTS))
 def test_copy_continues_identically(core, plant):
@@ -492,8 +545,8 @@ def test_state_refusals(core):
         (data + data, "truncated or oversized"),
         (b"", "is truncated"),
         (b"X" + data[1:], "not a state of the dfwb C core"),
-        (data[:8] + struct.pack("<I", 1) + data[12:], "written by core ABI 1, this core is ABI 2"),
-        (data[:8] + struct.pack("<I", 3) + data[12:], "written by core ABI 3"),
+        (data[:8] + struct.pack("<I", ABI - 1) + data[12:], f"written by core ABI {ABI - 1}, this core is ABI {ABI}"),
+        (data[:8] + struct.pack("<I", ABI + 1) + data[12:], f"written by core ABI {ABI + 1}"),
         (states["FrictionMass"][0], "is one of a dfwb_friction, not of a dfwb_backlash"),
         (states["StaticBacklash"][0], "is one of a dfwb_static_backlash, not of a dfwb_backlash"),
         (data[:12] + struct.pack("<I", 9) + data[16:], "is one of a unknown plant"),

@@ -28,7 +28,7 @@ from dfwb.build_fmus.core import CoreBuildError, build_core
 from dfwb.fmus.contract import FrictionOutput, Solver
 from dfwb.fmus.exact import PHASE_LIMIT, PlantError
 from dfwb.fmus.friction import FrictionMass
-from dfwb.fmus.native_core import CoreError, NativeFrictionMass, load
+from dfwb.fmus.native_core import PARAMETERS, CoreError, NativeFrictionMass, load
 from dfwb.plants.stress_kit import Case, InvalidCase, periods
 from dfwb.verify.stress import all_cases
 
@@ -348,6 +348,40 @@ def test_event_log_equals_python(core, friction_cases):
         assert logs[1] == logs[0], case.note
         logged += len(logs[0])
     assert logged > 200
+
+
+# -- fixed parameters --------------------------------------------------------------------
+FIXED = dict(M=2.0, B=0.25, Fc=4.0, Fs=8.0, Dv=2e-3, F=12.0, omega=2.0, phi=0.5, harmonics=3)  # one changed at a time
+
+
+def test_same_parameters(core):
+    """Equal fixed parameters survive a run, an input change, a copy and the state bytes; a change of any one
+    fixed parameter (as bits: -0.0 is not 0.0) makes them differ; the initial state and the input do not."""
+    params = dict(F=10.0, omega=1.0, Dv=1e-3, harmonics=10)
+    a, b = core.FrictionMass(**params), core.FrictionMass(**params)
+    assert a.same_parameters(b) and b.same_parameters(a) and a.same_parameters(a)
+    a.advance(7.0)
+    a.set_input(3.0)
+    a.advance(9.0)
+    assert a.events > 0 and a.same_parameters(b) and b.same_parameters(a)
+    assert a.same_parameters(core.FrictionMass(**params, x0=1.0, v0=-2.0, f=1.5))
+    assert a.same_parameters(NativeFrictionMass(**params, core=core))
+    restored = type(a).from_bytes(a.to_bytes())
+    assert restored.same_parameters(b) and b.same_parameters(restored) and restored.same_parameters(a.copy())
+    assert set(FIXED) == set(PARAMETERS) - {"x0", "v0", "f"}
+    for name, value in FIXED.items():
+        assert params.get(name) != value
+        other = core.FrictionMass(**dict(params, **{name: value}))
+        assert not a.same_parameters(other) and not other.same_parameters(a), name
+        assert not restored.same_parameters(type(other).from_bytes(other.to_bytes())), name
+        assert other.same_parameters(type(other).from_bytes(other.to_bytes())), name
+    for name in ("B", "phi", "F", "Dv", "Fc"):
+        assert not core.FrictionMass(**{name: 0.0}).same_parameters(core.FrictionMass(**{name: -0.0})), name
+    assert not core.FrictionMass(F=10.0).same_parameters(core.FrictionMass(F=-10.0))  # stored as a phase shift
+    for other in (FrictionMass(**params), None, "a", core.TwoMassBacklash(), core.StaticBacklash()):
+        assert a.same_parameters(other) is False
+    assert core.api["friction"].same_parameters(None, a._handle) == 0 == core.api["friction"].same_parameters(
+        a._handle, None)
 
 
 # -- the binding -------------------------------------------------------------------------

@@ -10,7 +10,7 @@
  * first (an uncounted event).
  */
 #include <math.h>
-#include <stdlib.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "dfwb_core.h"
@@ -68,9 +68,9 @@ static void boundary_searches(dfwb_backlash *p, double t, int skip)
 {
     const double K = fabs(p->gap.a) + fabs(p->gap.b);
     if (skip != -1) /* g, w */
-        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_POSITION, 1.0, 0, 0.0, K, t, DFWB_EVENT_WALL_LOWER);
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_POSITION, 1.0, 0, 0.0, K, 0, t, DFWB_EVENT_WALL_LOWER);
     if (skip != 1) /* h - g, -w */
-        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_POSITION, 1.0, 1, p->h, K, t, DFWB_EVENT_WALL_UPPER);
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_POSITION, 1.0, 1, p->h, K, 0, t, DFWB_EVENT_WALL_UPPER);
 }
 
 /* Flight; departing = sigma of the boundary just left (0: none). */
@@ -94,7 +94,8 @@ static int free_flight(dfwb_backlash *p, double t, double g, double w, int depar
                 return rc;
         }
         K = dfwb_motion_curvature_bound(&p->gap, 0, 0.0, err);
-        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, -(double)departing, 0, 0.0, K, t_from, DFWB_EVENT_APEX);
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, -(double)departing, 0, 0.0, K, 0, t_from,
+                           DFWB_EVENT_APEX);
     }
     return DFWB_OK;
 }
@@ -182,165 +183,10 @@ static int restart(void *plant, double t, dfwb_err *err)
     return start(p, t, g, w, err);
 }
 
-/* -- API ------------------------------------------------------------------------------------ */
-int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_backlash *p;
-    double M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics;
-    char rh[DFWB_REPR_SIZE], allowed[96];
-    int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL || params == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_new: NULL params or out");
-    *out = NULL;
-    M1 = params[0], M2 = params[1], h = params[2], eps = params[3], F = params[4], omega = params[5];
-    phi = params[6], x1_0 = params[7], v1_0 = params[8], v2_0 = params[9], gap0 = params[10], f = params[11];
-    harmonics = params[12];
-    if ((rc = dfwb_check(&err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "h", h, h >= MIN_CLEARANCE, "h must be >= " MIN_CLEARANCE_TEXT " (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "eps", eps, 0.0 <= eps && eps <= 1.0, "eps must be in [0, 1]")) != DFWB_OK)
-        return rc;
-    dfwb_repr(h, rh); /* h is valid here */
-    strcpy(allowed, "gap0 must be in [0, h] = [0, ");
-    strcat(allowed, rh);
-    strcat(allowed, "] (m)");
-    if ((rc = dfwb_check(&err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
-        || (rc = dfwb_check(&err, "x1_0", x1_0, 1, "x1_0 must be a finite number")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v1_0", v1_0, 1, "v1_0 must be a finite number")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v2_0", v2_0, 1, "v2_0 must be a finite number")) != DFWB_OK
-        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK)
-        return rc;
-    p = (dfwb_backlash *)calloc(1, sizeof *p);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_backlash)");
-    dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
-    p->M1 = M1, p->M2 = M2, p->h = h, p->eps = eps;
-    p->total = M1 + M2;
-    p->r1 = M1 / p->total; /* x1 = x_cm - r2 g, x2 = x_cm + r1 g */
-    p->r2 = M2 / p->total;
-    p->tol_h = 1e-12 * h;
-    p->impacts = 0;
-    p->contact = FREE;
-    p->departing = 0;
-    centre(p, 0.0, x1_0 + p->r2 * gap0, p->r1 * v1_0 + p->r2 * v2_0);
-    rc = dfwb_err_finish(&err, start(p, 0.0, gap0, v2_0 - v1_0, &err));
-    if (rc != DFWB_OK) {
-        dfwb_backlash_free(p);
-        return rc;
-    }
-    *out = p;
-    return DFWB_OK;
-}
-
-int dfwb_backlash_set_input(dfwb_backlash *p, double f, char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_set_input: NULL instance");
-    return dfwb_err_finish(&err, dfwb_pw_set_input(&p->pw, f, restart, p, &err));
-}
-
-int dfwb_backlash_advance(dfwb_backlash *p, double t_end, char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_advance: NULL instance");
-    return dfwb_err_finish(&err, dfwb_pw_advance(&p->pw, t_end, &p->gap, fire, p, &err));
-}
-
-void dfwb_backlash_output(const dfwb_backlash *p, double out[5])
-{
-    double x1, v1, g, w, x_cm, v_cm;
-    const double t = p == NULL ? 0.0 : p->pw.t;
-    if (p == NULL || out == NULL)
-        return;
-    dfwb_motion_state(&p->pw.output, t, &x1, &v1);
-    relative(p, t, &g, &w);
-    out[0] = x1;
-    out[1] = v1;
-    out[4] = g;
-    if (p->contact != FREE) { /* riding together: one closed form for both */
-        out[2] = x1 + g;
-        out[3] = v1;
-        return;
-    }
-    dfwb_motion_state(&p->cm, t, &x_cm, &v_cm);
-    out[2] = x_cm + p->r1 * g;
-    out[3] = v_cm + p->r1 * w;
-}
-
-int dfwb_backlash_integrals(const dfwb_backlash *p, double *re, double *im, char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (p == NULL || re == NULL || im == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_integrals: NULL instance or array");
-    dfwb_pw_integrals(&p->pw, re, im, &err);
-    return dfwb_err_finish(&err, DFWB_OK);
-}
-
-double dfwb_backlash_time(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.t; }
-
-long long dfwb_backlash_events(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.events; }
-
-int dfwb_backlash_harmonics(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
-
-double dfwb_backlash_period(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.period; }
-
-void dfwb_backlash_drive(const dfwb_backlash *p, double out[4])
-{
-    if (p != NULL && out != NULL)
-        dfwb_drive_values(&p->pw.drive, out);
-}
-
-int dfwb_backlash_contact(const dfwb_backlash *p) { return p == NULL ? -1 : p->contact; }
-
-long long dfwb_backlash_impacts(const dfwb_backlash *p) { return p == NULL ? -1 : p->impacts; }
-
-dfwb_backlash *dfwb_backlash_copy(const dfwb_backlash *p)
-{
-    dfwb_backlash *q;
-    if (p == NULL)
-        return NULL;
-    q = (dfwb_backlash *)malloc(sizeof *q);
-    if (q == NULL)
-        return NULL;
-    memcpy(q, p, sizeof *q);
-    if (!dfwb_pw_copied(&q->pw, &p->pw)) {
-        free(q);
-        return NULL;
-    }
-    return q;
-}
-
-void dfwb_backlash_free(dfwb_backlash *p)
-{
-    if (p == NULL)
-        return;
-    dfwb_pw_release(&p->pw);
-    free(p);
-}
-
-void dfwb_backlash_log(dfwb_backlash *p, size_t capacity)
-{
-    if (p != NULL)
-        dfwb_log_enable(&p->pw.log, capacity);
-}
-
-size_t dfwb_backlash_log_read(dfwb_backlash *p, double *t, int *kind, size_t max)
-{
-    return p == NULL ? 0 : dfwb_log_read(&p->pw.log, t, kind, max);
-}
-
-unsigned long long dfwb_backlash_log_dropped(const dfwb_backlash *p) { return p == NULL ? 0 : p->pw.log.dropped; }
-
 /* -- state as bytes ---------------------------------------------------------------------------- */
-static void state_io(dfwb_io *io, dfwb_backlash *p)
+static void state_io(dfwb_io *io, void *plant)
 {
+    dfwb_backlash *p = (dfwb_backlash *)plant;
     dfwb_pw_io(io, &p->pw);
     dfwb_io_f64(io, &p->M1);
     dfwb_io_f64(io, &p->M2);
@@ -353,50 +199,14 @@ static void state_io(dfwb_io *io, dfwb_backlash *p)
     dfwb_io_motion(io, &p->gap);
 }
 
-static size_t payload_size(void)
-{
-    dfwb_backlash scratch;
-    dfwb_io io;
-    memset(&scratch, 0, sizeof scratch);
-    dfwb_io_writer(&io, NULL);
-    state_io(&io, &scratch);
-    return io.pos;
-}
-
-int dfwb_backlash_to_bytes(const dfwb_backlash *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
-                           size_t errlen)
-{
-    dfwb_err err;
-    dfwb_backlash copy;
-    dfwb_io io;
-    const size_t payload = payload_size(), needed = DFWB_STATE_HEADER + payload;
-    int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (size == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_to_bytes: NULL size");
-    *size = needed;
-    if (buf == NULL) /* a size query (p may be NULL) */
-        return DFWB_OK;
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_to_bytes: NULL instance");
-    rc = dfwb_state_buffer(needed, buflen, &err);
-    if (rc != DFWB_OK)
-        return rc;
-    copy = *p; /* canonicalised while written (unused searches zeroed): p stays as it is */
-    dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
-    state_io(&io, &copy);
-    dfwb_state_header(buf, DFWB_PLANT_BACKLASH, payload);
-    return DFWB_OK;
-}
-
 /* The plant's own checks of a state read into p (the common part is checked first). */
-static int validate(dfwb_backlash *p, dfwb_err *err)
+static int validate(void *plant, dfwb_err *err)
 {
+    dfwb_backlash *p = (dfwb_backlash *)plant;
     const dfwb_pw *pw = &p->pw;
     char rh[DFWB_REPR_SIZE], allowed[96];
     int rc, i;
-    if ((rc = dfwb_pw_validate(&p->pw, err)) != DFWB_OK
-        || (rc = dfwb_state_check(err, "M1", p->M1, isfinite(p->M1) && p->M1 > 0.0, "must be > 0")) != DFWB_OK
+    if ((rc = dfwb_state_check(err, "M1", p->M1, isfinite(p->M1) && p->M1 > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "M2", p->M2, isfinite(p->M2) && p->M2 > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "h", p->h, isfinite(p->h) && p->h >= MIN_CLEARANCE,
                                   "must be >= " MIN_CLEARANCE_TEXT)) != DFWB_OK
@@ -423,11 +233,12 @@ static int validate(dfwb_backlash *p, dfwb_err *err)
     strcat(allowed, ")");
     for (i = 0; i < pw->nsearch; i++) {
         const dfwb_search *s = &pw->searches[i];
-        const int ok = s->kind == DFWB_EVENT_APEX
-                           ? s->type == DFWB_SEARCH_VELOCITY && !s->has_level
-                           : s->type == DFWB_SEARCH_POSITION && s->sign == 1.0
-                                 && ((s->kind == DFWB_EVENT_WALL_LOWER && !s->has_level)
-                                     || (s->kind == DFWB_EVENT_WALL_UPPER && s->has_level && s->level == p->h));
+        const int ok = !s->bounded
+                       && (s->kind == DFWB_EVENT_APEX
+                               ? s->type == DFWB_SEARCH_VELOCITY && !s->has_level
+                               : s->type == DFWB_SEARCH_POSITION && s->sign == 1.0
+                                     && ((s->kind == DFWB_EVENT_WALL_LOWER && !s->has_level)
+                                         || (s->kind == DFWB_EVENT_WALL_UPPER && s->has_level && s->level == p->h)));
         if (!ok)
             return dfwb_fail(err, DFWB_E_STATE, "the state's search %d (kind %d) is out of range: %s", i, s->kind,
                              allowed);
@@ -440,30 +251,150 @@ static int validate(dfwb_backlash *p, dfwb_err *err)
     return DFWB_OK;
 }
 
-int dfwb_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_backlash **out, char *errbuf, size_t errlen)
+static const dfwb_backlash zero_state = {0}; /* the state's size is counted on it */
+
+static const dfwb_plant_class BACKLASH = {DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state,
+                                          offsetof(dfwb_backlash, gap), fire, restart, state_io, validate};
+
+/* -- API ------------------------------------------------------------------------------------ */
+int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_backlash *p;
-    dfwb_io io;
-    const size_t payload = payload_size();
+    void *plant;
+    double M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics;
+    char rh[DFWB_REPR_SIZE], allowed[96];
     int rc;
     dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_from_bytes: NULL out");
+    if (out == NULL || params == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_new: NULL params or out");
     *out = NULL;
-    rc = dfwb_state_open(buf, len, DFWB_PLANT_BACKLASH, payload, &err);
-    if (rc != DFWB_OK)
+    M1 = params[0], M2 = params[1], h = params[2], eps = params[3], F = params[4], omega = params[5];
+    phi = params[6], x1_0 = params[7], v1_0 = params[8], v2_0 = params[9], gap0 = params[10], f = params[11];
+    harmonics = params[12];
+    if ((rc = dfwb_check(&err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "h", h, h >= MIN_CLEARANCE, "h must be >= " MIN_CLEARANCE_TEXT " (m)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "eps", eps, 0.0 <= eps && eps <= 1.0, "eps must be in [0, 1]")) != DFWB_OK)
         return rc;
-    p = (dfwb_backlash *)calloc(1, sizeof *p);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_backlash)");
-    dfwb_io_reader(&io, buf + DFWB_STATE_HEADER, payload);
-    state_io(&io, p);
-    rc = io.bad_int ? dfwb_fail(&err, DFWB_E_STATE, "the state holds an integer field out of range") : validate(p, &err);
-    if (rc != DFWB_OK) {
-        dfwb_backlash_free(p);
+    dfwb_repr(h, rh); /* h is valid here */
+    strcpy(allowed, "gap0 must be in [0, h] = [0, ");
+    strcat(allowed, rh);
+    strcat(allowed, "] (m)");
+    if ((rc = dfwb_check(&err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
+        || (rc = dfwb_check(&err, "x1_0", x1_0, 1, "x1_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check(&err, "v1_0", v1_0, 1, "v1_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check(&err, "v2_0", v2_0, 1, "v2_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
+        || (rc = dfwb_plant_alloc(&BACKLASH, &plant, &err)) != DFWB_OK)
         return rc;
+    p = (dfwb_backlash *)plant;
+    dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
+    p->M1 = M1, p->M2 = M2, p->h = h, p->eps = eps;
+    p->total = M1 + M2;
+    p->r1 = M1 / p->total; /* x1 = x_cm - r2 g, x2 = x_cm + r1 g */
+    p->r2 = M2 / p->total;
+    p->tol_h = 1e-12 * h;
+    p->impacts = 0;
+    p->contact = FREE;
+    p->departing = 0;
+    centre(p, 0.0, x1_0 + p->r2 * gap0, p->r1 * v1_0 + p->r2 * v2_0);
+    rc = dfwb_plant_created(&p->pw, dfwb_err_finish(&err, start(p, 0.0, gap0, v2_0 - v1_0, &err)), &plant);
+    *out = (dfwb_backlash *)plant;
+    return rc;
+}
+
+int dfwb_backlash_set_input(dfwb_backlash *p, double f, char *errbuf, size_t errlen)
+{
+    return dfwb_plant_set_input(&BACKLASH, DFWB_PW(p), f, errbuf, errlen);
+}
+
+int dfwb_backlash_advance(dfwb_backlash *p, double t_end, char *errbuf, size_t errlen)
+{
+    return dfwb_plant_advance(&BACKLASH, DFWB_PW(p), t_end, errbuf, errlen);
+}
+
+void dfwb_backlash_output(const dfwb_backlash *p, double out[5])
+{
+    double x1, v1, g, w, x_cm, v_cm;
+    const double t = p == NULL ? 0.0 : p->pw.t;
+    if (p == NULL || out == NULL)
+        return;
+    dfwb_motion_state(&p->pw.output, t, &x1, &v1);
+    relative(p, t, &g, &w);
+    out[0] = x1;
+    out[1] = v1;
+    out[4] = g;
+    if (p->contact != FREE) { /* riding together: one closed form for both */
+        out[2] = x1 + g;
+        out[3] = v1;
+        return;
     }
-    *out = p;
-    return DFWB_OK;
+    dfwb_motion_state(&p->cm, t, &x_cm, &v_cm);
+    out[2] = x_cm + p->r1 * g;
+    out[3] = v_cm + p->r1 * w;
+}
+
+int dfwb_backlash_integrals(const dfwb_backlash *p, double *re, double *im, char *errbuf, size_t errlen)
+{
+    return dfwb_plant_integrals(&BACKLASH, DFWB_PW(p), re, im, errbuf, errlen);
+}
+
+double dfwb_backlash_time(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.t; }
+
+long long dfwb_backlash_events(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.events; }
+
+int dfwb_backlash_harmonics(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
+
+double dfwb_backlash_period(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.period; }
+
+void dfwb_backlash_drive(const dfwb_backlash *p, double out[4])
+{
+    if (p != NULL && out != NULL)
+        dfwb_drive_values(&p->pw.drive, out);
+}
+
+int dfwb_backlash_contact(const dfwb_backlash *p) { return p == NULL ? -1 : p->contact; }
+
+long long dfwb_backlash_impacts(const dfwb_backlash *p) { return p == NULL ? -1 : p->impacts; }
+
+int dfwb_backlash_same_parameters(const dfwb_backlash *a, const dfwb_backlash *b)
+{
+    if (a == NULL || b == NULL)
+        return 0;
+    return dfwb_pw_same_parameters(&a->pw, &b->pw) && dfwb_same_double(a->M1, b->M1)
+           && dfwb_same_double(a->M2, b->M2) && dfwb_same_double(a->h, b->h) && dfwb_same_double(a->eps, b->eps)
+           && dfwb_same_double(a->total, b->total) && dfwb_same_double(a->r1, b->r1)
+           && dfwb_same_double(a->r2, b->r2) && dfwb_same_double(a->tol_h, b->tol_h);
+}
+
+dfwb_backlash *dfwb_backlash_copy(const dfwb_backlash *p)
+{
+    return (dfwb_backlash *)dfwb_plant_copy(&BACKLASH, DFWB_PW(p));
+}
+
+void dfwb_backlash_free(dfwb_backlash *p) { dfwb_plant_free(DFWB_PW(p)); }
+
+void dfwb_backlash_log(dfwb_backlash *p, size_t capacity) { dfwb_plant_log(DFWB_PW(p), capacity); }
+
+size_t dfwb_backlash_log_read(dfwb_backlash *p, double *t, int *kind, size_t max)
+{
+    return dfwb_plant_log_read(DFWB_PW(p), t, kind, max);
+}
+
+unsigned long long dfwb_backlash_log_dropped(const dfwb_backlash *p) { return dfwb_plant_log_dropped(DFWB_PW(p)); }
+
+int dfwb_backlash_to_bytes(const dfwb_backlash *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
+                           size_t errlen)
+{
+    return dfwb_plant_to_bytes(&BACKLASH, DFWB_PW(p), buf, buflen, size, errbuf, errlen);
+}
+
+int dfwb_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_backlash **out, char *errbuf, size_t errlen)
+{
+    void *plant = NULL;
+    const int rc = dfwb_plant_from_bytes(&BACKLASH, buf, len, out == NULL ? NULL : &plant, errbuf, errlen);
+    if (out != NULL)
+        *out = (dfwb_backlash *)plant;
+    return rc;
 }

@@ -37,6 +37,11 @@
  *   them stays within the bounds of every step (events per period, evaluations per search, search
  *   chunks from the current time to a phase-limited end): at worst they give wrong but well-formed
  *   numbers, as a crafted parameter would. The event log is not part of the state.
+ * - Fixed parameters: dfwb_*_same_parameters(a, b) is 1 when two instances of a plant hold bit-identical
+ *   fixed parameters - what a run never changes: the plant's constants and what is derived from them,
+ *   the drive's F, omega and phi, the period, the harmonics; not the input f nor the state - and 0
+ *   otherwise (or when either is NULL). An importer restoring a state checks it against a new instance
+ *   made from the state's parameter values.
  *
  * Parameters of dfwb_friction_new (in this order; the defaults of the Python
  * FrictionMass are M=1, B=0.5, Fc=5, Fs=7, Dv=0, F=0, omega=1, phi=0,
@@ -74,7 +79,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 2
+#define DFWB_CORE_ABI 3
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -146,6 +151,11 @@ DFWB_API int dfwb_friction_harmonics(const dfwb_friction *p);
 DFWB_API double dfwb_friction_period(const dfwb_friction *p);
 DFWB_API void dfwb_friction_drive(const dfwb_friction *p, double out[4]);
 
+/* 1 when a and b have bit-identical fixed parameters (M, B, Fc, Fs, Dv and the friction just outside the
+ * band Fc + B Dv; the drive's F, omega, phi; the period; the harmonics), compared as bits (-0.0 != 0.0);
+ * 0 otherwise or when either is NULL. The input f, the time and the motion are not compared. */
+DFWB_API int dfwb_friction_same_parameters(const dfwb_friction *a, const dfwb_friction *b);
+
 /* An independent exact copy (for an FMU state; its event log copied too), or NULL when out of memory. */
 DFWB_API dfwb_friction *dfwb_friction_copy(const dfwb_friction *p);
 
@@ -187,6 +197,9 @@ DFWB_API void dfwb_backlash_drive(const dfwb_backlash *p, double out[4]);
 /* The FMU's counters: contact 0 free, 1 at gap 0, 2 at gap h; impacts so far. */
 DFWB_API int dfwb_backlash_contact(const dfwb_backlash *p);
 DFWB_API long long dfwb_backlash_impacts(const dfwb_backlash *p);
+/* As dfwb_friction_same_parameters: M1, M2, h, eps, the derived M1 + M2, M1 / (M1 + M2), M2 / (M1 + M2),
+ * 1e-12 h; the drive's F, omega, phi; the period; the harmonics. */
+DFWB_API int dfwb_backlash_same_parameters(const dfwb_backlash *a, const dfwb_backlash *b);
 DFWB_API dfwb_backlash *dfwb_backlash_copy(const dfwb_backlash *p);
 DFWB_API void dfwb_backlash_free(dfwb_backlash *p);
 DFWB_API void dfwb_backlash_log(dfwb_backlash *p, size_t capacity);
@@ -215,6 +228,8 @@ DFWB_API double dfwb_static_backlash_period(const dfwb_static_backlash *p);
 DFWB_API void dfwb_static_backlash_drive(const dfwb_static_backlash *p, double out[4]);
 /* The FMU's counter: 0 free, +1/-1 engaged at the upper/lower edge of the play. */
 DFWB_API int dfwb_static_backlash_engaged(const dfwb_static_backlash *p);
+/* As dfwb_friction_same_parameters: M, k, h; the drive's F, omega, phi; the period; the harmonics. */
+DFWB_API int dfwb_static_backlash_same_parameters(const dfwb_static_backlash *a, const dfwb_static_backlash *b);
 DFWB_API dfwb_static_backlash *dfwb_static_backlash_copy(const dfwb_static_backlash *p);
 DFWB_API void dfwb_static_backlash_free(dfwb_static_backlash *p);
 DFWB_API void dfwb_static_backlash_log(dfwb_static_backlash *p, size_t capacity);

@@ -1,5 +1,5 @@
-/* plant.c - what the plants share: errors, the event log, states as bytes, and the piece machinery of
- * fmus/piecewise.py (PiecewisePlant) for the backlash plants (see plant.h).
+/* plant.c - what the plants share: errors, the event log, states as bytes, the piece machinery of
+ * fmus/piecewise.py (PiecewisePlant), and the API functions that are the same for every plant (see plant.h).
  *
  * The piece machinery keeps piecewise.py's operation order and bounds: the searches run lazily in chunks
  * of period/8 anchored at the piece's start, in the order they were added; a step fires at most
@@ -77,6 +77,8 @@ void dfwb_drive_values(const dfwb_drive *d, double out[4])
     out[2] = d->omega;
     out[3] = d->phi;
 }
+
+int dfwb_same_double(double a, double b) { return memcmp(&a, &b, sizeof a) == 0; }
 
 /* -- names ---------------------------------------------------------------------------- */
 const char *dfwb_event_name(int kind)
@@ -483,7 +485,7 @@ void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double anal
     dfwb_pw_set_searches(pw, t);
 }
 
-void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K,
+void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K, int bounded,
                         double t_from, int kind)
 {
     dfwb_search *s;
@@ -494,7 +496,8 @@ void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, doubl
     s->sign = sign;
     s->has_level = has_level;
     s->level = has_level ? level : 0.0;
-    s->K = K;
+    s->K = bounded ? 0.0 : K;
+    s->bounded = bounded;
     s->t_from = t_from;
     s->kind = kind;
 }
@@ -569,6 +572,12 @@ static void search_fun(const void *ctx, double t, double *g, double *dg)
     }
 }
 
+/* CurvatureBound(subject): |v''| on [t, inf), the bound of a VELOCITY search that is bounded */
+static double search_bound(const void *ctx, double t, dfwb_err *err)
+{
+    return dfwb_motion_curvature_bound(((const search_ctx *)ctx)->m, 1, t, err);
+}
+
 /* End of the search chunk containing t: a grid of period/8 anchored at the piece start. */
 static int chunk_end(const dfwb_pw *pw, double t, double *end, dfwb_err *err)
 {
@@ -611,7 +620,8 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
                 double root;
                 ctx.m = subject;
                 ctx.s = s;
-                rc = dfwb_first_root(search_fun, NULL, &ctx, lo, b, s->K, &pw->stack, &found, &root, err);
+                rc = dfwb_first_root(search_fun, s->bounded ? search_bound : NULL, &ctx, lo, b, s->K, &pw->stack,
+                                     &found, &root, err);
                 if (rc != DFWB_OK)
                     return rc;
                 if (found && (!pw->has_found || root < pw->found_t)) {
@@ -690,31 +700,21 @@ int dfwb_pw_set_input(dfwb_pw *pw, double f, dfwb_restart_fn restart, void *plan
     return rc;
 }
 
-void dfwb_pw_release(dfwb_pw *pw)
+int dfwb_pw_same_parameters(const dfwb_pw *a, const dfwb_pw *b)
 {
-    dfwb_stack_free(&pw->stack);
-    dfwb_log_free(&pw->log);
-}
-
-int dfwb_pw_copied(dfwb_pw *copy, const dfwb_pw *original)
-{
-    copy->stack.data = NULL; /* a workspace of its own */
-    copy->stack.cap = 0;
-    return dfwb_log_copy(&copy->log, &original->log);
+    return dfwb_same_double(a->drive.F, b->drive.F) && dfwb_same_double(a->drive.omega, b->drive.omega)
+           && dfwb_same_double(a->drive.phi, b->drive.phi) && dfwb_same_double(a->period, b->period)
+           && a->harmonics == b->harmonics;
 }
 
 /* -- the common part of a state ----------------------------------------------------------- */
 void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw)
 {
+    /* writing: canonical bytes, nothing stale (unused searches and a missing found are zeros) */
+    const int blank_found = !io->reading && !pw->has_found;
+    double found_t = blank_found ? 0.0 : pw->found_t;
+    int found_kind = blank_found ? 0 : pw->found_kind;
     int k, i;
-    if (!io->reading) { /* canonical bytes: nothing stale */
-        for (i = pw->nsearch; i < DFWB_MAX_SEARCHES; i++)
-            memset(&pw->searches[i], 0, sizeof pw->searches[i]);
-        if (!pw->has_found) {
-            pw->found_t = 0.0;
-            pw->found_kind = 0;
-        }
-    }
     dfwb_io_f64(io, &pw->drive.f);
     dfwb_io_f64(io, &pw->drive.F);
     dfwb_io_f64(io, &pw->drive.omega);
@@ -732,19 +732,28 @@ void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw)
     dfwb_io_int(io, &pw->analytic_kind);
     dfwb_io_int(io, &pw->nsearch);
     for (i = 0; i < DFWB_MAX_SEARCHES; i++) {
-        dfwb_search *s = &pw->searches[i];
+        dfwb_search blank, *s = &pw->searches[i];
+        if (!io->reading && i >= pw->nsearch) {
+            memset(&blank, 0, sizeof blank);
+            s = &blank;
+        }
         dfwb_io_int(io, &s->type);
         dfwb_io_f64(io, &s->sign);
         dfwb_io_int(io, &s->has_level);
         dfwb_io_f64(io, &s->level);
         dfwb_io_f64(io, &s->K);
+        dfwb_io_int(io, &s->bounded);
         dfwb_io_f64(io, &s->t_from);
         dfwb_io_int(io, &s->kind);
     }
     dfwb_io_f64(io, &pw->searched);
     dfwb_io_int(io, &pw->has_found);
-    dfwb_io_f64(io, &pw->found_t);
-    dfwb_io_int(io, &pw->found_kind);
+    dfwb_io_f64(io, &found_t);
+    dfwb_io_int(io, &found_kind);
+    if (io->reading) {
+        pw->found_t = found_t;
+        pw->found_kind = found_kind;
+    }
 }
 
 int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
@@ -768,13 +777,15 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
         || (rc = dfwb_state_check_int(err, "nsearch", pw->nsearch, 0 <= pw->nsearch
                                       && pw->nsearch <= DFWB_MAX_SEARCHES, "must be in 0..3")) != DFWB_OK)
         return rc;
+    if (!isinf(pw->analytic) && pw->analytic_kind == 0)
+        return dfwb_fail(err, DFWB_E_STATE, "the state's analytic event is out of range: a finite one has a kind");
     if (!pw->has_found && !(pw->found_t == 0.0 && pw->found_kind == 0))
         return dfwb_fail(err, DFWB_E_STATE, "the state's found event is out of range: must be 0 when none is found");
     for (i = 0; i < DFWB_MAX_SEARCHES; i++) {
         const dfwb_search *s = &pw->searches[i];
         if (i >= pw->nsearch) {
             if (s->type != 0 || s->sign != 0.0 || s->has_level != 0 || s->level != 0.0 || s->K != 0.0
-                || s->t_from != 0.0 || s->kind != 0)
+                || s->bounded != 0 || s->t_from != 0.0 || s->kind != 0)
                 return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: an unused search "
                                  "must be zeros", i);
             continue;
@@ -782,9 +793,11 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
         if (!((s->type == DFWB_SEARCH_VELOCITY || s->type == DFWB_SEARCH_POSITION || s->type == DFWB_SEARCH_EDGE)
               && (s->sign == 1.0 || s->sign == -1.0) && (s->has_level == 0 || s->has_level == 1)
               && isfinite(s->level) && (s->has_level || s->level == 0.0) && s->K >= 0.0 /* +inf allowed */
+              && (s->bounded == 0 || (s->bounded == 1 && s->type == DFWB_SEARCH_VELOCITY && s->K == 0.0))
               && s->t_from >= pw->t_piece /* +inf allowed: it never starts */))
             return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: needs a known type, "
-                             "sign +-1, a finite level, K >= 0 and t_from >= t_piece", i);
+                             "sign +-1, a finite level, K >= 0 (0 when bounded, a velocity search's) and "
+                             "t_from >= t_piece", i);
     }
     if (pw->has_found) {
         for (i = 0; i < pw->nsearch; i++)
@@ -794,4 +807,163 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
                          "the pending searches'");
     }
     return DFWB_OK;
+}
+
+/* -- what every plant's API does alike ----------------------------------------------------------- */
+int dfwb_core_abi_version(void) { return DFWB_CORE_ABI; }
+
+int dfwb_plant_alloc(const dfwb_plant_class *cls, void **out, dfwb_err *err)
+{
+    *out = calloc(1, cls->size);
+    if (*out == NULL)
+        return dfwb_fail(err, DFWB_E_MEMORY, "out of memory (a %s)", dfwb_plant_name(cls->kind));
+    return DFWB_OK;
+}
+
+int dfwb_plant_created(dfwb_pw *pw, int rc, void **out)
+{
+    if (rc != DFWB_OK) {
+        dfwb_plant_free(pw);
+        *out = NULL;
+        return rc;
+    }
+    *out = pw; /* the plant: pw is its first member */
+    return DFWB_OK;
+}
+
+static const dfwb_motion *subject_of(const dfwb_plant_class *cls, const dfwb_pw *pw)
+{
+    return (const dfwb_motion *)(const void *)((const char *)pw + cls->subject);
+}
+
+int dfwb_plant_set_input(const dfwb_plant_class *cls, dfwb_pw *pw, double f, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (pw == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_set_input: NULL instance", dfwb_plant_name(cls->kind));
+    return dfwb_err_finish(&err, dfwb_pw_set_input(pw, f, cls->restart, pw, &err));
+}
+
+int dfwb_plant_advance(const dfwb_plant_class *cls, dfwb_pw *pw, double t_end, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (pw == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_advance: NULL instance", dfwb_plant_name(cls->kind));
+    return dfwb_err_finish(&err, dfwb_pw_advance(pw, t_end, subject_of(cls, pw), cls->fire, pw, &err));
+}
+
+int dfwb_plant_integrals(const dfwb_plant_class *cls, const dfwb_pw *pw, double *re, double *im, char *errbuf,
+                         size_t errlen)
+{
+    dfwb_err err;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (pw == NULL || re == NULL || im == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_integrals: NULL instance or array", dfwb_plant_name(cls->kind));
+    dfwb_pw_integrals(pw, re, im, &err);
+    return dfwb_err_finish(&err, DFWB_OK);
+}
+
+void *dfwb_plant_copy(const dfwb_plant_class *cls, const dfwb_pw *pw)
+{
+    dfwb_pw *copy;
+    if (pw == NULL)
+        return NULL;
+    copy = (dfwb_pw *)malloc(cls->size);
+    if (copy == NULL)
+        return NULL;
+    memcpy(copy, pw, cls->size); /* the whole plant: pw is its first member */
+    copy->stack.data = NULL;      /* a workspace of its own */
+    copy->stack.cap = 0;
+    if (!dfwb_log_copy(&copy->log, &pw->log)) {
+        free(copy);
+        return NULL;
+    }
+    return copy;
+}
+
+void dfwb_plant_free(dfwb_pw *pw)
+{
+    if (pw == NULL)
+        return;
+    dfwb_stack_free(&pw->stack);
+    dfwb_log_free(&pw->log);
+    free(pw); /* the plant */
+}
+
+void dfwb_plant_log(dfwb_pw *pw, size_t capacity)
+{
+    if (pw != NULL)
+        dfwb_log_enable(&pw->log, capacity);
+}
+
+size_t dfwb_plant_log_read(dfwb_pw *pw, double *t, int *kind, size_t max)
+{
+    return pw == NULL ? 0 : dfwb_log_read(&pw->log, t, kind, max);
+}
+
+unsigned long long dfwb_plant_log_dropped(const dfwb_pw *pw) { return pw == NULL ? 0 : pw->log.dropped; }
+
+/* The payload's bytes: the plant's fields counted on its zeroed instance (writing nothing, changing nothing). */
+static size_t payload_size(const dfwb_plant_class *cls)
+{
+    dfwb_io io;
+    dfwb_io_writer(&io, NULL);
+    cls->io(&io, (void *)cls->zero);
+    return io.pos;
+}
+
+int dfwb_plant_to_bytes(const dfwb_plant_class *cls, const dfwb_pw *pw, unsigned char *buf, size_t buflen,
+                        size_t *size, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_io io;
+    const char *name = dfwb_plant_name(cls->kind);
+    const size_t payload = payload_size(cls), needed = DFWB_STATE_HEADER + payload;
+    int rc;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (size == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_to_bytes: NULL size", name);
+    *size = needed;
+    if (buf == NULL) /* a size query (pw may be NULL) */
+        return DFWB_OK;
+    if (pw == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_to_bytes: NULL instance", name);
+    rc = dfwb_state_buffer(needed, buflen, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
+    cls->io(&io, (void *)pw); /* writing reads the plant only */
+    dfwb_state_header(buf, cls->kind, payload);
+    return DFWB_OK;
+}
+
+int dfwb_plant_from_bytes(const dfwb_plant_class *cls, const unsigned char *buf, size_t len, void **out,
+                          char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    dfwb_io io;
+    dfwb_pw *pw;
+    void *plant;
+    const size_t payload = payload_size(cls);
+    int rc;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (out == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_from_bytes: NULL out", dfwb_plant_name(cls->kind));
+    *out = NULL;
+    rc = dfwb_state_open(buf, len, cls->kind, payload, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    rc = dfwb_plant_alloc(cls, &plant, &err);
+    if (rc != DFWB_OK)
+        return rc;
+    pw = (dfwb_pw *)plant;
+    dfwb_io_reader(&io, buf + DFWB_STATE_HEADER, payload);
+    cls->io(&io, plant);
+    if (io.bad_int)
+        rc = dfwb_fail(&err, DFWB_E_STATE, "the state holds an integer field out of range");
+    else if ((rc = dfwb_pw_validate(pw, &err)) == DFWB_OK)
+        rc = cls->validate(plant, &err);
+    return dfwb_plant_created(pw, rc, out);
 }

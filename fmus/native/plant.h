@@ -1,5 +1,5 @@
-/* plant.h - internal: what the plants share (errors, the event log, states as bytes, and the piece machinery
- * of fmus/piecewise.py for the two backlash plants).
+/* plant.h - internal: what the plants share (errors, the event log, states as bytes, the piece machinery
+ * of fmus/piecewise.py, and the API functions that are the same for every plant).
  *
  * Not part of the public API (dfwb_core.h); compiled with -fvisibility=hidden like exact.h.
  */
@@ -24,6 +24,9 @@ int dfwb_check_t_end(dfwb_err *err, double t, double t_end);
 
 /* out[4] = {f, F, omega, phi} */
 void dfwb_drive_values(const dfwb_drive *d, double out[4]);
+
+/* 1 when a and b have the same bits (memcmp: -0.0 differs from 0.0, a NaN equals itself). */
+int dfwb_same_double(double a, double b);
 
 /* -- the event log (a caller-enabled, bounded buffer) ---------------------------------- */
 typedef struct {
@@ -94,20 +97,23 @@ int dfwb_state_motion(dfwb_motion *m, const char *name, const dfwb_drive *d, dou
 int dfwb_state_check_piece(double t, double period, double t_piece, double searched, double analytic,
                            int has_found, double found_t, dfwb_err *err);
 
-/* -- the piece machinery (fmus/piecewise.py) for the backlash plants ------------------------ */
+/* -- the piece machinery (fmus/piecewise.py) ------------------------------------------------ */
 enum { DFWB_SEARCH_VELOCITY = 1, DFWB_SEARCH_POSITION = 2, DFWB_SEARCH_EDGE = 3 };
 #define DFWB_MAX_SEARCHES 3
 
-/* A pending search on the plant's subject motion (the gap, the mass):
- *   VELOCITY (VelocitySearch): g = sign v (+ level when has_level), g' = sign v'
+/* A pending search on the plant's subject motion (the mass, the gap):
+ *   VELOCITY (VelocitySearch): g = sign v (level + sign v when has_level: the offset), g' = sign v'
  *   POSITION (PositionSearch): g = x, g' = v; with has_level (a wall): g = level - x, g' = -v
  *   EDGE (EdgeSearch):         g = sign (level - x), g' = -sign v
- * with |g''| <= K (a number), from t_from; kind: its event. */
+ * with |g''| <= K (a number) or, when bounded (a VELOCITY search only: CurvatureBound), |g''| <= the
+ * subject's curvature bound on [t, inf), a function of t (K is then 0); from t_from; kind: its event. */
 typedef struct {
     int type;
     double sign, level;
     int has_level;
-    double K, t_from;
+    double K;
+    int bounded;
+    double t_from;
     int kind;
 } dfwb_search;
 
@@ -144,7 +150,7 @@ void dfwb_pw_init(dfwb_pw *pw, double F, double omega, double phi, double f, dou
 void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double analytic, int analytic_kind);
 /* _set_searches(t, []): the searches are then added in order. */
 void dfwb_pw_set_searches(dfwb_pw *pw, double t);
-void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K,
+void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K, int bounded,
                         double t_from, int kind);
 void dfwb_pw_close_piece(dfwb_pw *pw, double t, dfwb_err *err);
 void dfwb_pw_integrals(const dfwb_pw *pw, double *re, double *im, dfwb_err *err);
@@ -153,14 +159,51 @@ int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_
                     dfwb_err *err);
 /* PiecewisePlant.set_input. */
 int dfwb_pw_set_input(dfwb_pw *pw, double f, dfwb_restart_fn restart, void *plant, dfwb_err *err);
-void dfwb_pw_release(dfwb_pw *pw); /* frees the workspace and the log */
-/* After a struct copy: a workspace of its own and a copy of the log (0 when out of memory). */
-int dfwb_pw_copied(dfwb_pw *copy, const dfwb_pw *original);
+/* The drive's F, omega and phi, the period and the harmonics of a and b have the same bits. */
+int dfwb_pw_same_parameters(const dfwb_pw *a, const dfwb_pw *b);
 
-/* The common part of a state: write (canonical: unused searches and a missing found are zeros) or read. */
+/* The common part of a state: written (canonical: unused searches and a missing found as zeros, *pw left
+ * as it is) or read. */
 void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw);
 /* Check the common part read from a state (drive, times, integrals, output, search fields); the plant
  * checks its kinds. *pw is then usable (P recomputed, no workspace, log off). */
 int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err);
+
+/* -- a plant: a struct whose first member is its dfwb_pw, and what every plant's API does alike ------- */
+typedef struct {
+    int kind;              /* DFWB_PLANT_*: its states' header, its name in messages */
+    size_t size;           /* sizeof the plant's struct */
+    const void *zero;      /* a zeroed instance (static const): the state's size is counted on it */
+    size_t subject;        /* offsetof the motion its searches look at */
+    dfwb_fire_fn fire;
+    dfwb_restart_fn restart;
+    /* The state's fields, dfwb_pw_io first; writing leaves the plant as it is. */
+    void (*io)(dfwb_io *io, void *plant);
+    /* The plant's own checks of a state read into it (after dfwb_pw_validate): DFWB_E_STATE when refused;
+     * then it is usable (derived constants computed, every motion's P recomputed). */
+    int (*validate)(void *plant, dfwb_err *err);
+} dfwb_plant_class;
+
+/* The pw of a plant pointer p, NULL when p is. */
+#define DFWB_PW(p) ((p) == NULL ? NULL : &(p)->pw)
+
+/* A new zeroed instance (DFWB_E_MEMORY, *out NULL, when out of memory); the caller then initialises its pw. */
+int dfwb_plant_alloc(const dfwb_plant_class *cls, void **out, dfwb_err *err);
+/* The end of dfwb_*_new: rc (of dfwb_err_finish) OK gives *out = the plant, else it is freed (*out NULL). */
+int dfwb_plant_created(dfwb_pw *pw, int rc, void **out);
+/* The API functions (a NULL pw: the NULL instance of the call; named after cls->kind in messages). */
+int dfwb_plant_set_input(const dfwb_plant_class *cls, dfwb_pw *pw, double f, char *errbuf, size_t errlen);
+int dfwb_plant_advance(const dfwb_plant_class *cls, dfwb_pw *pw, double t_end, char *errbuf, size_t errlen);
+int dfwb_plant_integrals(const dfwb_plant_class *cls, const dfwb_pw *pw, double *re, double *im, char *errbuf,
+                         size_t errlen);
+void *dfwb_plant_copy(const dfwb_plant_class *cls, const dfwb_pw *pw); /* NULL when pw is or out of memory */
+void dfwb_plant_free(dfwb_pw *pw);
+void dfwb_plant_log(dfwb_pw *pw, size_t capacity);
+size_t dfwb_plant_log_read(dfwb_pw *pw, double *t, int *kind, size_t max);
+unsigned long long dfwb_plant_log_dropped(const dfwb_pw *pw);
+int dfwb_plant_to_bytes(const dfwb_plant_class *cls, const dfwb_pw *pw, unsigned char *buf, size_t buflen,
+                        size_t *size, char *errbuf, size_t errlen);
+int dfwb_plant_from_bytes(const dfwb_plant_class *cls, const unsigned char *buf, size_t len, void **out,
+                          char *errbuf, size_t errlen);
 
 #endif /* DFWB_PLANT_H */

@@ -8,7 +8,7 @@
  * first (an uncounted event). The output is y; it starts centred, y = k x0.
  */
 #include <math.h>
-#include <stdlib.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "dfwb_core.h"
@@ -38,7 +38,7 @@ static void edge_searches(dfwb_static_backlash *p, double t, int skip)
         if (s == skip)
             continue;
         edge = p->y / p->k + (double)s * 0.5 * p->h; /* s (edge - x), -s v */
-        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_EDGE, (double)s, 1, edge, K, t,
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_EDGE, (double)s, 1, edge, K, 0, t,
                            s > 0 ? DFWB_EVENT_ENGAGE_UP : DFWB_EVENT_ENGAGE_DOWN);
     }
 }
@@ -63,7 +63,7 @@ static int free_play(dfwb_static_backlash *p, double t, double x, double v, doub
                 return rc;
         }
         K = dfwb_motion_curvature_bound(&p->mass, 0, 0.0, err);
-        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, -(double)leaving, 0, 0.0, K, t_from, DFWB_EVENT_APEX);
+        dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, -(double)leaving, 0, 0.0, K, 0, t_from, DFWB_EVENT_APEX);
     }
     return DFWB_OK;
 }
@@ -85,7 +85,7 @@ static int engage(dfwb_static_backlash *p, double t, double x, double v, int s, 
     }
     K = dfwb_motion_curvature_bound(&p->mass, 0, 0.0, err);
     dfwb_pw_begin(&p->pw, t, &out, INFINITY, 0);
-    dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, (double)s, 0, 0.0, K, t_from, DFWB_EVENT_REVERSE); /* s v */
+    dfwb_pw_add_search(&p->pw, DFWB_SEARCH_VELOCITY, (double)s, 0, 0.0, K, 0, t_from, DFWB_EVENT_REVERSE); /* s v */
     return DFWB_OK;
 }
 
@@ -137,142 +137,10 @@ static int restart(void *plant, double t, dfwb_err *err)
     return free_play(p, t, x, v, p->y, p->leaving, err);
 }
 
-/* -- API ------------------------------------------------------------------------------------ */
-int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], dfwb_static_backlash **out,
-                             char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_static_backlash *p;
-    double M, k, h, F, omega, phi, x0, v0, f, harmonics;
-    int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL || params == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_new: NULL params or out");
-    *out = NULL;
-    M = params[0], k = params[1], h = params[2], F = params[3], omega = params[4], phi = params[5];
-    x0 = params[6], v0 = params[7], f = params[8], harmonics = params[9];
-    if ((rc = dfwb_check(&err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "k", k, k > 0.0, "k must be > 0")) != DFWB_OK
-        || (rc = dfwb_check(&err, "h", h, h > 0.0, "h must be > 0 (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "x0", x0, 1, "x0 must be a finite number (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v0", v0, 1, "v0 must be a finite number (m/s)")) != DFWB_OK
-        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK)
-        return rc;
-    p = (dfwb_static_backlash *)calloc(1, sizeof *p);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_static_backlash)");
-    dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
-    p->M = M, p->k = k, p->h = h;
-    p->engaged = 0;
-    rc = dfwb_err_finish(&err, free_play(p, 0.0, x0, v0, k * x0, 0, &err));
-    if (rc != DFWB_OK) {
-        dfwb_static_backlash_free(p);
-        return rc;
-    }
-    *out = p;
-    return DFWB_OK;
-}
-
-int dfwb_static_backlash_set_input(dfwb_static_backlash *p, double f, char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_set_input: NULL instance");
-    return dfwb_err_finish(&err, dfwb_pw_set_input(&p->pw, f, restart, p, &err));
-}
-
-int dfwb_static_backlash_advance(dfwb_static_backlash *p, double t_end, char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_advance: NULL instance");
-    return dfwb_err_finish(&err, dfwb_pw_advance(&p->pw, t_end, &p->mass, fire, p, &err));
-}
-
-void dfwb_static_backlash_output(const dfwb_static_backlash *p, double out[3])
-{
-    double x, v, y, w;
-    if (p == NULL || out == NULL)
-        return;
-    dfwb_motion_state(&p->mass, p->pw.t, &x, &v);
-    dfwb_motion_state(&p->pw.output, p->pw.t, &y, &w);
-    out[0] = x;
-    out[1] = v;
-    out[2] = y;
-}
-
-int dfwb_static_backlash_integrals(const dfwb_static_backlash *p, double *re, double *im, char *errbuf,
-                                   size_t errlen)
-{
-    dfwb_err err;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (p == NULL || re == NULL || im == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_integrals: NULL instance or array");
-    dfwb_pw_integrals(&p->pw, re, im, &err);
-    return dfwb_err_finish(&err, DFWB_OK);
-}
-
-double dfwb_static_backlash_time(const dfwb_static_backlash *p) { return p == NULL ? NAN : p->pw.t; }
-
-long long dfwb_static_backlash_events(const dfwb_static_backlash *p) { return p == NULL ? -1 : p->pw.events; }
-
-int dfwb_static_backlash_harmonics(const dfwb_static_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
-
-double dfwb_static_backlash_period(const dfwb_static_backlash *p) { return p == NULL ? NAN : p->pw.period; }
-
-void dfwb_static_backlash_drive(const dfwb_static_backlash *p, double out[4])
-{
-    if (p != NULL && out != NULL)
-        dfwb_drive_values(&p->pw.drive, out);
-}
-
-int dfwb_static_backlash_engaged(const dfwb_static_backlash *p) { return p == NULL ? 0 : p->engaged; }
-
-dfwb_static_backlash *dfwb_static_backlash_copy(const dfwb_static_backlash *p)
-{
-    dfwb_static_backlash *q;
-    if (p == NULL)
-        return NULL;
-    q = (dfwb_static_backlash *)malloc(sizeof *q);
-    if (q == NULL)
-        return NULL;
-    memcpy(q, p, sizeof *q);
-    if (!dfwb_pw_copied(&q->pw, &p->pw)) {
-        free(q);
-        return NULL;
-    }
-    return q;
-}
-
-void dfwb_static_backlash_free(dfwb_static_backlash *p)
-{
-    if (p == NULL)
-        return;
-    dfwb_pw_release(&p->pw);
-    free(p);
-}
-
-void dfwb_static_backlash_log(dfwb_static_backlash *p, size_t capacity)
-{
-    if (p != NULL)
-        dfwb_log_enable(&p->pw.log, capacity);
-}
-
-size_t dfwb_static_backlash_log_read(dfwb_static_backlash *p, double *t, int *kind, size_t max)
-{
-    return p == NULL ? 0 : dfwb_log_read(&p->pw.log, t, kind, max);
-}
-
-unsigned long long dfwb_static_backlash_log_dropped(const dfwb_static_backlash *p)
-{
-    return p == NULL ? 0 : p->pw.log.dropped;
-}
-
 /* -- state as bytes ---------------------------------------------------------------------------- */
-static void state_io(dfwb_io *io, dfwb_static_backlash *p)
+static void state_io(dfwb_io *io, void *plant)
 {
+    dfwb_static_backlash *p = (dfwb_static_backlash *)plant;
     dfwb_pw_io(io, &p->pw);
     dfwb_io_f64(io, &p->M);
     dfwb_io_f64(io, &p->k);
@@ -283,48 +151,12 @@ static void state_io(dfwb_io *io, dfwb_static_backlash *p)
     dfwb_io_motion(io, &p->mass);
 }
 
-static size_t payload_size(void)
+static int validate(void *plant, dfwb_err *err)
 {
-    dfwb_static_backlash scratch;
-    dfwb_io io;
-    memset(&scratch, 0, sizeof scratch);
-    dfwb_io_writer(&io, NULL);
-    state_io(&io, &scratch);
-    return io.pos;
-}
-
-int dfwb_static_backlash_to_bytes(const dfwb_static_backlash *p, unsigned char *buf, size_t buflen, size_t *size,
-                                  char *errbuf, size_t errlen)
-{
-    dfwb_err err;
-    dfwb_static_backlash copy;
-    dfwb_io io;
-    const size_t payload = payload_size(), needed = DFWB_STATE_HEADER + payload;
-    int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (size == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_to_bytes: NULL size");
-    *size = needed;
-    if (buf == NULL) /* a size query (p may be NULL) */
-        return DFWB_OK;
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_to_bytes: NULL instance");
-    rc = dfwb_state_buffer(needed, buflen, &err);
-    if (rc != DFWB_OK)
-        return rc;
-    copy = *p;
-    dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
-    state_io(&io, &copy);
-    dfwb_state_header(buf, DFWB_PLANT_STATIC_BACKLASH, payload);
-    return DFWB_OK;
-}
-
-static int validate(dfwb_static_backlash *p, dfwb_err *err)
-{
+    dfwb_static_backlash *p = (dfwb_static_backlash *)plant;
     const dfwb_pw *pw = &p->pw;
     int rc, i;
-    if ((rc = dfwb_pw_validate(&p->pw, err)) != DFWB_OK
-        || (rc = dfwb_state_check(err, "M", p->M, isfinite(p->M) && p->M > 0.0, "must be > 0")) != DFWB_OK
+    if ((rc = dfwb_state_check(err, "M", p->M, isfinite(p->M) && p->M > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "k", p->k, isfinite(p->k) && p->k > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "h", p->h, isfinite(p->h) && p->h > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check_int(err, "engaged", p->engaged, -1 <= p->engaged && p->engaged <= 1,
@@ -357,38 +189,134 @@ static int validate(dfwb_static_backlash *p, dfwb_err *err)
         default:
             ok = 0;
         }
-        if (!ok)
+        if (!ok || s->bounded)
             return dfwb_fail(err, DFWB_E_STATE, "the state's search %d (kind %d) is out of range: not a search "
                              "of a %s piece", i, s->kind, p->engaged ? "engaged" : "free");
     }
     return DFWB_OK;
 }
 
-int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_static_backlash **out, char *errbuf,
-                                    size_t errlen)
+static const dfwb_static_backlash zero_state = {0}; /* the state's size is counted on it */
+
+static const dfwb_plant_class STATIC_BACKLASH = {DFWB_PLANT_STATIC_BACKLASH, sizeof(dfwb_static_backlash),
+                                                 &zero_state, offsetof(dfwb_static_backlash, mass), fire, restart,
+                                                 state_io, validate};
+
+/* -- API ------------------------------------------------------------------------------------ */
+int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], dfwb_static_backlash **out,
+                             char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_static_backlash *p;
-    dfwb_io io;
-    const size_t payload = payload_size();
+    void *plant;
+    double M, k, h, F, omega, phi, x0, v0, f, harmonics;
     int rc;
     dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_from_bytes: NULL out");
+    if (out == NULL || params == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_new: NULL params or out");
     *out = NULL;
-    rc = dfwb_state_open(buf, len, DFWB_PLANT_STATIC_BACKLASH, payload, &err);
-    if (rc != DFWB_OK)
+    M = params[0], k = params[1], h = params[2], F = params[3], omega = params[4], phi = params[5];
+    x0 = params[6], v0 = params[7], f = params[8], harmonics = params[9];
+    if ((rc = dfwb_check(&err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "k", k, k > 0.0, "k must be > 0")) != DFWB_OK
+        || (rc = dfwb_check(&err, "h", h, h > 0.0, "h must be > 0 (m)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "x0", x0, 1, "x0 must be a finite number (m)")) != DFWB_OK
+        || (rc = dfwb_check(&err, "v0", v0, 1, "v0 must be a finite number (m/s)")) != DFWB_OK
+        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
+        || (rc = dfwb_plant_alloc(&STATIC_BACKLASH, &plant, &err)) != DFWB_OK)
         return rc;
-    p = (dfwb_static_backlash *)calloc(1, sizeof *p);
-    if (p == NULL)
-        return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a dfwb_static_backlash)");
-    dfwb_io_reader(&io, buf + DFWB_STATE_HEADER, payload);
-    state_io(&io, p);
-    rc = io.bad_int ? dfwb_fail(&err, DFWB_E_STATE, "the state holds an integer field out of range") : validate(p, &err);
-    if (rc != DFWB_OK) {
-        dfwb_static_backlash_free(p);
-        return rc;
-    }
-    *out = p;
-    return DFWB_OK;
+    p = (dfwb_static_backlash *)plant;
+    dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
+    p->M = M, p->k = k, p->h = h;
+    p->engaged = 0;
+    rc = dfwb_plant_created(&p->pw, dfwb_err_finish(&err, free_play(p, 0.0, x0, v0, k * x0, 0, &err)), &plant);
+    *out = (dfwb_static_backlash *)plant;
+    return rc;
+}
+
+int dfwb_static_backlash_set_input(dfwb_static_backlash *p, double f, char *errbuf, size_t errlen)
+{
+    return dfwb_plant_set_input(&STATIC_BACKLASH, DFWB_PW(p), f, errbuf, errlen);
+}
+
+int dfwb_static_backlash_advance(dfwb_static_backlash *p, double t_end, char *errbuf, size_t errlen)
+{
+    return dfwb_plant_advance(&STATIC_BACKLASH, DFWB_PW(p), t_end, errbuf, errlen);
+}
+
+void dfwb_static_backlash_output(const dfwb_static_backlash *p, double out[3])
+{
+    double x, v, y, w;
+    if (p == NULL || out == NULL)
+        return;
+    dfwb_motion_state(&p->mass, p->pw.t, &x, &v);
+    dfwb_motion_state(&p->pw.output, p->pw.t, &y, &w);
+    out[0] = x;
+    out[1] = v;
+    out[2] = y;
+}
+
+int dfwb_static_backlash_integrals(const dfwb_static_backlash *p, double *re, double *im, char *errbuf,
+                                   size_t errlen)
+{
+    return dfwb_plant_integrals(&STATIC_BACKLASH, DFWB_PW(p), re, im, errbuf, errlen);
+}
+
+double dfwb_static_backlash_time(const dfwb_static_backlash *p) { return p == NULL ? NAN : p->pw.t; }
+
+long long dfwb_static_backlash_events(const dfwb_static_backlash *p) { return p == NULL ? -1 : p->pw.events; }
+
+int dfwb_static_backlash_harmonics(const dfwb_static_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
+
+double dfwb_static_backlash_period(const dfwb_static_backlash *p) { return p == NULL ? NAN : p->pw.period; }
+
+void dfwb_static_backlash_drive(const dfwb_static_backlash *p, double out[4])
+{
+    if (p != NULL && out != NULL)
+        dfwb_drive_values(&p->pw.drive, out);
+}
+
+int dfwb_static_backlash_engaged(const dfwb_static_backlash *p) { return p == NULL ? 0 : p->engaged; }
+
+int dfwb_static_backlash_same_parameters(const dfwb_static_backlash *a, const dfwb_static_backlash *b)
+{
+    if (a == NULL || b == NULL)
+        return 0;
+    return dfwb_pw_same_parameters(&a->pw, &b->pw) && dfwb_same_double(a->M, b->M) && dfwb_same_double(a->k, b->k)
+           && dfwb_same_double(a->h, b->h);
+}
+
+dfwb_static_backlash *dfwb_static_backlash_copy(const dfwb_static_backlash *p)
+{
+    return (dfwb_static_backlash *)dfwb_plant_copy(&STATIC_BACKLASH, DFWB_PW(p));
+}
+
+void dfwb_static_backlash_free(dfwb_static_backlash *p) { dfwb_plant_free(DFWB_PW(p)); }
+
+void dfwb_static_backlash_log(dfwb_static_backlash *p, size_t capacity) { dfwb_plant_log(DFWB_PW(p), capacity); }
+
+size_t dfwb_static_backlash_log_read(dfwb_static_backlash *p, double *t, int *kind, size_t max)
+{
+    return dfwb_plant_log_read(DFWB_PW(p), t, kind, max);
+}
+
+unsigned long long dfwb_static_backlash_log_dropped(const dfwb_static_backlash *p)
+{
+    return dfwb_plant_log_dropped(DFWB_PW(p));
+}
+
+int dfwb_static_backlash_to_bytes(const dfwb_static_backlash *p, unsigned char *buf, size_t buflen,
+                                  size_t *size, char *errbuf, size_t errlen)
+{
+    return dfwb_plant_to_bytes(&STATIC_BACKLASH, DFWB_PW(p), buf, buflen, size, errbuf, errlen);
+}
+
+int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_static_backlash **out,
+                                    char *errbuf, size_t errlen)
+{
+    void *plant = NULL;
+    const int rc = dfwb_plant_from_bytes(&STATIC_BACKLASH, buf, len, out == NULL ? NULL : &plant, errbuf, errlen);
+    if (out != NULL)
+        *out = (dfwb_static_backlash *)plant;
+    return rc;
 }
