@@ -39,6 +39,17 @@ identical code, FMUs of different sources cannot collide.
 pythonfmu writes no units, no ModelStructure/InitialUnknowns and a random
 GUID; :func:`finish_model_description` adds the first two (so that ``fmpy
 validate`` passes) and makes the GUID a function of the model and the hash.
+
+The compiled core
+-----------------
+A facade with ``native_solver`` (the three plants, not their naive twins nor
+LinearSystem) gets the C core (``fmus/native``, compiled by
+:func:`dfwb.build_fmus.core.build_core`) as ``resources/libdfwb_core.so``,
+which its Python code loads (see :mod:`dfwb.fmus.facade`); the C sources
+are then part of its hash. The core is compiled at most once per process
+(kept in memory, like the FMI shim), only when such an FMU is built. If it
+cannot be compiled, :func:`build` reports one line and builds the FMU
+without it: it then runs on the pure-Python solver.
 """
 
 import ast
@@ -66,7 +77,7 @@ __all__ = ["build", "build_all", "source_hash", "sources", "recorded_hash", "Bui
 
 FMUS_DIR = Path(facade.__file__).resolve().parent
 PACKAGE = "dfwb.fmus"
-BUILDER_REVISION = "4"  # 4: the FMI shim (build_fmus/shim/fmi2_shim.c) is binaries/linux64/<Model>.so
+BUILDER_REVISION = "5"  # 5: the compiled core in the plant FMUs' resources (4: the FMI shim is binaries/linux64)
 HASH_PREFIX = "dfwb-sources-"
 INIT = '"""dfwb solver modules bundled into one FMU (only those its facade needs)."""\n'
 SCRIPT = '''"""dfwb {model} FMU: the facade from the bundled, hash-named solver package."""
@@ -228,11 +239,31 @@ def sources(model):
     return dict(sorted(files.items()))
 
 
+def native(model):
+    """Whether the FMU of ``model`` carries the compiled core (its facade names a ``native_solver``)."""
+    return bool(getattr(model, "native_solver", None))
+
+
+def core_sources():
+    """{name: bytes} of the C core's sources and headers (empty if the package has none)."""
+    from .core import CoreBuildError
+    from .core import sources as native_sources
+
+    try:
+        return {path.name: path.read_bytes() for path in native_sources()}
+    except CoreBuildError:
+        return {}
+
+
 def source_hash(model):
-    """Hash of everything that goes into the FMU of ``model``: its sources, the shim, pythonfmu, this builder."""
+    """Hash of everything that goes into the FMU of ``model``: its sources (the C core's too, for a facade
+    with ``native_solver``), the shim, pythonfmu, this builder."""
     digest = hashlib.sha256()
     for name, content in sources(model).items():
         digest.update(name.encode() + b"\0" + content + b"\0")
+    if native(model):
+        for name, content in core_sources().items():
+            digest.update(b"native/" + name.encode() + b"\0" + content + b"\0")
     digest.update(SHIM_SOURCE.read_bytes() + b"\0")
     digest.update(pythonfmu.__version__.encode() + BUILDER_REVISION.encode())
     return digest.hexdigest()[:16]
@@ -319,6 +350,30 @@ def shim_binary():
     return _shim_binary(hashlib.sha256(SHIM_SOURCE.read_bytes()).hexdigest())
 
 
+CORE_RESOURCE = "resources/libdfwb_core.so"  # what dfwb.fmus.facade.core_in opens
+
+
+@functools.lru_cache(maxsize=4)
+def _core_binary(key):
+    """(the compiled core's bytes, None) or (None, why it cannot be built), once per process for each key."""
+    from .core import CoreBuildError, build_core
+
+    with tempfile.TemporaryDirectory(prefix="dfwb_core_") as tmp:
+        try:
+            return build_core(tmp).read_bytes(), None
+        except (CoreBuildError, OSError) as error:
+            return None, str(error)
+
+
+def core_binary():
+    """(bytes of the C core for ``resources/libdfwb_core.so``, None), or (None, the one-line reason it cannot be
+    built); compiled at most once per process for the same sources and $CC."""
+    digest = hashlib.sha256()
+    for name, content in core_sources().items():
+        digest.update(name.encode() + b"\0" + content + b"\0")
+    return _core_binary((digest.hexdigest(), os.environ.get("CC", "")))
+
+
 def python_record():
     """resources/dfwb_python.txt: the shared libpython of the Python that builds (empty line if static)."""
     libdir = sysconfig.get_config_var("LIBDIR") or ""
@@ -390,8 +445,13 @@ def _set_structure(structure, variables, model):
         ET.SubElement(node, "Unknown", index=str(index[name]))
 
 
-def build_one(model, out_dir, digest=None):
-    """Build ``<out_dir>/<Model>.fmu`` from the current sources (atomic replace)."""
+def build_one(model, out_dir, digest=None, core=None):
+    """Build ``<out_dir>/<Model>.fmu`` from the current sources (atomic replace).
+
+    ``core``: the bytes of the compiled core (:func:`core_binary`), written as
+    ``resources/libdfwb_core.so`` for a facade with ``native_solver``; None: the
+    FMU has no core and runs on the pure-Python solver.
+    """
     files = sources(model)
     digest = digest or source_hash(model)
     package = f"dfwb_fmus_{digest}"
@@ -423,6 +483,10 @@ def build_one(model, out_dir, digest=None):
             shim_source = zipfile.ZipInfo("documentation/fmi2_shim.c", record.date_time)
             shim_source.compress_type = zipfile.ZIP_DEFLATED
             target.writestr(shim_source, SHIM_SOURCE.read_bytes())
+            if core is not None and native(model):
+                library = zipfile.ZipInfo(CORE_RESOURCE, record.date_time)
+                library.compress_type, library.external_attr = zipfile.ZIP_DEFLATED, 0o100755 << 16
+                target.writestr(library, core)
         partial.replace(dest)
     return dest
 
@@ -441,18 +505,25 @@ def build(out_dir, models=None, force=False, report=print):
     force : bool
         Rebuild even an FMU whose recorded hash matches its sources.
     report : callable
-        Called with one line per FMU (``built`` or ``up to date``).
+        Called with one line per FMU (``built`` or ``up to date``), and one line if
+        the compiled core cannot be built (those FMUs then run on the pure-Python solver).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
+    compiled = []  # [(core bytes or None, reason)]: the core, compiled once per call when an FMU needs it
     for model in facade.PRODUCTION if models is None else models:
         path = out_dir / f"{model.__name__}.fmu"
         digest = source_hash(model)
         if not force and recorded_hash(path) == digest:
             report(f"{path}: up to date")
         else:
-            build_one(model, out_dir, digest)
+            if native(model) and not compiled:
+                compiled.append(core_binary())
+                if compiled[0][0] is None:
+                    report(f"the C core cannot be built ({compiled[0][1]}): the plant FMUs built now run on the "
+                           f"pure-Python solver")
+            build_one(model, out_dir, digest, compiled[0][0] if native(model) else None)
             report(f"{path}: built")
         paths.append(path)
     return paths

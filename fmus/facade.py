@@ -12,14 +12,29 @@ its own module imports (the builder follows the relative imports), so the
 benchmark's fixed-step twins live in :mod:`.naive`, outside the closure of
 the production FMUs, and a plant defined outside dfwb subclasses
 :class:`PlantFMU` in its own module.
+
+The compiled core: a plant facade with ``native_solver`` (the three plants
+here, not their naive twins nor LinearSystem) runs on the C port of its
+solver (:mod:`.native_core`) when its FMU carries it, as
+``resources/libdfwb_core.so`` (the builder puts it there). At
+exitInitializationMode the facade opens that library (once per process and
+path) and makes the C solver with the Python solver's keywords: same
+variables, same outputs bit for bit, same refusals. The pure-Python solver
+stays the oracle and the fallback: if the core cannot be used (missing,
+another ABI, a load error) the FMU logs one warning naming the reason and
+runs on Python. The environment variable ``DFWB_FMU_SOLVER`` decides when
+set: ``python`` forces the pure-Python solver, ``native`` makes a core that
+cannot be used an error; any other value is refused at exitInitializationMode.
 """
 
 import cmath
 import math
+import os
 
 from pythonfmu import DefaultExperiment, Fmi2Slave, Integer, Real
 from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 
+from . import native_core as _native_core
 from . import state as _state
 from .backlash import TwoMassBacklash as _TwoMassBacklash
 from .contract import EventKind
@@ -38,6 +53,36 @@ EXCITATION = (
     ("omega", 1.0, "rad/s", "angular frequency of the built-in excitation (> 0)"),
     ("phi", 0.0, "rad", "phase of the built-in excitation"),
 )
+
+
+NATIVE_CORE_FILE = "libdfwb_core.so"
+"""The compiled core in the resources folder of an FMU whose facade has ``native_solver``."""
+SOLVER_VARIABLE = "DFWB_FMU_SOLVER"
+SOLVER_CHOICES = ("native", "python")
+"""Values of ``DFWB_FMU_SOLVER`` (unset or empty: the compiled core if it can be used, else Python)."""
+_CORES = {}
+"""{core file: (NativeCore, None) or (None, why it cannot be used)}: each core is opened once per process."""
+
+
+def core_in(resources):
+    """(NativeCore, None) for the compiled core in an FMU's resources folder, or (None, why it cannot be used)."""
+    if not resources:
+        return None, "no resources folder (the facade does not run inside an FMU)"
+    folder = str(resources)
+    path = os.path.join(folder[len("file://"):] if folder.startswith("file://") else folder, NATIVE_CORE_FILE)
+    known = _CORES.get(path)
+    if known is None:
+        if not os.path.isfile(path):
+            known = (None, f"the FMU has no compiled core (no resources/{NATIVE_CORE_FILE})")
+        else:
+            try:
+                known = (_native_core.load(path), None)
+            except _native_core.CoreError as error:  # a library that does not load, another ABI
+                known = (None, str(error))
+            except Exception as error:  # noqa: BLE001 - whatever else stops the core is a reason too
+                known = (None, f"cannot load the C core {path}: {type(error).__name__}: {error}")
+        _CORES[path] = known
+    return known
 
 
 _PINNED = []
@@ -137,6 +182,12 @@ class SolverFMU(Fmi2Slave):
       Fourier integrals, event counters, modes) and the facade's values;
       fmi2SerializeFMUstate writes them as bytes that only this model of
       the same build accepts (see :mod:`.state`).
+    * Solver: a plant with ``native_solver`` runs on the compiled core its FMU
+      carries, else (one warning says why) on the pure-Python solver;
+      ``DFWB_FMU_SOLVER=python`` forces Python, ``=native`` makes a missing
+      core an error (see the module's docstring). A restored state keeps
+      the kind of solver it holds (a serialized C solver is read back by
+      this FMU's own core, which checks its bytes).
 
     A subclass creates ``self.solver`` at the end of initialisation; doStep
     hands it the input named ``input_name``, held over the step (``input_name``
@@ -155,6 +206,8 @@ class SolverFMU(Fmi2Slave):
     """Extra classes a solver's state holds (beyond its own class, Drive, Motion and the searches)."""
     fixed_solver_attributes = ()
     """Solver attributes a run never changes (dotted: drive.F): a restored solver's must equal a new one's."""
+    native_solver = None
+    """The NativeCore attribute of the compiled twin of the solver ("FrictionMass"...), or None (Python only)."""
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -322,6 +375,8 @@ class SolverFMU(Fmi2Slave):
             classes = set(STATE_BASE_CLASSES) | set(cls.state_classes)
             solver_class = getattr(cls, "solver_class", None) or _LinearSystem
             classes.update(klass for klass in solver_class.__mro__ if klass is not object)
+            if cls.native_solver:  # a solver of the compiled core is serialized as its checked bytes
+                classes.add(_state.NativeState)
             table = (cls, {(klass.__module__, klass.__qualname__): klass for klass in classes})
             cls._state_table_cache = table
         return table[1]
@@ -345,10 +400,12 @@ class SolverFMU(Fmi2Slave):
     def _set_fmu_state(self, state):
         if isinstance(state, _state.RefusedState):
             self._fail(f"the state was refused when it was deserialized: {state.refused}")
-        if not isinstance(state, _state.FMUState):
+        model, package = getattr(state, "model", None), getattr(state, "package", None)
+        if not (isinstance(state, _state.FMUState) or type(state).__name__ == "FMUState"
+                and type(model) is str and type(package) is str):  # another build's FMUState: named below
             self._fail(f"{type(state).__name__} is not a state of this FMU")
-        if state.model != type(self).__name__ or state.package != self._package():
-            self._fail(f"the state is one of {state.package}.{state.model}, not of this FMU "
+        if not isinstance(state, _state.FMUState) or model != type(self).__name__ or package != self._package():
+            self._fail(f"the state is one of {package}.{model}, not of this FMU "
                        f"({self._package()}.{type(self).__name__})")
         values = state.values
         expected = set(self._facade_values())
@@ -356,7 +413,8 @@ class SolverFMU(Fmi2Slave):
             self._fail("the state's facade values do not match this FMU's variables")
         solver = state.solver
         solver_class = self._solver_type()
-        if not (solver is None or type(solver) is solver_class):
+        stored = isinstance(solver, _state.NativeState)
+        if not (solver is None or type(solver) is solver_class or stored or self._is_native(solver)):
             self._fail(f"the state's solver is a {type(solver).__name__}, not a {solver_class.__name__}")
         phase = values["_phase"]
         if phase not in (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED) or \
@@ -368,9 +426,11 @@ class SolverFMU(Fmi2Slave):
         for name in ("_start_time", "_time"):
             if not (type(values[name]) is float and math.isfinite(values[name])):
                 self._fail(f"the state's {name} is not a finite float")
+        if stored:
+            solver = self._native_from(solver)
         if solver is not None:
             self._check_solver_state(values, solver)
-        self.solver = None if solver is None else _state.copy_solver(solver)
+        self.solver = None if solver is None else solver if stored else _state.copy_solver(solver)
         for name, value in values.items():
             if not name.startswith("_"):
                 setattr(self, name, value)
@@ -385,22 +445,31 @@ class SolverFMU(Fmi2Slave):
         of -1e308 would make the next step or getter run for hours or exhaust memory. A new solver is
         made from the state's parameters (their own checks apply) and the solver's
         ``fixed_solver_attributes`` must equal its, exactly; its time must be the state's time.
+        A solver of the compiled core is compared with a new one on its core (``same_parameters``:
+        its fixed parameters bit for bit); the core checked its piece times when it read them.
         """
+        native = self._is_native(solver)
         try:
-            fresh = self._solver_from(values)
+            fresh = self._solver_from(values, solver if self.native_solver else None)
         except PlantError as error:
             self._fail(f"the state's parameters are refused: {error}")
-        for name in self.fixed_solver_attributes:
-            mine, theirs = _attribute(fresh, name), _attribute(solver, name)
-            if type(mine) is not type(theirs) or mine != theirs:
-                self._fail(f"the state's solver does not match its parameters ({name})")
+        if native:
+            if not fresh.same_parameters(solver):
+                self._fail("the state's solver does not match its parameters")
+        else:
+            for name in self.fixed_solver_attributes:
+                mine, theirs = _attribute(fresh, name), _attribute(solver, name)
+                if type(mine) is not type(theirs) or mine != theirs:
+                    self._fail(f"the state's solver does not match its parameters ({name})")
         t = getattr(solver, "t", None)
         if not (type(t) is float and t == values["_time"] - values["_start_time"]):
             self._fail("the state's solver time does not match the state's time")
-        self._check_solver_times(solver)
+        if not native:
+            self._check_solver_times(solver)
 
-    def _solver_from(self, values):
-        """A new solver from a state's parameter values (this instance's own values are kept)."""
+    def _solver_from(self, values, like=None):
+        """A new solver from a state's parameter values (this instance's own values are kept);
+        ``like``: a solver whose kind (Python, or the compiled core it runs on) the new one takes."""
         names = [name for name in values if not name.startswith("_")]
         saved = {name: getattr(self, name) for name in names}
         saved_start, saved_rotation = self._start_time, getattr(self, "_rotation", None)
@@ -408,7 +477,7 @@ class SolverFMU(Fmi2Slave):
             for name in names:
                 setattr(self, name, values[name])
             self._start_time = values["_start_time"]
-            return self._make_solver()
+            return self._make_solver() if like is None else self._make_solver(like=like)
         finally:
             for name, value in saved.items():
                 setattr(self, name, value)
@@ -425,10 +494,45 @@ class SolverFMU(Fmi2Slave):
             self._refresh()
 
     @classmethod
+    def _native_base(cls):
+        """The native_core class of this facade's compiled solver (NativeFrictionMass...), or None."""
+        return getattr(_native_core, "Native" + cls.native_solver, None) if cls.native_solver else None
+
+    @classmethod
+    def _is_native(cls, solver):
+        """Whether ``solver`` is this facade's compiled solver, bound to a loaded core."""
+        if type(solver) is cls._solver_class() or not cls.native_solver:
+            return False
+        base = cls._native_base()
+        return base is not None and isinstance(solver, base) and getattr(type(solver), "core", None) is not None
+
+    @classmethod
+    def _solver_class(cls):
+        return getattr(cls, "solver_class", None) or _LinearSystem
+
+    def _native_from(self, stored):
+        """The solver of a serialized :class:`~.state.NativeState`, read by this FMU's own core (StepRefused)."""
+        if not (type(stored.plant) is str and type(stored.data) is bytes):
+            self._fail("the state's native solver is damaged (it must hold a plant name and bytes)")
+        if not self.native_solver or stored.plant != self.native_solver:
+            self._fail(f"the state's solver is a compiled {stored.plant[:64]!r}, not a "
+                       f"{self.native_solver or self._solver_type().__name__}")
+        core, why = core_in(self.resources)
+        if core is None:
+            self._fail(f"the state holds a solver of the compiled core, which this instance cannot use: {why}")
+        try:
+            return getattr(core, self.native_solver).from_bytes(stored.data)
+        except _state.StateRefused as error:
+            self._fail(f"the state was refused when it was deserialized: serialized state refused: {error}")
+
+    @classmethod
     def _fmu_state_to_bytes(cls, state):
         try:
             if isinstance(state, _state.RefusedState):
                 return _state.MAGIC + b"refused: " + state.refused.encode("utf-8", "replace")
+            if isinstance(state, _state.FMUState) and state.solver is not None and cls._is_native(state.solver):
+                state = _state.FMUState(state.model, state.package, state.values,
+                                        _state.NativeState(cls.native_solver, state.solver.to_bytes()))
             return _state.encode(state, cls._state_table())
         except Exception as error:  # noqa: BLE001 - never out of a callback: bytes that deserialize as refused
             return _state.MAGIC + f"refused: the state could not be serialized ({error})".encode("utf-8", "replace")
@@ -534,6 +638,8 @@ class PlantFMU(TableFMU):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        if "solver_class" in cls.__dict__ and "native_solver" not in cls.__dict__:
+            cls.native_solver = None  # a subclass with a solver of its own (a naive twin) has no compiled twin
         if cls.solver_class is not None:
             FACADES.append(cls)
 
@@ -605,16 +711,49 @@ class PlantFMU(TableFMU):
         return table
 
     # -- FMI ------------------------------------------------------------------
-    def _make_solver(self):
+    def _make_solver(self, like=None):
+        """The solver from the parameters (PlantError names a bad one), on the compiled core or in Python as
+        :meth:`_solver_core` chooses; ``like``: a solver whose kind the new one takes (nothing logged)."""
         kwargs = {name: getattr(self, name) for name, *_ in self.parameters + EXCITATION}
         t0 = self._start_time
         if t0 != 0.0:  # the solver's time starts at 0: F cos(omega t + phi) = F cos(omega (t - t0) + phi')
             kwargs["phi"] = kwargs["phi"] + kwargs["omega"] * t0
         self._rotation = None
-        solver = self.solver_class(f=self.f, harmonics=self.harmonics, **self.solver_kwargs(kwargs))
+        if like is None:
+            core = self._solver_core()
+        else:
+            core = type(like).core if self._is_native(like) else None
+        solver_class = self.solver_class if core is None else getattr(core, self.native_solver)
+        solver = solver_class(f=self.f, harmonics=self.harmonics, **self.solver_kwargs(kwargs))
         if t0 != 0.0:  # I_k from t0 in absolute phase: exp(-i k omega t0) times the solver's own
             self._rotation = [cmath.exp(-1j * k * self.omega * t0) for k in range(solver.harmonics + 1)]
         return solver
+
+    def _solver_core(self):
+        """The NativeCore this run's solver is made on, or None for the pure-Python solver; the choice is logged
+        (status ok; a warning when the core cannot be used), StepRefused for a bad ``DFWB_FMU_SOLVER``."""
+        if not self.native_solver:
+            return None
+        choice = os.environ.get(SOLVER_VARIABLE, "")
+        if choice and choice not in SOLVER_CHOICES:
+            self._fail(f"{SOLVER_VARIABLE} = {choice!r} is refused: it must be 'native' (the compiled core; an error "
+                       f"if it cannot be used) or 'python' (the pure-Python solver), or unset")
+        name = type(self).__name__
+        if choice == "python":
+            self.log(f"{name}: runs on the pure-Python solver ({SOLVER_VARIABLE}=python)")
+            return None
+        core, why = core_in(self.resources)
+        if core is None:
+            if choice == "native":
+                self._fail(f"{SOLVER_VARIABLE}=native, but the compiled core cannot be used: {why}")
+            if not self.resources:  # the facade used directly in Python, not an FMU: nothing to warn about
+                self.log(f"{name}: runs on the pure-Python solver ({why})")
+            else:
+                self.log(f"{name}: the compiled core cannot be used ({why}); it runs on the pure-Python solver",
+                         status=Fmi2Status.warning)
+            return None
+        self.log(f"{name}: runs on the compiled core ({core.path})")
+        return core
 
     def _integrals(self):
         """{Ick, Isk: value} from the solver's running integrals (rotated to absolute phase)."""
@@ -680,6 +819,7 @@ class FrictionMass(PlantFMU):
     """Mass with Coulomb, viscous and static friction (exact stick-slip), force input f."""
 
     solver_class = _FrictionMass
+    native_solver = "FrictionMass"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "B", "Fc", "Fs", "Dv", "edge_force")
     ranges = {"M": (0.0, None), "B": (0.0, None), "Fc": (0.0, None), "Fs": (0.0, None), "Dv": (0.0, None)}
     feedthrough = {"Ff": "dependent", "mode": "dependent"}  # stuck: Ff = u; a new f can break away at once
@@ -707,6 +847,7 @@ class TwoMassBacklash(PlantFMU):
     """Two masses with a clearance h and impacts of restitution eps, force input f on M2."""
 
     solver_class = _TwoMassBacklash
+    native_solver = "TwoMassBacklash"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M1", "M2", "h", "eps", "total", "r1", "r2", "tol_h")
     output_signal = ("x1", "m")
     ranges = {"M1": (0.0, None), "M2": (0.0, None), "h": (0.0, None), "eps": (0.0, 1.0), "gap0": (-1.0, None)}
@@ -744,6 +885,7 @@ class StaticBacklash(PlantFMU):
     """Mass M driven by the force, followed by a backlash element of slope k and width h."""
 
     solver_class = _StaticBacklash
+    native_solver = "StaticBacklash"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "k", "h")
     output_signal = ("y", "m")
     ranges = {"M": (0.0, None), "k": (0.0, None), "h": (0.0, None)}

@@ -7,7 +7,8 @@ plain data: numbers, complex numbers, lists, tuples, dicts and instances of
 a few classes with no behaviour on creation (the solver class, ``Drive``,
 ``Motion``, ``Search`` and the search functions of :mod:`.piecewise`,
 ``EventKind``) - no closure, no bound method - so :func:`copy.deepcopy`
-copies it exactly and shares nothing mutable with the original.
+copies it exactly and shares nothing mutable with the original. A solver of
+the compiled core (:mod:`.native_core`) is copied by its own exact ``copy``.
 
 ``fmi2SerializeFMUstate`` writes::
 
@@ -22,9 +23,17 @@ table (:func:`allowed_classes`, looked up by module and name, never through
 ``getattr`` on a module) and ``complex``; every other global (``os.system``,
 ``builtins.eval``, ``getattr``...) is refused. The bytes are capped in size,
 and the object read is then checked: the expected structure, only allowed
-types, no NaN, the solver an instance of the facade's own solver class.
+types, no NaN, the solver an instance of the facade's own solver class (or a
+:class:`NativeState` of its plant).
 A crafted state can therefore not run code; at worst it holds wrong but
 well-typed numbers, like a crafted parameter would.
+
+A solver of the compiled core is written as a :class:`NativeState` (the
+plant's name and the core's own state bytes), never as the native class:
+unpickling that would load a library from a path named in the data. The
+facade turns it back into a solver with its own core's ``from_bytes``,
+which checks every byte (header, CRC-32, each field's range) and refuses
+anything else.
 
 Plain Python only: this module runs inside the FMUs.
 """
@@ -70,7 +79,17 @@ class RefusedState:
         self.refused = str(refused)
 
 
-SCALARS = (type(None), bool, int, float, str, complex)
+class NativeState:
+    """A solver of the compiled core, serialized: ``plant`` (the NativeCore attribute, e.g. "FrictionMass")
+    and ``data``, the bytes of its ``to_bytes()`` (read back by the FMU's own core, which checks them)."""
+
+    __slots__ = ("plant", "data")
+
+    def __init__(self, plant, data):
+        self.plant, self.data = plant, data
+
+
+SCALARS = (type(None), bool, int, float, str, complex, bytes)
 
 
 class _Unpickler(pickle.Unpickler):

@@ -207,7 +207,8 @@ OUT["step"] = st(fmu, "doStep", 0.0, 0.1)
 OUT["statuses"] = sorted({status for status, _ in LOG})
 '''))
     assert out == {"huge size": ERROR, "reset 1": OK, "NULL bytes": ERROR, "reset 2": OK,
-                   "NULL state pointer": ERROR, "reset 3": OK, "step": OK, "statuses": [ERROR]}
+                   "NULL state pointer": ERROR, "reset 3": OK, "step": OK,
+                   "statuses": [OK, ERROR]}  # OK: the plant says which solver it runs on
 
 
 def test_states_across_instances_and_models(info):

@@ -79,7 +79,7 @@ def test_the_extra_plant_is_registered_like_the_built_in_ones():
 @pytest.mark.parametrize("name", NAMES)
 def test_a_fmu_builds_and_validates(name):
     entry = plant(name)
-    path = fmu_path(entry)
+    path = fmu_path(entry, kind="python")  # the pythonfmu FMU (the native twins: tests/test_native_fmus.py)
     assert path.name == f"{entry.fmu_name}.fmu"
     assert validate_fmu(str(path)) == []
     digest = builder.source_hash(entry.model)
