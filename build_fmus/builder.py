@@ -71,7 +71,8 @@ import pythonfmu
 from pythonfmu.builder import FmuBuilder
 
 from dfwb.fmus import facade
-from dfwb.fmus.exact import DfwbError
+
+from .errors import BuildError
 
 __all__ = ["build", "build_all", "source_hash", "sources", "recorded_hash", "BuildError"]
 
@@ -86,10 +87,6 @@ from {package}.facade import pin
 
 pin(globals())  # pythonfmu 0.7.0 releases this namespace once per instantiation
 '''
-
-
-class BuildError(DfwbError, ValueError):
-    """A facade whose module cannot be bundled into an FMU (the message says which import)."""
 
 
 # SI base-unit exponents of every unit the models use

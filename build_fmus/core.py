@@ -26,7 +26,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from .builder import BuildError
+from .errors import BuildError
 
 __all__ = ["build_core", "sources", "compiler", "NATIVE_DIR", "FLAGS", "CoreBuildError"]
 

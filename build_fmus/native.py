@@ -35,8 +35,9 @@ import pythonfmu
 from dfwb.fmus import facade
 
 from . import builder
-from .builder import BuildError, finish_model_description, recorded_hash
+from .builder import finish_model_description, recorded_hash
 from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
+from .errors import BuildError
 
 __all__ = ["build_native", "native_models", "native_hash", "WRAPPER", "NATIVE_REVISION"]
 
