@@ -1,47 +1,91 @@
 """What a cached re-run of a scene loads: never the heavy libraries it does not need.
 
-A scene whose points and figures are all in the cache, written into a new
-folder, only copies: it must not import python-control (only the limit
-cycles need it) nor pyplot (the figures come from the cache). Measured with
-the command line in a fresh process, as a user runs it.
+A scene whose points, traces and figures are all in the cache, written into a
+new folder, only copies: it must not import python-control (only the limit
+cycles need it) nor pyplot (the figures come from the cache), nor the engine's
+FMU runtime (fmpy, numpy: nothing is simulated), the worker pool, the
+progress display or tqdm. Checked by the modules a fresh process has loaded
+(not by timing, which the machine's load blurs), with the command line run
+as a user runs it. ``benchmarks/startup.py`` measures the time.
 """
 
+import json
 import os
 import subprocess
 import sys
 
-from test_hardening import FIGURE_SCENE as SCENE  # a scene with two points and one figure
+import pytest
+from test_hardening import FIGURE_SCENE  # a scene with two points and one figure
+
+SCENE = FIGURE_SCENE + '''
+[[trace]]
+name = "short"
+plant = "friction"
+F = 10.0
+omega = 1.0
+stop = 1.0
+step = 0.01
+outputs = ["x"]
+'''
+
+# Never loaded by a cached re-run of SCENE (no log-spaced grid, no limit cycle): what runs, draws or shows work.
+NOT_NEEDED = ("control", "matplotlib", "fmpy", "numpy", "scipy", "rich", "tqdm", "multiprocessing",
+              "concurrent.futures.process", "dfwb.fmi.session", "dfwb.fmi.simulation", "dfwb.plotting.plots")
 
 PROBE = """
+import json
 import sys
 from dfwb.cli import main
 code = main(["run", sys.argv[1], "--out", sys.argv[2], "--cache", sys.argv[3], "--fmus", sys.argv[4]])
-print("LOADED", "control" in sys.modules, "matplotlib.pyplot" in sys.modules, code)
+print("LOADED", json.dumps([code, sorted(name for name in sys.modules if not name.startswith("_"))]))
 """
 
 
 def _run(tmp_path, scene, out, fmus):
+    """(exit code, the modules the command's process has loaded)."""
     env = dict(os.environ, MPLCONFIGDIR=str(tmp_path / "mpl"))
     done = subprocess.run([sys.executable, "-c", PROBE, str(scene), str(out), str(tmp_path / "cache"), str(fmus)],
                           capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
-    return done.stdout.split("LOADED")[-1].split()
+    code, modules = json.loads(done.stdout.split("LOADED")[-1])
+    return code, set(modules)
 
 
-def test_a_cached_rerun_imports_neither_control_nor_pyplot(fmus, tmp_path):
+@pytest.fixture(scope="module")
+def runs(fmus, tmp_path_factory):
+    """The folder, and (code, modules) of a first run that computes and draws, then of a cached re-run."""
+    tmp_path = tmp_path_factory.mktemp("startup")
     scene = tmp_path / "two.toml"
     scene.write_text(SCENE)
     folder = fmus["FrictionMass"].parent
-    assert _run(tmp_path, scene, tmp_path / "first", folder) == ["False", "True", "0"]  # it draws
-    assert _run(tmp_path, scene, tmp_path / "second", folder) == ["False", "False", "0"]
+    first = _run(tmp_path, scene, tmp_path / "first", folder)
+    second = _run(tmp_path, scene, tmp_path / "second", folder)
+    return tmp_path, first, second
+
+
+def test_a_cached_rerun_imports_neither_control_nor_pyplot(runs):
+    tmp_path, (code, first), (again, second) = runs
+    assert code == again == 0
+    assert "control" not in first and "matplotlib.pyplot" in first  # it draws
+    assert "control" not in second and "matplotlib.pyplot" not in second
     assert (tmp_path / "second" / "nyquist.png").stat().st_size > 10_000
+    assert (tmp_path / "second" / "traces" / "short.csv").read_text() == \
+        (tmp_path / "first" / "traces" / "short.csv").read_text()
+
+
+def test_a_cached_rerun_loads_no_engine_pool_or_display(runs):
+    """Nothing runs an FMU, spawns a worker or shows progress: fmpy, numpy, scipy, the pool, rich and tqdm
+    stay unloaded (the first run, which computes, loads the engine: the probe sees imports)."""
+    _, (_, first), (_, second) = runs
+    assert {"fmpy", "numpy", "dfwb.fmi.simulation"} <= first
+    assert sorted(name for name in NOT_NEEDED if name in second) == []
 
 
 def test_a_run_says_where_its_time_went(fmus, tmp_path):
     from dfwb.studies.runner import phase_times, run_scene
     from dfwb.studies.scene import parse_scene
 
-    outcome = run_scene(parse_scene(SCENE), tmp_path / "out", jobs=1, cache=tmp_path / "cache",
+    outcome = run_scene(parse_scene(FIGURE_SCENE), tmp_path / "out", jobs=1, cache=tmp_path / "cache",
                         fmu_dir=fmus["FrictionMass"].parent)
     assert {"start", "points", "traces", "limit cycles", "results", "figures"} == set(outcome.phases)
     assert 0.0 < sum(outcome.phases.values()) <= outcome.seconds

@@ -34,7 +34,6 @@ import time
 from dataclasses import dataclass, field
 
 from dfwb.fmi.location import fmu_path
-from dfwb.fmi.session import FMUSession
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import check_range
 from dfwb.plants import plant as find_plant
@@ -241,6 +240,8 @@ class DFEngine:
         self.harmonics = harmonics
         self.samples = samples_per_period if drive == "input" else 1
         self.max_periods = max_periods
+        from dfwb.fmi.session import FMUSession  # fmpy and numpy: only for an engine that runs (not for its records)
+
         path = fmu if fmu is not None else fmu_path(self.plant, fmu_dir)
         self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
         fourier = [f"I{part}{k}" for k in range(harmonics + 1) for part in "cs"]

@@ -14,9 +14,7 @@ computation is deterministic; only the ``seconds`` field differs):
 """
 
 import atexit
-import concurrent.futures as futures
 import hashlib
-import multiprocessing
 import os
 import shutil
 import tempfile
@@ -27,7 +25,6 @@ from pathlib import Path
 
 from dfwb.base.errors import InputError, RunError
 from dfwb.base.files import file_digest, write_atomic
-from dfwb.engine.describing import DFEngine
 from dfwb.studies.cache import code_revision
 
 MAX_JOBS = 256  # worker processes: far beyond any useful count, short of exhausting the machine
@@ -47,6 +44,8 @@ class Chunk:
 def compute(chunk, fmu_data=None):
     """(code revision, the as_dict() of every point of a chunk); ``fmu_data``: the FMU's bytes, shipped to a
     remote worker. The revision lets the client refuse results of a worker that runs other code."""
+    from dfwb.engine.describing import DFEngine  # the engine (fmpy, numpy) loads where points are computed
+
     path = _materialize(chunk.fmu, fmu_data) if fmu_data is not None else chunk.fmu
     key = (threading.get_ident(), chunk.plant, chunk.settings, str(path))
     if key not in _ENGINES:
@@ -152,6 +151,9 @@ class Executor:
             for chunk in chunks:
                 yield chunk, compute(chunk)
         else:
+            import concurrent.futures as futures  # a pool only when there is work for one
+            import multiprocessing
+
             if self._pool is None:
                 self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
                                                          multiprocessing.get_context("spawn"),

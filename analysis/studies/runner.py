@@ -28,8 +28,6 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from dfwb.base.errors import InputError, RunError
 from dfwb.base.files import ensure_folder, file_digest, folder_lock, inside, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
@@ -207,24 +205,34 @@ class SceneRun:
 
     # -- traces ---------------------------------------------------------------------------
     def traces(self, display):
-        from dfwb.fmi.simulation import simulate
-
-        out = {}
-        task = display.add("traces", len(self.scene.trace), 0, 0) if self.scene.trace else None
-        for trace in self.scene.trace:
+        """{name: {output: [values]}} of the scene's traces: from the cache, else simulated (and cached)."""
+        out, missing = {}, []
+        for trace in self.scene.trace:  # the cache first: the display counts what is left to simulate
             spec = find_plant(trace.plant)
             params = spec.checked(trace.params)
             key = {"kind": "trace", "model": spec.fmu_name, "fmu": self.revisions[trace.plant], "code": self.code,
                    "params": spec.complete(params), "F": trace.F,
                    "omega": trace.omega, "start": trace.start, "stop": trace.stop, "step": trace.step,
                    "outputs": trace.outputs}
-            value = self.cache.get(key)
+            out[trace.name] = self.cache.get(key)
+            if out[trace.name] is None:
+                missing.append((trace, params, key))
+            else:
+                self.outcome.cache_hits += 1
+        found = len(self.scene.trace) - len(missing)
+        task = display.add("traces", len(self.scene.trace), found, found)
+        simulated = set()  # the keys simulated here: a second trace of the same key finds it in the cache
+        for trace, params, key in missing:
+            value = self.cache.get(key) if digest(key) in simulated else None
             if value is None:
+                from dfwb.fmi.simulation import simulate  # fmpy and numpy: only for a trace to compute
+
                 result = simulate(self.fmus[trace.plant], trace.stop, trace.step,
                                   dict(params, F=trace.F, omega=trace.omega), trace.outputs)
                 keep = result["time"] >= trace.start - 1e-9 * trace.step
                 value = {name: result[name][keep].astype(float).tolist() for name in ["time"] + trace.outputs}
                 self.cache.put(key, value)
+                simulated.add(digest(key))
             else:
                 self.outcome.cache_hits += 1
             out[trace.name] = value
@@ -235,6 +243,8 @@ class SceneRun:
     def limit_cycles(self, display):
         if not self.scene.limit_cycle:
             return {}
+        import numpy as np
+
         from dfwb.engine.limit_cycles import search
 
         results = {}
@@ -272,6 +282,8 @@ class SceneRun:
 
     def exact(self, lc, G, params, cycles):
         """(true cycles, links) of the exact closed loop around the predictions, cached."""
+        import numpy as np
+
         from dfwb.engine.periodic import LoopProblem, TrueCycle, find_cycles
 
         key = {"kind": "exact", "code": self.code, "solvers": solver_revision(), "plant": lc.plant, "params": params,
@@ -297,6 +309,8 @@ class SceneRun:
 
     def judge(self, lc, G, params, cycle):
         """(outcome, the run's last 10 periods) of the co-simulation judge of one cycle, cached."""
+        import numpy as np
+
         from dfwb.engine.closed_loop import LoopRun, verify
 
         controller = fmu_path("LinearSystem", self.fmu_dir)
@@ -574,33 +588,45 @@ class _CachedEngine:
 
 
 class _Display:
-    """A rich progress display: points done, cache hits, time left (silent when off)."""
+    """A rich progress display: points done, cache hits, time left (silent when off).
+
+    It starts with the first task that has work left, showing the tasks complete before it: a run that
+    finds everything done (in the cache) has nothing to wait for, and neither shows nor loads a display."""
 
     def __init__(self, enabled, title):
         self.enabled, self.title = enabled, title
         self.progress = None
+        self._complete = []  # tasks complete when added, before the display started
 
     def __enter__(self):
-        if self.enabled:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-            from rich.table import Column
-
-            label = Column(max_width=32, no_wrap=True, overflow="ellipsis")
-            self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20),
-                                     MofNCompleteColumn(), TextColumn("[cyan]{task.fields[hits]} cached"),
-                                     TextColumn("time left"),
-                                     TimeRemainingColumn(compact=True))
-            self.progress.console.print(f"[bold]{self.title}")
-            self.progress.start()
         return self
 
     def __exit__(self, *exc):
         if self.progress is not None:
             self.progress.stop()
 
+    def _start(self):
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+        from rich.table import Column
+
+        label = Column(max_width=32, no_wrap=True, overflow="ellipsis")
+        self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20),
+                                 MofNCompleteColumn(), TextColumn("[cyan]{task.fields[hits]} cached"),
+                                 TextColumn("time left"),
+                                 TimeRemainingColumn(compact=True))
+        self.progress.console.print(f"[bold]{self.title}")
+        self.progress.start()
+        for label, total, done, hits in self._complete:
+            self.progress.add_task(label, total=total, completed=done, hits=hits)
+
     def add(self, label, total, done, hits):
-        if self.progress is None or total == 0:
+        if not self.enabled or total == 0:
             return None
+        if self.progress is None:
+            if done >= total:  # nothing to wait for (never advanced): shown if the display starts later
+                self._complete.append((label, total, done, hits))
+                return None
+            self._start()
         return self.progress.add_task(label, total=total, completed=done, hits=hits)
 
     def advance(self, task, n):

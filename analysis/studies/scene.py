@@ -38,7 +38,6 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
-import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from dfwb.base.errors import InputError
@@ -154,8 +153,11 @@ class Frequencies(Strict):
         return self
 
     def grid(self):
-        spaced = [float(f"{w:.12g}") for w in np.geomspace(self.log[0], self.log[1], int(self.log[2]))] \
-            if self.log else []
+        spaced = []
+        if self.log:
+            import numpy as np  # only for a log-spaced grid
+
+            spaced = [float(f"{w:.12g}") for w in np.geomspace(self.log[0], self.log[1], int(self.log[2]))]
         return sorted(set(spaced) | set(self.values))
 
 

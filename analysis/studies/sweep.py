@@ -25,8 +25,6 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from tqdm import tqdm
-
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
 from dfwb.engine.describing import COLUMNS, DRIVES, check_point, from_row, to_row
@@ -153,6 +151,8 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
                 done[k] = record
         pending = [p for p in points if key(*p) not in done]
         jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
+        from tqdm import tqdm  # the progress bar: only for a sweep that runs (the scenes import MAX_POINTS)
+
         with log, tqdm(total=len(points), initial=len(points) - len(pending), unit="pt", disable=not progress,
                        desc=f"{plant} DF") as bar:
             last_json = time.monotonic()
