@@ -73,13 +73,13 @@ from pythonfmu.builder import FmuBuilder
 from dfwb.fmus import facade
 
 from .errors import BuildError
+from .recorded import HASH_PREFIX, recorded_hash
 
 __all__ = ["build", "build_all", "source_hash", "sources", "recorded_hash", "BuildError"]
 
 FMUS_DIR = Path(facade.__file__).resolve().parent
 PACKAGE = "dfwb.fmus"
 BUILDER_REVISION = "5"  # 5: the compiled core in the plant FMUs' resources (4: the FMI shim is binaries/linux64)
-HASH_PREFIX = "dfwb-sources-"
 INIT = '"""dfwb solver modules bundled into one FMU (only those its facade needs)."""\n'
 SCRIPT = '''"""dfwb {model} FMU: the facade from the bundled, hash-named solver package."""
 from {package}.{module} import {model}
@@ -264,17 +264,6 @@ def source_hash(model):
     digest.update(SHIM_SOURCE.read_bytes() + b"\0")
     digest.update(pythonfmu.__version__.encode() + BUILDER_REVISION.encode())
     return digest.hexdigest()[:16]
-
-
-def recorded_hash(fmu_path):
-    """The source hash an existing FMU was built from, or None."""
-    try:
-        with zipfile.ZipFile(fmu_path) as archive:
-            root = ET.fromstring(archive.read("modelDescription.xml"))
-    except (OSError, KeyError, zipfile.BadZipFile, ET.ParseError):
-        return None
-    version = root.get("version", "")
-    return version[len(HASH_PREFIX):] if version.startswith(HASH_PREFIX) else None
 
 
 def finish_model_description(xml_bytes, model, digest):

@@ -34,15 +34,15 @@ import pythonfmu
 
 from dfwb.fmus import facade
 
-from . import builder
-from .builder import finish_model_description, recorded_hash
 from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
 from .errors import BuildError
+from .recorded import recorded_hash
 
 __all__ = ["build_native", "native_models", "native_hash", "WRAPPER", "NATIVE_REVISION"]
 
 NATIVE_REVISION = "1"
 WRAPPER = NATIVE_DIR / "fmu" / "fmi2_plant.c"
+BUILDER = Path(__file__).with_name("builder.py")  # writes the model description (finish_model_description)
 GENERATION_TOOL = "dfwb native (C core, fmus/native)"
 
 # Per plant: the core's plant kind, its parameter order (dfwb_core.h) and the order of dfwb_*_output's array.
@@ -90,7 +90,7 @@ def _command(extra_flags=()):
 def _static_digest():
     """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
     digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
-    for path in [WRAPPER, Path(facade.__file__), Path(builder.__file__), Path(__file__)] + sources():
+    for path in [WRAPPER, Path(facade.__file__), BUILDER, Path(__file__)] + sources():
         digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
@@ -105,6 +105,8 @@ def native_hash(model, extra_flags=()):
 
 def _description(model, digest):
     """The finished model description of the pythonfmu FMU, made native (CoSimulation, tool, GUID)."""
+    from .builder import finish_model_description  # the build machinery: only when an FMU is built
+
     with tempfile.TemporaryDirectory(prefix="dfwb_native_xml_") as tmp:
         instance = model(instance_name="native", resources=tmp)
         raw = ET.tostring(instance.to_xml(), encoding="utf-8")

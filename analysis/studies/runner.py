@@ -48,7 +48,7 @@ SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results
 
 def fmu_revision(path):
     """The source hash the FMU was built from (its content is a function of it)."""
-    from dfwb.build_fmus.builder import recorded_hash
+    from dfwb.build_fmus.recorded import recorded_hash
 
     return recorded_hash(path) or file_digest(path)
 
