@@ -6,7 +6,11 @@ record them at once. The three backends give identical results (the
 computation is deterministic; only the ``seconds`` field differs):
 
 - ``jobs=1``: this process (no start-up cost, easiest to debug);
-- default: a pool of spawned local processes, one engine per plant each;
+- default: this process first, then, once the points have taken more than
+  :data:`POOL_AFTER` seconds here, a pool of spawned local processes for the rest
+  (one engine per plant each): a spawned worker costs about a second to start,
+  more than hundreds of DF points on the native FMUs;
+- ``jobs=N``: a pool of N spawned local processes from the start;
 - ``dask="local"`` starts a ``distributed.LocalCluster``; ``dask="tcp://host:8786"``
   uses a running scheduler. The FMU files are shipped to the workers (scattered
   once, written to each worker's temporary directory under their SHA-256), so
@@ -97,13 +101,20 @@ def chunked(points, jobs, largest=16):
     return [tuple(points[i:i + size]) for i in range(0, len(points), size)]
 
 
+POOL_AFTER = 1.0
+"""Seconds of computing in this process after which the default executor starts its pool for the rest."""
+
+
 class Executor:
-    """Runs chunks; use as a context manager. ``jobs``: workers (default: all cores)."""
+    """Runs chunks; use as a context manager. ``jobs``: workers (default: all cores, once the work has shown
+    it is worth starting them)."""
 
     def __init__(self, jobs=None, dask=None):
         if jobs is not None and not (isinstance(jobs, int) and 1 <= jobs <= MAX_JOBS):
             raise InputError(f"jobs = {jobs!r} is out of range: an integer from 1 to {MAX_JOBS}")
         self.jobs = jobs or os.cpu_count() or 1
+        self._local_first = jobs is None and self.jobs > 1  # the pool starts only when the work is long
+        self._local_seconds = 0.0
         if dask:
             try:
                 import distributed  # noqa: F401  (checked before anything runs)
@@ -117,7 +128,10 @@ class Executor:
     def name(self):
         if self.dask:
             return f"dask ({self.dask})"
-        return "this process" if self.jobs == 1 else f"{self.jobs} local processes"
+        if self.jobs == 1:
+            return "this process"
+        pool = f"{self.jobs} local processes"
+        return f"this process, then {pool}" if self._local_first else pool
 
     def __enter__(self):
         return self
@@ -151,6 +165,16 @@ class Executor:
             for chunk in chunks:
                 yield chunk, compute(chunk)
         else:
+            done = 0
+            while self._local_first and done < len(chunks) and self._local_seconds < POOL_AFTER:
+                started = time.perf_counter()
+                result = compute(chunks[done])
+                self._local_seconds += time.perf_counter() - started
+                yield chunks[done], result
+                done += 1
+            chunks = chunks[done:]
+            if not chunks:
+                return
             import concurrent.futures as futures  # a pool only when there is work for one
             import multiprocessing
 
