@@ -116,3 +116,30 @@ def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path):
         rows = list(csv.DictReader(handle))
     assert len(rows) == 60
     assert rows[: len(kept)] == kept
+
+
+@pytest.mark.parametrize("plant, extra", [("friction", []), ("backlash", ["--set", "eps=0.2"]),
+                                          ("static-backlash", [])])
+def test_fmu_kinds_give_the_same_numbers(fmus, capsys, monkeypatch, plant, extra):
+    """--fmu native (the default) and --fmu python, and the python FMU on its pure-Python solver: the same
+    points, bit for bit (only the seconds differ)."""
+    monkeypatch.setenv("DFWB_FMU", "native")  # main() sets it from --fmu; restored after the test
+    runs = {}
+    for kind, solver in (("native", ""), ("python", ""), ("python", "python")):
+        monkeypatch.setenv("DFWB_FMU_SOLVER", solver)
+        code, out = run_cli(capsys, "df", plant, "--F", "10", "50", "--omega", "1", "20", "--json", "--fmu", kind,
+                            *extra)
+        assert code == 0
+        runs[kind, solver] = [dict(point, seconds=0) for point in json.loads(out.out)]
+    assert runs["native", ""] == runs["python", ""] == runs["python", "python"]
+
+
+def test_fmu_kind_is_checked(capsys, monkeypatch):
+    monkeypatch.setenv("DFWB_FMU", "native")
+    with pytest.raises(SystemExit) as stopped:
+        main(["df", "friction", "--F", "10", "--omega", "1", "--fmu", "c"])
+    assert stopped.value.code == 2 and "invalid choice: 'c'" in capsys.readouterr().err
+    monkeypatch.setenv("DFWB_FMU", "fortran")
+    with pytest.raises(SystemExit) as stopped:
+        main(["df", "friction", "--F", "10", "--omega", "1"])
+    assert stopped.value.code == 2 and "DFWB_FMU = 'fortran' is not an FMU kind" in capsys.readouterr().err
