@@ -298,7 +298,7 @@ def _plot_path(text):
 def cmd_examples(args):
     from dfwb.studies.examples import run_examples
 
-    run_examples(args.out, args.samples_per_period)
+    run_examples(args.out, args.samples_per_period, fmu_dir=args.fmus)
     return 0
 
 
@@ -460,6 +460,7 @@ def parser():
                           help="output folder (default: %(default)s)")
     examples.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                           help="co-simulation steps per predicted period (default: %(default)s)")
+    fmu_options(examples)
     examples.set_defaults(run=cmd_examples)
 
     bench = commands.add_parser("bench", help="run time against error of every method (Pareto plots, bench.md)")

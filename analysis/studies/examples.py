@@ -39,8 +39,10 @@ def _percent(value):
     return "-" if value is None else f"{value:+.2%}"
 
 
-def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
-    """Predict, judge, find the truth, study the judge's step and plot every example; return examples.md's path."""
+def run_examples(out_dir="out/examples", samples_per_period=512, report=print, fmu_dir=None):
+    """Predict, judge, find the truth, study the judge's step and plot every example; return examples.md's path.
+
+    ``fmu_dir``: the FMU folder (default: :func:`dfwb.fmi.location.default_fmu_dir`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     lines = ["# Limit-cycle examples: the DF, the judge and the truth", "",
@@ -55,11 +57,11 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
     for example in examples():
         name, plant, text, params = example.name, example.plant, example.G, example.params
         G = example.transfer_function()
-        found = search(plant, G, params, example.F_range, example.omega_range, engine=DFEngine(plant))
+        found = search(plant, G, params, example.F_range, example.omega_range, engine=DFEngine(plant, fmu_dir))
         predictions = found.cycles
         checks, runs = [], []
         for cycle in predictions:
-            outcome, run = verify(plant, G, cycle, params, samples_per_period)
+            outcome, run = verify(plant, G, cycle, params, samples_per_period, fmu_dir=fmu_dir)
             checks.append(outcome)
             runs.append((cycle, run))
         truths, links = find_cycles(LoopProblem(plant, G, params), predictions)
@@ -87,7 +89,7 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print):
             lines.append(f"| {name} | {text} | {json.dumps(params)} | no cycle | | | | | | none found | | | | | | | "
                          "| |")
         for true in (t for t in truths if t.stable):
-            study = step_study(plant, G, true, params, STEP_STUDY)
+            study = step_study(plant, G, true, params, STEP_STUDY, fmu_dir=fmu_dir)
             studies.append((name, true, study))
         png = limit_cycle_figure(out_dir / f"example_{name}.png", G, found.F_grid, found.omega_grid, found.N_grid,
                                  predictions, runs, truths)
