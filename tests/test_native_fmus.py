@@ -29,6 +29,8 @@ CASES = [
     ("FrictionMass", {"F": 10.0, "omega": 1.0}),
     ("FrictionMass", {"F": 6.0, "omega": 3.0, "Fs": 9.0, "B": 0.1, "harmonics": 3}),
     ("FrictionMass", {"F": 20.0, "omega": 0.5, "x0": 1.0, "v0": -2.0, "phi": 0.7}),
+    ("FrictionMass", {"F": 10.0, "omega": 1.0, "Dv": 0.01}),  # Karnopp's band
+    ("FrictionMass", {"F": 1e6, "omega": 1e3, "M": 1e-3, "Fs": 5.0, "B": 0.0}),
     ("TwoMassBacklash", {"F": 50.0, "omega": 20.0}),
     ("TwoMassBacklash", {"F": 5.0, "omega": 2.0, "eps": 0.0, "gap0": 0.0}),
     ("TwoMassBacklash", {"F": 1.0, "omega": 7.0, "eps": 1.0, "h": 0.01, "M1": 3.0}),
@@ -263,7 +265,7 @@ def test_checker_finds_no_error(native_fmus, model):
 
 
 @pytest.mark.needs_libcosim
-@pytest.mark.parametrize("model, start_values", [CASES[0], CASES[3], CASES[6]])
+@pytest.mark.parametrize("model, start_values", [CASES[0], CASES[5], CASES[8]])
 def test_libcosim_runs_them_as_fmpy_does(native_fmus, model, start_values):
     try:
         from dfwb.fmi.cosim import simulate_cosim
