@@ -1,4 +1,4 @@
-"""dfwb bench end to end on one point per plant: every method measured, files written, fmu-exact exact."""
+"""dfwb bench end to end on one point per plant: every method measured, files written, the exact FMUs exact."""
 
 import csv
 
@@ -8,6 +8,7 @@ from dfwb.plants import PLANTS, builtin
 from dfwb.verify import bench
 
 SCIPY = {f"scipy-{method}" for method in bench.SCIPY_METHODS}
+EXACT = {"fmu-native", "fmu-python-core", "fmu-pure-python"}  # native FMU; pythonfmu on its C core; pure Python
 BENCHED = [entry.name for entry in PLANTS.values() if entry.reference is not None and entry.bench.get("quick")]
 
 
@@ -32,17 +33,22 @@ def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monke
     for plant in BENCHED:
         entry = PLANTS[plant]
         methods = {r["method"] for r in rows if r["plant"] == plant}
-        expected = {"fmu-exact", "fmu-input"}
+        expected = EXACT | {"fmu-input"}
         expected |= {"fmu-fixedstep"} if entry.naive is not None else set()
         expected |= SCIPY if entry.scipy is not None else set()
         expected |= {"fmu-karnopp"} if entry.variants else set()
         assert methods == expected, plant
-        exact = next(r for r in rows if r["plant"] == plant and r["method"] == "fmu-exact")
-        assert float(exact["error"]) < 1e-9  # against DOP853 at rtol 1e-12, or the closed form
+        exact = {r["method"]: r for r in rows if r["plant"] == plant and r["method"] in EXACT}
+        assert float(exact["fmu-native"]["error"]) < 1e-9  # against DOP853 at rtol 1e-12, or the closed form
+        assert len({r["error"] for r in exact.values()}) == 1, plant  # the same N bit for bit, whatever the kind
         assert (tmp_path / f"pareto_{plant}.png").stat().st_size > 10_000
     assert {r["method"] for r in rows if r["plant"] == "friction"} >= {"fmu-karnopp"}
     text = report.read_text()
-    assert "fmu-exact against the fastest method at equal or better error" in text
+    assert "fmu-native against the fastest method at equal or better error" in text
+    assert "## Cost per event" in text
+    for plant in BENCHED:
+        for method in EXACT:  # every plant has its cost per event for each exact kind
+            assert f"| {plant} | {method} |" in text, (plant, method)
     assert "How the cost grows" in text and "ms per period" in text
 
 

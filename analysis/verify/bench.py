@@ -4,14 +4,22 @@ For each registered plant with benchmark points (``Plant.bench``) and a
 reference (``Plant.reference``), at each of its points, each method and setting computes N(F, w)
 repeatedly, interleaved with the others (so all see the same machine load);
 the median time and the relative error against a tight reference are
-recorded. Methods:
+recorded (a run under :data:`WARM` is repeated at once and the repeat timed:
+every method as a sweep runs it, caches warm). Methods:
 
-- ``fmu-exact``: this project's FMU with its built-in excitation;
-- ``fmu-input``: the same FMU driven by a sampled sine held over each step;
-- ``fmu-karnopp``: the FMU at the plant's regularised variants (``Plant.variants``:
+- ``fmu-native``: this project's native FMU (the exact solver in C with an FMI
+  wrapper, no Python: the default kind) with its built-in excitation;
+- ``fmu-python-core``: the pythonfmu FMU of the same plant on the compiled core
+  it carries (``DFWB_FMU_SOLVER=native``; left out, with the reason in
+  ``bench.md``, if the core does not load);
+- ``fmu-pure-python``: the pythonfmu FMU on its pure-Python solver
+  (``DFWB_FMU_SOLVER=python``). The three exact FMUs give the same numbers bit
+  for bit; they differ in cost only;
+- ``fmu-input``: the native FMU driven by a sampled sine held over each step;
+- ``fmu-karnopp``: the native FMU at the plant's regularised variants (``Plant.variants``:
   the friction FMU with Karnopp's band Dv, the paper's way);
 - ``fmu-fixedstep``: the plant's naive fixed-step twin FMU (``Plant.naive``:
-  semi-implicit Euler inside doStep);
+  semi-implicit Euler inside doStep, a pythonfmu FMU);
 - ``scipy-<method>``: what a user would write with ``solve_ivp`` (``Plant.scipy``:
   event functions, ``dfwb.plants.reference``; for the static backlash the mass
   ODE on a dense grid and the play operator).
@@ -20,12 +28,15 @@ A plant without a naive twin or a scipy rival gets fewer methods. The
 reference (``Plant.reference``): scipy DOP853 at rtol 1e-12 (friction,
 backlash), the closed form (static backlash). Outputs: ``bench.csv`` (plant, method, setting, F,
 omega, eps, error, seconds), ``pareto_<plant>.png`` and ``bench.md``, plus
-how the cost grows with the periods to steady state and with a sweep's size
-and processes.
+the cost per event of each exact FMU kind (:func:`event_cost`), and how the
+cost grows with the periods to steady state and with a sweep's size and
+processes.
 """
 
+import contextlib
 import csv
 import math
+import os
 import statistics
 import tempfile
 import time
@@ -34,12 +45,23 @@ from pathlib import Path
 import numpy as np
 
 from dfwb.engine.describing import DFEngine
+from dfwb.fmi.location import fmu_path
+from dfwb.fmi.simulation import FMUError
 from dfwb.plants import PLANTS
 from dfwb.plotting import plots
 from dfwb.studies.sweep import grid, run_sweep
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
 FIELDS = ["plant", "method", "setting", "F", "omega", "eps", "error", "seconds"]  # bench.csv's columns
+SOLVER_VARIABLE = "DFWB_FMU_SOLVER"  # read by a pythonfmu plant FMU at each exitInitializationMode
+EXACT = (("fmu-native", "native", None), ("fmu-python-core", "python", "native"),
+         ("fmu-pure-python", "python", "python"))
+"""The exact FMU kinds: (method, kind of FMU for fmu_path, DFWB_FMU_SOLVER inside it, None: not set)."""
+EVENT_PERIODS = 200  # periods of the long run that measures the cost per event
+EVENT_REPEATS = 9  # its repeats (median)
+WARM = 0.01
+"""A run shorter than this (s) is repeated at once and the repeat timed: every method as in a sweep, caches warm
+(a lone 0.1 ms DF point right after other work costs ~0.3 ms more, a cost that says nothing about the method)."""
 
 
 def points(quick):
@@ -54,6 +76,110 @@ def _label(F, omega, params, sep=", ", eq=" = "):
     return sep.join([f"F{eq}{F:g}", f"w{eq}{omega:g}"] + [f"{k}{eq}{v:g}" for k, v in params.items()])
 
 
+@contextlib.contextmanager
+def solver_variable(value):
+    """``DFWB_FMU_SOLVER`` set to ``value`` (None: left as it is) inside the block, restored after.
+
+    A pythonfmu plant FMU reads the variable at every exitInitializationMode,
+    that is at every run from rest (each DF point, each shooting run), so it
+    must be set around every point of an engine, not only its first.
+    """
+    if value is None:
+        yield
+        return
+    before = os.environ.get(SOLVER_VARIABLE)
+    os.environ[SOLVER_VARIABLE] = value
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ[SOLVER_VARIABLE]
+        else:
+            os.environ[SOLVER_VARIABLE] = before
+
+
+class ExactFMU:
+    """The DF engine of one exact FMU kind of a plant (:data:`EXACT`): ``point(F, omega, params)``.
+
+    ``path`` is the FMU, ``solver`` the ``DFWB_FMU_SOLVER`` set around each of
+    its points. ``why`` is None, or why this kind cannot run here (its core
+    does not load): the first point, at ``warm``, is run at creation.
+    """
+
+    def __init__(self, plant, method, kind, solver, warm, fmu_dir=None):
+        self.plant, self.method, self.kind, self.solver = plant, method, kind, solver
+        self.path = fmu_path(PLANTS[plant], fmu_dir, kind=kind)
+        self.engine = DFEngine(plant, fmu=self.path)
+        self.why = None
+        try:
+            self.point(*warm)  # instantiates the FMU; with DFWB_FMU_SOLVER=native, fails if the core cannot load
+        except FMUError as error:
+            self.why = str(error)
+
+    def point(self, F, omega, params=None):
+        with solver_variable(self.solver):
+            return self.engine.point(F, omega, dict(params or {}))
+
+    def events(self, F, omega, params=None):
+        """(DFResult, events): the point and the events its runs simulated, read from the FMU's ``events``.
+
+        The engine's runs (from rest, shooting) each start at 0 events; their
+        last ``events`` read (after each period) is summed. Untimed: the extra
+        reads cost a little.
+        """
+        engine, counts = self.engine, []
+        run = engine._run
+
+        def counted(session, *args):
+            counts.append(0)
+            index = len(counts) - 1
+            for item in run(session, *args):
+                counts[index] = session.integers(["events"])[0]
+                yield item
+
+        engine._run = counted
+        try:
+            result = self.point(F, omega, params)
+        finally:
+            del engine._run
+        return result, sum(counts)
+
+
+def exact_fmus(plant, warm, fmu_dir=None):
+    """[ExactFMU] of a plant, one per :data:`EXACT` kind (check ``why`` before use)."""
+    return [ExactFMU(plant, method, kind, solver, warm, fmu_dir) for method, kind, solver in EXACT]
+
+
+def event_cost(exact, F, omega, params=None, periods=EVENT_PERIODS, repeats=EVENT_REPEATS):
+    """The cost per event of an exact FMU: {"events", "one_step", "per_period"} (seconds per event).
+
+    The FMU runs ``periods`` forcing periods from rest at (F, omega, params):
+    once in a single doStep (``one_step``: the solver's own cost per event)
+    and once in one doStep per period (``per_period``: as the DF engine drives
+    it, the FMI calls included); medians of ``repeats``.
+    """
+    from dfwb.fmi.session import FMUSession
+
+    session = FMUSession(exact.path)
+    values = dict(exact.engine.plant.at_origin(dict(params or {}))[0], F=F, omega=omega, phi=0.0)
+    period = 2 * math.pi / omega
+    times = {"one_step": [], "per_period": []}
+    events = None
+    for _ in range(repeats):
+        for way in times:
+            with solver_variable(exact.solver):
+                session.start(values)
+            t0 = time.perf_counter()
+            if way == "one_step":
+                session.step(periods * period)
+            else:
+                for _ in range(periods):
+                    session.step(period)
+            times[way].append(time.perf_counter() - t0)
+            events = session.integers(["events"])[0]
+    return dict({way: statistics.median(t) / max(events, 1) for way, t in times.items()}, events=events)
+
+
 class Method:
     """One method at one setting: ``run(F, omega, params) -> N``."""
 
@@ -61,19 +187,22 @@ class Method:
         self.plant, self.name, self.setting, self.run = plant, name, setting, run
 
 
-def methods(plant, quick):
-    """Every (method, setting) of a plant, fastest engines created once; what the plant's entry offers."""
+def methods(plant, quick, exact=None):
+    """Every (method, setting) of a plant, fastest engines created once; what the plant's entry offers.
+
+    ``exact``: the plant's :func:`exact_fmus` (made here if None); a kind that cannot run is left out.
+    """
     entry = PLANTS[plant]
-    out = []
-    exact = DFEngine(plant)
-    out.append(Method(plant, "fmu-exact", "", lambda F, w, p: exact.point(F, w, p).N))
+    exact = exact if exact is not None else exact_fmus(plant, entry.bench["quick"][0])
+    out = [Method(plant, e.method, "", lambda F, w, p, e=e: e.point(F, w, p).N) for e in exact if e.why is None]
+    native = exact[0]  # fmu-native: the other ways of driving the plant use the default kind too
     for n in ((8, 32, 128, 512) if quick else (8, 16, 32, 64, 128, 256, 512, 1024)):
-        engine = DFEngine(plant, drive="input", samples_per_period=n)
+        engine = DFEngine(plant, drive="input", samples_per_period=n, fmu=native.path)
         out.append(Method(plant, "fmu-input", f"{n}/period",
                           lambda F, w, p, engine=engine: engine.point(F, w, p).N))
     for label, extra in entry.variants:
         out.append(Method(plant, "fmu-karnopp", label,
-                          lambda F, w, p, extra=extra: exact.point(F, w, dict(p, **extra)).N))
+                          lambda F, w, p, extra=extra: native.point(F, w, dict(p, **extra)).N))
     if entry.naive is not None:
         naive = DFEngine(plant, model=entry.naive.__name__, max_periods=60)
         for per in ((100, 1000) if quick else (100, 300, 1000, 3000)):
@@ -100,11 +229,16 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     repeats = repeats or (3 if quick else 5)
-    rows, failures = [], []
+    rows, failures, costs = [], [], {}
     started = time.perf_counter()
     measured = points(quick)
     for plant, plant_points in measured.items():
-        candidates = methods(plant, quick)
+        exact = exact_fmus(plant, plant_points[0])
+        failures += [f"{plant}: {e.method} cannot run ({e.why})" for e in exact if e.why is not None]
+        costs[plant] = {e.method: event_cost(e, *plant_points[0]) for e in exact if e.why is None}
+        # events per DF point, at each point in order (untimed; the same for every exact kind, bit for bit)
+        costs[plant]["events"] = [exact[0].events(F, omega, params)[1] for F, omega, params in plant_points]
+        candidates = methods(plant, quick, exact)
         for F, omega, params in plant_points:
             truth = reference(plant, F, omega, params)
             times = {id(m): [] for m in candidates}
@@ -113,12 +247,16 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
                 for m in candidates:
                     if id(m) in failed or (times[id(m)] and sum(times[id(m)]) > 2.0):
                         continue  # failed, or slow: one or two runs are a fair median already
-                    t0 = time.perf_counter()
-                    try:
-                        values[id(m)] = m.run(F, omega, dict(params))
-                    except (RuntimeError, ValueError, ArithmeticError) as error:  # the method gave up
-                        failed[id(m)] = f"{type(error).__name__}: {error}"
-                    times[id(m)].append(time.perf_counter() - t0)
+                    for attempt in range(2):  # a quick run is repeated at once, the repeat timed (caches warm)
+                        t0 = time.perf_counter()
+                        try:
+                            values[id(m)] = m.run(F, omega, dict(params))
+                        except (RuntimeError, ValueError, ArithmeticError) as error:  # the method gave up
+                            failed[id(m)] = f"{type(error).__name__}: {error}"
+                        seconds = time.perf_counter() - t0
+                        if id(m) in failed or seconds >= WARM:
+                            break
+                    times[id(m)].append(seconds)
             for m in candidates:
                 if id(m) in failed:
                     error = math.inf
@@ -138,13 +276,20 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
     for plant in measured:
         pareto(out_dir, plant, [r for r in rows if r["plant"] == plant])
     growth = cost_growth(quick)
-    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started, failures))
+    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started, failures, costs))
     return out_dir / "bench.md"
 
 
 def _point(row):
     """(F, omega, sorted params): which point a row measured."""
     return row["F"], row["omega"], tuple(sorted(row["params"].items()))
+
+
+STYLES = {  # the exact FMUs: stars (the same error, bit for bit; their costs differ)
+    "fmu-native": {"lw": 2.5, "marker": "*", "ms": 14, "color": "k", "zorder": 5},
+    "fmu-python-core": {"lw": 2, "marker": "*", "ms": 11, "color": "tab:cyan", "zorder": 4},
+    "fmu-pure-python": {"lw": 2, "marker": "*", "ms": 11, "color": "tab:gray", "zorder": 4},
+}
 
 
 def pareto(out_dir, plant, rows):
@@ -156,7 +301,7 @@ def pareto(out_dir, plant, rows):
         for method in dict.fromkeys(r["method"] for r in here):
             mine = sorted((r for r in here if r["method"] == method and math.isfinite(r["error"])),
                           key=lambda r: r["seconds"])
-            style = {"lw": 2.5, "marker": "*", "ms": 12, "color": "k"} if method == "fmu-exact" else {"marker": "o"}
+            style = STYLES.get(method, {"marker": "o"})
             ax.loglog([r["seconds"] for r in mine], [max(r["error"], 1e-17) for r in mine], label=method, **style)
         ax.set_xlabel("seconds per DF point (median)")
         ax.set_ylabel("relative error of N")
@@ -167,24 +312,44 @@ def pareto(out_dir, plant, rows):
 
 
 def speed_ratios(rows):
-    """Per point: fmu-exact against the fastest other method at equal or better error."""
+    """Per point: fmu-native (and the pythonfmu kinds) against the fastest other method at equal or better error."""
+    exact_kinds = [method for method, _kind, _solver in EXACT]
     lines = []
     for key in dict.fromkeys((r["plant"],) + _point(r) for r in rows):
         here = [r for r in rows if (r["plant"],) + _point(r) == key]
-        exact = next(r for r in here if r["method"] == "fmu-exact")
-        rivals = [r for r in here if r["method"] != "fmu-exact" and r["error"] <= max(exact["error"], 1e-14)]
+        kinds = {r["method"]: r for r in here if r["method"] in exact_kinds}
+        native = kinds["fmu-native"]
+        others = " | ".join(f"{kinds[m]['seconds'] * 1e3:.3g} ms ({kinds[m]['seconds'] / native['seconds']:.1f}x)"
+                            if m in kinds else "-" for m in exact_kinds[1:])
+        rivals = [r for r in here if r["method"] not in exact_kinds and r["error"] <= max(native["error"], 1e-14)]
         label = f"{key[0]} {_label(key[1], key[2], dict(key[3]))}"
+        head = f"| {label} | {native['seconds'] * 1e3:.3g} ms, {native['error']:.1e} | {others} | "
         if rivals:
             best = min(rivals, key=lambda r: r["seconds"])
-            lines.append(f"| {label} | {exact['seconds'] * 1e3:.3g} ms, {exact['error']:.1e} | {best['method']} "
-                         f"{best['setting']}: {best['seconds'] * 1e3:.3g} ms, {best['error']:.1e} | "
-                         f"{best['seconds'] / exact['seconds']:.0f}x |")
+            lines.append(head + f"{best['method']} {best['setting']}: {best['seconds'] * 1e3:.3g} ms, "
+                         f"{best['error']:.1e} | {best['seconds'] / native['seconds']:.0f}x |")
         else:
-            closest = min((r for r in here if r["method"] != "fmu-exact"), key=lambda r: r["error"])
-            lines.append(f"| {label} | {exact['seconds'] * 1e3:.3g} ms, {exact['error']:.1e} | none reaches it; "
-                         f"the most accurate, {closest['method']} {closest['setting']}: "
+            closest = min((r for r in here if r["method"] not in exact_kinds), key=lambda r: r["error"])
+            lines.append(head + f"none reaches it; the most accurate, {closest['method']} {closest['setting']}: "
                          f"{closest['seconds'] * 1e3:.3g} ms, {closest['error']:.1e} | "
-                         f"> {closest['seconds'] / exact['seconds']:.0f}x |")
+                         f"> {closest['seconds'] / native['seconds']:.0f}x |")
+    return lines
+
+
+def event_costs(rows, costs):
+    """The cost-per-event table: per plant and exact kind, the long runs' cost and a DF point's cost per event."""
+    lines = []
+    for plant, table in costs.items():
+        events = table.get("events", [])
+        for method, _kind, _solver in EXACT:
+            if method not in table:
+                continue
+            cost = table[method]
+            seconds = [r["seconds"] for r in rows if r["plant"] == plant and r["method"] == method]
+            per_point = (f"{1e6 * statistics.median(s / e for s, e in zip(seconds, events) if e):.1f} us"
+                         if seconds and any(events) else "-")
+            lines.append(f"| {plant} | {method} | {1e6 * cost['one_step']:.2f} us | {1e6 * cost['per_period']:.2f} us "
+                         f"| {cost['events']} | {', '.join(map(str, events))} | {per_point} |")
     return lines
 
 
@@ -210,17 +375,32 @@ def cost_growth(quick):
     return {"per_period": slope, "fixed": intercept, "points": by_periods, "sweeps": sweeps}
 
 
-def summary(rows, growth, quick, seconds, failures=()):
+def summary(rows, growth, quick, seconds, failures=(), costs=None):
     text = ["# Run time against error", "",
             f"{'Quick' if quick else 'Full'} set, measured in {seconds:.0f} s on this machine (2 shared cores): every "
-            "method timed interleaved with the others, medians of repeats; errors of N against scipy DOP853 at rtol "
-            "1e-12 (friction, backlash; itself good to ~1e-10) or the closed form (static backlash).", "",
-            "## fmu-exact against the fastest method at equal or better error", "",
-            "| point | fmu-exact | fastest other at equal or better error | ratio |", "|---|---|---|---|"]
+            "method timed interleaved with the others, medians of repeats (a run under 10 ms is repeated at once "
+            "and the repeat timed: caches warm, as in a sweep); errors of N against scipy DOP853 at rtol "
+            "1e-12 (friction, backlash; itself good to ~1e-10) or the closed form (static backlash). "
+            "fmu-native: the native FMU (C, no Python); fmu-python-core: the pythonfmu FMU on its compiled core; "
+            "fmu-pure-python: the pythonfmu FMU on its pure-Python solver (DFWB_FMU_SOLVER=python). The three "
+            "give the same N bit for bit.", "",
+            "## fmu-native against the fastest method at equal or better error", "",
+            "| point | fmu-native | fmu-python-core (/ native) | fmu-pure-python (/ native) | "
+            "fastest non-exact method at equal or better error | ratio to fmu-native |", "|---|---|---|---|---|---|"]
     text += speed_ratios(rows)
     plants = dict.fromkeys(r["plant"] for r in rows)
-    text += ["", "Pareto plots: " + ", ".join(f"![{p}](pareto_{p}.png)" for p in plants),
-             "", "## How the cost grows", "",
+    text += ["", "Pareto plots: " + ", ".join(f"![{p}](pareto_{p}.png)" for p in plants)]
+    if costs:
+        text += ["", "## Cost per event", "",
+                 f"Each exact FMU run {EVENT_PERIODS} forcing periods from rest at the plant's first point, medians "
+                 f"of {EVENT_REPEATS}: in one doStep (the solver's own cost per event) and in one doStep per period "
+                 "(as the DF engine drives it, FMI calls included); then a DF point's median time over the events it "
+                 "simulated (events from the FMU's `events` output, summed over the point's runs; fixed costs "
+                 "of reset, initialisation and reads included).", "",
+                 "| plant | FMU | per event, one doStep | per event, a doStep per period | events in the run | "
+                 "events per DF point | DF point time per event (median) |", "|---|---|---|---|---|---|---|"]
+        text += event_costs(rows, costs)
+    text += ["", "## How the cost grows", "",
              f"DF time against periods to steady state (backlash, F = 50 N, 10 points): "
              f"{growth['per_period'] * 1e3:.3f} ms per period + {growth['fixed'] * 1e3:.2f} ms "
              f"(periods: {sorted(int(p) for p, _ in growth['points'])}).", "",
