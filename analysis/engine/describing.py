@@ -247,6 +247,8 @@ class DFEngine:
         fourier = [f"I{part}{k}" for k in range(harmonics + 1) for part in "cs"]
         self._real_names = list(self.plant.section) + fourier
         self._integer_names = list(self.plant.modes) + [self.plant.counter]
+        self._readers = {session: session.reader(self._real_names, self._integer_names) for session in self._sessions}
+        self._setups = {}
 
     # -- one point ----------------------------------------------------------------
     def point(self, F, omega, params=None):
@@ -259,45 +261,66 @@ class DFEngine:
         started = time.perf_counter()
         check_point(F, omega)
         params = self.plant.checked(params or {})
-        at_origin, offset = self.plant.at_origin(params)
-        mass = self.plant.mass(params)
-        h = dict(self.plant.defaults(), **params).get("h", 0.0)
+        at_origin, offset, mass, h, shifts = self._setup(params)
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h
                   for name in self.plant.section]
         base = dict(at_origin, F=F if self.drive == "internal" else 0.0, omega=omega, phi=0.0,
                     harmonics=self.harmonics)
-        result = _Search(self, F, omega, base, scales, self.plant.translation(params), offset).run()
+        result = _Search(self, F, omega, base, scales, shifts, offset).run()
         result.plant, result.params, result.drive = self.plant.name, params, self.drive
         result.seconds = time.perf_counter() - started
         return result
 
+    def _setup(self, params):
+        """(parameters at the origin, the translation, the mass, h, the section's shifts) of checked params:
+        the same for every point of a sweep, so kept for the last few parameter sets."""
+        key = tuple(sorted(params.items()))
+        found = self._setups.get(key)
+        if found is None:
+            at_origin, offset = self.plant.at_origin(params)
+            found = (at_origin, offset, self.plant.mass(params), dict(self.plant.defaults(), **params).get("h", 0.0),
+                     self.plant.translation(params))
+            if len(self._setups) >= 16:
+                self._setups.clear()
+            self._setups[key] = found
+        return found
+
     # -- periods of one run ------------------------------------------------------------
     def _run(self, session, F, omega, values):
-        """Yield ((section, modes), X_k list, engagement count): at t = 0 (X None), then each period."""
+        """Yield ((section, modes), window, engagement count): at t = 0 (window None), then each period.
+
+        A window is (integrals at its start, integrals at its end, its length): :meth:`spectrum` makes
+        its X_k, only for the periods a result uses.
+        """
         session.start(values)
+        read = self._readers[session]
         period = 2 * math.pi / omega
         step = period / self.samples
-        section, previous, count = self._read(session)
+        section, previous, count = self._read(read)
         yield section, None, count
         while True:
             t0 = session.time
             for i in range(self.samples):
                 inputs = {"f": F * math.cos(omega * (t0 + i * step))} if self.drive == "input" else None
                 session.step(step, inputs)
-            section, current, count = self._read(session)
-            width = session.time - t0
-            X = [(current[0] - previous[0]) / width] + [
-                2.0 * (current[k] - previous[k]) / width for k in range(1, self.harmonics + 1)]
+            section, current, count = self._read(read)
+            yield section, (previous, current, session.time - t0), count
             previous = current
-            yield section, X, count
 
-    def _read(self, session):
-        """((section, modes), running Fourier integrals I_k, engagement count): two FMI calls."""
+    def spectrum(self, window):
+        """X_k, k = 0..harmonics, of one window: X_0 = dI_0 / T, X_k = 2 dI_k / T with I_k = Ic_k - j Is_k."""
+        previous, current, width = window
         n = len(self.plant.section)
-        reals = session.reals(self._real_names)
-        integers = session.integers(self._integer_names)
-        integrals = [complex(reals[n + 2 * k], -reals[n + 2 * k + 1]) for k in range(self.harmonics + 1)]
-        return (tuple(reals[:n]), tuple(integers[:-1])), integrals, integers[-1]
+        dI = [complex(current[n + 2 * k], -current[n + 2 * k + 1]) - complex(previous[n + 2 * k],
+                                                                             -previous[n + 2 * k + 1])
+              for k in range(self.harmonics + 1)]
+        return [dI[0] / width] + [2.0 * dI[k] / width for k in range(1, self.harmonics + 1)]
+
+    def _read(self, read):
+        """((section, modes), the reals read (section, then Ic_k, Is_k), engagement count): two FMI calls."""
+        n = len(self.plant.section)
+        reals, integers = read()
+        return (tuple(reals[:n]), tuple(integers[:-1])), reals, integers[-1]
 
 
 class _Search:
@@ -360,38 +383,39 @@ class _Search:
         engine = self.engine
         runs = engine._run(engine._sessions[0], self.F, self.omega, self.base)
         origin, _, count = next(runs)
-        sections, spectra, counts = [origin], [], [count]
+        sections, windows, counts = [origin], [], [count]
         shots = 0
         while True:
-            section, X, count = next(runs)
+            section, window, count = next(runs)
             self.periods += 1
             sections.append(section)
-            spectra.append(X)
+            windows.append(window)
             counts.append(count)
             for lag in range(1, MAX_LAG + 1):
                 d = self.orbit(sections, lag)
                 if d is not None:
-                    return self.finish(spectra[-lag:], True, lag, count - counts[-1 - lag], drift=d / lag)
+                    return self.finish(windows[-lag:], True, lag, count - counts[-1 - lag], drift=d / lag)
             if self.periods >= engine.max_periods:
-                n = min(AVERAGE_PERIODS, len(spectra))
-                return self.finish(spectra[-n:], False, 1, count - counts[-1 - n],
+                n = min(AVERAGE_PERIODS, len(windows))
+                return self.finish(windows[-n:], False, 1, count - counts[-1 - n],
                                    f"not periodic after {self.periods} periods: average of the last {n}")
             start = self.extrapolate(sections)
             if start is not None and shots < 5:
                 shots += 1
                 shot_runs = engine._run(engine._sessions[1], self.F, self.omega, dict(self.base, **start))
                 origin = next(shot_runs)[0]
-                returned, X_shot, shot_count = next(shot_runs)
+                returned, shot_window, shot_count = next(shot_runs)
                 self.periods += 1
                 if self.close(returned, origin):
-                    return self.finish([X_shot], True, 1, shot_count, "periodic orbit confirmed by shooting")
+                    return self.finish([shot_window], True, 1, shot_count, "periodic orbit confirmed by shooting")
                 # not yet: the shooting run, closer to the orbit, becomes the trajectory
                 runs = shot_runs
                 engine._sessions.reverse()
-                sections, spectra, counts = [origin, returned], [X_shot], [0, shot_count]
+                sections, windows, counts = [origin, returned], [shot_window], [0, shot_count]
 
-    def finish(self, spectra, periodic, orbit, engagements, note="", drift=0.0):
-        """The result from the orbit's spectra; ``engagements``: impacts or events within the orbit."""
+    def finish(self, windows, periodic, orbit, engagements, note="", drift=0.0):
+        """The result from the orbit's periods (windows); ``engagements``: impacts or events within the orbit."""
+        spectra = [self.engine.spectrum(window) for window in windows]
         X = [sum(column) / len(spectra) for column in zip(*spectra)]
         if drift:
             # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
