@@ -16,7 +16,7 @@ Examples
 --------
 >>> from dfwb.build_fmus.core import sources
 >>> [path.name for path in sources()]
-['backlash.c', 'dfwb_core.h', 'exact.c', 'exact.h', 'friction.c', 'plant.c', 'plant.h', 'static_backlash.c']
+['backlash.c', 'dfwb_core.h', 'exact.c', 'exact.h', 'friction.c', 'hybrid.c', 'hybrid.h', 'loops.c', 'plant.c', 'plant.h', 'static_backlash.c']
 """
 
 import hashlib

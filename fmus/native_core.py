@@ -15,6 +15,18 @@ keywords, same defaults) and its output named tuple::
     x1, v1, x2, v2, gap = plant.output()
     plant.contact, plant.impacts                         # StaticBacklash: plant.engaged
 
+The closed loops of :mod:`.loops` run on the core too (``dfwb_loop_*``, a port of :mod:`.loops` and
+:mod:`.hybrid`): ``core.FrictionLoop``, ``core.BacklashLoop`` and ``core.StaticBacklashLoop`` take the
+Python classes' keywords and defaults (``b, a, ..., z0, state, section, modes, budget``) and have their
+attributes and methods (``t``, ``events``, ``key``, ``crossings``, ``event_log``, ``order``, ``Ac``, ``Bc``,
+``C``, ``D``, the plant's constants and counter, ``advance(t_end, stop_at_section)``, ``state()``,
+``output()``, ``force(X)``, ``counts()``, ``translate``, ``coordinates_of``), bit for bit
+(``tests/test_native_loop.py``). ``modes`` (a dict shared by the loops of one study, here of
+:data:`NativeMode`) and ``budget`` (a :class:`~.hybrid.Budget`) are shared as in Python; ``plant`` is the
+open-loop solver on the same core. Not shared with the Python loops: a ``modes`` dict holds one kind.
+Beyond Python: ``to_bytes()`` / ``from_bytes(data)`` (the loop's state, checked as a plant's is; not in it:
+the crossings and the event log), ``same_parameters(other)``, ``copy()``, pickling.
+
 A value the C core refuses raises :class:`~.exact.PlantError` with the C message, which is the Python
 solver's text (a non-float value, e.g. an int or None, is named as Python writes it). A power or a
 modulus that overflows raises OverflowError, as in Python.
@@ -39,17 +51,20 @@ Plain Python (stdlib ``ctypes``) only.
 import copy
 import ctypes
 import warnings
+from collections import namedtuple
 from pathlib import Path
 
+from . import loops as _loops
 from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
 from .exact import DfwbError, Drive, PlantError
 from .state import StateRefused
 
 __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", "NativeStaticBacklash",
            "CoreError", "PARAMETERS", "BACKLASH_PARAMETERS", "STATIC_BACKLASH_PARAMETERS", "ABI", "LOG_CAPACITY",
-           "EVENT_KINDS"]
+           "EVENT_KINDS", "NativeFrictionLoop", "NativeBacklashLoop", "NativeStaticBacklashLoop", "NativeMode",
+           "LOOP_PARAMETERS"]
 
-ABI = 3  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 4  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 PARAMETERS = ("M", "B", "Fc", "Fs", "Dv", "F", "omega", "phi", "x0", "v0", "f", "harmonics")
 BACKLASH_PARAMETERS = ("M1", "M2", "h", "eps", "F", "omega", "phi", "x1_0", "v1_0", "v2_0", "gap0", "f",
                        "harmonics")
@@ -131,7 +146,8 @@ class _Api:
 
 class NativeCore:
     """An opened C core: its ctypes functions and the solver classes bound to it
-    (``FrictionMass``, ``TwoMassBacklash``, ``StaticBacklash``)."""
+    (``FrictionMass``, ``TwoMassBacklash``, ``StaticBacklash``; the closed loops ``FrictionLoop``,
+    ``BacklashLoop``, ``StaticBacklashLoop``)."""
 
     def __init__(self, path):
         self.path = Path(path)
@@ -153,6 +169,12 @@ class NativeCore:
         for cls in (NativeFrictionMass, NativeTwoMassBacklash, NativeStaticBacklash):
             attr = _PLANTS[cls._plant][1]
             setattr(self, attr, type(cls.__name__, (cls,), {"core": self, "__module__": __name__}))
+        self.loop_api = _LoopApi(lib, self.path)
+        for cls, plant in ((NativeFrictionLoop, "FrictionMass"), (NativeBacklashLoop, "TwoMassBacklash"),
+                           (NativeStaticBacklashLoop, "StaticBacklash")):
+            attr = _LOOPS[cls._plant][1]  # plant: the open-loop solver on this core (a shooting's start)
+            setattr(self, attr, type(cls.__name__, (cls,), {"core": self, "plant": getattr(self, plant),
+                                                            "__module__": __name__}))
 
     def __repr__(self):
         return f"NativeCore({str(self.path)!r})"
@@ -460,3 +482,440 @@ class NativeStaticBacklash(_NativeSolver):
     def engaged(self):
         """0 free, +1/-1 dragging y at the upper/lower edge of the play."""
         return self._api.engaged(self._handle)
+
+
+# -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------
+# plant -> (DFWB_PLANT_*, NativeCore attribute, the Python class, parameters in the C order)
+_LOOPS = {
+    "friction": (1, "FrictionLoop", _loops.FrictionLoop, ("M", "B", "Fc", "Fs", "Dv", "x0", "v0")),
+    "backlash": (2, "BacklashLoop", _loops.BacklashLoop, ("M1", "M2", "h", "eps", "x1_0", "v1_0", "v2_0", "gap0")),
+    "static_backlash": (3, "StaticBacklashLoop", _loops.StaticBacklashLoop, ("M", "k", "h", "x0", "v0")),
+}
+LOOP_PARAMETERS = {plant: names for plant, (_kind, _attr, _cls, names) in _LOOPS.items()}
+
+NativeMode = namedtuple("NativeMode", "key h terms")
+NativeMode.__doc__ = """A mode of a native loop as its ``_modes`` dict holds it: key, chunk length h, Taylor terms."""
+
+
+class _LoopApi:
+    """The C functions of the closed loops (``dfwb_loop_*``)."""
+
+    def __init__(self, lib, path):
+        c_double, c_int, c_void_p, c_char_p, c_size_t = (ctypes.c_double, ctypes.c_int, ctypes.c_void_p,
+                                                         ctypes.c_char_p, ctypes.c_size_t)
+        c_longlong = ctypes.c_longlong
+        p_double, p_int = ctypes.POINTER(c_double), ctypes.POINTER(c_int)
+        table = {
+            "new": (c_int, [c_int, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t,
+                            p_double, c_size_t, p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+            "advance": (c_int, [c_void_p, c_double, c_int, ctypes.POINTER(c_longlong), c_longlong, c_char_p,
+                                c_size_t]),
+            "time": (c_double, [c_void_p]),
+            "events": (c_longlong, [c_void_p]),
+            "plant": (c_int, [c_void_p]),
+            "order": (c_int, [c_void_p]),
+            "size": (c_int, [c_void_p]),
+            "mode": (c_int, [c_void_p]),
+            "counter": (c_longlong, [c_void_p]),
+            "state": (None, [c_void_p, p_double]),
+            "output": (c_double, [c_void_p]),
+            "force": (c_double, [c_void_p, p_double]),
+            "parameters": (None, [c_void_p, p_double]),
+            "controller": (None, [c_void_p, p_double, p_double, p_double, p_double]),
+            "crossings_read": (c_size_t, [c_void_p, p_double, p_double, c_size_t]),
+            "crossings_dropped": (ctypes.c_ulonglong, [c_void_p]),
+            "modes_built": (c_int, [c_void_p]),
+            "build_modes": (c_int, [c_void_p, c_int, c_char_p, c_size_t]),
+            "mode_info": (c_int, [c_void_p, c_int, p_double, p_int]),
+            "copy": (c_void_p, [c_void_p]),
+            "free": (None, [c_void_p]),
+            "log": (None, [c_void_p, c_size_t]),
+            "log_read": (c_size_t, [c_void_p, p_double, p_int, c_size_t]),
+            "log_dropped": (ctypes.c_ulonglong, [c_void_p]),
+            "section": (c_int, [c_void_p, p_double]),
+            "same_parameters": (c_int, [c_void_p, c_void_p]),
+            "to_bytes": (c_int, [c_void_p, c_char_p, c_size_t, ctypes.POINTER(c_size_t), c_char_p, c_size_t]),
+            "from_bytes": (c_int, [c_int, c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+        }
+        for name, (restype, argtypes) in table.items():
+            try:
+                function = getattr(lib, f"dfwb_loop_{name}")
+            except AttributeError:
+                raise CoreError(f"the C core {path} has no function dfwb_loop_{name}") from None
+            function.restype, function.argtypes = restype, argtypes
+            setattr(self, name, function)
+        size = c_size_t()
+        self.to_bytes(None, None, 0, ctypes.byref(size), None, 0)
+        self.state_size = size.value
+
+
+def _restore_loop(path, plant, data, event_log=None, crossings=()):
+    """Unpickle a native loop: the library at ``path``, the loop from its state bytes."""
+    loop = getattr(load(path), _LOOPS[plant][1]).from_bytes(data)
+    if event_log is not None:
+        loop.event_log = event_log
+    loop.crossings = list(crossings)
+    return loop
+
+
+def _doubles(values):
+    values = [_as_double(v) for v in values]
+    return (ctypes.c_double * max(1, len(values)))(*values), len(values)
+
+
+class _NativeLoop:
+    """What the three native loops share: :class:`~.loops.FeedbackLoop`'s attributes and methods on a C instance."""
+
+    core = None  # the NativeCore of a bound subclass (NativeCore.FrictionLoop, ...)
+    _plant = None  # key of _LOOPS
+    _keys = ()  # mode key index of the C core -> the Python key tuple
+    _counter = None  # the name of the plant's counter
+    _constant_names = ()  # the plant's constants, as dfwb_loop_parameters gives them
+    plant = None  # the open-loop solver class (the bound subclass: the native one of its core)
+
+    def _create(self, core, b, a, values, z0, state, section, modes, budget, tails=()):
+        self._handle = None
+        core = core if core is not None else type(self).core
+        if core is None:
+            attr = _LOOPS[self._plant][1]
+            raise CoreError(f"{type(self).__name__} needs a C core: pass core=load(path), or use load(path).{attr}")
+        kind, _attr, _cls, names = _LOOPS[self._plant]
+        b, a = list(b), list(a)
+        originals = dict(zip(names, values))
+        originals.update({f"a{i}": value for i, value in enumerate(a, start=1)})
+        originals.update({f"b{i}": value for i, value in enumerate(b)})
+        if state is not None:
+            state = list(state)
+            m = len(self.coordinates)
+            originals.update(zip(self.coordinates, state[:m]))
+            originals.update({f"z{i}_0": value for i, value in enumerate(state[m:], start=1)})
+        elif z0 is not None:
+            z0 = list(z0)
+            originals.update({f"z{i}_0": value for i, value in enumerate(z0, start=1)})
+        params, nparams = _doubles(values)
+        cb, nb = _doubles(b)
+        ca, na = _doubles(a)
+        cz, nz = _doubles(z0) if z0 is not None and state is None else (None, 0)
+        cs, ns = _doubles(state) if state is not None else (None, 0)
+        if section is not None:
+            originals["section"] = section
+            csec = ctypes.byref(ctypes.c_double(_as_double(section)))
+        else:
+            csec = None
+        api = core.loop_api
+        handle = ctypes.c_void_p()
+        err = ctypes.create_string_buffer(ERRLEN)
+        code = api.new(kind, params, nparams, cb, nb, ca, na, cz, nz, cs, ns, csec, ctypes.byref(handle), err,
+                       ERRLEN)
+        if code != OK:
+            _raise(code, err, originals, tails)
+        self._setup(core, handle, modes, budget, section)
+
+    def _setup(self, core, handle, modes, budget, level):
+        api = core.loop_api
+        self._core, self._api, self._handle = core, api, handle
+        self.order = n = api.order(handle)
+        self._size = size = api.size(handle)
+        Ac, Bc, C = (ctypes.c_double * (n * n))(), (ctypes.c_double * n)(), (ctypes.c_double * n)()
+        D = ctypes.c_double()
+        api.controller(handle, Ac, Bc, C, ctypes.byref(D))
+        self.Ac = [Ac[i * n:(i + 1) * n] for i in range(n)]
+        self.Bc, self.C, self.D = Bc[:], C[:], D.value
+        self._modes = {} if modes is None else modes
+        self._budget = budget
+        self._level = level  # the section's level, or None (Python's _section is (L, l0))
+        self._left = ctypes.c_longlong()
+        self._mask = 0
+        self._err = ctypes.create_string_buffer(ERRLEN)
+        self._X = (ctypes.c_double * size)()
+        self._event_log = None
+        self.event_log_dropped = 0
+        self.crossings = []  # (t, X) at every upward crossing of the section
+        self._collect()
+
+    # -- the solver ---------------------------------------------------------------------------
+    @property
+    def t(self):
+        """The current time (s)."""
+        return self._api.time(self._handle)
+
+    @property
+    def events(self):
+        """Events so far."""
+        return self._api.events(self._handle)
+
+    @property
+    def key(self):
+        """The current mode key (as the Python loop's: ``("slide", 1)``, ...)."""
+        return self._keys[self._api.mode(self._handle)]
+
+    def advance(self, t_end, stop_at_section=False):
+        """Integrate exactly from self.t to t_end, firing every event on the way (HybridSolver.advance).
+
+        With ``stop_at_section``, stop early at the next upward crossing of the section (then
+        ``self.crossings[-1]`` holds it)."""
+        self._share_modes()
+        api, budget = self._api, self._budget
+        if budget is None:
+            code = api.advance(self._handle, _as_double(t_end), bool(stop_at_section), None, 0, self._err, ERRLEN)
+        else:
+            left = self._left
+            left.value = budget.left
+            code = api.advance(self._handle, _as_double(t_end), bool(stop_at_section), ctypes.byref(left),
+                               budget.total, self._err, ERRLEN)
+            budget.left = left.value
+        self._collect()
+        if code != OK:
+            if type(t_end) is not float:  # the value as Python writes it
+                message = self._err.value.decode("utf-8", "replace")
+                head = f"t_end = {_c_repr(t_end)} s is out of range"
+                if message.startswith(head):
+                    self._err.value = (f"t_end = {t_end!r} s is out of range" + message[len(head):]).encode()
+            _raise(code, self._err, {"t_end": t_end})
+
+    def state(self):
+        """The state X at self.t."""
+        X = self._X
+        self._api.state(self._handle, X)
+        return X[:]
+
+    def output(self):
+        """The plant's output y at self.t."""
+        return self._api.output(self._handle)
+
+    def force(self, X):
+        """f = -G(s) y: D y + C z at the state X (FeedbackLoop.force)."""
+        m = len(self.coordinates)
+        return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
+
+    def counts(self):
+        """What the loop counts (stick phases, impacts, engagements)."""
+        return {self._counter: self._api.counter(self._handle)}
+
+    def mode(self, key):
+        """The mode ``key`` (a :data:`NativeMode`), built if new (HybridSolver.mode)."""
+        self._share_modes((1 << self._keys.index(key)))
+        return self._modes[key]
+
+    # -- what the C instance reports after a step --------------------------------------------------
+    def _share_modes(self, extra=0):
+        """Build the modes the shared ``modes`` dict holds and this instance lacks (they bound a step)."""
+        wanted = extra
+        if len(self._modes) > bin(self._mask).count("1") or extra:
+            for key in self._modes:
+                if key in self._keys:
+                    wanted |= 1 << self._keys.index(key)
+        if wanted & ~self._mask:
+            code = self._api.build_modes(self._handle, wanted, self._err, ERRLEN)
+            self._collect()
+            if code != OK:
+                _raise(code, self._err)
+
+    def _collect(self):
+        api, handle = self._api, self._handle
+        mask = api.modes_built(handle)
+        if mask != self._mask:
+            h, terms = ctypes.c_double(), ctypes.c_int()
+            for i, key in enumerate(self._keys):
+                if (mask >> i) & 1 and key not in self._modes and api.mode_info(handle, i, ctypes.byref(h),
+                                                                                ctypes.byref(terms)):
+                    self._modes[key] = NativeMode(key, h.value, terms.value)
+            self._mask = mask
+        if self._level is not None:
+            n = api.crossings_read(handle, None, None, 0)
+            if n:
+                size = self._size
+                times, states = (ctypes.c_double * n)(), (ctypes.c_double * (n * size))()
+                n = api.crossings_read(handle, times, states, n)
+                self.crossings.extend((times[i], states[i * size:(i + 1) * size]) for i in range(n))
+        if self._event_log is not None:
+            n = api.log_read(handle, None, None, 0)
+            if n:
+                times, kinds = (ctypes.c_double * n)(), (ctypes.c_int * n)()
+                n = api.log_read(handle, times, kinds, n)
+                self._event_log.extend(zip(times[:n], map(EVENT_KINDS.__getitem__, kinds[:n])))
+            dropped = api.log_dropped(handle)
+            if dropped != self.event_log_dropped:
+                warnings.warn(f"{type(self).__name__}.event_log: {dropped - self.event_log_dropped} events of one "
+                              f"step beyond LOG_CAPACITY = {LOG_CAPACITY} were not recorded", RuntimeWarning,
+                              stacklevel=3)
+                self.event_log_dropped = dropped
+
+    @property
+    def event_log(self):
+        """None, or the list every event is appended to as (t, EventKind)."""
+        return self._event_log
+
+    @event_log.setter
+    def event_log(self, value):
+        self._api.log(self._handle, 0 if value is None else LOG_CAPACITY)
+        self._event_log = value
+        self.event_log_dropped = 0
+
+    # -- copies --------------------------------------------------------------------------------------
+    def copy(self):
+        """An independent exact copy (the C instance copied; crossings and the event log list copied; the
+        ``modes`` dict and the budget shared, as the solvers of one study share them)."""
+        handle = self._api.copy(self._handle)
+        if not handle:
+            raise MemoryError("out of memory (a copy of a dfwb_loop)")
+        clone = object.__new__(type(self))
+        clone.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_")})
+        clone._setup(self._core, ctypes.c_void_p(handle), self._modes, self._budget, self._level)
+        clone.crossings = list(self.crossings)
+        if self._event_log is not None:
+            clone.event_log = list(self._event_log)
+        return clone
+
+    __copy__ = copy
+
+    # -- the state as bytes ------------------------------------------------------------------------------
+    def _constants(self):
+        """The plant's constants (M, B, ...) from the C instance (a loop made from bytes)."""
+        out = (ctypes.c_double * 6)()
+        self._api.parameters(self._handle, out)
+        return out[:]
+
+    def same_parameters(self, other):
+        """Whether ``other`` is a native loop of the same plant on the same core with bit-identical fixed
+        parameters: the plant's constants, G's coefficients, the section (-0.0 differs from 0.0)."""
+        if not (isinstance(other, _NativeLoop) and other._plant == self._plant
+                and getattr(other, "_core", None) is self._core and self._handle and other._handle):
+            return False
+        return bool(self._api.same_parameters(self._handle, other._handle))
+
+    def to_bytes(self):
+        """The loop's state as bytes (not in it: the crossings and the event log): see :meth:`from_bytes`."""
+        api = self._api
+        size = ctypes.c_size_t(api.state_size)
+        buf = ctypes.create_string_buffer(api.state_size)
+        code = api.to_bytes(self._handle, buf, api.state_size, ctypes.byref(size), self._err, ERRLEN)
+        if code != OK:
+            _raise(code, self._err)
+        return buf.raw[:size.value]
+
+    @classmethod
+    def from_bytes(cls, data, *, core=None, modes=None, budget=None):
+        """A loop from the bytes of :meth:`to_bytes` (StateRefused, one line, for anything else); ``modes`` and
+        ``budget`` as the constructor's."""
+        core = core if core is not None else cls.core
+        if core is None:
+            raise CoreError(f"{cls.__name__}.from_bytes needs a C core: pass core=load(path)")
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise StateRefused(f"a solver state must be bytes, not {type(data).__name__}")
+        data = bytes(data)
+        handle = ctypes.c_void_p()
+        err = ctypes.create_string_buffer(ERRLEN)
+        code = core.loop_api.from_bytes(_LOOPS[cls._plant][0], data, len(data), ctypes.byref(handle), err, ERRLEN)
+        if code != OK:
+            _raise(code, err)
+        loop = object.__new__(cls)
+        level = ctypes.c_double()
+        section = level.value if core.loop_api.section(handle, ctypes.byref(level)) else None
+        loop._setup(core, handle, modes, budget, section)
+        for name, value in zip(cls._constant_names, loop._constants()):
+            setattr(loop, name, value)
+        return loop
+
+    def __reduce__(self):
+        return (_restore_loop, (str(self._core.path), self._plant, self.to_bytes(), self._event_log,
+                                self.crossings))
+
+    def __deepcopy__(self, memo):
+        """A copy with its own ``modes`` dict, budget, crossings and event log (as deepcopy of a Python loop)."""
+        clone = self.copy()
+        clone._modes = copy.deepcopy(self._modes, memo)
+        clone._budget = copy.deepcopy(self._budget, memo)
+        clone.crossings = copy.deepcopy(self.crossings, memo)
+        if self._event_log is not None:
+            clone._event_log = copy.deepcopy(self._event_log, memo)
+        return clone
+
+    def __del__(self):
+        handle, self._handle = getattr(self, "_handle", None), None
+        if handle:
+            try:
+                self._api.free(handle)
+            except Exception:  # noqa: BLE001 - interpreter shutdown: the library may be gone
+                pass
+
+
+class NativeFrictionLoop(_NativeLoop):
+    """:class:`~.loops.FrictionLoop` solved by the C core: same keywords, defaults, attributes and methods."""
+
+    _plant = "friction"
+    _keys = (_loops.STICK, ("slide", 1), ("slide", -1))
+    _counter = "sticks"
+    _constant_names = ("M", "B", "Fc", "Fs")
+    coordinates = _loops.FrictionLoop.coordinates
+    OUTPUT = _loops.FrictionLoop.OUTPUT
+    initial_parameters = _loops.FrictionLoop.initial_parameters
+    coordinates_of = staticmethod(_loops.FrictionLoop.coordinates_of)
+    translate = _loops.FeedbackLoop.translate
+    check_coordinates = _loops.FrictionLoop.check_coordinates
+
+    def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
+                 section=None, modes=None, budget=None, *, core=None):
+        tails = () if type(Fc) is float else ((f"Fc = {_c_repr(Fc)} (N)", f"Fc = {Fc!r} (N)"),)
+        self._create(core, b, a, (M, B, Fc, Fs, Dv, x0, v0), z0, state, section, modes, budget, tails)
+        self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
+
+    @property
+    def sticks(self):
+        """Stick phases so far."""
+        return self._api.counter(self._handle)
+
+
+class NativeBacklashLoop(_NativeLoop):
+    """:class:`~.loops.BacklashLoop` solved by the C core: same keywords, defaults, attributes and methods."""
+
+    _plant = "backlash"
+    _keys = (_loops.FREE, ("contact", -1), ("contact", 1))
+    _counter = "impacts"
+    _constant_names = ("M1", "M2", "h", "eps", "r2", "tol_h")
+    coordinates = _loops.BacklashLoop.coordinates
+    OUTPUT = _loops.BacklashLoop.OUTPUT
+    initial_parameters = _loops.BacklashLoop.initial_parameters
+    coordinates_of = staticmethod(_loops.BacklashLoop.coordinates_of)
+    translate = _loops.FeedbackLoop.translate
+    check_coordinates = _loops.BacklashLoop.check_coordinates
+
+    def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
+                 state=None, section=None, modes=None, budget=None, *, core=None):
+        if gap0 is None:
+            gap0 = 0.5 * _as_double(h)  # as Python: 0.5 * h (h is checked first)
+        tails = () if type(h) is float else ((f"= [0, {_c_repr(h)}] (m)", f"= [0, {h!r}] (m)"),)
+        self._create(core, b, a, (M1, M2, h, eps, x1_0, v1_0, v2_0, gap0), z0, state, section, modes, budget, tails)
+        self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
+        self.r2 = M2 / (M1 + M2)
+        self.tol_h = 1e-12 * h
+
+    @property
+    def impacts(self):
+        """Impacts so far."""
+        return self._api.counter(self._handle)
+
+
+class NativeStaticBacklashLoop(_NativeLoop):
+    """:class:`~.loops.StaticBacklashLoop` solved by the C core: same keywords, defaults, attributes and methods."""
+
+    _plant = "static_backlash"
+    _keys = (_loops.FREE, ("engaged", 1), ("engaged", -1))
+    _counter = "engagements"
+    _constant_names = ("M", "k", "h")
+    coordinates = _loops.StaticBacklashLoop.coordinates
+    OUTPUT = _loops.StaticBacklashLoop.OUTPUT
+    initial_parameters = _loops.StaticBacklashLoop.initial_parameters
+    coordinates_of = staticmethod(_loops.StaticBacklashLoop.coordinates_of)
+    translate = _loops.StaticBacklashLoop.translate
+    check_coordinates = _loops.StaticBacklashLoop.check_coordinates
+
+    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None,
+                 budget=None, *, core=None):
+        self._create(core, b, a, (M, k, h, x0, v0), z0, state, section, modes, budget)
+        self.M, self.k, self.h = M, k, h
+
+    @property
+    def engagements(self):
+        """Engagements so far."""
+        return self._api.counter(self._handle)

@@ -62,6 +62,15 @@
  * x0=0, v0=0, f=0, harmonics=10):
  *   {M, k, h, F, omega, phi, x0, v0, f, harmonics}: M, k, h > 0; checked in the order M, k, h, x0, v0,
  *   F, omega, phi, f, harmonics.
+ *
+ * The exact closed loops (ABI 4; ports of fmus/loops.py and fmus/hybrid.py, the Python oracles): a plant
+ * in feedback with a proper linear controller, f = -G(s) y, G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1)
+ * + ... + an), n = 1..8, realised as LinearSystem realises it (controllable canonical form, state z). The
+ * loop's state X is the plant's coordinates q followed by z: friction q = (x, v), y = x; backlash
+ * q = (x1, v1, gap, w = v2 - v1), y = x1, f on M2; static backlash q = (x, v, y), y = q[2]. Each plant
+ * mode makes the loop X' = A X + c, walked exactly in Taylor chunks with certified event searches (see
+ * fmus/hybrid.py). Same chunks, bounds, refusals (texts) and operation order as Python: bit-identical.
+ * See dfwb_loop_new below for the parameters.
  */
 #ifndef DFWB_CORE_H
 #define DFWB_CORE_H
@@ -79,7 +88,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 3
+#define DFWB_CORE_ABI 4
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -95,6 +104,10 @@ extern "C" {
 #define DFWB_PLANT_FRICTION 1
 #define DFWB_PLANT_BACKLASH 2
 #define DFWB_PLANT_STATIC_BACKLASH 3
+/* The header kinds of a closed loop's state (dfwb_loop_to_bytes): 3 + the plant kind. */
+#define DFWB_STATE_FRICTION_LOOP 4
+#define DFWB_STATE_BACKLASH_LOOP 5
+#define DFWB_STATE_STATIC_BACKLASH_LOOP 6
 
 /* Event kinds of the log: the EventKind of fmus/contract.py (its str in comments). */
 #define DFWB_EVENT_BREAK_UP 1     /* "break+" */
@@ -239,6 +252,111 @@ DFWB_API int dfwb_static_backlash_to_bytes(const dfwb_static_backlash *p, unsign
                                            size_t *size, char *err, size_t errlen);
 DFWB_API int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_static_backlash **out,
                                              char *err, size_t errlen);
+
+/* -- the exact closed loops (FrictionLoop, BacklashLoop, StaticBacklashLoop of fmus/loops.py) ------ */
+#define DFWB_LOOP_MAX_ORDER 8
+#define DFWB_LOOP_MAX_STATE 12               /* 4 plant coordinates + 8 controller states */
+#define DFWB_LOOP_FRICTION_PARAMS 7          /* {M, B, Fc, Fs, Dv, x0, v0} */
+#define DFWB_LOOP_BACKLASH_PARAMS 8          /* {M1, M2, h, eps, x1_0, v1_0, v2_0, gap0} */
+#define DFWB_LOOP_STATIC_BACKLASH_PARAMS 5   /* {M, k, h, x0, v0} */
+
+/* Mode keys (dfwb_loop_mode): the Python key tuples in comments. */
+#define DFWB_LOOP_STICK 0          /* friction ("stick", 0) */
+#define DFWB_LOOP_SLIDE_UP 1       /* friction ("slide", 1) */
+#define DFWB_LOOP_SLIDE_DOWN 2     /* friction ("slide", -1) */
+#define DFWB_LOOP_FREE 0           /* backlash, static backlash ("free", 0) */
+#define DFWB_LOOP_CONTACT_LOWER 1  /* backlash ("contact", -1): held at gap 0 */
+#define DFWB_LOOP_CONTACT_UPPER 2  /* backlash ("contact", 1): held at gap h */
+#define DFWB_LOOP_ENGAGED_UP 1     /* static backlash ("engaged", 1) */
+#define DFWB_LOOP_ENGAGED_DOWN 2   /* static backlash ("engaged", -1) */
+
+typedef struct dfwb_loop dfwb_loop;
+
+/* A new loop at t = 0 (the Python constructors: FrictionLoop(b, a, M, B, Fc, Fs, Dv, x0, v0, z0, state,
+ * section), ...). plant: DFWB_PLANT_*; params[nparams]: the plant's parameters in the order of the
+ * DFWB_LOOP_*_PARAMS comments (the Python defaults: friction 1, 0.5, 5, 7, 0, 0, 0; backlash 1, 1, 0.1,
+ * 0.5, 0, 0, 0, h/2 - Python's gap0=None is 0.5 * h; static 2, 1, 0.1, 0, 0); b[nb] = {b0..bn},
+ * a[na] = {a1..an}; z0[nz0] the controller's initial state (NULL: zeros); state[nstate] the whole loop
+ * state (NULL: from the parameters and z0; given, it supersedes them); section (NULL: none) watches the
+ * output y rising through *section (dfwb_loop_crossings_read). Checked in Python's order and refused
+ * with its texts (DFWB_E_VALUE): the plant's parameters, the order n = na in 1..8, nb = n + 1, a1..an,
+ * b0..bn, the state's length, coordinates and range (gap in [0, h], |x - y/k| <= h/2 (1 + 1e-9)), z0's
+ * length and values, the section. */
+DFWB_API int dfwb_loop_new(int plant, const double *params, size_t nparams, const double *b, size_t nb,
+                           const double *a, size_t na, const double *z0, size_t nz0, const double *state,
+                           size_t nstate, const double *section, dfwb_loop **out, char *err, size_t errlen);
+
+/* HybridSolver.advance: integrate exactly to t_end (finite, >= the current time, at most 1e12 chunks of the
+ * fastest mode built so far), firing every event on the way; with stop_at_section, stop early at the next
+ * upward crossing of the section (then the current time is the crossing's). budget_left: NULL for none,
+ * else the chunks the study may still integrate (a Budget shared by several loops: decremented per chunk,
+ * below 0 refused naming budget_total; written back on refusal too). Events: at most 10000 per chunk of
+ * the fastest mode spanned. */
+DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_at_section, long long *budget_left,
+                               long long budget_total, char *err, size_t errlen);
+
+DFWB_API double dfwb_loop_time(const dfwb_loop *p);
+DFWB_API long long dfwb_loop_events(const dfwb_loop *p);
+DFWB_API int dfwb_loop_plant(const dfwb_loop *p);  /* DFWB_PLANT_* */
+DFWB_API int dfwb_loop_order(const dfwb_loop *p);  /* n */
+DFWB_API int dfwb_loop_size(const dfwb_loop *p);   /* the state's size: plant coordinates + n */
+/* The current mode key (DFWB_LOOP_STICK ...). */
+DFWB_API int dfwb_loop_mode(const dfwb_loop *p);
+/* The plant's counter: sticks (friction), impacts (backlash), engagements (static backlash). */
+DFWB_API long long dfwb_loop_counter(const dfwb_loop *p);
+/* X[size] = the loop state at the current time; the output y; the force f = -G(s) y = D y + C z at a given
+ * state X[size] (FeedbackLoop.force). */
+DFWB_API void dfwb_loop_state(const dfwb_loop *p, double *X);
+DFWB_API double dfwb_loop_output(const dfwb_loop *p);
+DFWB_API double dfwb_loop_force(const dfwb_loop *p, const double *X);
+/* out[6]: friction {M, B, Fc, Fs}, backlash {M1, M2, h, eps, r2 = M2/(M1+M2), tol_h = 1e-12 h},
+ * static backlash {M, k, h} (the rest NaN-free zeros). */
+DFWB_API void dfwb_loop_parameters(const dfwb_loop *p, double out[6]);
+/* The controller of -G(s): Ac[n*n] (row-major), Bc[n], C[n] and *D (C and D negated, as FeedbackLoop's);
+ * NULL pointers are skipped. */
+DFWB_API void dfwb_loop_controller(const dfwb_loop *p, double *Ac, double *Bc, double *C, double *D);
+
+/* The section's upward crossings not read yet (t, X[size]), oldest first: up to max moved into t[max] and
+ * X[max * size]; with t or X NULL or max 0 the number pending. Always recorded (as Python's crossings),
+ * held until read (grown on demand; when out of memory, counted in dfwb_loop_crossings_dropped). */
+DFWB_API size_t dfwb_loop_crossings_read(dfwb_loop *p, double *t, double *X, size_t max);
+DFWB_API unsigned long long dfwb_loop_crossings_dropped(const dfwb_loop *p);
+
+/* Modes are built when first needed (bit k of dfwb_loop_modes_built: key k is built). The solvers of one
+ * Python study share their modes, and the fastest built mode bounds a step (t_end and events): a binding
+ * sharing them builds those the others have with dfwb_loop_build_modes. mode_info: 1 and the mode's chunk
+ * length h and Taylor terms when key is built, else 0. */
+DFWB_API int dfwb_loop_modes_built(const dfwb_loop *p);
+DFWB_API int dfwb_loop_build_modes(dfwb_loop *p, int mask, char *err, size_t errlen);
+DFWB_API int dfwb_loop_mode_info(const dfwb_loop *p, int key, double *h, int *terms);
+
+/* An independent exact copy (pending crossings and the event log copied), NULL when out of memory; free. */
+DFWB_API dfwb_loop *dfwb_loop_copy(const dfwb_loop *p);
+DFWB_API void dfwb_loop_free(dfwb_loop *p);
+/* The section: 1 and *level when the loop watches one, else 0. */
+DFWB_API int dfwb_loop_section(const dfwb_loop *p, double *level);
+
+/* 1 when a and b are loops of one plant with bit-identical fixed parameters: the plant's constants, the
+ * controller's coefficients b and a, the section (none, or its level); 0 otherwise or when either is NULL. */
+DFWB_API int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b);
+
+/* The loop's state as bytes (as dfwb_friction_to_bytes; header kind DFWB_STATE_*_LOOP, one size for every
+ * loop of a plant): its parameters and controller coefficients, the section, the time, the counts, the
+ * current mode, the modes built, the chunk (its start, its state, the search flags, a pending event).
+ * Not in it: the section's crossings not read yet and the event log. from_bytes(plant, ...) makes a loop of
+ * that plant from such bytes, checking everything it reads (the parameters as dfwb_loop_new checks them,
+ * the modes rebuilt from them, every field's range and the chunk against its mode: 0 <= start <= t <
+ * start + h, a pending event within the chunk and one of its mode's); DFWB_E_STATE otherwise. A step from
+ * crafted bytes that pass is bounded as every step is. */
+DFWB_API int dfwb_loop_to_bytes(const dfwb_loop *p, unsigned char *buf, size_t buflen, size_t *size, char *err,
+                                size_t errlen);
+DFWB_API int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_loop **out, char *err,
+                                  size_t errlen);
+
+/* The event log of the loop's events (not the section's crossings), as dfwb_friction_log. */
+DFWB_API void dfwb_loop_log(dfwb_loop *p, size_t capacity);
+DFWB_API size_t dfwb_loop_log_read(dfwb_loop *p, double *t, int *kind, size_t max);
+DFWB_API unsigned long long dfwb_loop_log_dropped(const dfwb_loop *p);
 
 #ifdef __cplusplus
 }

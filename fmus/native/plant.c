@@ -105,6 +105,9 @@ const char *dfwb_plant_name(int kind)
     case DFWB_PLANT_FRICTION: return "dfwb_friction";
     case DFWB_PLANT_BACKLASH: return "dfwb_backlash";
     case DFWB_PLANT_STATIC_BACKLASH: return "dfwb_static_backlash";
+    case DFWB_STATE_FRICTION_LOOP: return "dfwb_friction_loop";
+    case DFWB_STATE_BACKLASH_LOOP: return "dfwb_backlash_loop";
+    case DFWB_STATE_STATIC_BACKLASH_LOOP: return "dfwb_static_backlash_loop";
     default: return "unknown plant";
     }
 }
@@ -346,7 +349,7 @@ int dfwb_state_open(const unsigned char *buf, size_t len, int kind, size_t paylo
     their_kind = get_u32(buf + 12);
     if (their_kind != (uint32_t)kind)
         return dfwb_fail(err, DFWB_E_STATE, "the state is one of a %s, not of a %s",
-                         their_kind <= 3u ? dfwb_plant_name((int)their_kind) : "unknown plant", name);
+                         their_kind <= 6u ? dfwb_plant_name((int)their_kind) : "unknown plant", name);
     declared = get_u32(buf + 16);
     if (declared != (uint32_t)payload || len != DFWB_STATE_HEADER + payload)
         return dfwb_fail(err, DFWB_E_STATE, "a %s state has %lu bytes, these are %lu (declaring %lu): "

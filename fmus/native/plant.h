@@ -73,7 +73,7 @@ void dfwb_io_int(dfwb_io *io, int *x);
 /* A motion's defining fields (t0, x0, v0, lam, a, b); omega and phi are the drive's, P is recomputed. */
 void dfwb_io_motion(dfwb_io *io, dfwb_motion *m);
 
-const char *dfwb_plant_name(int kind); /* "dfwb_friction", ... */
+const char *dfwb_plant_name(int kind); /* "dfwb_friction", ..., "dfwb_friction_loop" (DFWB_STATE_*_LOOP) */
 const char *dfwb_event_name(int kind); /* str(EventKind): "break+", "gap 0", ...; "None" for 0 */
 
 /* Write the header for a payload already in buf + DFWB_STATE_HEADER. */
