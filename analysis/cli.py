@@ -213,7 +213,7 @@ def cmd_limit_cycle(args):
     if args.exact:
         from dfwb.engine.periodic import LoopProblem
 
-        problem = LoopProblem(args.plant, G, params)  # refused before the map is computed
+        problem = LoopProblem(args.plant, G, params, fmu_dir=args.fmus)  # refused before the map is computed
     engine = DFEngine(args.plant, args.fmus)
     found = search(args.plant, G, params, F_range, omega_range, engine=engine, progress=not args.json)
     cycles = found.cycles

@@ -212,3 +212,21 @@ def test_a_study_of_a_loop_too_stiff_for_its_budget_stops_in_one_line():
     with pytest.raises(PlantError, match="more than 20000 chunks"):
         find_cycles(problem, [])
     assert problem.budget.left < 0
+
+
+@pytest.mark.needs_cc
+def test_the_compiled_loop_runs_by_default_and_finds_the_python_loops_cycles(monkeypatch):
+    """LoopProblem runs the C loop (the default kind, native) and DFWB_FMU=python the Python loop: the
+    same cycles, bit for bit (periods, states, multipliers)."""
+    from dfwb.fmus.loops import FrictionLoop
+
+    monkeypatch.delenv("DFWB_FMU", raising=False)
+    native = LoopProblem("friction", "20 + 100/s + 2*s/(0.1*s+1)")
+    assert native.cls.__name__ == "NativeFrictionLoop"
+    monkeypatch.setenv("DFWB_FMU", "python")
+    python = LoopProblem("friction", "20 + 100/s + 2*s/(0.1*s+1)")
+    assert python.cls is FrictionLoop
+    found = [find_cycles(problem, [])[0] for problem in (native, python)]
+    assert len(found[0]) == len(found[1]) >= 1
+    for a, b in zip(*found):
+        assert (a.period, a.state, a.multipliers, a.amplitude_x) == (b.period, b.state, b.multipliers, b.amplitude_x)

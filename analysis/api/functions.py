@@ -290,7 +290,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
     if exact:
         from dfwb.engine.periodic import LoopProblem
 
-        problem = LoopProblem(spec.name, controller, checked)
+        problem = LoopProblem(spec.name, controller, checked, fmu_dir=fmu_dir)
     engine = DFEngine(spec.name, fmu_dir=fmu_dir)
     found = search(spec.name, controller, checked, ranges[0], ranges[1], n_F, n_omega, engine=engine,
                    progress=progress)

@@ -19,9 +19,11 @@ import os
 from pathlib import Path
 
 from dfwb.base.files import user_cache_dir
+from dfwb.fmus.exact import DfwbError
 from dfwb.fmus.piecewise import PlantError
 
-__all__ = ["default_fmu_dir", "fmu_folder", "fmu_kind", "fmu_path", "models", "build_fmus", "FMU_KINDS"]
+__all__ = ["default_fmu_dir", "fmu_folder", "fmu_kind", "fmu_path", "models", "build_fmus", "native_core",
+           "FMU_KINDS"]
 
 FMU_KINDS = ("native", "python")
 NATIVE_FOLDER = "native"
@@ -90,6 +92,34 @@ def fmu_path(model, fmu_dir=None, kind=None):
     from dfwb.build_fmus.builder import build
 
     return build(fmu_folder(fmu_dir), [cls], report=lambda message: None)[0]
+
+
+_CORES = {}  # {library path: NativeCore}: each compiled core is loaded once per process
+
+
+def native_core(fmu_dir=None, kind=None):
+    """The compiled core (:class:`dfwb.fmus.native_core.NativeCore`) for solvers run in this process, or None.
+
+    None when ``kind`` (:func:`fmu_kind`) is "python", or, with a warning, when the core cannot be built
+    or loaded (the caller then runs the pure-Python solvers, which give the same numbers). Built on
+    first use into the FMU folder's ``native/`` (reused while its sources are unchanged).
+    """
+    if fmu_kind(kind) != "native":
+        return None
+    import warnings
+
+    from dfwb.build_fmus.core import build_core
+    from dfwb.fmus.native_core import load
+
+    try:
+        path = build_core(fmu_folder(fmu_dir) / NATIVE_FOLDER)
+        if path not in _CORES:
+            _CORES[path] = load(path)
+        return _CORES[path]
+    except (DfwbError, OSError) as error:
+        warnings.warn(f"the compiled core cannot be used ({error}): the pure-Python solvers run instead",
+                      RuntimeWarning, stacklevel=2)
+        return None
 
 
 def build_fmus(fmu_dir=None, naive=False, force=False, report=print):

@@ -64,7 +64,7 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print, f
             outcome, run = verify(plant, G, cycle, params, samples_per_period, fmu_dir=fmu_dir)
             checks.append(outcome)
             runs.append((cycle, run))
-        truths, links = find_cycles(LoopProblem(plant, G, params), predictions)
+        truths, links = find_cycles(LoopProblem(plant, G, params, fmu_dir=fmu_dir), predictions)
         for i, (cycle, check) in enumerate(zip(predictions, checks)):
             j = links[i]
             judged = (f"{check['omega']:.5g} | {check['amplitude_x']:.4g} | {check['settled']}" if check["omega"]

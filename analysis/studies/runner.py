@@ -291,7 +291,7 @@ class SceneRun:
                "predictions": [[c.F, c.omega, c.amplitude_x] for c in cycles]}
         value = self.cache.get(key)
         if value is None:
-            found, links = find_cycles(LoopProblem(lc.plant, G, params), cycles)
+            found, links = find_cycles(LoopProblem(lc.plant, G, params, fmu_dir=self.fmu_dir), cycles)
             value = {"cycles": [dict(c.as_dict(), trace={"t": c.trace["t"].tolist(), "y": c.trace["y"].tolist(),
                                                          "f": c.trace["f"].tolist(),
                                                          "events": [[t, str(k)] for t, k in c.trace["events"]]})
