@@ -262,3 +262,16 @@ def test_libcosim_runs_them_as_fmpy_does(native_fmus, model, start_values):
     for name in names:  # libcosim's grid is n * step, fmpy's a running sum: the same to rounding
         scale = 1e-12 * np.max(np.abs(expected[name])) + 1e-15
         np.testing.assert_allclose(actual[name], expected[name], rtol=0, atol=scale, err_msg=name)
+
+
+def test_dfwb_build_native_writes_the_three_fmus(tmp_path, capsys):
+    from dfwb.cli import main
+
+    assert main(["build", "--native", "--out", str(tmp_path)]) == 0
+    assert sorted(path.name for path in tmp_path.iterdir()) == sorted(f"{model}.fmu" for model in MODELS)
+    assert capsys.readouterr().out.count("built (native)") == 3
+    assert main(["build", "--native", "--out", str(tmp_path)]) == 0  # up to date: nothing rebuilt
+    assert capsys.readouterr().out.count("up to date (native)") == 3
+    with pytest.raises(SystemExit) as stopped:
+        main(["build", "--native", "--naive", "--out", str(tmp_path)])
+    assert stopped.value.code == 2 and "--native and --naive" in capsys.readouterr().err
