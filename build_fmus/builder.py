@@ -42,8 +42,9 @@ validate`` passes) and makes the GUID a function of the model and the hash.
 
 The compiled core
 -----------------
-A facade with ``native_solver`` (the three plants, not their naive twins nor
-LinearSystem) gets the C core (``fmus/native``, compiled by
+A facade with ``native_solver`` (the three plants and their closed loops
+of :mod:`dfwb.fmus.loop_facade`, not the naive twins nor LinearSystem) gets
+the C core (``fmus/native``, compiled by
 :func:`dfwb.build_fmus.core.build_core`) as ``resources/libdfwb_core.so``,
 which its Python code loads (see :mod:`dfwb.fmus.facade`); the C sources
 are then part of its hash. The core is compiled at most once per process
@@ -507,8 +508,8 @@ def build(out_dir, models=None, force=False, report=print):
             if native(model) and not compiled:
                 compiled.append(core_binary())
                 if compiled[0][0] is None:
-                    report(f"the C core cannot be built ({compiled[0][1]}): the plant FMUs built now run on the "
-                           f"pure-Python solver")
+                    report(f"the C core cannot be built ({compiled[0][1]}): the plant and loop FMUs built now run "
+                           f"on the pure-Python solver")
             build_one(model, out_dir, digest, compiled[0][0] if native(model) else None)
             report(f"{path}: built")
         paths.append(path)

@@ -15,8 +15,8 @@ are exported); never ``-ffast-math``. The tests add ``-Wall -Wextra -Werror``.
 Examples
 --------
 >>> from dfwb.build_fmus.core import sources
->>> [path.name for path in sources()]
-['backlash.c', 'dfwb_core.h', 'exact.c', 'exact.h', 'friction.c', 'hybrid.c', 'hybrid.h', 'loops.c', 'plant.c', 'plant.h', 'static_backlash.c']
+>>> [path.name for path in sources()][:4]
+['backlash.c', 'dfwb_core.h', 'exact.c', 'exact.h']
 """
 
 import hashlib

@@ -13,9 +13,10 @@ benchmark's fixed-step twins live in :mod:`.naive`, outside the closure of
 the production FMUs, and a plant defined outside dfwb subclasses
 :class:`PlantFMU` in its own module.
 
-The compiled core: a plant facade with ``native_solver`` (the three plants
-here, not their naive twins nor LinearSystem) runs on the C port of its
-solver (:mod:`.native_core`) when its FMU carries it, as
+The compiled core: a facade with ``native_solver`` (the three plants here
+and their closed loops in :mod:`.loop_facade`, not the naive twins nor
+LinearSystem) runs on the C port of its solver (:mod:`.native_core`) when
+its FMU carries it, as
 ``resources/libdfwb_core.so`` (the builder puts it there). At
 exitInitializationMode the facade opens that library (once per process and
 path) and makes the C solver with the Python solver's keywords: same
@@ -182,7 +183,7 @@ class SolverFMU(Fmi2Slave):
       Fourier integrals, event counters, modes) and the facade's values;
       fmi2SerializeFMUstate writes them as bytes that only this model of
       the same build accepts (see :mod:`.state`).
-    * Solver: a plant with ``native_solver`` runs on the compiled core its FMU
+    * Solver: a facade with ``native_solver`` runs on the compiled core its FMU
       carries, else (one warning says why) on the pure-Python solver;
       ``DFWB_FMU_SOLVER=python`` forces Python, ``=native`` makes a missing
       core an error (see the module's docstring). A restored state keeps
@@ -208,6 +209,11 @@ class SolverFMU(Fmi2Slave):
     """Solver attributes a run never changes (dotted: drive.F): a restored solver's must equal a new one's."""
     native_solver = None
     """The NativeCore attribute of the compiled twin of the solver ("FrictionMass"...), or None (Python only)."""
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "solver_class" in cls.__dict__ and "native_solver" not in cls.__dict__:
+            cls.native_solver = None  # a subclass with a solver of its own (a naive twin) has no compiled twin
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -510,6 +516,42 @@ class SolverFMU(Fmi2Slave):
     def _solver_class(cls):
         return getattr(cls, "solver_class", None) or _LinearSystem
 
+    def _new_solver_class(self, like=None):
+        """The class a facade with ``native_solver`` makes its solver of (with the Python solver's keywords):
+        the compiled twin on the core :meth:`_solver_core` chooses, or the pure-Python ``solver_class``.
+        ``like``: a solver whose kind (the core it runs on, or Python) the new one takes; nothing is logged."""
+        if like is None:
+            core = self._solver_core()
+        else:
+            core = type(like).core if self._is_native(like) else None
+        return self._solver_class() if core is None else getattr(core, self.native_solver)
+
+    def _solver_core(self):
+        """The NativeCore this run's solver is made on, or None for the pure-Python solver; the choice is logged
+        (status ok; a warning when the core cannot be used), StepRefused for a bad ``DFWB_FMU_SOLVER``."""
+        if not self.native_solver:
+            return None
+        choice = os.environ.get(SOLVER_VARIABLE, "")
+        if choice and choice not in SOLVER_CHOICES:
+            self._fail(f"{SOLVER_VARIABLE} = {choice!r} is refused: it must be 'native' (the compiled core; an error "
+                       f"if it cannot be used) or 'python' (the pure-Python solver), or unset")
+        name = type(self).__name__
+        if choice == "python":
+            self.log(f"{name}: runs on the pure-Python solver ({SOLVER_VARIABLE}=python)")
+            return None
+        core, why = core_in(self.resources)
+        if core is None:
+            if choice == "native":
+                self._fail(f"{SOLVER_VARIABLE}=native, but the compiled core cannot be used: {why}")
+            if not self.resources:  # the facade used directly in Python, not an FMU: nothing to warn about
+                self.log(f"{name}: runs on the pure-Python solver ({why})")
+            else:
+                self.log(f"{name}: the compiled core cannot be used ({why}); it runs on the pure-Python solver",
+                         status=Fmi2Status.warning)
+            return None
+        self.log(f"{name}: runs on the compiled core ({core.path})")
+        return core
+
     def _native_from(self, stored):
         """The solver of a serialized :class:`~.state.NativeState`, read by this FMU's own core (StepRefused)."""
         if not (type(stored.plant) is str and type(stored.data) is bytes):
@@ -551,6 +593,8 @@ class SolverFMU(Fmi2Slave):
         return self.solver_class
 
     def _make_solver(self):
+        """The solver from the parameters (PlantError names a bad one). A facade with ``native_solver`` takes
+        ``like=None`` too and picks its class with :meth:`_new_solver_class`."""
         raise NotImplementedError
 
     def _parameter_names(self):
@@ -638,8 +682,6 @@ class PlantFMU(TableFMU):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        if "solver_class" in cls.__dict__ and "native_solver" not in cls.__dict__:
-            cls.native_solver = None  # a subclass with a solver of its own (a naive twin) has no compiled twin
         if cls.solver_class is not None:
             FACADES.append(cls)
 
@@ -713,47 +755,17 @@ class PlantFMU(TableFMU):
     # -- FMI ------------------------------------------------------------------
     def _make_solver(self, like=None):
         """The solver from the parameters (PlantError names a bad one), on the compiled core or in Python as
-        :meth:`_solver_core` chooses; ``like``: a solver whose kind the new one takes (nothing logged)."""
+        :meth:`_new_solver_class` chooses; ``like``: a solver whose kind the new one takes (nothing logged)."""
         kwargs = {name: getattr(self, name) for name, *_ in self.parameters + EXCITATION}
         t0 = self._start_time
         if t0 != 0.0:  # the solver's time starts at 0: F cos(omega t + phi) = F cos(omega (t - t0) + phi')
             kwargs["phi"] = kwargs["phi"] + kwargs["omega"] * t0
         self._rotation = None
-        if like is None:
-            core = self._solver_core()
-        else:
-            core = type(like).core if self._is_native(like) else None
-        solver_class = self.solver_class if core is None else getattr(core, self.native_solver)
+        solver_class = self._new_solver_class(like)
         solver = solver_class(f=self.f, harmonics=self.harmonics, **self.solver_kwargs(kwargs))
         if t0 != 0.0:  # I_k from t0 in absolute phase: exp(-i k omega t0) times the solver's own
             self._rotation = [cmath.exp(-1j * k * self.omega * t0) for k in range(solver.harmonics + 1)]
         return solver
-
-    def _solver_core(self):
-        """The NativeCore this run's solver is made on, or None for the pure-Python solver; the choice is logged
-        (status ok; a warning when the core cannot be used), StepRefused for a bad ``DFWB_FMU_SOLVER``."""
-        if not self.native_solver:
-            return None
-        choice = os.environ.get(SOLVER_VARIABLE, "")
-        if choice and choice not in SOLVER_CHOICES:
-            self._fail(f"{SOLVER_VARIABLE} = {choice!r} is refused: it must be 'native' (the compiled core; an error "
-                       f"if it cannot be used) or 'python' (the pure-Python solver), or unset")
-        name = type(self).__name__
-        if choice == "python":
-            self.log(f"{name}: runs on the pure-Python solver ({SOLVER_VARIABLE}=python)")
-            return None
-        core, why = core_in(self.resources)
-        if core is None:
-            if choice == "native":
-                self._fail(f"{SOLVER_VARIABLE}=native, but the compiled core cannot be used: {why}")
-            if not self.resources:  # the facade used directly in Python, not an FMU: nothing to warn about
-                self.log(f"{name}: runs on the pure-Python solver ({why})")
-            else:
-                self.log(f"{name}: the compiled core cannot be used ({why}); it runs on the pure-Python solver",
-                         status=Fmi2Status.warning)
-            return None
-        self.log(f"{name}: runs on the compiled core ({core.path})")
-        return core
 
     def _integrals(self):
         """{Ick, Isk: value} from the solver's running integrals (rotated to absolute phase)."""

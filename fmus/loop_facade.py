@@ -26,6 +26,15 @@ and non-finite motions are logged with status error and never raise out of
 a callback; FMU states are exact copies of the solver, serialized for this
 model and build only, restored after checks that bound the work of the
 next step (:meth:`LoopFMU._check_solver_state`).
+
+The compiled core: as the plant FMUs, each loop FMU carries the C core
+(``resources/libdfwb_core.so``) and runs on its port of the loop
+(``native_solver``: ``FrictionLoop``, ``BacklashLoop``,
+``StaticBacklashLoop`` of :mod:`.native_core`), bit for bit the Python
+solver's outputs and refusals; the pure-Python solver of :mod:`.loops` is
+the fallback (one warning) and ``DFWB_FMU_SOLVER`` chooses as for the
+plants (see :mod:`.facade`). A serialized state holds the C loop's checked
+bytes, read back by the instance's own core.
 """
 
 import math
@@ -152,11 +161,15 @@ class LoopFMU(TableFMU):
                 [getattr(self, f"a{i}") for i in range(1, order + 1)],
                 [getattr(self, f"z{i}_0") for i in range(1, order + 1)])
 
-    def _make_solver(self):
-        """The loop's solver at its time 0 (the FMU's start time); PlantError names a bad parameter."""
+    def _make_solver(self, like=None):
+        """The loop's solver at its time 0 (the FMU's start time); PlantError names a bad parameter.
+
+        On the compiled core or in Python as :meth:`~.facade.SolverFMU._new_solver_class` chooses (the
+        choice logged); ``like``: a solver whose kind the new one takes (nothing logged)."""
+        solver_class = self._new_solver_class(like)
         b, a, z0 = self._controller()
         kwargs = self.solver_kwargs({name: getattr(self, name) for name, *_ in self.parameters})
-        solver = self.solver_class(b, a, z0=z0, **kwargs)
+        solver = solver_class(b, a, z0=z0, **kwargs)
         outputs = self._outputs_of(solver)
         if not _finite(outputs):
             bad = ", ".join(f"{name} = {value!r}" for name, value in outputs.items() if not math.isfinite(value))
@@ -211,9 +224,19 @@ class LoopFMU(TableFMU):
         (their chunk length and Taylor terms bound a step's work), the current piece
         consistent (state and derivative of the loop's size and finite, the chunk
         around the time, a pending event inside the chunk) and the counters whole numbers.
+        A loop of the compiled core checked all that when it read its bytes (``from_bytes``);
+        SolverFMU compared its parameters with a new one's (``same_parameters``). Either
+        way its outputs must be finite.
         """
         super()._check_solver_state(values, solver)
-        fresh = self._solver_from(values)
+        if not self._is_native(solver):
+            self._check_python_loop(values, solver)
+        if not _finite(self._outputs_of(solver)):
+            self._fail("the state's outputs overflow a float")
+
+    def _check_python_loop(self, values, solver):
+        """The checks of a restored Python loop's internals (:meth:`_check_solver_state`); StepRefused."""
+        fresh = self._solver_from(values, solver)
         modes = getattr(solver, "_modes", None)
         if not (type(modes) is dict and modes and all(key in self.mode_keys for key in modes)):
             self._fail("the state's modes are not modes of this loop")
@@ -248,8 +271,6 @@ class LoopFMU(TableFMU):
             count = getattr(solver, name, None)
             if not (type(count) is int and count >= 0):
                 self._fail(f"the state's {name} is not a count")
-        if not _finite(self._outputs_of(solver)):
-            self._fail("the state's outputs overflow a float")
 
     def _check_solver_times(self, solver):
         """(All checked in :meth:`_check_solver_state`.)"""
@@ -285,6 +306,7 @@ class FrictionMassLoop(LoopFMU):
     """Mass with Coulomb, viscous and static friction (exact stick-slip) in feedback f = -G(s) x."""
 
     solver_class = _FrictionLoop
+    native_solver = "FrictionLoop"
     plant = FrictionMass
     fixed_solver_attributes = COMMON_FIXED + ("M", "B", "Fc", "Fs")
     ranges = {"Dv": (0.0, 0.0)}
@@ -311,6 +333,7 @@ class TwoMassBacklashLoop(LoopFMU):
     """Two masses with a clearance h and impacts of restitution eps, force f = -G(s) x1 on M2."""
 
     solver_class = _BacklashLoop
+    native_solver = "BacklashLoop"
     plant = TwoMassBacklash
     fixed_solver_attributes = COMMON_FIXED + ("M1", "M2", "h", "eps", "r2", "tol_h")
     ranges = {}
@@ -341,6 +364,7 @@ class StaticBacklashLoop(LoopFMU):
     """Mass M with a backlash element of slope k and width h, in feedback f = -G(s) y on the backlash output."""
 
     solver_class = _StaticBacklashLoop
+    native_solver = "StaticBacklashLoop"
     plant = StaticBacklash
     fixed_solver_attributes = COMMON_FIXED + ("M", "k", "h")
     ranges = {}
