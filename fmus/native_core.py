@@ -36,7 +36,7 @@ modulus that overflows raises OverflowError, as in Python.
 :data:`LOG_CAPACITY` events in one step the rest are counted in ``event_log_dropped`` and a
 RuntimeWarning is issued).
 
-State: :meth:`~_NativeSolver.to_bytes` gives the solver's state as bytes (a header - magic, ABI, plant
+State: :meth:`~_Native.to_bytes` gives the solver's state as bytes (a header - magic, ABI, plant
 kind, length, CRC-32 - then the plain data) and the classmethod ``from_bytes(data)`` makes a solver from
 them; the C core checks everything it reads and refuses anything else with
 :class:`~.state.StateRefused` (one line). ``copy()``, :func:`copy.copy` and :func:`copy.deepcopy` give
@@ -104,44 +104,60 @@ def load(path):
     return core
 
 
-class _Api:
-    """One plant's C functions (``new``, ``advance``, ... without the prefix)."""
+def _signatures():
+    """The C signatures a plant's functions and the loop's share (the same names after the prefix)."""
+    c_int, c_void_p, c_char_p, c_size_t = ctypes.c_int, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t
+    return {
+        "time": (ctypes.c_double, [c_void_p]),
+        "events": (ctypes.c_longlong, [c_void_p]),
+        "same_parameters": (c_int, [c_void_p, c_void_p]),
+        "copy": (c_void_p, [c_void_p]),
+        "free": (None, [c_void_p]),
+        "log": (None, [c_void_p, c_size_t]),
+        "log_read": (c_size_t, [c_void_p, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(c_int), c_size_t]),
+        "log_dropped": (ctypes.c_ulonglong, [c_void_p]),
+        "to_bytes": (c_int, [c_void_p, c_char_p, c_size_t, ctypes.POINTER(c_size_t), c_char_p, c_size_t]),
+    }
 
-    def __init__(self, lib, prefix, path, counters):
-        c_double, c_int, c_void_p, c_char_p, c_size_t = (ctypes.c_double, ctypes.c_int, ctypes.c_void_p,
-                                                         ctypes.c_char_p, ctypes.c_size_t)
-        p_double, p_int = ctypes.POINTER(c_double), ctypes.POINTER(c_int)
-        table = {
-            "new": (c_int, [p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
-            "set_input": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
-            "advance": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
-            "output": (None, [c_void_p, p_double]),
-            "integrals": (c_int, [c_void_p, p_double, p_double, c_char_p, c_size_t]),
-            "time": (c_double, [c_void_p]),
-            "events": (ctypes.c_longlong, [c_void_p]),
-            "harmonics": (c_int, [c_void_p]),
-            "period": (c_double, [c_void_p]),
-            "drive": (None, [c_void_p, p_double]),
-            "same_parameters": (c_int, [c_void_p, c_void_p]),
-            "copy": (c_void_p, [c_void_p]),
-            "free": (None, [c_void_p]),
-            "log": (None, [c_void_p, c_size_t]),
-            "log_read": (c_size_t, [c_void_p, p_double, p_int, c_size_t]),
-            "log_dropped": (ctypes.c_ulonglong, [c_void_p]),
-            "to_bytes": (c_int, [c_void_p, c_char_p, c_size_t, ctypes.POINTER(c_size_t), c_char_p, c_size_t]),
-            "from_bytes": (c_int, [c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
-        }
-        table.update({name: (restype, [c_void_p]) for name, restype in counters.items()})
-        for name, (restype, argtypes) in table.items():
+
+class _Functions:
+    """The C functions of one prefix (``new``, ``advance``, ... without it), typed, and the size of a state:
+    a core missing one is refused when loaded, not at the first call."""
+
+    def __init__(self, lib, prefix, path, table):
+        self.prefix = prefix
+        for name, (restype, argtypes) in {**_signatures(), **table}.items():
             try:
                 function = getattr(lib, f"{prefix}_{name}")
             except AttributeError:
                 raise CoreError(f"the C core {path} has no function {prefix}_{name}") from None
             function.restype, function.argtypes = restype, argtypes
             setattr(self, name, function)
-        size = c_size_t()
+        size = ctypes.c_size_t()
         self.to_bytes(None, None, 0, ctypes.byref(size), None, 0)
         self.state_size = size.value
+
+
+class _Api(_Functions):
+    """One plant's C functions (``dfwb_friction_*``, ...)."""
+
+    def __init__(self, lib, prefix, path, counters):
+        c_double, c_int, c_void_p, c_char_p, c_size_t = (ctypes.c_double, ctypes.c_int, ctypes.c_void_p,
+                                                         ctypes.c_char_p, ctypes.c_size_t)
+        p_double = ctypes.POINTER(c_double)
+        table = {
+            "new": (c_int, [p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+            "set_input": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
+            "advance": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
+            "output": (None, [c_void_p, p_double]),
+            "integrals": (c_int, [c_void_p, p_double, p_double, c_char_p, c_size_t]),
+            "harmonics": (c_int, [c_void_p]),
+            "period": (c_double, [c_void_p]),
+            "drive": (None, [c_void_p, p_double]),
+            "from_bytes": (c_int, [c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+        }
+        table.update({name: (restype, [c_void_p]) for name, restype in counters.items()})
+        super().__init__(lib, prefix, path, table)
 
 
 class NativeCore:
@@ -220,50 +236,61 @@ def _raise(code, buffer, originals=None, tails=()):
     raise CoreError(f"C core status {code}: {message}")
 
 
-def _restore(path, plant, data, event_log=None):
-    """Unpickle a native solver: the library at ``path``, the solver from its state bytes."""
-    cls = getattr(load(path), _PLANTS[plant][1])
-    solver = cls.from_bytes(data)
+def _restore(path, attr, data, event_log=None, crossings=None):
+    """Unpickle a native solver or loop: the class ``attr`` of the library at ``path``, the instance from its
+    state bytes."""
+    native = getattr(load(path), attr).from_bytes(data)
     if event_log is not None:
-        solver.event_log = event_log
-    return solver
+        native.event_log = event_log
+    if crossings is not None:
+        native.crossings = list(crossings)
+    return native
 
 
-class _NativeSolver:
-    """What the three native solvers share: the Solver protocol on a C instance, the event log, copies,
-    the state as bytes."""
+def _new(function, *args, originals=None, tails=()):
+    """The handle ``function(*args, &handle, err, ERRLEN)`` makes (a ``new`` or a ``from_bytes``), else its
+    error raised (``originals`` and ``tails`` as :func:`_raise`'s)."""
+    handle = ctypes.c_void_p()
+    err = ctypes.create_string_buffer(ERRLEN)
+    code = function(*args, ctypes.byref(handle), err, ERRLEN)
+    if code != OK:
+        _raise(code, err, originals, tails)
+    return handle
+
+
+class _Native:
+    """What the native solvers and loops share: a C instance freed with its object, the event log, exact
+    copies, the state as bytes, pickling. A subclass names its ``_table``, its C functions (``_functions``),
+    completes ``_setup`` and gives what a copy shares (``_shared``)."""
 
     core = None  # the NativeCore of a bound subclass (NativeCore.FrictionMass, ...)
-    _plant = None  # key of _PLANTS
-    _output_type = None
+    _plant = None  # key of _table
+    _table = None  # _PLANTS or _LOOPS: the NativeCore attribute of a plant's class is its entry's [1]
 
-    def _create(self, core, values, originals, tails=()):
-        self._handle = None
-        core = core if core is not None else type(self).core
+    @classmethod
+    def _functions(cls, core):
+        """The :class:`_Functions` of this class on ``core``."""
+        raise NotImplementedError
+
+    @classmethod
+    def _bound_core(cls, core, method=""):
+        """``core``, else the class's own (CoreError if neither): an unbound class needs one passed."""
+        core = core if core is not None else cls.core
         if core is None:
-            attr = _PLANTS[self._plant][1]
-            raise CoreError(f"{type(self).__name__} needs a C core: pass core=load(path), or use load(path).{attr}")
-        api = core.api[self._plant]
-        params = (ctypes.c_double * len(values))(*(_as_double(v) for v in values))
-        handle = ctypes.c_void_p()
-        err = ctypes.create_string_buffer(ERRLEN)
-        code = api.new(params, ctypes.byref(handle), err, ERRLEN)
-        if code != OK:
-            _raise(code, err, originals, tails)
-        self._setup(core, handle)
+            hint = "" if method else f", or use load(path).{cls._table[cls._plant][1]}"
+            raise CoreError(f"{cls.__name__}{method} needs a C core: pass core=load(path){hint}")
+        return core
 
     def _setup(self, core, handle):
-        api = core.api[self._plant]
-        self._core, self._api, self._handle = core, api, handle
-        self.harmonics = api.harmonics(handle)
+        self._core, self._api, self._handle = core, self._functions(core), handle
+        self._err = ctypes.create_string_buffer(ERRLEN)
         self._event_log = None
         self.event_log_dropped = 0
-        self._err = ctypes.create_string_buffer(ERRLEN)
-        self._out = (ctypes.c_double * _PLANTS[self._plant][2])()
-        self._re = (ctypes.c_double * (self.harmonics + 1))()
-        self._im = (ctypes.c_double * (self.harmonics + 1))()
 
-    # -- the Solver protocol ---------------------------------------------------------------
+    def _shared(self):
+        """The arguments of ``_setup`` after the handle that a copy takes from its original."""
+        return ()
+
     @property
     def t(self):
         """The current time (s)."""
@@ -274,6 +301,121 @@ class _NativeSolver:
         """Events counted so far."""
         return self._api.events(self._handle)
 
+    # -- the event log --------------------------------------------------------------------------
+    @property
+    def event_log(self):
+        """None, or the list every counted event is appended to as (t, EventKind)."""
+        return self._event_log
+
+    @event_log.setter
+    def event_log(self, value):
+        self._api.log(self._handle, 0 if value is None else LOG_CAPACITY)
+        self._event_log = value
+        self.event_log_dropped = 0
+
+    def _drain(self, stacklevel=3):
+        """Move the events C recorded in the last step to the event log (``stacklevel``: the user's frame)."""
+        api, handle = self._api, self._handle
+        n = api.log_read(handle, None, None, 0)
+        if n:
+            times, kinds = (ctypes.c_double * n)(), (ctypes.c_int * n)()
+            n = api.log_read(handle, times, kinds, n)
+            self._event_log.extend(zip(times[:n], map(EVENT_KINDS.__getitem__, kinds[:n])))
+        dropped = api.log_dropped(handle)
+        if dropped != self.event_log_dropped:
+            warnings.warn(f"{type(self).__name__}.event_log: {dropped - self.event_log_dropped} events of one step "
+                          f"beyond LOG_CAPACITY = {LOG_CAPACITY} were not recorded", RuntimeWarning,
+                          stacklevel=stacklevel)
+            self.event_log_dropped = dropped
+
+    # -- copies and state ----------------------------------------------------------------------
+    def same_parameters(self, other):
+        """Whether ``other`` holds bit-identical fixed parameters: what a run never changes (a plant's
+        constants and what is derived from them, the drive's F, omega and phi, the period, the harmonics; a
+        loop's G and section), not the input f, the time nor the motion; -0.0 differs from 0.0. False
+        unless ``other`` is the same kind (solver or loop) of the same plant on the same core."""
+        if not (isinstance(other, _Native) and other._table is self._table and other._plant == self._plant
+                and getattr(other, "_core", None) is self._core and self._handle and other._handle):
+            return False
+        return bool(self._api.same_parameters(self._handle, other._handle))
+
+    def copy(self):
+        """An independent exact copy (the C instance copied; the event log list copied too)."""
+        handle = self._api.copy(self._handle)
+        if not handle:
+            raise MemoryError(f"out of memory (a copy of a {self._api.prefix})")
+        clone = object.__new__(type(self))
+        clone.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_")})
+        clone._setup(self._core, ctypes.c_void_p(handle), *self._shared())
+        if self._event_log is not None:
+            clone.event_log = list(self._event_log)
+        return clone
+
+    def __copy__(self):
+        return self.copy()
+
+    def __deepcopy__(self, memo):
+        clone = self.copy()
+        if self._event_log is not None:
+            clone._event_log = copy.deepcopy(self._event_log, memo)
+        return clone
+
+    def to_bytes(self):
+        """The state as bytes (not in it: the event log, a loop's crossings): see ``from_bytes``."""
+        api = self._api
+        size = ctypes.c_size_t(api.state_size)
+        buf = ctypes.create_string_buffer(api.state_size)
+        code = api.to_bytes(self._handle, buf, api.state_size, ctypes.byref(size), self._err, ERRLEN)
+        if code != OK:
+            _raise(code, self._err)
+        return buf.raw[:size.value]
+
+    @classmethod
+    def _from_state(cls, data, core, *head):
+        """The core and the C handle of the state bytes ``data`` (``head``: the C from_bytes's leading
+        arguments); StateRefused, one line, for anything but a valid state."""
+        core = cls._bound_core(core, ".from_bytes")
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise StateRefused(f"a solver state must be bytes, not {type(data).__name__}")
+        data = bytes(data)
+        return core, _new(cls._functions(core).from_bytes, *head, data, len(data))
+
+    def __reduce__(self):
+        return (_restore, (str(self._core.path), self._table[self._plant][1], self.to_bytes(), self._event_log))
+
+    def __del__(self):
+        handle, self._handle = getattr(self, "_handle", None), None
+        if handle:
+            try:
+                self._api.free(handle)
+            except Exception:  # noqa: BLE001 - interpreter shutdown: the library may be gone
+                pass
+
+
+class _NativeSolver(_Native):
+    """What the three native solvers share: the Solver protocol on a C instance."""
+
+    _table = _PLANTS
+    _output_type = None
+
+    @classmethod
+    def _functions(cls, core):
+        return core.api[cls._plant]
+
+    def _create(self, core, values, originals, tails=()):
+        self._handle = None
+        core = self._bound_core(core)
+        params = (ctypes.c_double * len(values))(*(_as_double(v) for v in values))
+        self._setup(core, _new(self._functions(core).new, params, originals=originals, tails=tails))
+
+    def _setup(self, core, handle):
+        super()._setup(core, handle)
+        self.harmonics = self._api.harmonics(handle)
+        self._out = (ctypes.c_double * _PLANTS[self._plant][2])()
+        self._re = (ctypes.c_double * (self.harmonics + 1))()
+        self._im = (ctypes.c_double * (self.harmonics + 1))()
+
+    # -- the Solver protocol ---------------------------------------------------------------
     @property
     def period(self):
         """The drive's period 2 pi / omega (s)."""
@@ -314,102 +456,13 @@ class _NativeSolver:
             _raise(code, self._err)
         return list(map(complex, re[:], im[:]))
 
-    # -- the event log ------------------------------------------------------------------------
-    @property
-    def event_log(self):
-        """None, or the list every counted event is appended to as (t, EventKind)."""
-        return self._event_log
-
-    @event_log.setter
-    def event_log(self, value):
-        self._api.log(self._handle, 0 if value is None else LOG_CAPACITY)
-        self._event_log = value
-        self.event_log_dropped = 0
-
-    def _drain(self):
-        api, handle = self._api, self._handle
-        n = api.log_read(handle, None, None, 0)
-        if n:
-            times, kinds = (ctypes.c_double * n)(), (ctypes.c_int * n)()
-            n = api.log_read(handle, times, kinds, n)
-            self._event_log.extend(zip(times[:n], map(EVENT_KINDS.__getitem__, kinds[:n])))
-        dropped = api.log_dropped(handle)
-        if dropped != self.event_log_dropped:
-            warnings.warn(f"{type(self).__name__}.event_log: {dropped - self.event_log_dropped} events of one step "
-                          f"beyond LOG_CAPACITY = {LOG_CAPACITY} were not recorded", RuntimeWarning, stacklevel=3)
-            self.event_log_dropped = dropped
-
-    # -- copies and state ----------------------------------------------------------------------
-    def same_parameters(self, other):
-        """Whether ``other`` holds bit-identical fixed parameters: the plant's constants and what is derived
-        from them, the drive's F, omega and phi, the period, the harmonics (-0.0 differs from 0.0; the
-        input f, the time and the motion are not compared). False unless ``other`` is a native solver of
-        the same plant on the same core."""
-        if not (isinstance(other, _NativeSolver) and other._plant == self._plant
-                and getattr(other, "_core", None) is self._core):
-            return False
-        if not (self._handle and other._handle):
-            return False
-        return bool(self._api.same_parameters(self._handle, other._handle))
-
-    def copy(self):
-        """An independent exact copy (the C instance copied; the event log list copied too)."""
-        handle = self._api.copy(self._handle)
-        if not handle:
-            raise MemoryError(f"out of memory (a copy of a {_PLANTS[self._plant][0]})")
-        clone = object.__new__(type(self))
-        clone._setup(self._core, ctypes.c_void_p(handle))
-        if self._event_log is not None:
-            clone.event_log = list(self._event_log)
-        return clone
-
-    __copy__ = copy
-
-    def __deepcopy__(self, memo):
-        clone = self.copy()
-        if self._event_log is not None:
-            clone.event_log = copy.deepcopy(self._event_log, memo)
-        return clone
-
-    def to_bytes(self):
-        """The solver's state as bytes (the event log is not part of it): see :meth:`from_bytes`."""
-        api = self._api
-        size = ctypes.c_size_t(api.state_size)
-        buf = ctypes.create_string_buffer(api.state_size)
-        code = api.to_bytes(self._handle, buf, api.state_size, ctypes.byref(size), self._err, ERRLEN)
-        if code != OK:
-            _raise(code, self._err)
-        return buf.raw[:size.value]
-
     @classmethod
     def from_bytes(cls, data, *, core=None):
         """A solver from the bytes of :meth:`to_bytes` (StateRefused, one line, for anything else)."""
-        core = core if core is not None else cls.core
-        if core is None:
-            raise CoreError(f"{cls.__name__}.from_bytes needs a C core: pass core=load(path)")
-        if not isinstance(data, (bytes, bytearray, memoryview)):
-            raise StateRefused(f"a solver state must be bytes, not {type(data).__name__}")
-        data = bytes(data)
-        api = core.api[cls._plant]
-        handle = ctypes.c_void_p()
-        err = ctypes.create_string_buffer(ERRLEN)
-        code = api.from_bytes(data, len(data), ctypes.byref(handle), err, ERRLEN)
-        if code != OK:
-            _raise(code, err)
+        core, handle = cls._from_state(data, core)
         solver = object.__new__(cls)
         solver._setup(core, handle)
         return solver
-
-    def __reduce__(self):
-        return (_restore, (str(self._core.path), self._plant, self.to_bytes(), self._event_log))
-
-    def __del__(self):
-        handle, self._handle = getattr(self, "_handle", None), None
-        if handle:
-            try:
-                self._api.free(handle)
-            except Exception:  # noqa: BLE001 - interpreter shutdown: the library may be gone
-                pass
 
 
 class NativeFrictionMass(_NativeSolver):
@@ -497,7 +550,7 @@ NativeMode = namedtuple("NativeMode", "key h terms")
 NativeMode.__doc__ = """A mode of a native loop as its ``_modes`` dict holds it: key, chunk length h, Taylor terms."""
 
 
-class _LoopApi:
+class _LoopApi(_Functions):
     """The C functions of the closed loops (``dfwb_loop_*``)."""
 
     def __init__(self, lib, path):
@@ -510,8 +563,6 @@ class _LoopApi:
                             p_double, c_size_t, p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
             "advance": (c_int, [c_void_p, c_double, c_int, ctypes.POINTER(c_longlong), c_longlong, c_char_p,
                                 c_size_t]),
-            "time": (c_double, [c_void_p]),
-            "events": (c_longlong, [c_void_p]),
             "plant": (c_int, [c_void_p]),
             "order": (c_int, [c_void_p]),
             "size": (c_int, [c_void_p]),
@@ -527,35 +578,10 @@ class _LoopApi:
             "modes_built": (c_int, [c_void_p]),
             "build_modes": (c_int, [c_void_p, c_int, c_char_p, c_size_t]),
             "mode_info": (c_int, [c_void_p, c_int, p_double, p_int]),
-            "copy": (c_void_p, [c_void_p]),
-            "free": (None, [c_void_p]),
-            "log": (None, [c_void_p, c_size_t]),
-            "log_read": (c_size_t, [c_void_p, p_double, p_int, c_size_t]),
-            "log_dropped": (ctypes.c_ulonglong, [c_void_p]),
             "section": (c_int, [c_void_p, p_double]),
-            "same_parameters": (c_int, [c_void_p, c_void_p]),
-            "to_bytes": (c_int, [c_void_p, c_char_p, c_size_t, ctypes.POINTER(c_size_t), c_char_p, c_size_t]),
             "from_bytes": (c_int, [c_int, c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
         }
-        for name, (restype, argtypes) in table.items():
-            try:
-                function = getattr(lib, f"dfwb_loop_{name}")
-            except AttributeError:
-                raise CoreError(f"the C core {path} has no function dfwb_loop_{name}") from None
-            function.restype, function.argtypes = restype, argtypes
-            setattr(self, name, function)
-        size = c_size_t()
-        self.to_bytes(None, None, 0, ctypes.byref(size), None, 0)
-        self.state_size = size.value
-
-
-def _restore_loop(path, plant, data, event_log=None, crossings=()):
-    """Unpickle a native loop: the library at ``path``, the loop from its state bytes."""
-    loop = getattr(load(path), _LOOPS[plant][1]).from_bytes(data)
-    if event_log is not None:
-        loop.event_log = event_log
-    loop.crossings = list(crossings)
-    return loop
+        super().__init__(lib, "dfwb_loop", path, table)
 
 
 def _doubles(values):
@@ -563,22 +589,30 @@ def _doubles(values):
     return (ctypes.c_double * max(1, len(values)))(*values), len(values)
 
 
-class _NativeLoop:
+class _NativeLoop(_Native):
     """What the three native loops share: :class:`~.loops.FeedbackLoop`'s attributes and methods on a C instance."""
 
-    core = None  # the NativeCore of a bound subclass (NativeCore.FrictionLoop, ...)
-    _plant = None  # key of _LOOPS
+    _table = _LOOPS
     _keys = ()  # mode key index of the C core -> the Python key tuple
     _counter = None  # the name of the plant's counter
     _constant_names = ()  # the plant's constants, as dfwb_loop_parameters gives them
     plant = None  # the open-loop solver class (the bound subclass: the native one of its core)
 
+    def __init_subclass__(cls, **kwargs):
+        """Take the Python loop's coordinates and its methods that need no solver, so both share one source."""
+        super().__init_subclass__(**kwargs)
+        python = _LOOPS[cls._plant][2]
+        for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates"):
+            setattr(cls, name, getattr(python, name))
+        cls.coordinates_of = staticmethod(python.coordinates_of)
+
+    @classmethod
+    def _functions(cls, core):
+        return core.loop_api
+
     def _create(self, core, b, a, values, z0, state, section, modes, budget, tails=()):
         self._handle = None
-        core = core if core is not None else type(self).core
-        if core is None:
-            attr = _LOOPS[self._plant][1]
-            raise CoreError(f"{type(self).__name__} needs a C core: pass core=load(path), or use load(path).{attr}")
+        core = self._bound_core(core)
         kind, _attr, _cls, names = _LOOPS[self._plant]
         b, a = list(b), list(a)
         originals = dict(zip(names, values))
@@ -602,18 +636,13 @@ class _NativeLoop:
             csec = ctypes.byref(ctypes.c_double(_as_double(section)))
         else:
             csec = None
-        api = core.loop_api
-        handle = ctypes.c_void_p()
-        err = ctypes.create_string_buffer(ERRLEN)
-        code = api.new(kind, params, nparams, cb, nb, ca, na, cz, nz, cs, ns, csec, ctypes.byref(handle), err,
-                       ERRLEN)
-        if code != OK:
-            _raise(code, err, originals, tails)
+        handle = _new(core.loop_api.new, kind, params, nparams, cb, nb, ca, na, cz, nz, cs, ns, csec,
+                      originals=originals, tails=tails)
         self._setup(core, handle, modes, budget, section)
 
     def _setup(self, core, handle, modes, budget, level):
-        api = core.loop_api
-        self._core, self._api, self._handle = core, api, handle
+        super()._setup(core, handle)
+        api = self._api
         self.order = n = api.order(handle)
         self._size = size = api.size(handle)
         Ac, Bc, C = (ctypes.c_double * (n * n))(), (ctypes.c_double * n)(), (ctypes.c_double * n)()
@@ -626,24 +655,14 @@ class _NativeLoop:
         self._level = level  # the section's level, or None (Python's _section is (L, l0))
         self._left = ctypes.c_longlong()
         self._mask = 0
-        self._err = ctypes.create_string_buffer(ERRLEN)
         self._X = (ctypes.c_double * size)()
-        self._event_log = None
-        self.event_log_dropped = 0
         self.crossings = []  # (t, X) at every upward crossing of the section
         self._collect()
 
+    def _shared(self):
+        return self._modes, self._budget, self._level
+
     # -- the solver ---------------------------------------------------------------------------
-    @property
-    def t(self):
-        """The current time (s)."""
-        return self._api.time(self._handle)
-
-    @property
-    def events(self):
-        """Events so far."""
-        return self._api.events(self._handle)
-
     @property
     def key(self):
         """The current mode key (as the Python loop's: ``("slide", 1)``, ...)."""
@@ -729,45 +748,23 @@ class _NativeLoop:
                 n = api.crossings_read(handle, times, states, n)
                 self.crossings.extend((times[i], states[i * size:(i + 1) * size]) for i in range(n))
         if self._event_log is not None:
-            n = api.log_read(handle, None, None, 0)
-            if n:
-                times, kinds = (ctypes.c_double * n)(), (ctypes.c_int * n)()
-                n = api.log_read(handle, times, kinds, n)
-                self._event_log.extend(zip(times[:n], map(EVENT_KINDS.__getitem__, kinds[:n])))
-            dropped = api.log_dropped(handle)
-            if dropped != self.event_log_dropped:
-                warnings.warn(f"{type(self).__name__}.event_log: {dropped - self.event_log_dropped} events of one "
-                              f"step beyond LOG_CAPACITY = {LOG_CAPACITY} were not recorded", RuntimeWarning,
-                              stacklevel=3)
-                self.event_log_dropped = dropped
+            self._drain(stacklevel=4)  # the user's frame: _drain, _collect, advance or mode, the user
 
-    @property
-    def event_log(self):
-        """None, or the list every event is appended to as (t, EventKind)."""
-        return self._event_log
-
-    @event_log.setter
-    def event_log(self, value):
-        self._api.log(self._handle, 0 if value is None else LOG_CAPACITY)
-        self._event_log = value
-        self.event_log_dropped = 0
-
-    # -- copies --------------------------------------------------------------------------------------
+    # -- copies -------------------------------------------------------------------------------------
     def copy(self):
         """An independent exact copy (the C instance copied; crossings and the event log list copied; the
         ``modes`` dict and the budget shared, as the solvers of one study share them)."""
-        handle = self._api.copy(self._handle)
-        if not handle:
-            raise MemoryError("out of memory (a copy of a dfwb_loop)")
-        clone = object.__new__(type(self))
-        clone.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_")})
-        clone._setup(self._core, ctypes.c_void_p(handle), self._modes, self._budget, self._level)
+        clone = super().copy()
         clone.crossings = list(self.crossings)
-        if self._event_log is not None:
-            clone.event_log = list(self._event_log)
         return clone
 
-    __copy__ = copy
+    def __deepcopy__(self, memo):
+        """A copy with its own ``modes`` dict, budget, crossings and event log (as deepcopy of a Python loop)."""
+        clone = super().__deepcopy__(memo)
+        clone._modes = copy.deepcopy(self._modes, memo)
+        clone._budget = copy.deepcopy(self._budget, memo)
+        clone.crossings = copy.deepcopy(self.crossings, memo)
+        return clone
 
     # -- the state as bytes ------------------------------------------------------------------------------
     def _constants(self):
@@ -776,68 +773,22 @@ class _NativeLoop:
         self._api.parameters(self._handle, out)
         return out[:]
 
-    def same_parameters(self, other):
-        """Whether ``other`` is a native loop of the same plant on the same core with bit-identical fixed
-        parameters: the plant's constants, G's coefficients, the section (-0.0 differs from 0.0)."""
-        if not (isinstance(other, _NativeLoop) and other._plant == self._plant
-                and getattr(other, "_core", None) is self._core and self._handle and other._handle):
-            return False
-        return bool(self._api.same_parameters(self._handle, other._handle))
-
-    def to_bytes(self):
-        """The loop's state as bytes (not in it: the crossings and the event log): see :meth:`from_bytes`."""
-        api = self._api
-        size = ctypes.c_size_t(api.state_size)
-        buf = ctypes.create_string_buffer(api.state_size)
-        code = api.to_bytes(self._handle, buf, api.state_size, ctypes.byref(size), self._err, ERRLEN)
-        if code != OK:
-            _raise(code, self._err)
-        return buf.raw[:size.value]
-
     @classmethod
     def from_bytes(cls, data, *, core=None, modes=None, budget=None):
         """A loop from the bytes of :meth:`to_bytes` (StateRefused, one line, for anything else); ``modes`` and
         ``budget`` as the constructor's."""
-        core = core if core is not None else cls.core
-        if core is None:
-            raise CoreError(f"{cls.__name__}.from_bytes needs a C core: pass core=load(path)")
-        if not isinstance(data, (bytes, bytearray, memoryview)):
-            raise StateRefused(f"a solver state must be bytes, not {type(data).__name__}")
-        data = bytes(data)
-        handle = ctypes.c_void_p()
-        err = ctypes.create_string_buffer(ERRLEN)
-        code = core.loop_api.from_bytes(_LOOPS[cls._plant][0], data, len(data), ctypes.byref(handle), err, ERRLEN)
-        if code != OK:
-            _raise(code, err)
-        loop = object.__new__(cls)
+        core, handle = cls._from_state(data, core, _LOOPS[cls._plant][0])
         level = ctypes.c_double()
         section = level.value if core.loop_api.section(handle, ctypes.byref(level)) else None
+        loop = object.__new__(cls)
         loop._setup(core, handle, modes, budget, section)
         for name, value in zip(cls._constant_names, loop._constants()):
             setattr(loop, name, value)
         return loop
 
     def __reduce__(self):
-        return (_restore_loop, (str(self._core.path), self._plant, self.to_bytes(), self._event_log,
-                                self.crossings))
-
-    def __deepcopy__(self, memo):
-        """A copy with its own ``modes`` dict, budget, crossings and event log (as deepcopy of a Python loop)."""
-        clone = self.copy()
-        clone._modes = copy.deepcopy(self._modes, memo)
-        clone._budget = copy.deepcopy(self._budget, memo)
-        clone.crossings = copy.deepcopy(self.crossings, memo)
-        if self._event_log is not None:
-            clone._event_log = copy.deepcopy(self._event_log, memo)
-        return clone
-
-    def __del__(self):
-        handle, self._handle = getattr(self, "_handle", None), None
-        if handle:
-            try:
-                self._api.free(handle)
-            except Exception:  # noqa: BLE001 - interpreter shutdown: the library may be gone
-                pass
+        function, args = super().__reduce__()
+        return function, args + (self.crossings,)
 
 
 class NativeFrictionLoop(_NativeLoop):
@@ -847,12 +798,6 @@ class NativeFrictionLoop(_NativeLoop):
     _keys = (_loops.STICK, ("slide", 1), ("slide", -1))
     _counter = "sticks"
     _constant_names = ("M", "B", "Fc", "Fs")
-    coordinates = _loops.FrictionLoop.coordinates
-    OUTPUT = _loops.FrictionLoop.OUTPUT
-    initial_parameters = _loops.FrictionLoop.initial_parameters
-    coordinates_of = staticmethod(_loops.FrictionLoop.coordinates_of)
-    translate = _loops.FeedbackLoop.translate
-    check_coordinates = _loops.FrictionLoop.check_coordinates
 
     def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
                  section=None, modes=None, budget=None, *, core=None):
@@ -873,12 +818,6 @@ class NativeBacklashLoop(_NativeLoop):
     _keys = (_loops.FREE, ("contact", -1), ("contact", 1))
     _counter = "impacts"
     _constant_names = ("M1", "M2", "h", "eps", "r2", "tol_h")
-    coordinates = _loops.BacklashLoop.coordinates
-    OUTPUT = _loops.BacklashLoop.OUTPUT
-    initial_parameters = _loops.BacklashLoop.initial_parameters
-    coordinates_of = staticmethod(_loops.BacklashLoop.coordinates_of)
-    translate = _loops.FeedbackLoop.translate
-    check_coordinates = _loops.BacklashLoop.check_coordinates
 
     def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
                  state=None, section=None, modes=None, budget=None, *, core=None):
@@ -903,12 +842,6 @@ class NativeStaticBacklashLoop(_NativeLoop):
     _keys = (_loops.FREE, ("engaged", 1), ("engaged", -1))
     _counter = "engagements"
     _constant_names = ("M", "k", "h")
-    coordinates = _loops.StaticBacklashLoop.coordinates
-    OUTPUT = _loops.StaticBacklashLoop.OUTPUT
-    initial_parameters = _loops.StaticBacklashLoop.initial_parameters
-    coordinates_of = staticmethod(_loops.StaticBacklashLoop.coordinates_of)
-    translate = _loops.StaticBacklashLoop.translate
-    check_coordinates = _loops.StaticBacklashLoop.check_coordinates
 
     def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None,
                  budget=None, *, core=None):
