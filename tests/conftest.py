@@ -100,3 +100,19 @@ def native_fmus(tmp_path_factory):
     paths = build_native(tmp_path_factory.mktemp("native_fmus"), report=lambda message: None,
                          extra_flags=("-Wall", "-Wextra", "-Werror"))
     return {path.stem: path for path in paths}
+
+
+@pytest.fixture
+def solver(monkeypatch):
+    """use(kind) for the FMUs on the compiled core: None unsets DFWB_FMU_SOLVER, "python" or "native" sets it
+    (for the instances made next)."""
+    from dfwb.fmus import facade
+
+    def use(kind):
+        if kind is None:
+            monkeypatch.delenv(facade.SOLVER_VARIABLE, raising=False)
+        else:
+            monkeypatch.setenv(facade.SOLVER_VARIABLE, kind)
+
+    use(None)
+    return use

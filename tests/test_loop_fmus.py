@@ -3,13 +3,12 @@
 import math
 import pickle
 import re
-import struct
 
 import fmpy
 import pytest
-from conftest import new_instance
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
+from native_fmu_helpers import initialised, read, run
 
 from dfwb.build_fmus import builder
 from dfwb.fmi import location
@@ -174,7 +173,7 @@ def test_a_high_order_controller_and_a_start_time(loop_fmus):
     start = dict({f"a{i}": coefficients[i] for i in range(1, 9)}, order=8, b8=coefficients[8] * 2.0, z1_0=1.0,
                  x0=0.05)
     fmu, description, messages = _instance(loop_fmus, "StaticBacklashLoop", start, start_time=2.0)
-    t = _run(fmu, 2.0, 4.0, 0.25)
+    t = run(fmu, 2.0, 4.0, 0.25)
     solver = _solver("StaticBacklashLoop", start)
     solver.advance(t - 2.0)
     assert _outputs(fmu, description, "StaticBacklashLoop") == _expected("StaticBacklashLoop", solver)
@@ -223,7 +222,7 @@ def test_a_diverging_loop_is_an_error_and_the_outputs_stay_finite(loop_fmus, mod
     assert "refused" in messages[0][1], messages
     fmu, description, messages = _instance(loop_fmus, model, start)
     with pytest.raises(Exception, match="failed with status 3"):
-        _run(fmu, 0.0, 2.0, 0.1)
+        run(fmu, 0.0, 2.0, 0.1)
     assert all(math.isfinite(value) for value in fmu.getReal([v.valueReference for v in description.modelVariables
                                                               if v.type == "Real"]))
     with pytest.raises(Exception, match="failed with status 3"):  # the Error state: no more steps
@@ -261,32 +260,7 @@ def test_no_exception_leaves_a_callback():
 
 def _instance(fmus, model, start, start_time=0.0):
     """(raw FMU2Slave initialised with ``start``, its description, its log)."""
-    fmu, description, messages = new_instance(fmus[model], model)
-    fmu.setupExperiment(startTime=start_time)
-    fmu.enterInitializationMode()
-    by_name = {v.name: v for v in description.modelVariables}
-    for name, value in start.items():
-        var = by_name[name]
-        if var.type == "Integer":
-            fmu.setInteger([var.valueReference], [int(value)])
-        else:
-            fmu.setReal([var.valueReference], [float(value)])
-    fmu.exitInitializationMode()
-    return fmu, description, messages
-
-
-def _run(fmu, t, t_end, dt):
-    while t < t_end - 1e-12:
-        fmu.doStep(t, dt)
-        t += dt
-    return t
-
-
-def _read(fmu, description):
-    """Every Real (as bit patterns) and Integer variable."""
-    reals = [v.valueReference for v in description.modelVariables if v.type == "Real"]
-    integers = [v.valueReference for v in description.modelVariables if v.type == "Integer"]
-    return [struct.pack("<d", value) for value in fmu.getReal(reals)], list(fmu.getInteger(integers))
+    return initialised(fmus[model], start, start_time, name=model)
 
 
 def _outputs(fmu, description, model):
@@ -302,18 +276,18 @@ def _outputs(fmu, description, model):
 @pytest.mark.parametrize("model", MODELS)
 def test_state_save_continue_restore_continue_is_bit_identical(loop_fmus, model):
     fmu, description, messages = _instance(loop_fmus, model, START[model])
-    t1 = _run(fmu, 0.0, 1.5, 0.0137)
+    t1 = run(fmu, 0.0, 1.5, 0.0137)
     saved = fmu.getFMUstate()
     data = fmu.serializeFMUstate(saved)
-    t2 = _run(fmu, t1, 3.0, 0.0137)
-    first = _read(fmu, description)
+    t2 = run(fmu, t1, 3.0, 0.0137)
+    first = read(fmu, description)
     fmu.setFMUstate(saved)
-    assert _run(fmu, t1, 3.0, 0.0137) == t2
-    assert _read(fmu, description) == first
+    assert run(fmu, t1, 3.0, 0.0137) == t2
+    assert read(fmu, description) == first
     fresh, _, fresh_messages = _instance(loop_fmus, model, {})  # default parameters: the state brings its own
     fresh.setFMUstate(fresh.deSerializeFMUstate(data))
-    _run(fresh, t1, 3.0, 0.0137)
-    assert _read(fresh, description) == first
+    run(fresh, t1, 3.0, 0.0137)
+    assert read(fresh, description) == first
     fmu.freeFMUstate(saved)
     assert not [m for m in messages + fresh_messages if m[0] >= 3]
     solver = _solver(model)

@@ -24,10 +24,12 @@ import struct
 import subprocess
 import sys
 import time
-import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
+from native_fmu_helpers import HEADER, with_crc
+from test_periodic import LOOPS as PERIODIC  # tests/test_periodic.py's loops
 
 from dfwb.engine.periodic import MAX_CHUNKS, LoopProblem, find_cycles
 from dfwb.fmus.exact import PlantError
@@ -277,19 +279,6 @@ def test_section_started_on_the_level(core):
 
 
 # -- dfwb.engine.periodic with the C classes swapped in ----------------------------------------------------------
-PERIODIC = {  # tests/test_periodic.py's loops
-    "friction_pid": ("friction", "20 + 100/s + 2*s/(0.1*s+1)", {}, 0.3),
-    "friction_pi": ("friction", "30 + 60/s", {}, 0.1),
-    "friction_pid_stiff": ("friction", "40 + 200/s + 4*s/(0.05*s+1)", {}, 0.1),
-    "backlash_lead_eps02": ("backlash", "200*(s+2)/(s+20)", {"eps": 0.2}, 0.03),
-    "backlash_lead_eps08": ("backlash", "200*(s+2)/(s+20)", {"eps": 0.8}, 0.03),
-    "backlash_lead_eps05": ("backlash", "100*(s+1)/(s+10)", {"eps": 0.5}, 0.03),
-    "backlash_lead_plastic": ("backlash", "50*(s+3)/(s+30)", {"eps": 0.0}, 0.1),
-    "static_backlash_lead": ("static-backlash", "20*(s+2)/(s+20)", {}, 0.3),
-    "static_backlash_lead2": ("static-backlash", "40*(s+1)/(s+10)", {}, 0.01),
-}
-
-
 def problem(core, plant, G, params=None, native=True, max_chunks=None):
     """A LoopProblem on the Python loops, or with the C loop class swapped in (a fresh modes cache and budget)."""
     p = LoopProblem(plant, G, params) if max_chunks is None else LoopProblem(plant, G, params, max_chunks)
@@ -517,15 +506,6 @@ def test_copies_are_independent_and_exact(core):
 
 
 # -- the state as bytes ---------------------------------------------------------------------------------------------
-HEADER = 24
-
-
-def _with_crc(data):
-    data = bytearray(data)
-    data[20:24] = struct.pack("<I", zlib.crc32(bytes(data[HEADER:])))
-    return bytes(data)
-
-
 def _states(core):
     """{NativeCore attribute: [hex of states]} along runs with a section (pending events, contacts, sticks...)."""
     found = {}
@@ -580,8 +560,8 @@ def test_damaged_states_are_refused(core):
         (core.BacklashLoop(*PID).to_bytes(), "one of a dfwb_backlash_loop, not of a dfwb_friction_loop"),
         (core.FrictionMass().to_bytes(), "one of a dfwb_friction, not of a dfwb_friction_loop"),
         (data[:-1] + bytes([data[-1] ^ 1]), "checksum does not match"),
-        (_with_crc(data[:HEADER + 32] + struct.pack("<q", 9) + data[HEADER + 40:]), "order = 9 is out of range"),
-        (_with_crc(data[:HEADER] + struct.pack("<d", -1.0) + data[HEADER + 8:]),
+        (with_crc(data[:HEADER + 32] + struct.pack("<q", 9) + data[HEADER + 40:]), "order = 9 is out of range"),
+        (with_crc(data[:HEADER] + struct.pack("<d", -1.0) + data[HEADER + 8:]),
          "parameters are refused: M = -1.0 is out of range"),
     ]
     for crafted, text in cases:
@@ -595,34 +575,24 @@ def test_damaged_states_are_refused(core):
 
 
 FUZZ = r"""
-import json, math, random, struct, sys, zlib
+import json, math, random, struct, sys
+sys.path.insert(0, sys.argv[2])
+from native_fmu_helpers import HEADER, read_or_refuse, with_crc as crc
 from dfwb.fmus.hybrid import Budget
 from dfwb.fmus.native_core import load
-from dfwb.fmus.state import StateRefused
 from dfwb.fmus.exact import PlantError
 
 core = load(sys.argv[1])
 states = json.loads(sys.stdin.read())
 rng = random.Random(7)
-HEADER = 24
 SPECIAL = [math.nan, math.inf, -math.inf, -1.0, 0.0, -0.0, 1.0, 0.5, 2.0, 3.0, 1e308, -1e308, 5e-324, 1e-300, 1e10]
 INTS = [-1, 1, 2, 3, 4, 5, 8, 9, 11, 101, 102, 2**31 - 1, -2**31, 2**62, -2**63]
 tally = {"refused": 0, "accepted": 0, "stepped": 0, "step refused": 0}
 
-def crc(data):
-    data = bytearray(data)
-    data[20:24] = struct.pack("<I", zlib.crc32(bytes(data[HEADER:])))
-    return bytes(data)
-
 def attempt(cls, data):
-    try:
-        loop = cls.from_bytes(data, budget=Budget(20000))
-    except StateRefused as error:
-        assert "\n" not in str(error) and str(error)
-        tally["refused"] += 1
+    loop = read_or_refuse(cls, data, tally, budget=Budget(20000))
+    if loop is None:
         return
-    tally["accepted"] += 1
-    assert cls.from_bytes(loop.to_bytes()).to_bytes() == loop.to_bytes()
     loop.state(); loop.output(); loop.counts(); loop.key; loop.copy()
     loop.event_log = []
     try:
@@ -662,8 +632,8 @@ def test_state_fuzzing_never_crashes(core):
     """Fields set to extreme values, fields mixed across states (checksums made valid): refused with one line,
     or accepted as a loop whose copy, outputs and next step (within a Budget) work and whose bytes read back
     the same; in a subprocess, so that a crash would fail the test, not end it."""
-    run = subprocess.run([sys.executable, "-c", FUZZ, str(core.path)], input=json.dumps(_states(core)),
-                         capture_output=True, text=True, timeout=600)
+    run = subprocess.run([sys.executable, "-c", FUZZ, str(core.path), str(Path(__file__).resolve().parent)],
+                         input=json.dumps(_states(core)), capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, f"the fuzzing process failed (exit {run.returncode}): {run.stderr[-2000:]}"
     tally = json.loads(run.stdout)
     print(f"\nloop state fuzzing: {tally}")
