@@ -13,13 +13,16 @@
      Refused: a bad parameter (at fmi2ExitInitializationMode, the solver's own message), a parameter set
      after initialisation (its value is kept), an input that is not finite or beyond 1e100, a step at
      the wrong time or of a bad length, fmi2DoStep before initialisation or after fmi2Terminate, a
-     valueReference that is not a variable of that type, NULL arrays. A step the solver refuses half
-     way keeps the outputs of the last good point (never NaN).
+     valueReference that is not a variable of that type, NULL arrays, an Integer output (a counter) beyond
+     32 bits. A step the solver refuses half way keeps the outputs of the last good point (never NaN);
+     outputs that overflow at the start leave the start values (0).
    - FMU state: fmi2GetFMUstate copies the instance exactly (the solver included); fmi2SetFMUstate
-     restores it; a serialized state ("DFWBFMUS", a version, the plant kind, the model's GUID, the
-     facade's values, the solver's checked bytes of dfwb_*_to_bytes) is accepted only by this model of
-     the same build, and only when every field is valid and the solver's fixed parameters are those its
-     parameter values make (dfwb_*_same_parameters) at the state's time.
+     restores it (the outputs are the state's own: 0 for a state before initialisation); a state handle
+     of another FMU (a tag of the GUID marks this model's) is refused, never read as this model's; a
+     serialized state ("DFWBFMUS", a version, the plant kind, the model's GUID, the facade's values, the
+     solver's checked bytes of dfwb_*_to_bytes) is accepted only by this model of the same build, and only
+     when every field is valid and the solver's fixed parameters are those its parameter values make
+     (dfwb_*_same_parameters) at the state's time.
 
    Memory: the instance and FMU states use the host's allocateMemory/freeMemory; the core mallocs its
    own. Logging: fmi2OK messages only while logging is on; warnings and errors always.
@@ -97,6 +100,7 @@ typedef struct {
 } facade;
 
 typedef struct {
+    uint64_t tag;  /* state_tag(): a state of another FMU is refused, never read as ours (0 once freed) */
     facade f;
     plant *solver; /* NULL before initialisation */
 } fmu_state;
@@ -109,7 +113,7 @@ typedef struct {
     plant *solver;
     /* derived from the solver: the outputs of the last good point, the Fourier integrals */
     double outputs[NVARS];
-    int has_outputs, overflow, frozen;
+    int overflow, frozen;
     int fourier_known;
     double cosine[NK], sine[NK];
     int rotated;
@@ -283,13 +287,12 @@ static void refresh(instance *c)
         if (!isfinite(value)) overflow = 1;
     }
     c->overflow = overflow;
-    if (overflow && c->has_outputs) return; /* never NaN: the last good point stays */
+    if (overflow) return; /* never NaN: the last good point stays (none yet, at the start: the start values) */
     for (i = 0; i < NVARS; i++) {
         int role = DFWB_MODEL_VARIABLES[i].role;
         if (role != ROLE_PARAMETER && role != ROLE_INPUT && role != ROLE_COSINE && role != ROLE_SINE)
             c->outputs[i] = fresh[i];
     }
-    c->has_outputs = 1;
     c->fourier_known = 0;
 }
 
@@ -338,7 +341,7 @@ static void defaults(instance *c)
     for (i = 0; i < NVARS; i++) c->f.values[i] = DFWB_MODEL_VARIABLES[i].start;
     c->f.phase = INSTANTIATED;
     memset(c->outputs, 0, sizeof c->outputs);
-    c->has_outputs = c->overflow = c->frozen = c->fourier_known = c->rotated = 0;
+    c->overflow = c->frozen = c->fourier_known = c->rotated = 0;
 }
 
 static void *allocate(const instance *c, size_t size) { return c->cb.allocateMemory(1, size); }
@@ -579,7 +582,15 @@ FMI_API fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueRefere
         if (value) memset(value, 0, n * sizeof value[0]);
         return fmi2Error;
     }
-    for (i = 0; i < n; i++) value[i] = (fmi2Integer)value_of(c, vr[i], &ok);
+    for (i = 0; i < n; i++) {
+        double x = value_of(c, vr[i], &ok);
+        if (!(x >= -2147483648.0 && x <= 2147483647.0)) { /* a counter of a long run or of a crafted state */
+            memset(value, 0, n * sizeof value[0]);
+            return refuse(c, "getInteger: %s = %.0f does not fit a 32-bit Integer", DFWB_MODEL_VARIABLES[vr[i]].name,
+                          x);
+        }
+        value[i] = (fmi2Integer)x;
+    }
     return fmi2OK;
 }
 
@@ -680,10 +691,29 @@ FMI_API fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[],
 }
 
 /* -- FMU state ----------------------------------------------------------------------------------- */
+/* What marks a state of this model (FNV-1a of its GUID): a handle of another FMU's state is refused. */
+static uint64_t state_tag(void)
+{
+    uint64_t h = 14695981039346656037u;
+    const char *p;
+    for (p = DFWB_MODEL_GUID; *p; p++) h = (h ^ (unsigned char)*p) * 1099511628211u;
+    return h;
+}
+
+/* The state behind a non-NULL handle, or NULL after a refusal: not a state of this model. */
+static fmu_state *own_state(instance *c, const char *call, void *state)
+{
+    fmu_state *s = state;
+    if (s->tag == state_tag()) return s;
+    refuse(c, "%s: the state is not one of this FMU (%s): another FMU's, or freed", call, DFWB_MODEL_NAME);
+    return NULL;
+}
+
 static void free_state(const instance *c, fmu_state *s)
 {
     if (!s) return;
     CORE(free)(s->solver);
+    s->tag = 0;
     c->cb.freeMemory(s);
 }
 
@@ -695,6 +725,7 @@ FMI_API fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
     if (!c) return fmi2Error;
     if (!state) return refuse(c, "getFMUstate: a NULL pointer for the state");
     if (!expect(c, "getFMUstate", ANY_BUT_ERROR)) return fmi2Error;
+    if (*state && !own_state(c, "getFMUstate", *state)) return fmi2Error;
     if (c->solver && !(copy = CORE(copy)(c->solver))) return refuse(c, "getFMUstate failed: out of memory");
     s = *state; /* a state given back is overwritten in place */
     if (s) {
@@ -703,6 +734,7 @@ FMI_API fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
         CORE(free)(copy);
         return refuse(c, "getFMUstate failed: out of memory");
     }
+    s->tag = state_tag();
     s->f = c->f;
     s->solver = copy;
     *state = s;
@@ -758,12 +790,14 @@ FMI_API fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
     plant *copy = NULL;
     if (!c) return fmi2Error;
     if (!s) return refuse(c, "setFMUstate: a NULL state");
-    if (!state_ok(c, s)) return fmi2Error;
+    if (!own_state(c, "setFMUstate", state) || !state_ok(c, s)) return fmi2Error;
     if (s->solver && !(copy = CORE(copy)(s->solver))) return refuse(c, "setFMUstate failed: out of memory");
     CORE(free)(c->solver);
     c->solver = copy;
     c->f = s->f;
     c->frozen = 0; /* PlantFMU._restored */
+    c->overflow = c->fourier_known = 0; /* nothing of this instance's run: a state before initialisation reads */
+    memset(c->outputs, 0, sizeof c->outputs); /* as a reset instance, 0 */
     set_rotation(c);
     if (c->solver) refresh(c);
     return fmi2OK;
@@ -774,6 +808,7 @@ FMI_API fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *state
     instance *c = component;
     if (!c) return fmi2Error;
     if (state && *state) {
+        if (!own_state(c, "freeFMUstate", *state)) return fmi2Error;
         free_state(c, *state);
         *state = NULL;
     }
@@ -829,6 +864,7 @@ FMI_API fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUst
     instance *c = component;
     if (!c) return fmi2Error;
     if (!state || !size) return refuse(c, "serializedFMUstateSize: a NULL state or size");
+    if (!own_state(c, "serializedFMUstateSize", state)) return fmi2Error;
     *size = FIXED + solver_bytes(((const fmu_state *)state)->solver);
     return fmi2OK;
 }
@@ -842,6 +878,7 @@ FMI_API fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUstate s
     char err[MESSAGE];
     if (!c) return fmi2Error;
     if (!s || !out) return refuse(c, "serializeFMUstate: a NULL state or buffer");
+    if (!own_state(c, "serializeFMUstate", state)) return fmi2Error;
     n = solver_bytes(s->solver);
     needed = FIXED + n;
     if (size < needed)
@@ -875,6 +912,7 @@ FMI_API fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2By
     plant *solver = NULL;
     if (!c) return fmi2Error;
     if (!p || !state) return refuse(c, "deSerializeFMUstate: a NULL buffer or state pointer");
+    if (*state && !own_state(c, "deSerializeFMUstate", *state)) return fmi2Error;
     strncpy(guid, DFWB_MODEL_GUID, GUID_BYTES);
     if (size < FIXED || memcmp(p, MAGIC, 8) != 0 || get_u64(p + 8) != (FORMAT | ((uint64_t)DFWB_MODEL_KIND << 32)))
         return refuse(c, "serialized state refused: not a state of a native %s FMU", DFWB_MODEL_NAME);
@@ -893,6 +931,7 @@ FMI_API fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2By
         return refuse(c, "deSerializeFMUstate failed: out of memory");
     }
     if (*state) CORE(free)(s->solver);
+    s->tag = state_tag();
     s->f.phase = (int)phase;
     s->f.start = get_f64(p + 8);
     s->f.time = get_f64(p + 16);
