@@ -781,6 +781,8 @@ class PlantFMU(TableFMU):
     def _restored(self):
         self._frozen = False
         self._rotation = None
+        if self.solver is None:  # a state from before initialisation: outputs as a reset instance's
+            self._values, self._fourier = {}, None
         t0 = self._start_time
         if self.solver is not None and t0 != 0.0:
             self._rotation = [cmath.exp(-1j * k * self.omega * t0) for k in range(self.solver.harmonics + 1)]
@@ -818,8 +820,8 @@ class PlantFMU(TableFMU):
         new = dict(zip((name for name, *_ in self.outputs), self.output_values()))
         new["events"] = self.solver.events
         self._overflow = not all(math.isfinite(value) for value in new.values())
-        if self._overflow and self._values:
-            return  # the outputs stay those of the last good point (never NaN)
+        if self._overflow:
+            return  # never NaN: the outputs stay those of the last good point (none yet at the start: zeros)
         self._values.update(new)
         self._fourier = None
 
