@@ -23,11 +23,11 @@ import struct
 import subprocess
 import sys
 import time
-from array import array
 from pathlib import Path
 
 import pytest
 from native_fmu_helpers import HEADER, with_crc
+from test_native_core import Agreement, _bits, step_both
 
 from dfwb.fmus import native_core
 from dfwb.fmus.backlash import TwoMassBacklash
@@ -49,7 +49,6 @@ from dfwb.verify.stress import all_cases
 
 pytestmark = pytest.mark.needs_cc
 
-RTOL = 1e-13
 
 PLANTS = {  # stress plant name -> (Python class, NativeCore attribute, counters)
     "backlash": (TwoMassBacklash, "TwoMassBacklash", ("contact", "impacts")),
@@ -72,73 +71,12 @@ def stress_cases():
     return out
 
 
-def _bits(value):
-    return array("d", [value]).tobytes()
-
-
-class Agreement:
-    """Tally of compared values: how many, how many bit-identical, the largest relative difference."""
-
-    def __init__(self, counters):
-        self.counters = counters
-        self.values = self.identical = self.points = self.events = 0
-        self.worst = 0.0
-
-    def compare(self, where, a, b):
-        """a (Python) and b (C) at one point: same events and counters, values equal to RTOL relative."""
-        self.points += 1
-        assert a.events == b.events, f"{where}: events {a.events} (Python) != {b.events} (C)"
-        assert a.t == b.t, f"{where}: t {a.t!r} != {b.t!r}"
-        for name in self.counters:
-            mine, theirs = getattr(a, name), getattr(b, name)
-            assert mine == theirs and type(theirs) is int, f"{where}: {name} {mine} != {theirs}"
-        out_a, out_b = a.output(), b.output()
-        assert type(out_a) is type(out_b)
-        va = list(out_a) + [c for z in a.integrals() for c in (z.real, z.imag)]
-        vb = list(out_b) + [c for z in b.integrals() for c in (z.real, z.imag)]
-        assert len(va) == len(vb)
-        for i, (x, y) in enumerate(zip(va, vb)):
-            self.values += 1
-            if _bits(x) == _bits(y):
-                self.identical += 1
-                continue
-            if x == y:  # 0.0 and -0.0
-                continue
-            scale = max(abs(x), abs(y))
-            rel = abs(x - y) / scale if scale > 0 else 0.0
-            self.worst = max(self.worst, rel)
-            assert rel <= RTOL, f"{where}: value {i}: {x!r} (Python) != {y!r} (C), relative {rel:.3g}"
-        self.events = max(self.events, a.events)
-
-    def summary(self, label):
-        share = self.identical / self.values if self.values else 1.0
-        return (f"{label}: {self.points} points, {self.values} values, {self.identical} bit-identical "
-                f"({100 * share:.4f} %), max relative difference {self.worst:.3g}")
-
-
 def _native_class(core, plant):
     return getattr(core, PLANTS[plant][1])
 
 
 def _step_both(plant, case, core, agreement, where, restore=False):
-    """Run the Python and the C solver through a case's points (inputs set before each step); with
-    ``restore`` the C solver is replaced by one read back from its state bytes at every point."""
-    python_class, _, _ = PLANTS[plant]
-    native_class = _native_class(core, plant)
-    a, b = python_class(**case.params), native_class(**case.params)
-    agreement.compare(f"{where} t=0", a, b)
-    for j, t in enumerate(case.times):
-        if case.inputs is not None:
-            a.set_input(case.inputs[j])
-            b.set_input(case.inputs[j])
-        a.advance(t)
-        b.advance(t)
-        agreement.compare(f"{where} t={t!r}", a, b)
-        if restore:
-            data = b.to_bytes()
-            b = native_class.from_bytes(data)
-            assert b.to_bytes() == data, f"{where} t={t!r}: the state read back writes other bytes"
-    return a, b
+    return step_both(PLANTS[plant][0], _native_class(core, plant), case, agreement, where, restore)
 
 
 # -- agreement ---------------------------------------------------------------------------
