@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 from native_fmu_helpers import HEADER, with_crc
-from test_native_core import Agreement, _bits, step_both
+from test_native_core import Agreement, _bits, step_both, trace
 
 from dfwb.fmus import native_core
 from dfwb.fmus.backlash import TwoMassBacklash
@@ -152,27 +152,6 @@ def _extreme_static(rng):
     return params, F, w
 
 
-def _trace(make, times, inputs, counters):
-    """(outcome, the values read at every point) of one run; outcome 'ok' or 'Type: message'."""
-    values = []
-
-    def read(plant):
-        values.extend([*plant.output(), *(c for z in plant.integrals() for c in (z.real, z.imag)),
-                       plant.events, plant.t, *(getattr(plant, name) for name in counters)])
-
-    try:
-        plant = make()
-        read(plant)
-        for t, f in zip(times, inputs):
-            if f is not None:
-                plant.set_input(f)
-            plant.advance(t)
-            read(plant)
-    except Exception as error:  # noqa: BLE001 - the C core must raise what Python raises
-        return f"{type(error).__name__}: {error}", values, plant.events if "plant" in locals() else 0
-    return "ok", values, plant.events
-
-
 @pytest.mark.parametrize("plant", list(PLANTS))
 def test_extreme_parameters_agree(core, plant):
     """Seeded random parameters over the whole float range: the same values (NaN equal to NaN) or the
@@ -190,11 +169,11 @@ def test_extreme_parameters_agree(core, plant):
         period = 2.0 * math.pi / w
         times = sorted(period * rng.uniform(0.0, 3.0) for _ in range(rng.randint(1, 12)))
         inputs = [rng.choice([None, 0.0, F * rng.uniform(-2.0, 2.0)]) for _ in times]
-        native = _trace(lambda: native_class(**params), times, inputs, counters)
+        native = trace(lambda: native_class(**params), times, inputs, counters)
         if native[2] > 3000 or "events per period" in native[0]:
             skipped += 1
             continue
-        python = _trace(lambda: python_class(**params), times, inputs, counters)
+        python = trace(lambda: python_class(**params), times, inputs, counters)
         assert native[0] == python[0], f"case {i} {params}"
         assert len(native[1]) == len(python[1]), f"case {i} {params}"
         for x, y in zip(python[1], native[1]):
@@ -209,8 +188,8 @@ def test_extreme_parameters_agree(core, plant):
 def test_event_limit_refusal_agrees(core):
     """A bounce in a clearance of 1e-280 m chatters: both stop at the events-per-period bound, alike."""
     params = dict(M1=1.0, M2=1.0, h=1e-280, eps=1.0, F=0.0, v1_0=0.0, v2_0=1.0, omega=1.0)
-    python = _trace(lambda: TwoMassBacklash(**params), [1e-262], [None], ("contact", "impacts"))
-    native = _trace(lambda: core.TwoMassBacklash(**params), [1e-262], [None], ("contact", "impacts"))
+    python = trace(lambda: TwoMassBacklash(**params), [1e-262], [None], ("contact", "impacts"))
+    native = trace(lambda: core.TwoMassBacklash(**params), [1e-262], [None], ("contact", "impacts"))
     assert python[0].startswith("PlantError: more than 100000 events per period")
     assert native[:2] == python[:2]
 

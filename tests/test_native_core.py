@@ -184,14 +184,16 @@ def _extreme_case(rng):
     return params, times, inputs
 
 
-def _trace(make, times, inputs):
-    """(outcome, the values read at every point) of one run; outcome 'ok' or 'Type: message'."""
+def trace(make, times, inputs, counters=()):
+    """(outcome, the values read at every point, the events so far) of one run; outcome 'ok' or
+    'Type: message'. ``counters``: the solver's integer attributes read too (contact, impacts, engaged)."""
     values = []
 
     def read(plant):
         values.extend([*plant.output(), *(c for z in plant.integrals() for c in (z.real, z.imag)),
-                       plant.events, plant.t])
+                       plant.events, plant.t, *(getattr(plant, name) for name in counters)])
 
+    plant = None
     try:
         plant = make()
         read(plant)
@@ -201,8 +203,8 @@ def _trace(make, times, inputs):
             plant.advance(t)
             read(plant)
     except Exception as error:  # noqa: BLE001 - the C core must raise what Python raises
-        return f"{type(error).__name__}: {error}", values
-    return "ok", values
+        return f"{type(error).__name__}: {error}", values, 0 if plant is None else plant.events
+    return "ok", values, plant.events
 
 
 def test_extreme_parameters_agree(core):
@@ -212,8 +214,8 @@ def test_extreme_parameters_agree(core):
     outcomes = {}
     for i in range(150):
         params, times, inputs = _extreme_case(rng)
-        python = _trace(lambda: FrictionMass(**params), times, inputs)
-        native = _trace(lambda: core.FrictionMass(**params), times, inputs)
+        python = trace(lambda: FrictionMass(**params), times, inputs)
+        native = trace(lambda: core.FrictionMass(**params), times, inputs)
         assert native[0] == python[0], f"case {i} {params}"
         assert len(native[1]) == len(python[1])
         for x, y in zip(python[1], native[1]):
