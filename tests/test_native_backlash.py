@@ -27,12 +27,12 @@ from pathlib import Path
 
 import pytest
 from native_fmu_helpers import HEADER, with_crc
-from test_native_core import Agreement, _bits, step_both, trace
+from test_native_core import Agreement, _bits, refusal_pair, step_both, stress_refusals_agree, trace
 
 from dfwb.fmus import native_core
 from dfwb.fmus.backlash import TwoMassBacklash
 from dfwb.fmus.contract import BacklashOutput, EventKind, Solver, StaticBacklashOutput
-from dfwb.fmus.exact import PHASE_LIMIT, PlantError
+from dfwb.fmus.exact import PHASE_LIMIT
 from dfwb.fmus.friction import FrictionMass
 from dfwb.fmus.native_core import (
     ABI,
@@ -195,40 +195,13 @@ def test_event_limit_refusal_agrees(core):
 
 
 # -- refusals ----------------------------------------------------------------------------
-def _refusal(make, action):
-    try:
-        plant = make()
-        action(plant)
-    except PlantError as error:
-        return str(error)
-    return None
-
-
 def _refusal_pair(core, plant, params, action=lambda plant: None):
-    python_class = PLANTS[plant][0]
-    native_class = _native_class(core, plant)
-    return _refusal(lambda: python_class(**params), action), _refusal(lambda: native_class(**params), action)
+    return refusal_pair(PLANTS[plant][0], _native_class(core, plant), params, action)
 
 
 @pytest.mark.parametrize("plant", list(PLANTS))
 def test_every_python_refusal_is_a_c_refusal(core, stress_cases, plant):
-    checked = 0
-    for case in stress_cases[plant][1]:
-        if case.action == "set_input":
-            def action(solver, value=case.value):
-                solver.set_input(value)
-        elif case.action == "advance":
-            def action(solver, value=case.value):
-                solver.advance(1.0)
-                solver.advance(value)
-        else:
-            def action(solver):
-                return None
-        python, native = _refusal_pair(core, plant, case.params, action)
-        assert python is not None and python.startswith(f"{case.name} = "), case.describe()
-        assert native == python, case.describe()
-        checked += 1
-    assert checked == len(stress_cases[plant][1])
+    stress_refusals_agree(PLANTS[plant][0], _native_class(core, plant), stress_cases[plant][1])
 
 
 @pytest.mark.parametrize("plant, params, action, name", [
