@@ -94,7 +94,7 @@ def fmu_path(model, fmu_dir=None, kind=None):
     return build(fmu_folder(fmu_dir), [cls], report=lambda message: None)[0]
 
 
-_CORES = {}  # {library path: NativeCore}: each compiled core is loaded once per process
+_CORES = {}  # {folder: NativeCore}: each core is built (sources hashed) and loaded once per process and folder
 
 
 def native_core(fmu_dir=None, kind=None):
@@ -111,11 +111,11 @@ def native_core(fmu_dir=None, kind=None):
     from dfwb.build_fmus.core import build_core
     from dfwb.fmus.native_core import load
 
+    folder = fmu_folder(fmu_dir) / NATIVE_FOLDER
     try:
-        path = build_core(fmu_folder(fmu_dir) / NATIVE_FOLDER)
-        if path not in _CORES:
-            _CORES[path] = load(path)
-        return _CORES[path]
+        if folder not in _CORES:  # a continuation makes a problem per gain: hash the sources once
+            _CORES[folder] = load(build_core(folder))
+        return _CORES[folder]
     except (DfwbError, OSError) as error:
         warnings.warn(f"the compiled core cannot be used ({error}): the pure-Python solvers run instead",
                       RuntimeWarning, stacklevel=2)
