@@ -150,9 +150,12 @@ def test_no_cache_writes_no_cache(fmus, tmp_path, monkeypatch):
 
 
 def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tmp_path):
+    """A run killed half way keeps the points it wrote and a rerun computes only the rest. Enough points
+    that the run lasts well over the 50 ms poll (a native backlash point takes a fraction of a ms)."""
+    points = 1500
     path = tmp_path / "long.toml"
     path.write_text('title = "long"\n[[series]]\nname = "b"\nplant = "backlash"\nF = [50.0]\n'
-                    'omega = {log = [12.0, 60.0, 40]}\ngrid = {eps = [0.3]}\n')
+                    f'omega = {{log = [12.0, 60.0, {points}]}}\ngrid = {{eps = [0.3]}}\n')
     out = tmp_path / "out"
     command = [sys.executable, "-m", "dfwb.cli", "run", str(path), "--out", str(out), "--jobs", "1", "--no-cache",
                "--quiet"]
@@ -167,11 +170,11 @@ def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tm
                 break
     process.send_signal(signal.SIGKILL)
     process.wait()
-    assert 5 <= rows < 40, "the run finished before it could be interrupted"
+    assert 5 <= rows < points, "the run finished before it could be interrupted"
     kept = (out / "results.csv").read_text().count("\n") - 1
     assert not (out / "results.json").exists() and not (out / "summary.md").exists()
     outcome = run_scene(path, out, jobs=1, cache=False, progress=False)
-    assert outcome.resumed >= kept >= rows and outcome.computed == 40 - outcome.resumed
+    assert outcome.resumed >= kept >= rows and outcome.computed == points - outcome.resumed
     run_scene(path, tmp_path / "fresh", jobs=1, cache=False, progress=False)
     assert results(out) == results(tmp_path / "fresh")
     assert not list(out.rglob("*.partial"))
