@@ -94,10 +94,12 @@ def test_a_different_sweep_is_not_mixed_into_a_folder(fmus, tmp_path):
 
 
 def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path):
-    """SIGKILL in the middle of a sweep: every finished point survives; the rerun completes it."""
+    """SIGKILL in the middle of a sweep: every finished point survives; the rerun completes it. Enough points
+    that the sweep outlasts the poll (a native friction point takes about 0.1 ms)."""
+    points = 1500
     out = tmp_path / "killed"
     argv = [sys.executable, "-m", "dfwb.cli", "sweep", "friction", "--F", "10", "30", "50",
-            "--omega-log", "0.05", "5", "20", "--out", str(out), "--jobs", "1", "--quiet"]
+            "--omega-log", "0.05", "5", str(points // 3), "--out", str(out), "--jobs", "1", "--quiet"]
     process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     csv_path = out / "results.csv"
     deadline = time.monotonic() + 60
@@ -109,12 +111,12 @@ def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path):
     process.wait()
     with open(csv_path) as handle:
         kept = list(csv.DictReader(handle))
-    assert 5 <= len(kept) < 60
+    assert 5 <= len(kept) < points
     finished = subprocess.run(argv, capture_output=True, text=True, timeout=120)
     assert finished.returncode == 0, finished.stderr
     with open(csv_path) as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 60
+    assert len(rows) == points
     assert rows[: len(kept)] == kept
 
 

@@ -353,8 +353,9 @@ def _alive(pid):
 
 
 def test_workers_exit_when_their_parent_is_killed(fmus, tmp_path):
+    # 60,000 points: the workers are still busy when the parent dies (a native friction point takes ~0.1 ms)
     argv = [sys.executable, "-m", "dfwb.cli", "sweep", "friction", "--F", "10", "30", "50", "--omega-log", "0.05",
-            "5", "200", "--out", str(tmp_path / "o"), "--jobs", "2", "--quiet", "--fmus", str(Path(fmus["FrictionMass"]).parent)]
+            "5", "20000", "--out", str(tmp_path / "o"), "--jobs", "2", "--quiet", "--fmus", str(Path(fmus["FrictionMass"]).parent)]
     process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 90
     children = []
@@ -375,7 +376,8 @@ def test_workers_exit_when_their_parent_is_killed(fmus, tmp_path):
 
 
 def test_sigterm_during_a_step_reads_interrupted(fmus, tmp_path):
-    argv = [sys.executable, "-m", "dfwb.cli", "df", "backlash", "--F", "50", "--omega-log", "1", "100", "20000",
+    # 100,000 points: about half a minute on the native FMU, still stepping when the signal comes at 4 s
+    argv = [sys.executable, "-m", "dfwb.cli", "df", "backlash", "--F", "50", "--omega-log", "1", "100", "100000",
             "--fmus", str(Path(fmus["FrictionMass"]).parent)]
     process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     time.sleep(4.0)  # imports done, deep in the FMU's steps
