@@ -513,8 +513,6 @@ def parser():
 
 
 def main(argv=None):
-    # dfwb's scene schema uses no pydantic plugin: skip their discovery (importlib.metadata, ~10 ms a start)
-    os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
     from dfwb.base.errors import DfwbError
     from dfwb.base.stop import handling_signals
 

@@ -31,7 +31,7 @@ outputs = ["x"]
 # Never loaded by a cached re-run of SCENE (no log-spaced grid, no limit cycle): what runs, draws or shows work.
 NOT_NEEDED = ("control", "matplotlib", "fmpy", "numpy", "scipy", "rich", "tqdm", "multiprocessing",
               "concurrent.futures.process", "dfwb.fmi.session", "dfwb.fmi.simulation", "dfwb.plotting.plots",
-              "dfwb.build_fmus.builder")
+              "dfwb.build_fmus.builder", "pydantic")
 
 PROBE = """
 import json

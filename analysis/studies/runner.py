@@ -19,6 +19,7 @@ figures and ``summary.md`` are each written atomically.
 
 import base64
 import csv
+import dataclasses
 import functools
 import io
 import json
@@ -335,7 +336,7 @@ class SceneRun:
     def fingerprint(self, table, points):
         """A digest of everything the outputs depend on: the scene, every point's key, the code."""
         keys = [table.named(plant, F, omega, params)[0] for plant, F, omega, params in points]
-        return digest({"scene": self.scene.model_dump(mode="json"), "points": keys, "fmus": self.revisions,
+        return digest({"scene": dataclasses.asdict(self.scene), "points": keys, "fmus": self.revisions,
                        "code": self.code, "drawing": drawing_revision()})
 
     def up_to_date(self, fingerprint):

@@ -6,8 +6,8 @@ cycles against a G(s) (``[[limit_cycle]]``) and figures (``[[figure]]``).
 Everything is checked when the file is read (types, unknown keys, plant
 parameter ranges through the solvers' own checks, grids, G(s), references
 between sections), and a problem is one :class:`SceneError` naming the file,
-the key and what is allowed. The schema is written with pydantic, which
-gives typed, nested models and the path of every bad value.
+the key and what is allowed. The sections are records of
+:mod:`dfwb.base.schema` (strict types, the path of every bad value).
 
 Examples
 --------
@@ -31,17 +31,28 @@ bad.toml: series[0]: unknown parameter 'eps' for plant friction (allowed: B, Dv,
 
 import itertools
 import math
-import re
 import sys
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal, Optional
-
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from typing import Optional
 
 from dfwb.base.errors import InputError
 from dfwb.base.files import read_bytes
+from dfwb.base.schema import (
+    Boolean,
+    Checked,
+    Integer,
+    Invalid,
+    ListOf,
+    Number,
+    OneOf,
+    Table,
+    TableOf,
+    Text,
+    record,
+    rule,
+)
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import names
@@ -54,7 +65,6 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 
-
 def _registered(name):
     """A registered plant's name (the registry, not this file, says which exist)."""
     known = names()
@@ -64,17 +74,25 @@ def _registered(name):
     return name
 
 
-PlantName = Annotated[str, AfterValidator(_registered)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-Force = Annotated[float, Field(ge=F_RANGE[0], le=F_RANGE[1], allow_inf_nan=False)]  # [N]: what the engine accepts
-Frequency = Annotated[float, Field(ge=OMEGA_RANGE[0], le=OMEGA_RANGE[1], allow_inf_nan=False)]  # [rad/s]
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)]
+def _has_title(title):
+    if not title.strip():
+        raise InputError("the title is empty")
+    return title
+
+
+PlantName = Checked(Text(), _registered)
+Positive = Number(gt=0)
+Force = Number(ge=F_RANGE[0], le=F_RANGE[1])  # [N]: what the engine accepts
+Frequency = Number(ge=OMEGA_RANGE[0], le=OMEGA_RANGE[1])  # [rad/s]
+NonNegative = Number(ge=0)
+Finite = Number()
+Name = Text(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)
+Params = TableOf(Finite)
 FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper")
 MAX_BYTES = 1 << 20  # a scene file: a page of TOML, never a device or a data file read whole
 MAX_SAMPLES = 2_000_000
 MAX_TRACE_PERIODS = 100_000  # the horizon the stress suite covers; a trace is for looking at, not for soaking
+SECTION = dataclass(frozen=True, kw_only=True)  # a scene's table: fields by name, read by dfwb.base.schema.record
 
 
 @dataclass(frozen=True)
@@ -107,42 +125,22 @@ class SceneError(InputError):
     """A scene that cannot run: one line naming the file, the key and what is allowed."""
 
 
-class Strict(BaseModel):
-    """No unknown keys, no silent conversions (an integer is a float, text is not)."""
-
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _known_keys(cls, data):
-        if isinstance(data, dict):
-            unknown = [key for key in data if key not in cls.model_fields]
-            if unknown:
-                raise InputError(f"unknown key {unknown[0]!r} (allowed: {', '.join(cls.model_fields)})")
-        return data
-
-
 def _check_plant(plant, params):
-    """Raise ValueError (pydantic's way) with the solver's message for a bad parameter set."""
+    """The solver's message for a bad parameter set, as an InputError (the section's problem)."""
     try:
         return find_plant(plant).check(params)
     except PlantError as error:
         raise InputError(str(error)) from None
 
 
-class Frequencies(Strict):
+@SECTION
+class Frequencies:
     """Frequencies [rad/s]: ``[w1, w2, ...]`` or ``{log = [lo, hi, n], values = [...]}``, merged and sorted."""
 
-    log: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = None  # [lo, hi, n]
-    values: list[Frequency] = []
+    log: Optional[list] = rule(ListOf(Positive, min_length=3, max_length=3), None)  # [lo, hi, n]
+    values: list = rule(ListOf(Frequency), [])
 
-    @model_validator(mode="before")
-    @classmethod
-    def _from_list(cls, data):
-        return {"values": data} if isinstance(data, list) else data
-
-    @model_validator(mode="after")
-    def _not_empty(self):
+    def __post_init__(self):
         lo, hi = OMEGA_RANGE
         if self.log is not None and not (lo <= self.log[0] < self.log[1] <= hi and self.log[2] == int(self.log[2])
                                          and 2 <= self.log[2] <= 100_000):
@@ -150,7 +148,6 @@ class Frequencies(Strict):
                              "integer 2 <= n <= 100000")
         if self.log is None and not self.values:
             raise InputError("the frequency grid is empty: give values = [...] or log = [lo, hi, n]")
-        return self
 
     def grid(self):
         spaced = []
@@ -161,18 +158,21 @@ class Frequencies(Strict):
         return sorted(set(spaced) | set(self.values))
 
 
-class Series(Strict):
+Omega = Table(Frequencies, shorthand=lambda value: {"values": value} if isinstance(value, list) else value)
+
+
+@SECTION
+class Series:
     """DF points of one plant over F x omega x the gridded parameters."""
 
-    name: Name
-    plant: PlantName
-    params: dict[str, Finite] = {}
-    grid: dict[str, Annotated[list[Finite], Field(min_length=1)]] = {}
-    F: Annotated[list[Force], Field(min_length=1)]
-    omega: Frequencies
+    name: str = rule(Name)
+    plant: str = rule(PlantName)
+    params: dict = rule(Params, {})
+    grid: dict = rule(TableOf(ListOf(Finite, min_length=1)), {})
+    F: list = rule(ListOf(Force, min_length=1))
+    omega: Frequencies = rule(Omega)
 
-    @model_validator(mode="after")
-    def _plant_accepts(self):
+    def __post_init__(self):
         both = set(self.params) & set(self.grid)
         if both:
             raise InputError(f"{sorted(both)[0]!r} is both in params and in grid: give it in one of them")
@@ -181,7 +181,6 @@ class Series(Strict):
             raise InputError(f"grid has {combos} parameter combinations: at most {MAX_POINTS}")
         for combo in self.combos():
             _check_plant(self.plant, combo)
-        return self
 
     def size(self):
         """The number of points, counted without building them."""
@@ -194,21 +193,21 @@ class Series(Strict):
                 for values in itertools.product(*(self.grid[n] for n in names))]
 
 
-class Trace(Strict):
+@SECTION
+class Trace:
     """A time response to F cos(omega t) from rest, sampled every ``step`` on [start, stop]."""
 
-    name: Name
-    plant: PlantName
-    params: dict[str, Finite] = {}
-    F: Force
-    omega: Frequency
-    start: NonNegative = 0.0
-    stop: Positive
-    step: Positive
-    outputs: Annotated[list[str], Field(min_length=1)]
+    name: str = rule(Name)
+    plant: str = rule(PlantName)
+    params: dict = rule(Params, {})
+    F: float = rule(Force)
+    omega: float = rule(Frequency)
+    start: float = rule(NonNegative, 0.0)
+    stop: float = rule(Positive)
+    step: float = rule(Positive)
+    outputs: list = rule(ListOf(Text(), min_length=1))
 
-    @model_validator(mode="after")
-    def _consistent(self):
+    def __post_init__(self):
         _check_plant(self.plant, self.params)
         if not self.start < self.stop:
             raise InputError(f"start = {self.start:g} must be < stop = {self.stop:g}")
@@ -223,29 +222,28 @@ class Trace(Strict):
             if name not in known:
                 raise InputError(f"output {name!r} is not an output of plant {self.plant} "
                                  f"(allowed: {', '.join(known)})")
-        return self
 
 
-class LimitCycle(Strict):
+@SECTION
+class LimitCycle:
     """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation
     (``verify``) and against the exact closed loop's true cycles (``exact``)."""
 
-    name: Name
-    plant: PlantName
-    params: dict[str, Finite] = {}
-    G: Optional[str] = None
-    num: Optional[list[Finite]] = None
-    den: Optional[list[Finite]] = None
-    F_range: Annotated[list[Force], Field(min_length=2, max_length=2)]
-    omega_range: Annotated[list[Frequency], Field(min_length=2, max_length=2)]
-    n_F: Annotated[int, Field(ge=2, le=1000)] = 16
-    n_omega: Annotated[int, Field(ge=2, le=1000)] = 48
-    verify: bool = False
-    exact: bool = False
-    samples_per_period: Annotated[int, Field(ge=16, le=100_000)] = 512
+    name: str = rule(Name)
+    plant: str = rule(PlantName)
+    params: dict = rule(Params, {})
+    G: Optional[str] = rule(Text(), None)
+    num: Optional[list] = rule(ListOf(Finite), None)
+    den: Optional[list] = rule(ListOf(Finite), None)
+    F_range: list = rule(ListOf(Force, min_length=2, max_length=2))
+    omega_range: list = rule(ListOf(Frequency, min_length=2, max_length=2))
+    n_F: int = rule(Integer(ge=2, le=1000), 16)
+    n_omega: int = rule(Integer(ge=2, le=1000), 48)
+    verify: bool = rule(Boolean(), False)
+    exact: bool = rule(Boolean(), False)
+    samples_per_period: int = rule(Integer(ge=16, le=100_000), 512)
 
-    @model_validator(mode="after")
-    def _consistent(self):
+    def __post_init__(self):
         _check_plant(self.plant, self.params)
         if self.exact and find_plant(self.plant).loop is None:
             raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop")
@@ -254,7 +252,6 @@ class LimitCycle(Strict):
             if not lo < hi:
                 raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
         self.transfer_function()
-        return self
 
     def transfer_function(self):
         """G(s) as a python-control TransferFunction (ValueError naming the problem)."""
@@ -267,25 +264,27 @@ class LimitCycle(Strict):
         return from_coefficients(self.num or [], self.den or [], names=("num", "den"))
 
 
-class Figure(Strict):
+@SECTION
+class Figure:
     """A figure of the scene's results."""
 
-    name: Name
-    kind: Literal["nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper"]
-    series: list[str] = []  # names of series, traces or limit cycles, by kind
-    title: str = ""
-    marks: list[Positive] = []  # frequencies marked on -1/N curves
-    xlim: Optional[Annotated[list[Finite], Field(min_length=2, max_length=2)]] = None
-    ylim: Optional[Annotated[list[Finite], Field(min_length=2, max_length=2)]] = None
-    paper: Optional[str] = None  # kind = "paper": the paper's figure, e.g. "fig03"
+    name: str = rule(Name)
+    kind: str = rule(OneOf(*FIGURE_KINDS))
+    series: list = rule(ListOf(Text()), [])  # names of series, traces or limit cycles, by kind
+    title: str = rule(Text(), "")
+    marks: list = rule(ListOf(Positive), [])  # frequencies marked on -1/N curves
+    xlim: Optional[list] = rule(ListOf(Finite, min_length=2, max_length=2), None)
+    ylim: Optional[list] = rule(ListOf(Finite, min_length=2, max_length=2), None)
+    paper: Optional[str] = rule(Text(), None)  # kind = "paper": the paper's figure, e.g. "fig03"
 
 
-class Engine(Strict):
+@SECTION
+class Engine:
     """Settings of the DF engine (see :class:`dfwb.engine.describing.DFEngine`)."""
 
-    drive: Literal["internal", "input"] = "internal"
-    samples_per_period: Annotated[int, Field(ge=4, le=100_000)] = 64
-    max_periods: Annotated[int, Field(ge=25, le=100_000)] = 150
+    drive: str = rule(OneOf("internal", "input"), "internal")
+    samples_per_period: int = rule(Integer(ge=4, le=100_000), 64)
+    max_periods: int = rule(Integer(ge=25, le=100_000), 150)
 
 
 @dataclass(frozen=True)
@@ -299,27 +298,20 @@ class Point:
     params: dict
 
 
-class Scene(Strict):
+@SECTION
+class Scene:
     """A study: see the module docstring; ``[[series]]``, ``[[trace]]``, ``[[limit_cycle]]``, ``[[figure]]``."""
 
-    title: str
-    description: str = ""
-    harmonics: bool = False  # record X0..X10 of every point (figures of kind "harmonics" imply it)
-    engine: Engine = Engine()
-    series: list[Series] = []
-    trace: list[Trace] = []
-    limit_cycle: list[LimitCycle] = []
-    figure: list[Figure] = []
+    title: str = rule(Checked(Text(), _has_title))
+    description: str = rule(Text(), "")
+    harmonics: bool = rule(Boolean(), False)  # record X0..X10 of every point (figures of kind "harmonics" imply it)
+    engine: Engine = rule(Table(Engine), Engine())
+    series: list = rule(ListOf(Table(Series)), [])
+    trace: list = rule(ListOf(Table(Trace)), [])
+    limit_cycle: list = rule(ListOf(Table(LimitCycle)), [])
+    figure: list = rule(ListOf(Table(Figure)), [])
 
-    @field_validator("title")
-    @classmethod
-    def _has_title(cls, title):
-        if not title.strip():
-            raise InputError("the title is empty")
-        return title
-
-    @model_validator(mode="after")
-    def _references(self):
+    def __post_init__(self):
         if not (self.series or self.trace or self.limit_cycle):
             raise InputError("the scene asks for nothing: give at least one [[series]], [[trace]] or [[limit_cycle]]")
         names = [item.name for group in (self.series, self.trace, self.limit_cycle, self.figure) for item in group]
@@ -332,7 +324,6 @@ class Scene(Strict):
                              "(split it)")
         for i, figure in enumerate(self.figure):
             _check_figure(self, i, figure)
-        return self
 
     def points(self):
         """Every DF point of every series, F the outer loop (duplicates kept: they cost nothing twice)."""
@@ -377,25 +368,6 @@ def _check_figure(scene, i, figure):
                              f"(allowed: {', '.join(sorted(pool)) or 'none'})")
 
 
-def _location(loc):
-    text = ""
-    for part in loc:
-        if isinstance(part, int):
-            text += f"[{part}]"
-        elif not re.match(r"^(function-|[a-z]+\[|tagged-union)", str(part)):
-            text += ("." if text else "") + str(part)
-    return text
-
-
-def _message(error):
-    message = error["msg"].removeprefix("Value error, ")
-    if error["type"] not in ("value_error", "assertion_error") and "input" in error:
-        value = error["input"]
-        if not isinstance(value, (dict, list)) or len(repr(value)) < 60:
-            message += f" (got {value!r})"
-    return message
-
-
 def parse_scene(text, source="<scene>"):
     """A validated :class:`Scene` from TOML text; SceneError names ``source``, the key and what is allowed."""
     try:
@@ -403,11 +375,9 @@ def parse_scene(text, source="<scene>"):
     except tomllib.TOMLDecodeError as error:
         raise SceneError(f"{source}: not valid TOML: {error}") from None
     try:
-        return Scene.model_validate(data)
-    except ValidationError as error:
-        first = error.errors(include_url=False)[0]
-        where = _location(first["loc"])
-        raise SceneError(f"{source}: {where + ': ' if where else ''}{_message(first)}") from None
+        return record(Scene, data)
+    except Invalid as error:
+        raise SceneError(f"{source}: {error.where + ': ' if error.where else ''}{error}") from None
 
 
 def shipped_scenes(prefix):
