@@ -30,6 +30,9 @@ PHASE_LIMIT = 1e10
 # velocity touching zero at a chunk's end; the quick set 929); more means the event cannot be
 # resolved at the plant's scale (a clearance of 1e-200 m, a motion 1e30 times the clearance).
 MAX_EVALUATIONS = 100_000
+# Events one step of a plant or loop may fire (~10 s on the compiled core): an importer's step
+# costs seconds, never hours; a longer motion is taken in several steps.
+MAX_EVENTS_PER_STEP = 10_000_000
 
 
 class DfwbError(Exception):
@@ -38,6 +41,12 @@ class DfwbError(Exception):
 
 class PlantError(DfwbError, ValueError):
     """A parameter, input or step the plant cannot accept."""
+
+
+def too_many_events(t, t_event, kind):
+    """The PlantError of a step that fires more than MAX_EVENTS_PER_STEP events."""
+    return PlantError(f"more than {MAX_EVENTS_PER_STEP} events in one step between t = {t!r} and t = {t_event!r} "
+                      f"(last event: {kind}): take smaller steps")
 
 
 def phi_real(k, y):

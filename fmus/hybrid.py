@@ -28,21 +28,24 @@ first chunk, as g / tau^j with j its leading coefficients that vanish within
 rounding, so the departure itself is not an event and an immediate return is.
 
 Every loop is bounded: a chunk's search by MAX_EVALUATIONS, the events of a
-step by EVENTS_PER_CHUNK per chunk it spans, and a step's chunks by its
-length (a time beyond TIME_LIMIT chunks of the fastest mode is refused).
+step by EVENTS_PER_CHUNK per chunk it spans and by MAX_EVENTS_PER_STEP, a
+step's chunks by MAX_CHUNKS_PER_STEP, and the time by TIME_LIMIT chunks of the
+fastest mode. So one step (an FMU's doStep) costs seconds at most; a study's
+own bound is its :class:`Budget`.
 
 Plain Python (``math``) only: this module runs inside the FMUs.
 """
 
 import math
 
-from .exact import EPS, PlantError, first_root
+from .exact import EPS, MAX_EVENTS_PER_STEP, PlantError, first_root, too_many_events
 
 TAYLOR_RADIUS = 1.0  # rho h: the Taylor terms decrease from the first
 TAYLOR_TOLERANCE = 2.0 ** -60  # relative truncation of a chunk's series
 MAX_TERMS = 40
 EVENTS_PER_CHUNK = 10_000
 TIME_LIMIT = 1e12  # chunks of the fastest mode in [0, t]: beyond, ulp(t) is a sizeable part of a chunk
+MAX_CHUNKS_PER_STEP = 10_000_000  # the chunks one step may integrate (a study's Budget is at most this)
 TREND_ROUNDING = 64.0 * EPS  # a Taylor coefficient within this (relative to its scale) is zero
 SECTION_UP, SECTION_DOWN = "section+", "section-"  # crossings of a watched function (re-anchor, not events)
 SECTION = (SECTION_UP, SECTION_DOWN)
@@ -372,7 +375,7 @@ class HybridSolver:
             raise PlantError(f"t_end = {t_end!r} s is out of range: at most {TIME_LIMIT * fastest:.6g} s "
                              f"({TIME_LIMIT:g} chunks of the fastest mode, where a float still resolves them)")
         limit = EVENTS_PER_CHUNK * (1.0 + (t_end - self.t) / fastest)
-        fired = 0
+        fired = chunks = 0
         while True:
             if not self._searched:
                 self._event = self._search()
@@ -384,6 +387,8 @@ class HybridSolver:
                     raise PlantError(f"more than {EVENTS_PER_CHUNK} events per chunk between t = {self.t!r} and "
                                      f"{self._a + tau!r} s (last event: {kind}): the motion chatters below the "
                                      f"solver's resolution")
+                if fired > MAX_EVENTS_PER_STEP:
+                    raise too_many_events(self.t, self._a + tau, kind)
                 t = self._a + tau
                 X = self._mode.state(self._X, self._dX, tau)
                 self._time_rounding = 4.0 * EPS * abs(t)
@@ -405,6 +410,11 @@ class HybridSolver:
                 continue
             if self._b > t_end:
                 break
+            chunks += 1
+            if chunks > MAX_CHUNKS_PER_STEP:
+                raise PlantError(f"more than {MAX_CHUNKS_PER_STEP} chunks of integration in one step from "
+                                 f"t = {self.t!r} (at t = {self._b:.6g} s a chunk is {self._mode.h:.3g} s): take "
+                                 f"smaller steps")
             if self._budget is not None:
                 self._budget.spend(self._b, self._mode.h)
             self._chunk_start(self._b, self._mode.step(self._X, self._dX))

@@ -15,16 +15,20 @@ their values at two instants.
 :class:`PiecewisePlant` implements the :class:`~.contract.Solver` protocol
 (it does not define it); its events are :class:`~.contract.EventKind` members.
 
-Every loop is bounded: a step by its events (EVENTS_PER_PERIOD_LIMIT) and by
-its search chunks (the phase, hence the time, is bounded by PHASE_LIMIT),
-each chunk's search by MAX_EVALUATIONS; hitting a bound raises PlantError.
+Every loop is bounded, and so is the work of one step: a step spans at most
+MAX_PERIODS_PER_STEP drive periods (8 search chunks each) and fires at most
+MAX_EVENTS_PER_STEP events, and EVENTS_PER_PERIOD_LIMIT per period it spans
+(motion that chatters below resolution); each chunk's search takes at most
+MAX_EVALUATIONS. Hitting a bound raises PlantError before the work, or as soon
+as the events exceed it; a longer span is taken in several steps.
 """
 
 import math
 
-from .exact import PHASE_LIMIT, TWO_PI, Drive, PlantError, first_root
+from .exact import MAX_EVENTS_PER_STEP, PHASE_LIMIT, TWO_PI, Drive, PlantError, first_root, too_many_events
 
 EVENTS_PER_PERIOD_LIMIT = 100_000
+MAX_PERIODS_PER_STEP = 1e6  # 10x the longest trace a scene may ask for: a step costs seconds, never hours
 
 
 def check(name, value, ok, allowed):
@@ -190,7 +194,11 @@ class PiecewisePlant:
         """Integrate exactly from self.t to t_end, firing every event on the way."""
         check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
         self.drive.phase(t_end, "t_end")  # bounds the search chunks (and every phase on the way)
-        limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + (t_end - self.t) / self.period)
+        span = (t_end - self.t) / self.period
+        check("t_end", t_end, lambda: span <= MAX_PERIODS_PER_STEP,
+              f"a step spans at most {MAX_PERIODS_PER_STEP:g} periods of the drive (2 pi/omega = {self.period!r} s), "
+              f"this one {span:.6g} from t = {self.t!r}: take smaller steps")
+        limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + span)
         fired = 0
         while True:
             event = self._next_event(t_end)
@@ -203,6 +211,8 @@ class PiecewisePlant:
                     f"more than {EVENTS_PER_PERIOD_LIMIT} events per period between t = {self.t!r} "
                     f"and t = {t_event!r} (last event: {kind}); the motion chatters below the "
                     f"plant's resolution")
+            if fired > MAX_EVENTS_PER_STEP:
+                raise too_many_events(self.t, t_event, kind)
             if self._fire(t_event, kind):
                 self.events += 1
                 if self.event_log is not None:

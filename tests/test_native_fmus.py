@@ -126,6 +126,7 @@ def run_raw(path, values, steps, step=0.1, start_time=0.0, name="native_test"):
 @pytest.mark.parametrize("call, expected", [
     (lambda fmu, vr: fmu.doStep(0.5, 0.1), "doStep at t = 0.5, but the FMU is at t = 0.30000000000000004"),
     (lambda fmu, vr: fmu.doStep(0.30000000000000004, -1.0), "communication step -1.0 at t ="),
+    (lambda fmu, vr: fmu.doStep(0.30000000000000004, 1e8), "a step spans at most 1e+06 periods of the drive"),
     (lambda fmu, vr: fmu.setReal([vr["M"]], [2.0]), "setReal of M = 2.0 refused: M is a fixed parameter"),
     (lambda fmu, vr: fmu.setReal([vr["x"]], [2.0]), "setReal: x is an output and cannot be set"),
     (lambda fmu, vr: fmu.setReal([vr["f"]], [1e101]), "f = 1e+101 is out of range"),

@@ -39,7 +39,7 @@ import numpy as np
 from dfwb.base.errors import InputError
 from dfwb.engine.transfer import check_transfer_function
 from dfwb.fmus.exact import PlantError
-from dfwb.fmus.hybrid import Budget
+from dfwb.fmus.hybrid import MAX_CHUNKS_PER_STEP, Budget
 from dfwb.plants import plant as find_plant
 
 RESIDUAL_TOL = 1e-10  # |P(X) - X| / swing, at convergence
@@ -145,7 +145,9 @@ class LoopProblem:
         Plant parameters (initial-value parameters are ignored: starts are states).
     max_chunks : int, optional
         The work the problem may do, in Taylor chunks of the exact loop over
-        all its runs (about 10 to 30 us each); beyond, PlantError.
+        all its runs (about 10 to 30 us each in Python, well under 1 us in
+        C); beyond, PlantError. An integer from 1 to 10,000,000 (what one
+        step of the loop may integrate).
     fmu_dir : str or Path, optional
         Where the compiled core is built (the FMU folder's ``native/``): the
         loop runs in C, bit for bit the Python loop's numbers, 15 to 160 times
@@ -169,6 +171,9 @@ class LoopProblem:
         self.params = {k: v for k, v in checked.items() if k not in self.cls.initial_parameters}
         self.output = self.cls.OUTPUT
         self._modes = {}  # section level -> the modes its solvers share (built once, not per period)
+        whole = isinstance(max_chunks, int) and not isinstance(max_chunks, bool)
+        if not (whole and 1 <= max_chunks <= MAX_CHUNKS_PER_STEP):
+            raise InputError(f"max_chunks = {max_chunks!r} is out of range: an integer from 1 to {MAX_CHUNKS_PER_STEP}")
         self.budget = Budget(max_chunks)  # every solver of this problem draws on it: the study's work is bounded
         self.solver(None)  # refuses the controller (order, coefficients) and the parameters now
 

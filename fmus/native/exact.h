@@ -20,6 +20,13 @@
 #define DFWB_PHASE_LIMIT_TEXT "1e+10" /* f"{PHASE_LIMIT:g}" */
 #define DFWB_MAX_EVALUATIONS 100000
 #define DFWB_EVENTS_PER_PERIOD_LIMIT 100000
+#ifndef DFWB_MAX_PERIODS_PER_STEP /* the work of one step; -D at build time sets smaller bounds (tests) */
+#define DFWB_MAX_PERIODS_PER_STEP 1e6
+#define DFWB_MAX_PERIODS_PER_STEP_TEXT "1e+06" /* f"{MAX_PERIODS_PER_STEP:g}" */
+#endif
+#ifndef DFWB_MAX_EVENTS_PER_STEP
+#define DFWB_MAX_EVENTS_PER_STEP 10000000
+#endif
 
 /* -- errors ------------------------------------------------------------------------- */
 typedef struct {

@@ -586,7 +586,7 @@ static void add_crossing(dfwb_hy *hy, double t, const double *X)
 int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *budget_left, long long budget_total,
                     dfwb_err *err)
 {
-    double fastest = 0.0, limit, fired = 0.0;
+    double fastest = 0.0, limit, fired = 0.0, chunks = 0.0;
     int i, have = 0, rc;
     if (!(isfinite(t_end) && t_end >= hy->t)) {
         char r[DFWB_REPR_SIZE], rt[DFWB_REPR_SIZE];
@@ -634,6 +634,14 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *b
                                  "t = %s and %s s (last event: %s): the motion chatters below the solver's "
                                  "resolution", r0, r1, kind_name(kind));
             }
+            if (fired > DFWB_MAX_EVENTS_PER_STEP) {
+                char r0[DFWB_REPR_SIZE], r1[DFWB_REPR_SIZE];
+                dfwb_repr(hy->t, r0);
+                dfwb_repr(hy->a + tau, r1);
+                return dfwb_fail(err, DFWB_E_LIMIT, "more than %d events in one step between t = %s and t = %s "
+                                 "(last event: %s): take smaller steps", DFWB_MAX_EVENTS_PER_STEP, r0, r1,
+                                 kind_name(kind));
+            }
             t = hy->a + tau;
             mode_state(hy->modes[hy->key], hy->X, hy->dX, tau, X);
             hy->time_rounding = 4.0 * DFWB_EPS * fabs(t);
@@ -667,6 +675,15 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *b
         }
         if (hy->b > t_end)
             break;
+        chunks += 1.0;
+        if (chunks > DFWB_HY_MAX_CHUNKS_PER_STEP) {
+            char r0[DFWB_REPR_SIZE], rt[40], rh[40];
+            dfwb_repr(hy->t, r0);
+            format_g(hy->b, 6, rt, sizeof rt);
+            format_g(hy->modes[hy->key]->h, 3, rh, sizeof rh);
+            return dfwb_fail(err, DFWB_E_LIMIT, "more than %d chunks of integration in one step from t = %s (at "
+                             "t = %s s a chunk is %s s): take smaller steps", DFWB_HY_MAX_CHUNKS_PER_STEP, r0, rt, rh);
+        }
         if (budget_left != NULL) { /* Budget.spend */
             *budget_left -= 1;
             if (*budget_left < 0) {

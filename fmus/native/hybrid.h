@@ -25,6 +25,9 @@
 #define DFWB_HY_MAX_TERMS 40    /* MAX_TERMS */
 #define DFWB_HY_EVENTS_PER_CHUNK 10000
 #define DFWB_HY_TIME_LIMIT 1e12
+#ifndef DFWB_HY_MAX_CHUNKS_PER_STEP /* MAX_CHUNKS_PER_STEP; -D at build time sets a smaller bound (tests) */
+#define DFWB_HY_MAX_CHUNKS_PER_STEP 10000000
+#endif
 #define DFWB_HY_SECTION_UP 101   /* "section+": an upward crossing of the watched function (not an event) */
 #define DFWB_HY_SECTION_DOWN 102 /* "section-" */
 

@@ -2,14 +2,16 @@
  * fmus/piecewise.py (PiecewisePlant), and the API functions that are the same for every plant (see plant.h).
  *
  * The piece machinery keeps piecewise.py's operation order and bounds: the searches run lazily in chunks
- * of period/8 anchored at the piece's start, in the order they were added; a step fires at most
- * EVENTS_PER_PERIOD_LIMIT * (1 + step/period) events.
+ * of period/8 anchored at the piece's start, in the order they were added; a step spans at most
+ * MAX_PERIODS_PER_STEP periods and fires at most MAX_EVENTS_PER_STEP events, and at most
+ * EVENTS_PER_PERIOD_LIMIT * (1 + step/period).
  */
 #include "plant.h"
 
 #include <limits.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -652,14 +654,23 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
 int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_fire_fn fire, void *plant,
                     dfwb_err *err)
 {
-    double theta, limit, fired = 0.0;
+    double theta, span, limit, fired = 0.0;
     int rc = dfwb_check_t_end(err, pw->t, t_end);
     if (rc != DFWB_OK)
         return rc;
     rc = dfwb_drive_phase(&pw->drive, t_end, "t_end", &theta, err); /* bounds the chunks and every phase */
     if (rc != DFWB_OK)
         return rc;
-    limit = DFWB_EVENTS_PER_PERIOD_LIMIT * (1.0 + (t_end - pw->t) / pw->period);
+    span = (t_end - pw->t) / pw->period;
+    if (!(span <= DFWB_MAX_PERIODS_PER_STEP)) {
+        char rp[DFWB_REPR_SIZE], rt[DFWB_REPR_SIZE], allowed[256];
+        dfwb_repr(pw->period, rp);
+        dfwb_repr(pw->t, rt);
+        snprintf(allowed, sizeof allowed, "a step spans at most " DFWB_MAX_PERIODS_PER_STEP_TEXT " periods of the "
+                 "drive (2 pi/omega = %s s), this one %.6g from t = %s: take smaller steps", rp, span, rt);
+        return dfwb_check(err, "t_end", t_end, 0, allowed);
+    }
+    limit = DFWB_EVENTS_PER_PERIOD_LIMIT * (1.0 + span);
     for (;;) {
         int has, kind, counted = 0;
         double t_event;
@@ -675,6 +686,14 @@ int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_
                            "more than %d events per period between t = %s and t = %s (last event: %s); the "
                            "motion chatters below the plant's resolution",
                            DFWB_EVENTS_PER_PERIOD_LIMIT, rt, rte, dfwb_event_name(kind));
+            break;
+        }
+        if (fired > DFWB_MAX_EVENTS_PER_STEP) {
+            char rt[DFWB_REPR_SIZE], rte[DFWB_REPR_SIZE];
+            dfwb_repr(pw->t, rt);
+            dfwb_repr(t_event, rte);
+            rc = dfwb_fail(err, DFWB_E_LIMIT, "more than %d events in one step between t = %s and t = %s (last "
+                           "event: %s): take smaller steps", DFWB_MAX_EVENTS_PER_STEP, rt, rte, dfwb_event_name(kind));
             break;
         }
         rc = fire(plant, t_event, kind, &counted, err);
