@@ -86,14 +86,14 @@ def _plain(x):
     return format(Decimal(text), "f")
 
 
-def _bounds(value, gt, ge, le):
-    if gt is not None and not value > gt:
-        return f"greater than {_plain(gt)}"
-    if ge is not None and not value >= ge:
-        return f"greater than or equal to {_plain(ge)}"
-    if le is not None and not value <= le:
-        return f"less than or equal to {_plain(le)}"
-    return None
+def _within(value, number, gt, ge, le):
+    """``number`` (the checked form of ``value``) unless it breaks a bound."""
+    for bound, holds, words in ((gt, lambda b: number > b, "greater than"),
+                                (ge, lambda b: number >= b, "greater than or equal to"),
+                                (le, lambda b: number <= b, "less than or equal to")):
+        if bound is not None and not holds(bound):
+            raise _wrong(f"Input should be {words} {_plain(bound)}", value)
+    return number
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,10 +110,7 @@ class Number:
         number = float(value)
         if not math.isfinite(number):
             raise _wrong("Input should be a finite number", value)
-        broken = _bounds(number, self.gt, self.ge, self.le)
-        if broken:
-            raise _wrong(f"Input should be {broken}", value)
-        return number
+        return _within(value, number, self.gt, self.ge, self.le)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,10 +123,7 @@ class Integer:
     def __call__(self, value):
         if isinstance(value, bool) or not isinstance(value, int):
             raise _wrong("Input should be a valid integer", value)
-        broken = _bounds(value, None, self.ge, self.le)
-        if broken:
-            raise _wrong(f"Input should be {broken}", value)
-        return value
+        return _within(value, value, None, self.ge, self.le)
 
 
 @dataclasses.dataclass(frozen=True)
