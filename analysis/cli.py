@@ -305,7 +305,7 @@ def cmd_examples(args):
 def cmd_bench(args):
     from dfwb.verify.bench import run_bench
 
-    path = run_bench(args.out, quick=args.quick)
+    path = run_bench(args.out, quick=args.quick, fmu_dir=args.fmus)
     print(f"{path} written")
     return 0
 
@@ -377,9 +377,14 @@ def cmd_demo(args):
     return 0
 
 
+def fmu_folder_option(command):
+    """--fmus DIR: where the FMUs are (built there if missing or stale)."""
+    command.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
+
+
 def fmu_options(command):
     """--fmus DIR and --fmu KIND: where the FMUs are, and which kind of plant FMU runs."""
-    command.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
+    fmu_folder_option(command)
     command.add_argument("--fmu", action=_Once, choices=("native", "python"), default=None,
                          help="plant FMUs to run: native (the C core, no Python inside) or python (pythonfmu); "
                               "the same numbers (default: $DFWB_FMU, else native)")
@@ -467,6 +472,7 @@ def parser():
     bench.add_argument("--quick", action="store_true", help="the quick set (under 3 minutes)")
     bench.add_argument("--out", action=_Once, type=Path, default=Path("out/bench"),
                        help="output folder (default: %(default)s)")
+    fmu_folder_option(bench)  # every kind of plant FMU is measured: no --fmu
     bench.set_defaults(run=cmd_bench)
 
     stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")

@@ -4,6 +4,7 @@ import csv
 
 import pytest
 
+from dfwb.engine import describing
 from dfwb.plants import PLANTS, builtin
 from dfwb.verify import bench
 
@@ -26,7 +27,15 @@ def test_every_registered_plant_has_what_the_benchmark_needs():
 def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monkeypatch):
     for name in BENCHED:  # one point per plant: its first quick one
         monkeypatch.setitem(PLANTS[name].bench, "quick", PLANTS[name].bench["quick"][:1])
-    report = bench.run_bench(tmp_path, quick=True, repeats=1, report=lambda message: None)
+    folders = []  # the FMU folder of every FMU the benchmark runs (its exact kinds and its other engines)
+    for module in (bench, describing):
+        def recorded(model, fmu_dir=None, kind=None, found=module.fmu_path):
+            folders.append(fmu_dir)
+            return found(model, fmu_dir, kind=kind)
+        monkeypatch.setattr(module, "fmu_path", recorded)
+    folder = fmus["FrictionMass"].parent
+    report = bench.run_bench(tmp_path, quick=True, repeats=1, report=lambda message: None, fmu_dir=folder)
+    assert folders and set(folders) == {folder}  # dfwb bench --fmus DIR: every FMU from DIR
     with open(tmp_path / "bench.csv") as handle:
         rows = list(csv.DictReader(handle))
     assert list(rows[0]) == ["plant", "method", "setting", "F", "omega", "eps", "error", "seconds"]

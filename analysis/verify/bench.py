@@ -187,13 +187,14 @@ class Method:
         self.plant, self.name, self.setting, self.run = plant, name, setting, run
 
 
-def methods(plant, quick, exact=None):
+def methods(plant, quick, exact=None, fmu_dir=None):
     """Every (method, setting) of a plant, fastest engines created once; what the plant's entry offers.
 
     ``exact``: the plant's :func:`exact_fmus` (made here if None); a kind that cannot run is left out.
+    ``fmu_dir``: the FMU folder (default: dfwb's own).
     """
     entry = PLANTS[plant]
-    exact = exact if exact is not None else exact_fmus(plant, entry.bench["quick"][0])
+    exact = exact if exact is not None else exact_fmus(plant, entry.bench["quick"][0], fmu_dir)
     out = [Method(plant, e.method, "", lambda F, w, p, e=e: e.point(F, w, p).N) for e in exact if e.why is None]
     native = exact[0]  # fmu-native: the other ways of driving the plant use the default kind too
     for n in ((8, 32, 128, 512) if quick else (8, 16, 32, 64, 128, 256, 512, 1024)):
@@ -204,7 +205,7 @@ def methods(plant, quick, exact=None):
         out.append(Method(plant, "fmu-karnopp", label,
                           lambda F, w, p, extra=extra: native.point(F, w, dict(p, **extra)).N))
     if entry.naive is not None:
-        naive = DFEngine(plant, model=entry.naive.__name__, max_periods=60)
+        naive = DFEngine(plant, fmu_dir, model=entry.naive.__name__, max_periods=60)
         for per in ((100, 1000) if quick else (100, 300, 1000, 3000)):
             out.append(Method(plant, "fmu-fixedstep", f"{per} steps/period",
                               lambda F, w, p, per=per: naive.point(F, w, dict(p, dt=2 * math.pi / w / per)).N))
@@ -224,8 +225,8 @@ def reference(plant, F, omega, params):
     return PLANTS[plant].reference(F, omega, dict(params))
 
 
-def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
-    """Measure every method at every point; write bench.csv, pareto_*.png, bench.md."""
+def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print, fmu_dir=None):
+    """Measure every method at every point; write bench.csv, pareto_*.png, bench.md (FMUs from ``fmu_dir``)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     repeats = repeats or (3 if quick else 5)
@@ -233,12 +234,12 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
     started = time.perf_counter()
     measured = points(quick)
     for plant, plant_points in measured.items():
-        exact = exact_fmus(plant, plant_points[0])
+        exact = exact_fmus(plant, plant_points[0], fmu_dir)
         failures += [f"{plant}: {e.method} cannot run ({e.why})" for e in exact if e.why is not None]
         costs[plant] = {e.method: event_cost(e, *plant_points[0]) for e in exact if e.why is None}
         # events per DF point, at each point in order (untimed; the same for every exact kind, bit for bit)
         costs[plant]["events"] = [exact[0].events(F, omega, params)[1] for F, omega, params in plant_points]
-        candidates = methods(plant, quick, exact)
+        candidates = methods(plant, quick, exact, fmu_dir)
         for F, omega, params in plant_points:
             truth = reference(plant, F, omega, params)
             times = {id(m): [] for m in candidates}
@@ -275,7 +276,7 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print):
         writer.writerows(rows)
     for plant in measured:
         pareto(out_dir, plant, [r for r in rows if r["plant"] == plant])
-    growth = cost_growth(quick)
+    growth = cost_growth(quick, fmu_dir)
     (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started, failures, costs))
     return out_dir / "bench.md"
 
@@ -353,9 +354,9 @@ def event_costs(rows, costs):
     return lines
 
 
-def cost_growth(quick):
+def cost_growth(quick, fmu_dir=None):
     """DF time against the periods to steady state; sweep time against grid size and processes."""
-    engine = DFEngine("backlash")
+    engine = DFEngine("backlash", fmu_dir)
     by_periods = []
     for eps in (0.1, 0.3, 0.5, 0.7, 0.9):
         for omega in (20.0, 30.0):
@@ -370,7 +371,7 @@ def cost_growth(quick):
         for jobs in (1, 2):
             with tempfile.TemporaryDirectory() as tmp:
                 t0 = time.perf_counter()
-                run_sweep("friction", points, tmp, jobs=jobs, progress=False)
+                run_sweep("friction", points, tmp, jobs=jobs, fmu_dir=fmu_dir, progress=False)
                 sweeps.append((size, jobs, time.perf_counter() - t0))
     return {"per_period": slope, "fixed": intercept, "points": by_periods, "sweeps": sweeps}
 
