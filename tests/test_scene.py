@@ -153,3 +153,56 @@ def test_the_readme_scene_is_valid():
     scene = parse_scene(block, "README.md")
     assert [s.name for s in scene.series] == ["backlash"] and scene.limit_cycle[0].verify
     assert len(scene.points()) == 2 * 2 * 43 and not scene.needs_harmonics
+
+
+LONG = "a" * 100_000
+FIGURE = '[[figure]]\nname = "f"\nkind = "nyquist"\n'
+
+
+@pytest.mark.parametrize("text, message", [
+    (GOOD.replace("F = [50.0]", "F = [1" + "0" * 400 + "]"), "series[0].F[0]: Input should be a finite number (got 1000"),
+    (GOOD.replace("F = [50.0]", "F = [1" + "0" * 5000 + "]"), "not valid TOML: "),
+    (GOOD + "x = " + "[" * 5000 + "]" * 5000, "not valid TOML: arrays or tables nested too deeply"),
+    (GOOD + "x = " + "{a=" * 3000 + "1" + "}" * 3000, "not valid TOML: arrays or tables nested too deeply"),
+    (GOOD + f"{LONG} = 1", "unknown key 'aaaaaaaaaa"),
+    (GOOD.replace("F = [50.0]", f"F = [50.0]\nparams = {{{LONG} = 1.0}}"), "series[0]: unknown parameter 'aaaa"),
+    (GOOD.replace("F = [50.0]", f'F = [50.0]\nparams = {{{LONG} = "x"}}'), "series[0].params.'aaaaaaaa"),
+    (GOOD.replace('plant = "backlash"', f'plant = "{LONG}"'), "series[0].plant: Input should be one of 'friction'"),
+    (GOOD + FIGURE + f'series = ["{LONG}"]', "figure[0] (f): 'aaaaaaaa"),
+    (GOOD + FIGURE.replace("nyquist", "paper") + f'paper = "{LONG}"', "figure[0] (f): paper = 'aaaaaaa"),
+    (GOOD.replace("F = [50.0]", 'F = [50.0]\nparams = {"a\\nb" = "x"}'), "series[0].params.'a\\nb': Input should be"),
+    (GOOD + FIGURE.replace('"f"', '"f\\n"') + 'series = ["s"]', "figure[0].name: String should match pattern"),
+    (LIMIT_CYCLE.replace('G = "20*(s+2)/(s+20)"', f"num = [{', '.join(['1.0'] * 50_000)}]\nden = [1.0]"),
+     "limit_cycle[0]: "),
+    (LIMIT_CYCLE.replace('G = "20*(s+2)/(s+20)"', 'G = "(s\\n+1)"'), "limit_cycle[0]: G(s) = (s\\n+1) is improper"),
+])
+def test_a_hostile_scene_is_still_one_short_line(text, message):
+    with pytest.raises(SceneError) as error:
+        parse_scene(text, "h.toml")
+    text = str(error.value)
+    assert text.startswith("h.toml: ") and message in text, text[:400]
+    assert "\n" not in text and len(text) <= 300, text[:400]
+
+
+def test_parameter_sets_are_checked_only_within_the_scene_size(monkeypatch):
+    from dfwb.studies import scene as module
+
+    checked = []
+    real = module._check_plant
+    monkeypatch.setattr(module, "_check_plant", lambda plant, params: checked.append(1) or real(plant, params))
+    big = ('[[series]]\nname = "s{}"\nplant = "friction"\nF = [10.0]\nomega = [1.0]\n'
+           'grid = {{M = [{}], B = [{}]}}\n')
+    values = ", ".join(str(float(k + 1)) for k in range(300))
+    text = 'title = "t"\n' + "".join(big.format(i, values, values) for i in range(5))  # 5 x 90,000 points
+    with pytest.raises(SceneError, match="450000 DF points"):
+        parse_scene(text, "big.toml")
+    assert checked == []  # refused by its size before any of its 450,000 parameter sets is checked
+    parse_scene(GOOD.replace("F = [50.0]", "F = [50.0]\ngrid = {eps = [0.1, 0.2, 0.3]}"), "ok.toml")
+    assert len(checked) == 3
+
+
+def test_a_byte_order_mark_is_named(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
+    with pytest.raises(SceneError, match="byte-order mark"):
+        load_scene(path)

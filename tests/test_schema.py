@@ -37,7 +37,7 @@ class Inner:
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Outer:
-    title: str = rule(Text(pattern=r"^[a-z]+$", max_length=8))
+    title: str = rule(Text(pattern=r"[a-z]+", max_length=8))
     count: int = rule(Integer(ge=2, le=10), 3)
     mode: str = rule(OneOf("fast", "exact", "slow"), "exact")
     on: bool = rule(Boolean(), False)

@@ -37,8 +37,20 @@ import re
 
 from dfwb.base.errors import InputError
 
-__all__ = ["Invalid", "rule", "record", "Number", "Integer", "Boolean", "Text", "OneOf", "ListOf", "TableOf",
-           "Table", "Checked"]
+__all__ = ["Invalid", "rule", "record", "shown", "Number", "Integer", "Boolean", "Text", "OneOf", "ListOf",
+           "TableOf", "Table", "Checked"]
+
+SHOWN = 60  # characters of a value a message shows: a message stays one short line, whatever the file holds
+_PLAIN_KEY = re.compile(r"[A-Za-z0-9_-]{1,%d}" % SHOWN)
+
+
+def shown(value):
+    """``repr(value)`` for a message: one line (repr escapes newlines), its start only if long."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer beyond Python's digit limit for str()
+        return f"<an integer of more than {SHOWN} digits>"
+    return text if len(text) <= SHOWN + 20 else text[:SHOWN] + "..."
 
 
 class Invalid(InputError):
@@ -53,14 +65,16 @@ class Invalid(InputError):
         """The path as written in messages: ``series[0].omega.log[2]`` ('' for the top level)."""
         text = ""
         for part in self.path:
-            text += f"[{part}]" if isinstance(part, int) else ("." if text else "") + str(part)
+            if isinstance(part, int):
+                text += f"[{part}]"
+            else:  # a key as written, or quoted when it is not a plain word (a newline, a space, 10,000 characters)
+                text += ("." if text else "") + (part if _PLAIN_KEY.fullmatch(part) else shown(part))
         return text
 
 
 def _wrong(message, value):
-    """An Invalid that also shows the value (its start, if long: a message stays one readable line)."""
-    shown = repr(value)
-    return Invalid(f"{message} (got {shown if len(shown) <= 80 else shown[:60] + '...'})")
+    """An Invalid that also shows the value (see :func:`shown`)."""
+    return Invalid(f"{message} (got {shown(value)})")
 
 
 def _at(key, check, value):
@@ -107,7 +121,10 @@ class Number:
     def __call__(self, value):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _wrong("Input should be a valid number", value)
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond a float's range
+            number = math.inf
         if not math.isfinite(number):
             raise _wrong("Input should be a finite number", value)
         return _within(value, number, self.gt, self.ge, self.le)
@@ -138,7 +155,10 @@ class Boolean:
 
 @dataclasses.dataclass(frozen=True)
 class Text:
-    """A string, optionally at most ``max_length`` characters and matching ``pattern``."""
+    """A string, optionally at most ``max_length`` characters and matching ``pattern`` as a whole.
+
+    ``pattern`` is matched from the first character to the last (``re.fullmatch``: no newline may end it).
+    """
 
     pattern: str = None
     max_length: int = None
@@ -148,8 +168,8 @@ class Text:
             raise _wrong("Input should be a valid string", value)
         if self.max_length is not None and len(value) > self.max_length:
             raise _wrong(f"String should have at most {self.max_length} characters", value)
-        if self.pattern is not None and not re.search(self.pattern, value):
-            raise _wrong(f"String should match pattern '{self.pattern}'", value)
+        if self.pattern is not None and not re.fullmatch(self.pattern, value):
+            raise _wrong(f"String should match pattern '^{self.pattern}$'", value)
         return value
 
 
@@ -241,7 +261,7 @@ def record(cls, table):
     known = [f.name for f in fields]
     unknown = [key for key in table if key not in known]
     if unknown:
-        raise Invalid(f"unknown key {unknown[0]!r} (allowed: {', '.join(known)})")
+        raise Invalid(f"unknown key {shown(unknown[0])} (allowed: {', '.join(known)})")
     values = {}
     for f in fields:
         if f.name in table:

@@ -52,6 +52,7 @@ from dfwb.base.schema import (
     Text,
     record,
     rule,
+    shown,
 )
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE
 from dfwb.fmus.piecewise import PlantError
@@ -70,7 +71,7 @@ def _registered(name):
     known = names()
     if name not in known:
         listed = ", ".join(repr(n) for n in known)
-        raise InputError(f"Input should be one of {listed} (got {name!r})")
+        raise InputError(f"Input should be one of {listed} (got {shown(name)})")
     return name
 
 
@@ -86,11 +87,12 @@ Force = Number(ge=F_RANGE[0], le=F_RANGE[1])  # [N]: what the engine accepts
 Frequency = Number(ge=OMEGA_RANGE[0], le=OMEGA_RANGE[1])  # [rad/s]
 NonNegative = Number(ge=0)
 Finite = Number()
-Name = Text(pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$", max_length=64)
+Name = Text(pattern=r"[A-Za-z_][A-Za-z0-9_-]*", max_length=64)
 Params = TableOf(Finite)
 FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper")
 MAX_BYTES = 1 << 20  # a scene file: a page of TOML, never a device or a data file read whole
 MAX_SAMPLES = 2_000_000
+MAX_MESSAGE = 300  # characters of a SceneError: the file, the key, the problem and what is allowed
 MAX_TRACE_PERIODS = 100_000  # the horizon the stress suite covers; a trace is for looking at, not for soaking
 SECTION = dataclass(frozen=True, kw_only=True)  # a scene's table: fields by name, read by dfwb.base.schema.record
 
@@ -179,8 +181,7 @@ class Series:
         combos = grid_size(*(len(v) for v in self.grid.values()))
         if combos > MAX_POINTS:
             raise InputError(f"grid has {combos} parameter combinations: at most {MAX_POINTS}")
-        for combo in self.combos():
-            _check_plant(self.plant, combo)
+        # each parameter set is checked by the Scene, once the scene's size is known to be within bounds
 
     def size(self):
         """The number of points, counted without building them."""
@@ -220,7 +221,7 @@ class Trace:
         known = [name for name, *_ in find_plant(self.plant).model.all_outputs()]
         for name in self.outputs:
             if name not in known:
-                raise InputError(f"output {name!r} is not an output of plant {self.plant} "
+                raise InputError(f"output {shown(name)} is not an output of plant {self.plant} "
                                  f"(allowed: {', '.join(known)})")
 
 
@@ -314,16 +315,25 @@ class Scene:
     def __post_init__(self):
         if not (self.series or self.trace or self.limit_cycle):
             raise InputError("the scene asks for nothing: give at least one [[series]], [[trace]] or [[limit_cycle]]")
-        names = [item.name for group in (self.series, self.trace, self.limit_cycle, self.figure) for item in group]
-        for name in names:
-            if names.count(name) > 1:
-                raise InputError(f"the name {name!r} is used twice: names must be unique in a scene")
+        seen = set()
+        for group in (self.series, self.trace, self.limit_cycle, self.figure):
+            for item in group:
+                if item.name in seen:
+                    raise InputError(f"the name {item.name!r} is used twice: names must be unique in a scene")
+                seen.add(item.name)
         size = sum(s.size() for s in self.series) + sum(lc.n_F * lc.n_omega for lc in self.limit_cycle)
         if size > MAX_POINTS:
             raise InputError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
                              "(split it)")
+        for i, series in enumerate(self.series):  # at most MAX_POINTS parameter sets in all: bounded work
+            for combo in series.combos():
+                try:
+                    _check_plant(series.plant, combo)
+                except InputError as error:
+                    raise Invalid(str(error), ["series", i]) from None
+        computed = Computed(self)
         for i, figure in enumerate(self.figure):
-            _check_figure(self, i, figure)
+            _check_figure(computed, i, figure)
 
     def points(self):
         """Every DF point of every series, F the outer loop (duplicates kept: they cost nothing twice)."""
@@ -336,17 +346,24 @@ class Scene:
             f.kind == "harmonics" or (f.kind == "paper" and PAPER_FIGURES[f.paper].harmonics) for f in self.figure)
 
 
-def _check_figure(scene, i, figure):
+class Computed:
+    """What a scene's figures may draw, by name, gathered once: {series: plant}, {trace: (plant, outputs)}, cycles."""
+
+    def __init__(self, scene):
+        self.series = {s.name: s.plant for s in scene.series}
+        self.traces = {t.name: (t.plant, t.outputs) for t in scene.trace}
+        self.pools = {"nyquist": set(self.series), "re_im": set(self.series), "harmonics": set(self.series),
+                      "trace": set(self.traces), "limit_cycle": {lc.name for lc in scene.limit_cycle}}
+
+
+def _check_figure(computed, i, figure):
     where = f"figure[{i}] ({figure.name})"
-    pools = {"nyquist": scene.series, "re_im": scene.series, "harmonics": scene.series,
-             "trace": scene.trace, "limit_cycle": scene.limit_cycle}
     if figure.kind == "paper":
         if figure.paper not in PAPER_FIGURES:
-            raise InputError(f"{where}: paper = {figure.paper!r} is not one of the paper's figures "
+            raise InputError(f"{where}: paper = {shown(figure.paper)} is not one of the paper's figures "
                              f"(allowed: {', '.join(PAPER_FIGURES)})")
         needed = PAPER_FIGURES[figure.paper]
-        series = {s.name: s.plant for s in scene.series}
-        traces = {t.name: (t.plant, t.outputs) for t in scene.trace}
+        series, traces = computed.series, computed.traces
         for name, plant in needed.series.items():
             if series.get(name) != plant:
                 raise InputError(f"{where}: the paper's {figure.paper} needs a [[series]] {name!r} of plant {plant} "
@@ -358,26 +375,34 @@ def _check_figure(scene, i, figure):
         return
     if figure.paper is not None:
         raise InputError(f"{where}: paper is only allowed with kind = \"paper\"")
-    pool = {item.name for item in pools[figure.kind]}
+    pool = computed.pools[figure.kind]
     if not figure.series:
         raise InputError(f"{where}: series is empty (allowed: {', '.join(sorted(pool)) or 'none in this scene'})")
     for name in figure.series:
         if name not in pool:
             what = {"trace": "[[trace]]", "limit_cycle": "[[limit_cycle]]"}.get(figure.kind, "[[series]]")
-            raise InputError(f"{where}: {name!r} is not a {what} of this scene "
+            raise InputError(f"{where}: {shown(name)} is not a {what} of this scene "
                              f"(allowed: {', '.join(sorted(pool)) or 'none'})")
+
+
+def _one_line(message):
+    """A message as one line of readable length: newlines escaped, the middle of a very long one cut."""
+    message = message.replace("\r", "\\r").replace("\n", "\\n")
+    return message if len(message) <= MAX_MESSAGE else f"{message[:200]} ... {message[-90:]}"
 
 
 def parse_scene(text, source="<scene>"):
     """A validated :class:`Scene` from TOML text; SceneError names ``source``, the key and what is allowed."""
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise SceneError(f"{source}: not valid TOML: {error}") from None
+    except RecursionError:
+        raise SceneError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
+    except ValueError as error:  # TOMLDecodeError, or an integer beyond Python's digit limit
+        raise SceneError(_one_line(f"{source}: not valid TOML: {error}")) from None
     try:
         return record(Scene, data)
     except Invalid as error:
-        raise SceneError(f"{source}: {error.where + ': ' if error.where else ''}{error}") from None
+        raise SceneError(_one_line(f"{source}: {error.where + ': ' if error.where else ''}{error}")) from None
 
 
 def shipped_scenes(prefix):
@@ -395,5 +420,8 @@ def load_scene(path):
         raise SceneError(f"{path}: cannot read the scene ({error.strerror})") from None
     except UnicodeDecodeError as error:
         raise SceneError(f"{path}: not UTF-8 text (byte {error.start}): a scene is a TOML file") from None
+    if text.startswith("\ufeff"):
+        raise SceneError(f"{path}: starts with a byte-order mark (BOM), which TOML does not allow: save it as UTF-8 "
+                         "without BOM")
     return parse_scene(text, str(path))
 
