@@ -30,9 +30,10 @@ PHASE_LIMIT = 1e10
 # velocity touching zero at a chunk's end; the quick set 929); more means the event cannot be
 # resolved at the plant's scale (a clearance of 1e-200 m, a motion 1e30 times the clearance).
 MAX_EVALUATIONS = 100_000
-# Events one step of a plant or loop may fire (~10 s on the compiled core): an importer's step
-# costs seconds, never hours; a longer motion is taken in several steps.
-MAX_EVENTS_PER_STEP = 10_000_000
+# Events one step of a plant or loop may fire: 1 to 3 us each on the compiled core (a loop with an
+# 8th-order controller the most), so an importer's step costs seconds, never hours; a longer motion
+# is taken in several steps.
+MAX_EVENTS_PER_STEP = 5_000_000
 
 
 class DfwbError(Exception):

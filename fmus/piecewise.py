@@ -197,7 +197,7 @@ class PiecewisePlant:
         span = (t_end - self.t) / self.period
         check("t_end", t_end, lambda: span <= MAX_PERIODS_PER_STEP,
               f"a step spans at most {MAX_PERIODS_PER_STEP:g} periods of the drive (2 pi/omega = {self.period!r} s), "
-              f"this one {span:.6g} from t = {self.t!r}: take smaller steps")
+              f"this one {span!r} from t = {self.t!r}: take smaller steps")
         limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + span)
         fired = 0
         while True:

@@ -25,7 +25,7 @@
 #define DFWB_MAX_PERIODS_PER_STEP_TEXT "1e+06" /* f"{MAX_PERIODS_PER_STEP:g}" */
 #endif
 #ifndef DFWB_MAX_EVENTS_PER_STEP
-#define DFWB_MAX_EVENTS_PER_STEP 10000000
+#define DFWB_MAX_EVENTS_PER_STEP 5000000
 #endif
 
 /* -- errors ------------------------------------------------------------------------- */

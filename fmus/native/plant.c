@@ -663,11 +663,12 @@ int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_
         return rc;
     span = (t_end - pw->t) / pw->period;
     if (!(span <= DFWB_MAX_PERIODS_PER_STEP)) {
-        char rp[DFWB_REPR_SIZE], rt[DFWB_REPR_SIZE], allowed[256];
+        char rp[DFWB_REPR_SIZE], rs[DFWB_REPR_SIZE], rt[DFWB_REPR_SIZE], allowed[256];
         dfwb_repr(pw->period, rp);
+        dfwb_repr(span, rs);
         dfwb_repr(pw->t, rt);
         snprintf(allowed, sizeof allowed, "a step spans at most " DFWB_MAX_PERIODS_PER_STEP_TEXT " periods of the "
-                 "drive (2 pi/omega = %s s), this one %.6g from t = %s: take smaller steps", rp, span, rt);
+                 "drive (2 pi/omega = %s s), this one %s from t = %s: take smaller steps", rp, rs, rt);
         return dfwb_check(err, "t_end", t_end, 0, allowed);
     }
     limit = DFWB_EVENTS_PER_PERIOD_LIMIT * (1.0 + span);
