@@ -6,21 +6,9 @@ from typing import Optional
 
 import pytest
 
+from dfwb.base import schema
 from dfwb.base.errors import InputError
-from dfwb.base.schema import (
-    Boolean,
-    Checked,
-    Integer,
-    Invalid,
-    ListOf,
-    Number,
-    OneOf,
-    Table,
-    TableOf,
-    Text,
-    record,
-    rule,
-)
+from dfwb.base.schema import Invalid, record, rule
 
 
 def _positive_sum(values):
@@ -31,21 +19,21 @@ def _positive_sum(values):
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Inner:
-    level: float = rule(Number(ge=0, le=1e9))
-    names: list = rule(ListOf(Text()), [])
+    level: float = rule(schema.Number(ge=0, le=1e9))
+    names: list = rule(schema.ListOf(schema.Text()), [])
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Outer:
-    title: str = rule(Text(pattern=r"[a-z]+", max_length=8))
-    count: int = rule(Integer(ge=2, le=10), 3)
-    mode: str = rule(OneOf("fast", "exact", "slow"), "exact")
-    on: bool = rule(Boolean(), False)
-    gains: dict = rule(TableOf(ListOf(Number(gt=0), min_length=1, max_length=2)), {})
-    inner: Optional[Inner] = rule(Table(Inner, shorthand=lambda v: {"level": v} if isinstance(v, (int, float)) else v),
+    title: str = rule(schema.Text(pattern=r"[a-z]+", max_length=8))
+    count: int = rule(schema.Integer(ge=2, le=10), 3)
+    mode: str = rule(schema.OneOf("fast", "exact", "slow"), "exact")
+    on: bool = rule(schema.Boolean(), False)
+    gains: dict = rule(schema.TableOf(schema.ListOf(schema.Number(gt=0), min_length=1, max_length=2)), {})
+    inner: Optional[Inner] = rule(schema.Table(Inner, shorthand=lambda v: {"level": v} if isinstance(v, (int, float)) else v),
                                   None)
-    items: list = rule(ListOf(Table(Inner)), [])
-    weights: list = rule(Checked(ListOf(Number()), _positive_sum), [1.0])
+    items: list = rule(schema.ListOf(schema.Table(Inner)), [])
+    weights: list = rule(schema.Checked(schema.ListOf(schema.Number()), _positive_sum), [1.0])
 
     def __post_init__(self):
         if self.on and self.inner is None:
@@ -116,7 +104,7 @@ def test_fields_are_checked_in_their_declared_order():
 
 def test_bounds_read_without_exponents():
     assert problem({"level": -1}, Inner).startswith("level: Input should be greater than or equal to 0 ")
-    tiny = dataclasses.make_dataclass("Tiny", [("x", float, rule(Number(ge=1e-6, le=1e-4)))], frozen=True, kw_only=True)
+    tiny = dataclasses.make_dataclass("Tiny", [("x", float, rule(schema.Number(ge=1e-6, le=1e-4)))], frozen=True, kw_only=True)
     assert problem({"x": 0}, tiny) == "x: Input should be greater than or equal to 0.000001 (got 0)"
     assert problem({"x": 1}, tiny) == "x: Input should be less than or equal to 0.0001 (got 1)"
 
