@@ -161,7 +161,7 @@ FIGURE = '[[figure]]\nname = "f"\nkind = "nyquist"\n'
 
 @pytest.mark.parametrize("text, message", [
     (GOOD.replace("F = [50.0]", "F = [1" + "0" * 400 + "]"), "series[0].F[0]: Input should be a finite number (got 1000"),
-    (GOOD.replace("F = [50.0]", "F = [1" + "0" * 5000 + "]"), "not valid TOML: "),
+    (GOOD.replace("F = [50.0]", "F = [1" + "0" * 5000 + "]"), "an integer of more than 4300 digits"),
     (GOOD + "x = " + "[" * 5000 + "]" * 5000, "not valid TOML: arrays or tables nested too deeply"),
     (GOOD + "x = " + "{a=" * 3000 + "1" + "}" * 3000, "not valid TOML: arrays or tables nested too deeply"),
     (GOOD + f"{LONG} = 1", "unknown key 'aaaaaaaaaa"),

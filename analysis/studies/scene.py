@@ -397,8 +397,10 @@ def parse_scene(text, source="<scene>"):
         data = tomllib.loads(text)
     except RecursionError:
         raise SceneError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
-    except ValueError as error:  # TOMLDecodeError, or an integer beyond Python's digit limit
+    except tomllib.TOMLDecodeError as error:
         raise SceneError(_one_line(f"{source}: not valid TOML: {error}")) from None
+    except ValueError:  # an integer beyond Python's digit limit for text (4300 digits)
+        raise SceneError(f"{source}: not valid TOML for dfwb: an integer of more than 4300 digits") from None
     try:
         return record(Scene, data)
     except Invalid as error:
