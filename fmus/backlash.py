@@ -25,21 +25,26 @@ SIDE = {LOWER: -1, UPPER: 1}  # sigma: pressing into the boundary means sigma * 
 WALL = {EventKind.WALL_LOWER: LOWER, EventKind.WALL_UPPER: UPPER}  # the event of reaching a wall -> contact
 
 
+def check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0=None):
+    """The two-mass backlash's parameter checks, in order (shared with its closed loop); gap0 (None: h/2)."""
+    check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
+    check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
+    # below, tol_h underflows and a pressed bounce never comes to rest: impacts without end
+    check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
+    check("eps", eps, lambda: 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
+    gap0 = 0.5 * h if gap0 is None else gap0
+    check("gap0", gap0, lambda: 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m)")
+    for name, value in (("x1_0", x1_0), ("v1_0", v1_0), ("v2_0", v2_0)):
+        check(name, value, True, f"{name} must be a finite number")
+    return gap0
+
+
 class TwoMassBacklash(PiecewisePlant):
     """Exact solver of the two-mass backlash; the output is x1."""
 
     def __init__(self, M1=1.0, M2=1.0, h=0.1, eps=0.5, F=0.0, omega=1.0, phi=0.0,
                  x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, f=0.0, harmonics=10):
-        check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
-        check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
-        # below, tol_h underflows and a pressed bounce never comes to rest: impacts without end
-        check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
-        check("eps", eps, lambda: 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
-        if gap0 is None:
-            gap0 = 0.5 * h
-        check("gap0", gap0, lambda: 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m)")
-        for name, value in (("x1_0", x1_0), ("v1_0", v1_0), ("v2_0", v2_0)):
-            check(name, value, True, f"{name} must be a finite number")
+        gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
         super().__init__(F, omega, phi, f, harmonics)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
         self.total = M1 + M2

@@ -20,18 +20,26 @@ from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, c
 HOLD, SLIDE, PUSH = "hold", "slide", "push"
 
 
+def check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=False):
+    """The friction mass's parameter checks, in order (shared with its closed loop, where ``exact_stick``: Dv = 0)."""
+    check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
+    check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
+    check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
+    check("Fs", Fs, lambda: Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
+    if exact_stick:
+        check("Dv", Dv, lambda: Dv == 0.0, "Dv must be 0 in the exact closed loop (the CVS model: exact stick)")
+    else:
+        check("Dv", Dv, lambda: Dv >= 0.0, "Dv must be >= 0 (m/s)")
+    check("x0", x0, True, "x0 must be a finite number (m)")
+    check("v0", v0, True, "v0 must be a finite number (m/s)")
+
+
 class FrictionMass(PiecewisePlant):
     """Exact solver of the friction mass; the output is the position x."""
 
     def __init__(self, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, F=0.0, omega=1.0, phi=0.0,
                  x0=0.0, v0=0.0, f=0.0, harmonics=10):
-        check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
-        check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
-        check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
-        check("Fs", Fs, lambda: Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
-        check("Dv", Dv, lambda: Dv >= 0.0, "Dv must be >= 0 (m/s)")
-        check("x0", x0, True, "x0 must be a finite number (m)")
-        check("v0", v0, True, "v0 must be a finite number (m/s)")
+        check_friction(M, B, Fc, Fs, Dv, x0, v0)
         super().__init__(F, omega, phi, f, harmonics)
         self.M, self.B, self.Fc, self.Fs, self.Dv = M, B, Fc, Fs, Dv
         self.edge_force = Fc + B * Dv  # friction just outside the band

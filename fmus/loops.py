@@ -23,13 +23,13 @@ loop an affine system X' = A X + c, integrated exactly by
 Plain Python only: this module runs inside the FMUs.
 """
 
-from .backlash import MIN_CLEARANCE, TwoMassBacklash
+from .backlash import TwoMassBacklash, check_backlash
 from .contract import EventKind
-from .friction import FrictionMass
+from .friction import FrictionMass, check_friction
 from .hybrid import HybridSolver
 from .linear_system import LinearSystem
 from .piecewise import check
-from .static_backlash import StaticBacklash
+from .static_backlash import StaticBacklash, check_static_backlash
 
 STICK = ("stick", 0)
 FREE = ("free", 0)
@@ -157,13 +157,7 @@ class FrictionLoop(FeedbackLoop):
 
     def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
                  section=None, modes=None, budget=None):
-        check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
-        check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
-        check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
-        check("Fs", Fs, lambda: Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
-        check("Dv", Dv, lambda: Dv == 0.0, "Dv must be 0 in the exact closed loop (the CVS model: exact stick)")
-        check("x0", x0, True, "x0 must be a finite number (m)")
-        check("v0", v0, True, "v0 must be a finite number (m/s)")
+        check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=True)
         self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
         self.sticks = 0
         super().__init__(b, a, (x0, v0), z0, state, section, modes, budget)
@@ -216,14 +210,7 @@ class BacklashLoop(FeedbackLoop):
 
     def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
                  state=None, section=None, modes=None, budget=None):
-        check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
-        check("M2", M2, lambda: M2 > 0.0, "M2 must be > 0 (kg)")
-        check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
-        check("eps", eps, lambda: 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
-        gap0 = 0.5 * h if gap0 is None else gap0
-        check("gap0", gap0, lambda: 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m)")
-        for name, value in (("x1_0", x1_0), ("v1_0", v1_0), ("v2_0", v2_0)):
-            check(name, value, True, f"{name} must be a finite number")
+        gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
         self.r2 = M2 / (M1 + M2)
         self.tol_h = 1e-12 * h
@@ -298,11 +285,7 @@ class StaticBacklashLoop(FeedbackLoop):
 
     def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None,
                  budget=None):
-        check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
-        check("k", k, lambda: k > 0.0, "k must be > 0")
-        check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
-        check("x0", x0, True, "x0 must be a finite number (m)")
-        check("v0", v0, True, "v0 must be a finite number (m/s)")
+        check_static_backlash(M, k, h, x0, v0)
         self.M, self.k, self.h = M, k, h
         self.engagements = 0
         super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes, budget)

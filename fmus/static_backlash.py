@@ -15,16 +15,21 @@ ENGAGE = {1: EventKind.ENGAGE_UP, -1: EventKind.ENGAGE_DOWN}  # the edge x reach
 EDGE = {kind: s for s, kind in ENGAGE.items()}
 
 
+def check_static_backlash(M, k, h, x0, v0):
+    """The static backlash's parameter checks, in order (shared with its closed loop)."""
+    check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
+    check("k", k, lambda: k > 0.0, "k must be > 0")
+    check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
+    check("x0", x0, True, "x0 must be a finite number (m)")
+    check("v0", v0, True, "v0 must be a finite number (m/s)")
+
+
 class StaticBacklash(PiecewisePlant):
     """Exact solver of mass + backlash; the output is the backlash output y."""
 
     def __init__(self, M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0, phi=0.0, x0=0.0, v0=0.0,
                  f=0.0, harmonics=10):
-        check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
-        check("k", k, lambda: k > 0.0, "k must be > 0")
-        check("h", h, lambda: h > 0.0, "h must be > 0 (m)")
-        check("x0", x0, True, "x0 must be a finite number (m)")
-        check("v0", v0, True, "v0 must be a finite number (m/s)")
+        check_static_backlash(M, k, h, x0, v0)
         super().__init__(F, omega, phi, f, harmonics)
         self.M, self.k, self.h = M, k, h
         self.engaged = 0

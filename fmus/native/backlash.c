@@ -256,6 +256,27 @@ static const dfwb_backlash zero_state = {0}; /* the state's size is counted on i
 static const dfwb_plant_class BACKLASH = {DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state,
                                           offsetof(dfwb_backlash, gap), fire, restart, state_io, validate};
 
+int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
+                        double v2_0, double gap0)
+{
+    char rh[DFWB_REPR_SIZE], allowed[96];
+    int rc;
+    if ((rc = dfwb_check(err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(err, "h", h, h >= MIN_CLEARANCE, "h must be >= " MIN_CLEARANCE_TEXT " (m)")) != DFWB_OK
+        || (rc = dfwb_check(err, "eps", eps, 0.0 <= eps && eps <= 1.0, "eps must be in [0, 1]")) != DFWB_OK)
+        return rc;
+    dfwb_repr(h, rh); /* h is valid here */
+    strcpy(allowed, "gap0 must be in [0, h] = [0, ");
+    strcat(allowed, rh);
+    strcat(allowed, "] (m)");
+    if ((rc = dfwb_check(err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
+        || (rc = dfwb_check(err, "x1_0", x1_0, 1, "x1_0 must be a finite number")) != DFWB_OK
+        || (rc = dfwb_check(err, "v1_0", v1_0, 1, "v1_0 must be a finite number")) != DFWB_OK)
+        return rc;
+    return dfwb_check(err, "v2_0", v2_0, 1, "v2_0 must be a finite number");
+}
+
 /* -- API ------------------------------------------------------------------------------------ */
 int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *errbuf, size_t errlen)
 {
@@ -263,7 +284,6 @@ int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash *
     dfwb_backlash *p;
     void *plant;
     double M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics;
-    char rh[DFWB_REPR_SIZE], allowed[96];
     int rc;
     dfwb_err_init(&err, errbuf, errlen);
     if (out == NULL || params == NULL)
@@ -272,19 +292,7 @@ int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash *
     M1 = params[0], M2 = params[1], h = params[2], eps = params[3], F = params[4], omega = params[5];
     phi = params[6], x1_0 = params[7], v1_0 = params[8], v2_0 = params[9], gap0 = params[10], f = params[11];
     harmonics = params[12];
-    if ((rc = dfwb_check(&err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "h", h, h >= MIN_CLEARANCE, "h must be >= " MIN_CLEARANCE_TEXT " (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "eps", eps, 0.0 <= eps && eps <= 1.0, "eps must be in [0, 1]")) != DFWB_OK)
-        return rc;
-    dfwb_repr(h, rh); /* h is valid here */
-    strcpy(allowed, "gap0 must be in [0, h] = [0, ");
-    strcat(allowed, rh);
-    strcat(allowed, "] (m)");
-    if ((rc = dfwb_check(&err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
-        || (rc = dfwb_check(&err, "x1_0", x1_0, 1, "x1_0 must be a finite number")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v1_0", v1_0, 1, "v1_0 must be a finite number")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v2_0", v2_0, 1, "v2_0 must be a finite number")) != DFWB_OK
+    if ((rc = dfwb_backlash_check(&err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK
         || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
         || (rc = dfwb_plant_alloc(&BACKLASH, &plant, &err)) != DFWB_OK)
         return rc;

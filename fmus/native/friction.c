@@ -230,6 +230,30 @@ static const dfwb_friction zero_state = {0}; /* the state's size is counted on i
 static const dfwb_plant_class FRICTION = {DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state,
                                           offsetof(dfwb_friction, pw.output), fire, restart, state_io, validate};
 
+int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
+                        int exact_stick)
+{
+    char rFc[DFWB_REPR_SIZE], allowed[96];
+    int rc;
+    strcpy(allowed, "Fs must be >= Fc = ");
+    if (!(isfinite(Fs) && Fs >= Fc)) { /* the message is written only when refused */
+        dfwb_repr(Fc, rFc);
+        strcat(allowed, rFc);
+        strcat(allowed, " (N)");
+    }
+    if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(err, "B", B, B >= 0.0, "B must be >= 0 (N.s/m)")) != DFWB_OK
+        || (rc = dfwb_check(err, "Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")) != DFWB_OK
+        || (rc = dfwb_check(err, "Fs", Fs, Fs >= Fc, allowed)) != DFWB_OK)
+        return rc;
+    rc = exact_stick ? dfwb_check(err, "Dv", Dv, Dv == 0.0,
+                                  "Dv must be 0 in the exact closed loop (the CVS model: exact stick)")
+                     : dfwb_check(err, "Dv", Dv, Dv >= 0.0, "Dv must be >= 0 (m/s)");
+    if (rc != DFWB_OK || (rc = dfwb_check(err, "x0", x0, 1, "x0 must be a finite number (m)")) != DFWB_OK)
+        return rc;
+    return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
+}
+
 /* -- API ------------------------------------------------------------------------------------ */
 int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction **out, char *errbuf, size_t errlen)
 {
@@ -237,7 +261,6 @@ int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction *
     dfwb_friction *p;
     void *plant;
     double M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics;
-    char rFc[DFWB_REPR_SIZE], allowed[96];
     int rc;
     dfwb_err_init(&err, errbuf, errlen);
     if (out == NULL || params == NULL)
@@ -245,20 +268,8 @@ int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction *
     *out = NULL;
     M = params[0], B = params[1], Fc = params[2], Fs = params[3], Dv = params[4], F = params[5];
     omega = params[6], phi = params[7], x0 = params[8], v0 = params[9], f = params[10], harmonics = params[11];
-    strcpy(allowed, "Fs must be >= Fc = ");
-    if (!(isfinite(Fs) && Fs >= Fc)) { /* the message is written only when refused */
-        dfwb_repr(Fc, rFc);
-        strcat(allowed, rFc);
-        strcat(allowed, " (N)");
-    }
     /* FrictionMass, then PiecewisePlant: the order of the Python constructor */
-    if ((rc = dfwb_check(&err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "B", B, B >= 0.0, "B must be >= 0 (N.s/m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "Fs", Fs, Fs >= Fc, allowed)) != DFWB_OK
-        || (rc = dfwb_check(&err, "Dv", Dv, Dv >= 0.0, "Dv must be >= 0 (m/s)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "x0", x0, 1, "x0 must be a finite number (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v0", v0, 1, "v0 must be a finite number (m/s)")) != DFWB_OK
+    if ((rc = dfwb_friction_check(&err, M, B, Fc, Fs, Dv, x0, v0, 0)) != DFWB_OK
         || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
         || (rc = dfwb_plant_alloc(&FRICTION, &plant, &err)) != DFWB_OK)
         return rc;

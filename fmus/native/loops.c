@@ -20,8 +20,6 @@
 
 #define MAX_ORDER DFWB_LOOP_MAX_ORDER
 #define MAX_PLANT 4
-#define MIN_CLEARANCE 1e-290
-#define MIN_CLEARANCE_TEXT "1e-290"
 
 struct dfwb_loop {
     dfwb_hy hy; /* first: the hybrid solver */
@@ -315,46 +313,24 @@ static int check_count(dfwb_err *err, const char *name, size_t value, int ok, co
     return dfwb_fail(err, DFWB_E_VALUE, "%s = %lu is out of range: %s", name, (unsigned long)value, allowed);
 }
 
-/* The plant's checks (the subclass's __init__), in its order; q0 from the parameters. */
+/* The plant's checks (the subclass's __init__, the plant's own dfwb_*_check); its parameters; q0. */
 static int check_plant(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 {
-    char allowed[160], rh[DFWB_REPR_SIZE];
     int rc;
     if (L->plant == DFWB_PLANT_FRICTION) { /* {M, B, Fc, Fs, Dv, x0, v0} */
-        const double M = v[0], B = v[1], Fc = v[2], Fs = v[3], Dv = v[4];
-        dfwb_repr(Fc, rh);
-        snprintf(allowed, sizeof allowed, "Fs must be >= Fc = %s (N)", rh);
-        if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
-            || (rc = dfwb_check(err, "B", B, B >= 0.0, "B must be >= 0 (N.s/m)")) != DFWB_OK
-            || (rc = dfwb_check(err, "Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")) != DFWB_OK
-            || (rc = dfwb_check(err, "Fs", Fs, Fs >= Fc, allowed)) != DFWB_OK
-            || (rc = dfwb_check(err, "Dv", Dv, Dv == 0.0,
-                                "Dv must be 0 in the exact closed loop (the CVS model: exact stick)")) != DFWB_OK
-            || (rc = dfwb_check(err, "x0", v[5], 1, "x0 must be a finite number (m)")) != DFWB_OK
-            || (rc = dfwb_check(err, "v0", v[6], 1, "v0 must be a finite number (m/s)")) != DFWB_OK)
+        if ((rc = dfwb_friction_check(err, v[0], v[1], v[2], v[3], v[4], v[5], v[6], 1)) != DFWB_OK)
             return rc;
-        L->par[0] = M;
-        L->par[1] = B;
-        L->par[2] = Fc;
-        L->par[3] = Fs;
+        L->par[0] = v[0]; /* M, B, Fc, Fs */
+        L->par[1] = v[1];
+        L->par[2] = v[2];
+        L->par[3] = v[3];
         q0[0] = v[5];
         q0[1] = v[6];
         return DFWB_OK;
     }
     if (L->plant == DFWB_PLANT_BACKLASH) { /* {M1, M2, h, eps, x1_0, v1_0, v2_0, gap0} */
         const double M1 = v[0], M2 = v[1], h = v[2], eps = v[3], gap0 = v[7];
-        if ((rc = dfwb_check(err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
-            || (rc = dfwb_check(err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
-            || (rc = dfwb_check(err, "h", h, h >= MIN_CLEARANCE, "h must be >= " MIN_CLEARANCE_TEXT " (m)"))
-                   != DFWB_OK
-            || (rc = dfwb_check(err, "eps", eps, 0.0 <= eps && eps <= 1.0, "eps must be in [0, 1]")) != DFWB_OK)
-            return rc;
-        dfwb_repr(h, rh);
-        snprintf(allowed, sizeof allowed, "gap0 must be in [0, h] = [0, %s] (m)", rh);
-        if ((rc = dfwb_check(err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
-            || (rc = dfwb_check(err, "x1_0", v[4], 1, "x1_0 must be a finite number")) != DFWB_OK
-            || (rc = dfwb_check(err, "v1_0", v[5], 1, "v1_0 must be a finite number")) != DFWB_OK
-            || (rc = dfwb_check(err, "v2_0", v[6], 1, "v2_0 must be a finite number")) != DFWB_OK)
+        if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, v[4], v[5], v[6], gap0)) != DFWB_OK)
             return rc;
         L->par[0] = M1;
         L->par[1] = M2;
@@ -369,19 +345,14 @@ static int check_plant(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
         return DFWB_OK;
     }
     { /* {M, k, h, x0, v0} */
-        const double M = v[0], k = v[1], h = v[2];
-        if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
-            || (rc = dfwb_check(err, "k", k, k > 0.0, "k must be > 0")) != DFWB_OK
-            || (rc = dfwb_check(err, "h", h, h > 0.0, "h must be > 0 (m)")) != DFWB_OK
-            || (rc = dfwb_check(err, "x0", v[3], 1, "x0 must be a finite number (m)")) != DFWB_OK
-            || (rc = dfwb_check(err, "v0", v[4], 1, "v0 must be a finite number (m/s)")) != DFWB_OK)
+        if ((rc = dfwb_static_backlash_check(err, v[0], v[1], v[2], v[3], v[4])) != DFWB_OK)
             return rc;
-        L->par[0] = M;
-        L->par[1] = k;
-        L->par[2] = h;
+        L->par[0] = v[0]; /* M, k, h */
+        L->par[1] = v[1];
+        L->par[2] = v[2];
         q0[0] = v[3];
         q0[1] = v[4];
-        q0[2] = k * v[3];
+        q0[2] = v[1] * v[3]; /* k x0 */
         return DFWB_OK;
     }
 }

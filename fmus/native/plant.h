@@ -198,6 +198,14 @@ int dfwb_plant_integrals(const dfwb_plant_class *cls, const dfwb_pw *pw, double 
                          size_t errlen);
 void *dfwb_plant_copy(const dfwb_plant_class *cls, const dfwb_pw *pw); /* NULL when pw is or out of memory */
 void dfwb_plant_free(dfwb_pw *pw);
+
+/* Each plant's parameter checks, in its Python check_*'s order: shared by the plant and its closed loop (the
+ * loop's friction needs exact stick, Dv = 0). gap0 is given (the caller's None is h/2). */
+int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
+                        int exact_stick);
+int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
+                        double v2_0, double gap0);
+int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, double x0, double v0);
 void dfwb_plant_log(dfwb_pw *pw, size_t capacity);
 size_t dfwb_plant_log_read(dfwb_pw *pw, double *t, int *kind, size_t max);
 unsigned long long dfwb_plant_log_dropped(const dfwb_pw *pw);

@@ -202,6 +202,17 @@ static const dfwb_plant_class STATIC_BACKLASH = {DFWB_PLANT_STATIC_BACKLASH, siz
                                                  &zero_state, offsetof(dfwb_static_backlash, mass), fire, restart,
                                                  state_io, validate};
 
+int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, double x0, double v0)
+{
+    int rc;
+    if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
+        || (rc = dfwb_check(err, "k", k, k > 0.0, "k must be > 0")) != DFWB_OK
+        || (rc = dfwb_check(err, "h", h, h > 0.0, "h must be > 0 (m)")) != DFWB_OK
+        || (rc = dfwb_check(err, "x0", x0, 1, "x0 must be a finite number (m)")) != DFWB_OK)
+        return rc;
+    return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
+}
+
 /* -- API ------------------------------------------------------------------------------------ */
 int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], dfwb_static_backlash **out,
                              char *errbuf, size_t errlen)
@@ -217,11 +228,7 @@ int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], d
     *out = NULL;
     M = params[0], k = params[1], h = params[2], F = params[3], omega = params[4], phi = params[5];
     x0 = params[6], v0 = params[7], f = params[8], harmonics = params[9];
-    if ((rc = dfwb_check(&err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "k", k, k > 0.0, "k must be > 0")) != DFWB_OK
-        || (rc = dfwb_check(&err, "h", h, h > 0.0, "h must be > 0 (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "x0", x0, 1, "x0 must be a finite number (m)")) != DFWB_OK
-        || (rc = dfwb_check(&err, "v0", v0, 1, "v0 must be a finite number (m/s)")) != DFWB_OK
+    if ((rc = dfwb_static_backlash_check(&err, M, k, h, x0, v0)) != DFWB_OK
         || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
         || (rc = dfwb_plant_alloc(&STATIC_BACKLASH, &plant, &err)) != DFWB_OK)
         return rc;
