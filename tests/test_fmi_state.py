@@ -10,10 +10,10 @@ import json
 import math
 import os
 import pickle
-import struct
 
 import pytest
 from conftest import new_instance
+from native_fmu_helpers import initialised, read, run
 
 from dfwb.fmus import facade, state
 from dfwb.fmus.backlash import TwoMassBacklash
@@ -32,37 +32,9 @@ MODELS = list(START)
 
 def _instance(fmus, model, start_time=0.0, start=None, initialise=True):
     """(raw FMU2Slave, its description, its log) with the model's start values set."""
-    fmu, description, messages = new_instance(fmus[model], model)
-    if initialise:
-        fmu.setupExperiment(startTime=start_time)
-        fmu.enterInitializationMode()
-        _set(fmu, description, START[model] if start is None else start)
-        fmu.exitInitializationMode()
-    return fmu, description, messages
-
-
-def _set(fmu, description, values):
-    by_name = {v.name: v for v in description.modelVariables}
-    for name, value in values.items():
-        var = by_name[name]
-        if var.type == "Integer":
-            fmu.setInteger([var.valueReference], [int(value)])
-        else:
-            fmu.setReal([var.valueReference], [float(value)])
-
-
-def _read(fmu, description):
-    """Every Real and Integer variable, Reals as their bit patterns (bit-for-bit comparison)."""
-    reals = [v.valueReference for v in description.modelVariables if v.type == "Real"]
-    integers = [v.valueReference for v in description.modelVariables if v.type == "Integer"]
-    return ([struct.pack("<d", value) for value in fmu.getReal(reals)], list(fmu.getInteger(integers)))
-
-
-def _run(fmu, t, t_end, dt):
-    while t < t_end - 1e-12:
-        fmu.doStep(t, dt)
-        t += dt
-    return t
+    if not initialise:
+        return new_instance(fmus[model], model)
+    return initialised(fmus[model], START[model] if start is None else start, start_time, name=model)
 
 
 def _refused(call):
@@ -74,16 +46,16 @@ def _refused(call):
 @pytest.mark.parametrize("model", MODELS)
 def test_rollback_is_bit_identical(fmus, model):
     fmu, description, messages = _instance(fmus, model)
-    t1 = _run(fmu, 0.0, 0.5, 0.05)
+    t1 = run(fmu, 0.0, 0.5, 0.05)
     saved = fmu.getFMUstate()
-    t2 = _run(fmu, t1, 1.0, 0.05)
-    first = _read(fmu, description)
+    t2 = run(fmu, t1, 1.0, 0.05)
+    first = read(fmu, description)
     fmu.setFMUstate(saved)
-    again = _run(fmu, t1, 1.0, 0.05)
+    again = run(fmu, t1, 1.0, 0.05)
     assert again == t2
-    assert _read(fmu, description) == first
+    assert read(fmu, description) == first
     fmu.setFMUstate(saved)  # a state can be set again, and freed
-    assert _run(fmu, t1, 1.0, 0.05) == t2 and _read(fmu, description) == first
+    assert run(fmu, t1, 1.0, 0.05) == t2 and read(fmu, description) == first
     fmu.freeFMUstate(saved)
     assert not [m for m in messages if m[0] >= 3]
 
@@ -91,28 +63,28 @@ def test_rollback_is_bit_identical(fmus, model):
 @pytest.mark.parametrize("model", MODELS)
 def test_serialized_state_continues_bit_identically_in_a_fresh_instance(fmus, model):
     fmu, description, _ = _instance(fmus, model)
-    t1 = _run(fmu, 0.0, 0.4, 0.05)
+    t1 = run(fmu, 0.0, 0.4, 0.05)
     data = fmu.serializeFMUstate(fmu.getFMUstate())
     assert data.startswith(state.MAGIC)
-    _run(fmu, t1, 1.0, 0.05)
-    original = _read(fmu, description)
+    run(fmu, t1, 1.0, 0.05)
+    original = read(fmu, description)
     # a fresh instance, initialised with the default parameters: the state brings its own
     fresh, _, messages = _instance(fmus, model, start={})
     fresh.setFMUstate(fresh.deSerializeFMUstate(data))
-    _run(fresh, t1, 1.0, 0.05)
-    assert _read(fresh, description) == original
+    run(fresh, t1, 1.0, 0.05)
+    assert read(fresh, description) == original
     assert not [m for m in messages if m[0] >= 3]
 
 
 def test_serialized_state_restores_an_instance_that_was_never_initialised(fmus):
     fmu, description, _ = _instance(fmus, "TwoMassBacklash")
-    t1 = _run(fmu, 0.0, 0.4, 0.05)
+    t1 = run(fmu, 0.0, 0.4, 0.05)
     data = fmu.serializeFMUstate(fmu.getFMUstate())
-    _run(fmu, t1, 1.0, 0.05)
+    run(fmu, t1, 1.0, 0.05)
     fresh, _, messages = _instance(fmus, "TwoMassBacklash", initialise=False)
     fresh.setFMUstate(fresh.deSerializeFMUstate(data))
-    _run(fresh, t1, 1.0, 0.05)
-    assert _read(fresh, description) == _read(fmu, description)
+    run(fresh, t1, 1.0, 0.05)
+    assert read(fresh, description) == read(fmu, description)
     assert not [m for m in messages if m[0] >= 3]
 
 
@@ -127,7 +99,7 @@ def _evil_pickle():
 @pytest.mark.parametrize("kind", ["garbage", "os.system", "truncated", "other model", "other build"])
 def test_crafted_serialized_state_is_refused_with_an_error(fmus, kind):
     fmu, description, messages = _instance(fmus, "FrictionMass")
-    _run(fmu, 0.0, 0.3, 0.1)
+    run(fmu, 0.0, 0.3, 0.1)
     good = fmu.serializeFMUstate(fmu.getFMUstate())
     header = good[len(state.MAGIC):].split(b"\n", 1)[0]
     if kind == "garbage":
@@ -143,7 +115,7 @@ def test_crafted_serialized_state_is_refused_with_an_error(fmus, kind):
         fields = json.loads(header)
         fields["package"] = "dfwb_fmus_0000000000000000"
         data = state.MAGIC + json.dumps(fields).encode() + b"\n" + good.split(b"\n", 2)[2]
-    before = _read(fmu, description)
+    before = read(fmu, description)
 
     def restore():
         fmu.setFMUstate(fmu.deSerializeFMUstate(data))
@@ -151,7 +123,7 @@ def test_crafted_serialized_state_is_refused_with_an_error(fmus, kind):
     _refused(restore)
     assert not os.path.exists("/tmp/dfwb-state-pwned")
     assert any(status == 3 and "refused" in text for status, text in messages), messages
-    assert _read(fmu, description) == before  # nothing was changed, the getters still work
+    assert read(fmu, description) == before  # nothing was changed, the getters still work
     fmu.setFMUstate(fmu.deSerializeFMUstate(good))  # a good state leaves the Error state
     fmu.doStep(0.3, 0.1)
 
@@ -160,7 +132,7 @@ def test_crafted_serialized_state_is_refused_with_an_error(fmus, kind):
 def test_start_time_is_honoured(fmus, model):
     """Starting at t0: the plant starts there, the excitation is in absolute time."""
     fmu, description, messages = _instance(fmus, model, start_time=2.0)
-    _run(fmu, 2.0, 3.0, 0.1)
+    run(fmu, 2.0, 3.0, 0.1)
     assert not [m for m in messages if m[0] >= 3]
     _refused(lambda: fmu.doStep(0.0, 0.1))  # the FMU is at t = 3, not 0
     assert any("but the FMU is at t = 3.0" in text for _, text in messages)
