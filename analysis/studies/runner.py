@@ -222,9 +222,10 @@ class SceneRun:
                 self.outcome.cache_hits += 1
         found = len(self.scene.trace) - len(missing)
         task = display.add("traces", len(self.scene.trace), found, found)
-        simulated = set()  # the keys simulated here: a second trace of the same key finds it in the cache
+        simulated = {}  # digest -> value of the traces simulated here: a second trace of the same key reuses it
         for trace, params, key in missing:
-            value = self.cache.get(key) if digest(key) in simulated else None
+            name = digest(key)
+            value = simulated.get(name)
             if value is None:
                 from dfwb.fmi.simulation import simulate  # fmpy and numpy: only for a trace to compute
 
@@ -233,7 +234,7 @@ class SceneRun:
                 keep = result["time"] >= trace.start - 1e-9 * trace.step
                 value = {name: result[name][keep].astype(float).tolist() for name in ["time"] + trace.outputs}
                 self.cache.put(key, value)
-                simulated.add(digest(key))
+                simulated[name] = value
             else:
                 self.outcome.cache_hits += 1
             out[trace.name] = value
