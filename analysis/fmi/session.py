@@ -33,6 +33,7 @@ _ABANDONED = []  # failed instances stay referenced for the life of the process
 _COUNTER = itertools.count()
 WARNING, ERROR = 1, 3  # fmi2Warning, fmi2Error
 
+
 def _check(function, status):
     """FMICallException for a status worse than fmi2Warning (what fmpy's wrapper raises)."""
     if status > WARNING:
@@ -138,10 +139,12 @@ class FMUSession:
 
         def read():
             fmu = self._fmu
-            status = max(fmu.dll.fmi2GetReal(fmu.component, real_refs, len(reals), real_values),
-                         fmu.dll.fmi2GetInteger(fmu.component, integer_refs, len(integers), integer_values))
-            if status > WARNING:
-                self._fail("reading the outputs", FMICallException(function="fmi2GetReal/Integer", status=status))
+            try:
+                _check("fmi2GetReal", fmu.dll.fmi2GetReal(fmu.component, real_refs, len(reals), real_values))
+                _check("fmi2GetInteger",
+                       fmu.dll.fmi2GetInteger(fmu.component, integer_refs, len(integers), integer_values))
+            except FMICallException as error:
+                self._fail("reading the outputs", error)
             return real_values[:], integer_values[:]
 
         return read
