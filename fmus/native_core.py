@@ -602,7 +602,7 @@ class _NativeLoop(_Native):
         """Take the Python loop's coordinates and its methods that need no solver, so both share one source."""
         super().__init_subclass__(**kwargs)
         python = _LOOPS[cls._plant][2]
-        for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates"):
+        for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates", "force"):
             setattr(cls, name, getattr(python, name))
         cls.coordinates_of = staticmethod(python.coordinates_of)
 
@@ -701,11 +701,6 @@ class _NativeLoop(_Native):
     def output(self):
         """The plant's output y at self.t."""
         return self._api.output(self._handle)
-
-    def force(self, X):
-        """f = -G(s) y: D y + C z at the state X (FeedbackLoop.force)."""
-        m = len(self.coordinates)
-        return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
 
     def counts(self):
         """What the loop counts (stick phases, impacts, engagements)."""
