@@ -47,13 +47,13 @@ import numpy as np
 from dfwb.engine.describing import DFEngine
 from dfwb.fmi.location import fmu_path
 from dfwb.fmi.simulation import FMUError
+from dfwb.fmus.facade import SOLVER_VARIABLE  # read by a pythonfmu plant FMU at each exitInitializationMode
 from dfwb.plants import PLANTS
 from dfwb.plotting import plots
 from dfwb.studies.sweep import grid, run_sweep
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
 FIELDS = ["plant", "method", "setting", "F", "omega", "eps", "error", "seconds"]  # bench.csv's columns
-SOLVER_VARIABLE = "DFWB_FMU_SOLVER"  # read by a pythonfmu plant FMU at each exitInitializationMode
 EXACT = (("fmu-native", "native", None), ("fmu-python-core", "python", "native"),
          ("fmu-pure-python", "python", "python"))
 """The exact FMU kinds: (method, kind of FMU for fmu_path, DFWB_FMU_SOLVER inside it, None: not set)."""
