@@ -51,7 +51,16 @@ from pathlib import Path
 
 from dfwb.base.errors import DfwbError
 from dfwb.plants import PLANTS
-from dfwb.verify.bench import EVENT_PERIODS, EVENT_REPEATS, EXACT, event_cost, exact_fmus
+from dfwb.verify.bench import (
+    EVENT_PERIODS,
+    EVENT_REPEATS,
+    EXACT,
+    WARM,
+    event_cost,
+    exact_fmus,
+    label,
+    relative_error,
+)
 
 # the plants this benchmark can run: a scipy rival, a reference and benchmark points
 CHOICES = [e.name for e in PLANTS.values() if e.scipy is not None and e.reference is not None and e.bench.get("full")]
@@ -59,7 +68,6 @@ METHODS = ("DOP853", "RK45", "LSODA", "Radau")  # the order of the search: the u
 RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
 TARGET_ERROR = 1e-6
 PRUNE = 5.0
-WARM = 0.01  # a run shorter than this (s) is repeated at once and the repeat timed: caches warm, as in a sweep
 POINT_RATIO, SET_RATIO, MEDIAN_POINT = 30.0, 100.0, 1e-4  # the targets: 30x, 100x, 0.1 ms
 # The 40-point friction set: the paper's forces (Figs. 3-4: F = 10..50 N) times 8 frequencies in
 # half-decade steps over their range (0.03..100 rad/s), default parameters (M = 1, B = 0.5, Fc = 5,
@@ -76,14 +84,6 @@ def timed(function):
     return time.perf_counter() - started, value
 
 
-def relative(value, truth):
-    return abs(value - truth) / abs(truth) if truth != 0 else abs(value)
-
-
-def label(F, omega, params):
-    return ", ".join([f"F = {F:g}", f"w = {omega:g}"] + [f"{k} = {v:g}" for k, v in params.items()])
-
-
 def screen(entry, F, omega, params, truth):
     """[(method, rtol, seconds, error)] of every scipy setting run once (pruned: see the module's docstring)."""
     runs, best = [], math.inf
@@ -91,7 +91,7 @@ def screen(entry, F, omega, params, truth):
         for rtol in RTOLS:
             try:
                 seconds, value = timed(lambda: entry.scipy(F, omega, dict(params), method, rtol))
-                error = relative(value, truth)
+                error = relative_error(value, truth)
             except (DfwbError, RuntimeError, ValueError, ArithmeticError):  # the method gave up
                 seconds, error = math.nan, math.inf
             runs.append((method, rtol, seconds, error))
@@ -128,7 +128,7 @@ def fastest_scipy(entry, kinds, F, omega, params, truth, repeats, scipy_repeats)
                 if seconds < WARM:  # a quick run: timed again, caches warm, as the FMU points are
                     seconds, value = timed(lambda: entry.scipy(F, omega, dict(params), method, rtol))
                 scipy_times[method, rtol].append(seconds)
-                scipy_errors[method, rtol] = relative(value, truth)
+                scipy_errors[method, rtol] = relative_error(value, truth)
                 after_scipy = True
     medians = {c: statistics.median(t) for c, t in scipy_times.items()}
     rival = min(medians, key=medians.get) if medians else None
@@ -161,7 +161,7 @@ def point_tables(plants, quick, repeats, scipy_repeats, report):
             m = fastest_scipy(entry, kinds, F, omega, params, truth, repeats, scipy_repeats)
             native = m["fmu"]["fmu-native"]
             result, events = kinds[0].events(F, omega, params)
-            fmu_error = relative(m["results"]["fmu-native"].N, truth)
+            fmu_error = relative_error(m["results"]["fmu-native"].N, truth)
             same = len({m["results"][k.method].N for k in kinds}) == 1
             ms = {k: f"{1e3 * m['fmu'][k]:.3f}" if k in m["fmu"] else "-" for k, _kind, _solver in EXACT}
             pure = m["fmu"].get("fmu-pure-python")
@@ -217,7 +217,7 @@ def friction_set(quick, report):
     counted = [kinds[0].events(F, omega, params) for F, omega, params in FRICTION_SET]
     events, periods = [n for _r, n in counted], [r.periods for r, _n in counted]
     truths = [entry.reference(F, omega, dict(params)) for F, omega, params in FRICTION_SET]
-    errors = {key: max(relative(values[key, i], truth) for i, truth in enumerate(truths))
+    errors = {key: max(relative_error(values[key, i], truth) for i, truth in enumerate(truths))
               for key in [k.method for k in kinds] + ["scipy"]}
     same = all(len({values[k.method, i] for k in kinds}) == 1 for i in range(len(FRICTION_SET)))
     return {"medians": medians, "events": events, "periods": periods, "errors": errors, "same": same,

@@ -71,7 +71,12 @@ def points(quick):
             if entry.reference is not None and entry.bench.get(which)}
 
 
-def _label(F, omega, params, sep=", ", eq=" = "):
+def relative_error(value, truth):
+    """|value - truth| / |truth| (|value| where the truth is 0)."""
+    return abs(value - truth) / abs(truth) if truth != 0 else abs(value)
+
+
+def label(F, omega, params, sep=", ", eq=" = "):
     """'F = 50, w = 20, eps = 0.5': a point's label."""
     return sep.join([f"F{eq}{F:g}", f"w{eq}{omega:g}"] + [f"{k}{eq}{v:g}" for k, v in params.items()])
 
@@ -261,14 +266,14 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print, fmu_
             for m in candidates:
                 if id(m) in failed:
                     error = math.inf
-                    failures.append(f"{plant} {_label(F, omega, params)}: {m.name} {m.setting} failed "
+                    failures.append(f"{plant} {label(F, omega, params)}: {m.name} {m.setting} failed "
                                     f"({failed[id(m)]})")
                 else:
-                    error = abs(values[id(m)] - truth) / abs(truth) if truth != 0 else abs(values[id(m)])
+                    error = relative_error(values[id(m)], truth)
                 rows.append({"plant": plant, "method": m.name, "setting": m.setting, "F": F, "omega": omega,
                              "eps": params.get("eps", ""), "error": error,
                              "seconds": statistics.median(times[id(m)]), "params": dict(params)})
-            report(f"{plant} {_label(F, omega, params, ' ', '=')}: "
+            report(f"{plant} {label(F, omega, params, ' ', '=')}: "
                    f"{len(candidates)} methods ({time.perf_counter() - started:.0f} s so far)")
     with open(out_dir / "bench.csv", "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=FIELDS, extrasaction="ignore")  # params: eps has a column
@@ -306,7 +311,7 @@ def pareto(out_dir, plant, rows):
             ax.loglog([r["seconds"] for r in mine], [max(r["error"], 1e-17) for r in mine], label=method, **style)
         ax.set_xlabel("seconds per DF point (median)")
         ax.set_ylabel("relative error of N")
-        ax.set_title(f"{plant}: {_label(F, omega, dict(params))}", fontsize=9)
+        ax.set_title(f"{plant}: {label(F, omega, dict(params))}", fontsize=9)
         ax.grid(alpha=0.3, which="both")
     axes[0][0].legend(fontsize=7)
     plots.save(figure, out_dir, f"pareto_{plant}")
@@ -323,8 +328,8 @@ def speed_ratios(rows):
         others = " | ".join(f"{kinds[m]['seconds'] * 1e3:.3g} ms ({kinds[m]['seconds'] / native['seconds']:.1f}x)"
                             if m in kinds else "-" for m in exact_kinds[1:])
         rivals = [r for r in here if r["method"] not in exact_kinds and r["error"] <= max(native["error"], 1e-14)]
-        label = f"{key[0]} {_label(key[1], key[2], dict(key[3]))}"
-        head = f"| {label} | {native['seconds'] * 1e3:.3g} ms, {native['error']:.1e} | {others} | "
+        where = f"{key[0]} {label(key[1], key[2], dict(key[3]))}"
+        head = f"| {where} | {native['seconds'] * 1e3:.3g} ms, {native['error']:.1e} | {others} | "
         if rivals:
             best = min(rivals, key=lambda r: r["seconds"])
             lines.append(head + f"{best['method']} {best['setting']}: {best['seconds'] * 1e3:.3g} ms, "
