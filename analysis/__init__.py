@@ -7,6 +7,8 @@ response objects with a ``.plot()``.
   (:class:`DescribingFunctionResponse`);
 - :func:`limit_cycles` -- limit cycles of a plant under a controller G(s)
   (:class:`LimitCycleResponse`); :func:`transfer_function` reads a G(s);
+- :func:`continuation` -- cycles followed in one parameter, with bifurcations
+  (:class:`ContinuationResponse`);
 - :func:`run_scene`, :func:`sweep` and :func:`grid` -- studies written to a folder;
 - :func:`plant`, :func:`names`, :class:`Plant`, :func:`register` -- the plant registry
   (:mod:`dfwb.plants`, whose ``PLANTS`` maps each name to its entry);
@@ -37,9 +39,10 @@ from typing import TYPE_CHECKING
 # and a worker process do not pay for numpy, matplotlib and python-control up front.
 _PUBLIC = {
     "describing_function": "dfwb.api.functions", "limit_cycles": "dfwb.api.functions",
+    "continuation": "dfwb.api.functions", "ContinuationResponse": "dfwb.studies.responses",
     "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.functions",
     "sweep": "dfwb.api.functions", "grid": "dfwb.api.functions",
-    "DescribingFunctionResponse": "dfwb.api.responses", "LimitCycleResponse": "dfwb.api.responses",
+    "DescribingFunctionResponse": "dfwb.studies.responses", "LimitCycleResponse": "dfwb.studies.responses",
     "DfwbError": "dfwb.base.errors", "InputError": "dfwb.base.errors",
     "PlantError": "dfwb.base.errors", "RunError": "dfwb.base.errors",
     "Plant": "dfwb.plants", "names": "dfwb.plants", "plant": "dfwb.plants",
@@ -49,7 +52,7 @@ _PUBLIC = {
 __all__ = [
     "__version__",
     "describing_function", "DescribingFunctionResponse",
-    "limit_cycles", "LimitCycleResponse", "transfer_function",
+    "limit_cycles", "LimitCycleResponse", "continuation", "ContinuationResponse", "transfer_function",
     "run_scene", "sweep", "grid",
     "plant", "plants", "names", "Plant", "register", "unregister",
     "DfwbError", "PlantError", "InputError", "RunError",
@@ -72,7 +75,15 @@ def __dir__():
 
 if TYPE_CHECKING:  # the names as static analysers and IDEs see them
     from dfwb import plants
-    from dfwb.api.functions import describing_function, grid, limit_cycles, run_scene, sweep, transfer_function
-    from dfwb.api.responses import DescribingFunctionResponse, LimitCycleResponse
+    from dfwb.api.functions import (
+        continuation,
+        describing_function,
+        grid,
+        limit_cycles,
+        run_scene,
+        sweep,
+        transfer_function,
+    )
     from dfwb.base.errors import DfwbError, InputError, PlantError, RunError
     from dfwb.plants import Plant, names, plant, register, unregister
+    from dfwb.studies.responses import ContinuationResponse, DescribingFunctionResponse, LimitCycleResponse

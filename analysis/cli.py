@@ -19,7 +19,7 @@ from pathlib import Path
 from dfwb.base.errors import InputError
 
 FMU_DIR_HELP = "$DFWB_FMU_DIR, else a per-user folder, ~/.cache/dfwb/fmus"
-FIGURE_COMMANDS = {"limit-cycle", "examples", "bench", "run", "paper", "demo"}  # the commands that write figures
+FIGURE_COMMANDS = {"limit-cycle", "continue", "examples", "bench", "run", "paper", "demo"}  # they write figures
 
 
 
@@ -195,92 +195,64 @@ def cmd_sweep(args):
     return 0
 
 
-def cmd_limit_cycle(args):
-    from dfwb.engine.limit_cycles import check_range, search
-    from dfwb.engine.transfer import from_coefficients, parse_transfer_function
-    from dfwb.plants.registry import plant
+def _controller(args):
+    """The controller as the user gave it: an expression (its parameters set by --set), or --num/--den."""
+    from dfwb.engine.transfer import from_coefficients
 
-    plot = _plot_path(args.plot) if args.plot else None
     if (args.G is None) == (args.num is None):
         raise InputError("give the controller either as --G EXPR or as --num ... --den ...")
-    G = parse_transfer_function(args.G) if args.G is not None else from_coefficients(args.num, args.den or [])
-    params = plant(args.plant).check(_assignments(args.set, "--set"))
-    from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine
+    return args.G if args.G is not None else from_coefficients(args.num, args.den or [])
 
-    F_range = check_range("--F-range", args.F_range, F_RANGE)
-    omega_range = check_range("--omega-range", args.omega_range, OMEGA_RANGE)
-    problem = None
-    if args.exact:
-        from dfwb.engine.periodic import LoopProblem
 
-        problem = LoopProblem(args.plant, G, params, fmu_dir=args.fmus)  # refused before the map is computed
-    engine = DFEngine(args.plant, args.fmus)
-    found = search(args.plant, G, params, F_range, omega_range, engine=engine, progress=not args.json)
-    cycles = found.cycles
-    report = {"plant": args.plant, "G": {"num": [float(c) for c in G.num[0][0]],
-                                         "den": [float(c) for c in G.den[0][0]]},
-              "params": params, "predictions": [c.as_dict() for c in cycles]}
-    runs, true_cycles, links = [], [], []
-    if args.verify:
-        from dfwb.engine.closed_loop import verify
+def cmd_limit_cycle(args):
+    from dfwb.studies.limit_cycles import analyse
+    from dfwb.studies.progress import Reporter
 
-        report["verification"] = []
-        for cycle in cycles:
-            outcome, run = verify(args.plant, G, cycle, params, args.samples_per_period, fmu_dir=args.fmus)
-            report["verification"].append(outcome)
-            runs.append((cycle, run))
-    if problem is not None:
-        from dfwb.engine.periodic import find_cycles
-        from dfwb.engine.periodic import report as exact_report
-
-        progress = None if args.json else (lambda origin: print(f"  exact loop: from {origin}", file=sys.stderr))
-        true_cycles, links = find_cycles(problem, cycles, progress=progress)
-        report["predictions"], report["cycles"] = exact_report(cycles, true_cycles, links)
-        if args.verify:  # the judge against the truth
-            from dfwb.engine.closed_loop import judge_errors
-
-            for outcome, j in zip(report["verification"], links):
-                outcome["error_vs_true"] = (judge_errors(outcome, true_cycles[j])
-                                            if j is not None and outcome["settled"] else None)
-    if args.plot:
-        from dfwb.plotting.plots import limit_cycle_figure
-
-        limit_cycle_figure(plot, G, found.F_grid, found.omega_grid, found.N_grid, cycles, runs, true_cycles)
+    plot = _plot_path(args.plot) if args.plot else None
+    G, values = _controller(args), _assignments(args.set, "--set")
+    with Reporter(f"limit cycles of {args.plant}", not args.json) as report:
+        response = analyse(args.plant, G, values, F_range=args.F_range, omega_range=args.omega_range,
+                           exact=args.exact, verify=args.verify, samples_per_period=args.samples_per_period,
+                           fmu_dir=args.fmus, progress=report)
+    if plot:
+        response.figure(plot)
     if args.json:
-        json.dump(report, sys.stdout, indent=1)
+        json.dump(response.as_dict(), sys.stdout, indent=1)
         sys.stdout.write("\n")
-        return 0
-    print(f"{len(cycles)} limit cycle(s) of {args.plant} under G(s) predicted in F {F_range}, omega {omega_range}")
-    for i, c in enumerate(cycles):
-        line = (f"  [{i}] F = {c.F:.8g} N, omega = {c.omega:.8g} rad/s, period {c.period:.6g} s, amplitude "
-                f"{c.amplitude_x:.6g}, {'stable' if c.stable else 'unstable'}, distortion {c.distortion:.3g}")
-        if args.verify:
-            v = report["verification"][i]
-            line += (f"\n    judge: {'settled' if v['settled'] else 'NOT settled'} at F = {v['F']:.6g}, "
-                     f"omega = {v['omega']:.6g} (off the prediction by {v['rel_error_F']:.2%}, "
-                     f"{v['rel_error_omega']:.2%})" + ("" if v["settled"] else f": {v['reason']}"))
-            if v.get("error_vs_true"):
-                line += ("; against the true cycle: omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
-                         .format(**v["error_vs_true"]))
-        if problem is not None:
-            j = links[i]
-            line += ("\n    no true cycle near it: a false alarm" if j is None else
-                     "\n    true cycle [{}]: DF error omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
-                     .format(j, **report["predictions"][i]["error"]))
-        print(line)
-    if problem is not None:
-        print(f"{len(true_cycles)} true cycle(s) of the exact closed loop (shooting, Floquet multipliers):")
-        for j, c in enumerate(true_cycles):
-            which = "not predicted by the DF" if c.prediction is None else f"prediction [{c.prediction}]"
-            print(f"  [{j}] omega = {c.omega:.10g} rad/s, period {c.period:.10g} s, amplitude {c.amplitude_x:.10g}, "
-                  f"F = {c.F:.10g} N, {'stable' if c.stable else 'unstable'} (|multipliers| "
-                  f"{', '.join(f'{m:.3g}' for m in c.multipliers)}), {_per_period(c.counts)}, residual "
-                  f"{c.residual:.1e}; {which}")
+    else:
+        print(response.summary())
     return 0
 
 
-def _per_period(counts):
-    return ", ".join(f"{value} {name}" for name, value in counts.items()) + " per period"
+def _range(text, option):
+    """NAME=START:STOP (or NAME=START:STOP:N with ``count``) of --parameter, --x, --y."""
+    name, sep, rest = text.partition("=")
+    parts = rest.split(":")
+    if not sep or not name or len(parts) not in (2, 3):
+        raise InputError(f"{option} {text!r}: expected NAME=START:STOP" + (":N" if option != "--parameter" else ""))
+    return name, [_number(part, f"{option} {name}") for part in parts]
+
+
+def cmd_continue(args):
+    from dfwb.studies.continuation import follow
+    from dfwb.studies.progress import Reporter
+
+    plot = _plot_path(args.plot) if args.plot else None
+    name, bounds = _range(args.parameter, "--parameter")
+    if len(bounds) != 2:
+        raise InputError(f"--parameter {args.parameter!r}: expected NAME=START:STOP")
+    sources = ("truth", "df") if args.source == "both" else (args.source,)
+    with Reporter(f"continuation of {args.plant} in {name}", not args.json) as report:
+        response = follow(args.plant, _controller(args), name, *bounds, _assignments(args.set, "--set"),
+                          sources=sources, max_points=args.max_points, fmu_dir=args.fmus, progress=report)
+    if plot:
+        response.figure(plot)
+    if args.json:
+        json.dump(response.as_dict(), sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        print(response.summary())
+    return 0
 
 
 def _plot_path(text):
@@ -444,11 +416,12 @@ def parser():
     cycle.add_argument("--num", type=float, nargs="+", action="extend",
                        help="controller numerator coefficients, highest power first")
     cycle.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator coefficients")
-    cycle.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE", help="plant parameters")
-    cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=(0.1, 1000.0), metavar=("LO", "HI"),
-                       help="force amplitudes searched [N] (default: %(default)s)")
-    cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=(0.05, 100.0), metavar=("LO", "HI"),
-                       help="frequencies searched [rad/s] (default: %(default)s)")
+    cycle.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
+                       help="plant parameters and G's (e.g. Fs=8 Kp=10 for G = 'Kp + Ki/s')")
+    cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                       help="force amplitudes searched [N] (default: derived from the plant and G)")
+    cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                       help="frequencies searched [rad/s] (default: derived from the plant and G)")
     cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
     cycle.add_argument("--exact", action="store_true",
                        help="find the true cycles of the exact closed loop (shooting, Floquet stability) and the "
@@ -459,6 +432,26 @@ def parser():
     cycle.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(cycle)
     cycle.set_defaults(run=cmd_limit_cycle)
+
+    follow = commands.add_parser("continue", help="follow limit cycles in one parameter of G or of the plant: "
+                                                 "branches, bifurcations, the diagram")
+    follow.add_argument("plant", choices=[n for n in plant_names], help="the plant")
+    follow.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
+                                                  "e.g. 'Kp + Ki/s'")
+    follow.add_argument("--num", type=float, nargs="+", action="extend", help="controller numerator coefficients")
+    follow.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator coefficients")
+    follow.add_argument("--parameter", action=_Once, required=True, metavar="NAME=START:STOP",
+                        help="the parameter followed and its range, e.g. Ki=1:30")
+    follow.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
+                        help="the other parameters of G and of the plant")
+    follow.add_argument("--source", action=_Once, choices=("both", "truth", "df"), default="both",
+                        help="follow the true cycles, the DF's predictions, or both (default: %(default)s)")
+    follow.add_argument("--max-points", action=_Once, type=_integer(2, 10_000), default=200,
+                        help="points per branch, at most (default: %(default)s)")
+    follow.add_argument("--plot", action=_Once, help="write the bifurcation diagram to this PNG")
+    follow.add_argument("--json", action="store_true", help="print one JSON object")
+    fmu_options(follow)
+    follow.set_defaults(run=cmd_continue)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
     examples.add_argument("--out", action=_Once, type=Path, default=Path("out/examples"),
@@ -527,7 +520,7 @@ def main(argv=None):
     prog = f"dfwb {args.command}"
     if getattr(args, "fmu", None):  # the process and its workers run this kind of plant FMU
         os.environ["DFWB_FMU"] = args.fmu
-    if args.command in FIGURE_COMMANDS and (args.command != "limit-cycle" or args.plot):
+    if args.command in FIGURE_COMMANDS and (args.command not in ("limit-cycle", "continue") or args.plot):
         from dfwb.plotting.backend import use_batch_backend
 
         use_batch_backend()  # figures go to files, in batch: no display is needed
@@ -538,6 +531,9 @@ def main(argv=None):
             return args.run(args)
     except DfwbError as error:
         top.exit(2, f"{prog}: error: {_one_line(error)}\n")
+    except BrokenPipeError:  # the reader went away (dfwb ... | head): nothing more to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as error:
         where = f"{error.filename}: " if error.filename else ""
         top.exit(2, f"{prog}: error: {where}{error.strerror or _one_line(error)}\n")

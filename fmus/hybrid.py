@@ -259,6 +259,7 @@ class HybridSolver:
         self._watching = None  # the kind of the section function searched (the other is negative)
         self._time_rounding = 0.0  # how far the current instant is uncertain (4 ulp of the last event's time)
         self.crossings = []  # (t, X) at every upward crossing of the section
+        self.stopped = None  # the event kind the last advance stopped at (its ``stop_at``), else None
 
     def start(self, t0, X0, key, departing=None):
         """Begin at t0 in mode ``key`` (``departing``: the index of an event function that is zero at X0).
@@ -360,12 +361,16 @@ class HybridSolver:
                 best = (tau, kind)
         return best
 
-    def advance(self, t_end, stop_at_section=False):
+    def advance(self, t_end, stop_at_section=False, stop_at=()):
         """Integrate exactly from self.t to t_end, firing every event on the way.
 
         With ``stop_at_section``, stop early at the next upward crossing of the
-        section (then ``self.crossings[-1]`` holds it).
+        section (then ``self.crossings[-1]`` holds it). ``stop_at``: pairs
+        ``(mode key, event kind)``; stop just after the first event of such a
+        kind fired from such a mode (then ``self.stopped`` is its kind and the
+        state is the one the event left, on its boundary).
         """
+        self.stopped = None
         if not (isinstance(t_end, (int, float)) and not isinstance(t_end, bool) and math.isfinite(t_end)
                 and t_end >= self.t):
             raise PlantError(f"t_end = {t_end!r} is out of range: the end of a step must be a finite number >= "
@@ -401,12 +406,17 @@ class HybridSolver:
                         t_end = t
                         break
                     continue
+                fired_from = self.key
                 key, X, departing = self._fire(t, kind, X)
                 departing = () if departing is None else (departing,)
                 self.events += 1
                 if self.event_log is not None:
                     self.event_log.append((t, kind))
                 self._begin(t, X, key, departing)
+                if stop_at and (fired_from, kind) in stop_at:
+                    self.stopped = kind
+                    t_end = t
+                    break
                 continue
             if self._b > t_end:
                 break
@@ -419,6 +429,14 @@ class HybridSolver:
                 self._budget.spend(self._b, self._mode.h)
             self._chunk_start(self._b, self._mode.step(self._X, self._dX))
         self.t = t_end
+
+    def sample(self, times):
+        """The states at each of ``times`` (non-decreasing, from self.t), advancing to them in turn."""
+        states = []
+        for t in times:
+            self.advance(t)
+            states.append(self.state())
+        return states
 
     def state(self):
         """The state X at self.t."""

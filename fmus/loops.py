@@ -59,6 +59,12 @@ class FeedbackLoop(HybridSolver):
     OUTPUT = 0
     initial_parameters = ()  # the plant parameters that set q at t = 0 (superseded by ``state``)
     plant = None  # the plant's open-loop solver (:mod:`.friction` ...): its orbits start a shooting
+    KEYS = ()  # the mode keys, in the compiled core's order
+    # The Poincare section every periodic orbit crosses: legs, each the (mode key, event kind) pairs that end it
+    # (an event of the first leg, then one of the second: a lower turn, then an upper one). A point of the
+    # section is the state the last leg's event leaves; there coordinate PIVOT is fixed by the others (pivot()).
+    SECTION = ()
+    PIVOT = 0
 
     @staticmethod
     def coordinates_of(output):
@@ -73,6 +79,22 @@ class FeedbackLoop(HybridSolver):
         q = list(q)
         q[self.OUTPUT] += d
         return q
+
+    def pivot(self, X):
+        """The value of coordinate PIVOT on the section, given the state's other coordinates."""
+        raise NotImplementedError
+
+    def linear(self):
+        """(num, den) of the plant with its nonlinearity removed, from the force to the output."""
+        raise NotImplementedError
+
+    def nonlinearity(self):
+        """("force", F) or ("length", d): the size of the nonlinearity, as a force or in output units."""
+        raise NotImplementedError
+
+    def still(self, F, omega):
+        """Whether F cos(omega t) leaves the output still (its describing function is 0 there)."""
+        raise NotImplementedError
 
     def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None):
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
@@ -150,6 +172,21 @@ class FrictionLoop(FeedbackLoop):
     coordinates = ("x", "v")
     initial_parameters = ("x0", "v0")
     plant = FrictionMass
+    KEYS = (STICK, ("slide", 1), ("slide", -1))
+    SECTION = (((("slide", -1), EventKind.BAND),), ((("slide", 1), EventKind.BAND),))  # x at a minimum, a maximum
+    PIVOT = 1  # v = 0
+
+    def pivot(self, X):
+        return 0.0
+
+    def linear(self):
+        return [1.0], [self.M, self.B, 0.0]
+
+    def nonlinearity(self):
+        return "force", max(self.Fs, self.Fc)
+
+    def still(self, F, omega):
+        return F <= self.Fs  # the mass never breaks away
 
     @staticmethod
     def coordinates_of(output):
@@ -203,6 +240,21 @@ class BacklashLoop(FeedbackLoop):
     coordinates = ("x1", "v1", "gap", "w")
     initial_parameters = ("x1_0", "v1_0", "v2_0", "gap0")
     plant = TwoMassBacklash
+    KEYS = (FREE, ("contact", -1), ("contact", 1))
+    SECTION = (((FREE, EventKind.WALL_LOWER),), ((FREE, EventKind.WALL_UPPER),))  # an impact at 0, then at h
+    PIVOT = 2  # gap = h
+
+    def pivot(self, X):
+        return self.h
+
+    def linear(self):
+        return [1.0], [self.M1 + self.M2, 0.0, 0.0]
+
+    def nonlinearity(self):
+        return "length", self.h
+
+    def still(self, F, omega):
+        return F <= 0.25 * self.h * self.M2 * omega * omega  # M2 from rest at the centre never reaches a wall
 
     @staticmethod
     def coordinates_of(output):
@@ -272,6 +324,21 @@ class StaticBacklashLoop(FeedbackLoop):
     OUTPUT = 2
     initial_parameters = ("x0", "v0")
     plant = StaticBacklash
+    KEYS = (FREE, ("engaged", 1), ("engaged", -1))
+    SECTION = (((FREE, EventKind.ENGAGE_DOWN),), ((FREE, EventKind.ENGAGE_UP),))  # the lower edge, then the upper
+    PIVOT = 0  # x = y/k + h/2: at the upper edge of the play
+
+    def pivot(self, X):
+        return X[2] / self.k + 0.5 * self.h
+
+    def linear(self):
+        return [self.k], [self.M, 0.0, 0.0]
+
+    def nonlinearity(self):
+        return "length", self.k * self.h
+
+    def still(self, F, omega):
+        return F <= 0.5 * self.h * self.M * omega * omega  # the mass swings inside the play: y never moves
 
     @staticmethod
     def coordinates_of(output):

@@ -561,8 +561,11 @@ class _LoopApi(_Functions):
         table = {
             "new": (c_int, [c_int, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t,
                             p_double, c_size_t, p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
-            "advance": (c_int, [c_void_p, c_double, c_int, ctypes.POINTER(c_longlong), c_longlong, c_char_p,
-                                c_size_t]),
+            "advance": (c_int, [c_void_p, c_double, ctypes.c_ulonglong, ctypes.POINTER(c_longlong), c_longlong,
+                                c_char_p, c_size_t]),
+            "stopped": (c_int, [c_void_p]),
+            "sample": (c_int, [c_void_p, p_double, c_size_t, p_double, ctypes.POINTER(c_longlong), c_longlong,
+                               c_char_p, c_size_t]),
             "plant": (c_int, [c_void_p]),
             "order": (c_int, [c_void_p]),
             "size": (c_int, [c_void_p]),
@@ -602,7 +605,8 @@ class _NativeLoop(_Native):
         """Take the Python loop's coordinates and its methods that need no solver, so both share one source."""
         super().__init_subclass__(**kwargs)
         python = _LOOPS[cls._plant][2]
-        for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates", "force"):
+        for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates", "force",
+                     "KEYS", "SECTION", "PIVOT", "pivot", "linear", "nonlinearity", "still"):
             setattr(cls, name, getattr(python, name))
         cls.coordinates_of = staticmethod(python.coordinates_of)
 
@@ -657,6 +661,7 @@ class _NativeLoop(_Native):
         self._mask = 0
         self._X = (ctypes.c_double * size)()
         self.crossings = []  # (t, X) at every upward crossing of the section
+        self.stopped = None  # the event kind the last advance stopped at (``stop_at``), else None
         self._collect()
 
     def _shared(self):
@@ -668,21 +673,27 @@ class _NativeLoop(_Native):
         """The current mode key (as the Python loop's: ``("slide", 1)``, ...)."""
         return self._keys[self._api.mode(self._handle)]
 
-    def advance(self, t_end, stop_at_section=False):
+    def advance(self, t_end, stop_at_section=False, stop_at=()):
         """Integrate exactly from self.t to t_end, firing every event on the way (HybridSolver.advance).
 
         With ``stop_at_section``, stop early at the next upward crossing of the section (then
-        ``self.crossings[-1]`` holds it)."""
+        ``self.crossings[-1]`` holds it); ``stop_at``: pairs ``(mode key, event kind)``, stop just after the
+        first such event (then ``self.stopped`` is its kind)."""
         self._share_modes()
         api, budget = self._api, self._budget
+        stop = bool(stop_at_section)
+        for key, kind in stop_at:
+            stop |= 1 << (1 + 16 * self._keys.index(key) + EVENT_KINDS.index(kind))
         if budget is None:
-            code = api.advance(self._handle, _as_double(t_end), bool(stop_at_section), None, 0, self._err, ERRLEN)
+            code = api.advance(self._handle, _as_double(t_end), stop, None, 0, self._err, ERRLEN)
         else:
             left = self._left
             left.value = budget.left
-            code = api.advance(self._handle, _as_double(t_end), bool(stop_at_section), ctypes.byref(left),
-                               budget.total, self._err, ERRLEN)
+            code = api.advance(self._handle, _as_double(t_end), stop, ctypes.byref(left), budget.total, self._err,
+                               ERRLEN)
             budget.left = left.value
+        kind = api.stopped(self._handle)
+        self.stopped = EVENT_KINDS[kind] if kind else None
         self._collect()
         if code != OK:
             if type(t_end) is not float:  # the value as Python writes it
@@ -697,6 +708,30 @@ class _NativeLoop(_Native):
         X = self._X
         self._api.state(self._handle, X)
         return X[:]
+
+    def sample(self, times):
+        """The states at each of ``times`` (non-decreasing, from self.t), advancing to them in turn
+        (HybridSolver.sample): one call into the core. ``times`` may be a float64 array (read in place)."""
+        self._share_modes()
+        api, budget, n = self._api, self._budget, len(times)
+        if getattr(times, "dtype", None) == "float64" and times.flags["C_CONTIGUOUS"]:
+            ctimes = times.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        else:
+            ctimes = (ctypes.c_double * max(1, n))(*[_as_double(t) for t in times])
+        states = (ctypes.c_double * max(1, n * self._size))()
+        if budget is None:
+            code = api.sample(self._handle, ctimes, n, states, None, 0, self._err, ERRLEN)
+        else:
+            left = self._left
+            left.value = budget.left
+            code = api.sample(self._handle, ctimes, n, states, ctypes.byref(left), budget.total, self._err, ERRLEN)
+            budget.left = left.value
+        self.stopped = None
+        self._collect()
+        if code != OK:
+            _raise(code, self._err)
+        size = self._size
+        return [states[i * size:(i + 1) * size] for i in range(n)]
 
     def output(self):
         """The plant's output y at self.t."""
@@ -790,7 +825,7 @@ class NativeFrictionLoop(_NativeLoop):
     """:class:`~.loops.FrictionLoop` solved by the C core: same keywords, defaults, attributes and methods."""
 
     _plant = "friction"
-    _keys = (_loops.STICK, ("slide", 1), ("slide", -1))
+    _keys = _loops.FrictionLoop.KEYS
     _counter = "sticks"
     _constant_names = ("M", "B", "Fc", "Fs")
 
@@ -810,7 +845,7 @@ class NativeBacklashLoop(_NativeLoop):
     """:class:`~.loops.BacklashLoop` solved by the C core: same keywords, defaults, attributes and methods."""
 
     _plant = "backlash"
-    _keys = (_loops.FREE, ("contact", -1), ("contact", 1))
+    _keys = _loops.BacklashLoop.KEYS
     _counter = "impacts"
     _constant_names = ("M1", "M2", "h", "eps", "r2", "tol_h")
 
@@ -834,7 +869,7 @@ class NativeStaticBacklashLoop(_NativeLoop):
     """:class:`~.loops.StaticBacklashLoop` solved by the C core: same keywords, defaults, attributes and methods."""
 
     _plant = "static_backlash"
-    _keys = (_loops.FREE, ("engaged", 1), ("engaged", -1))
+    _keys = _loops.StaticBacklashLoop.KEYS
     _counter = "engagements"
     _constant_names = ("M", "k", "h")
 

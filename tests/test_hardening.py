@@ -305,7 +305,7 @@ def test_files_are_hashed_in_pieces(tmp_path):
     (["limit-cycle", "static-backlash", "--G", "s**(1e309)"], "not finite"),
     (["limit-cycle", "static-backlash", "--G=" + "-" * 100000 + "s"], "at most 1000"),
     (["limit-cycle", "static-backlash", "--G=" + "-" * 900 + "s"], "nested more than"),
-    (["limit-cycle", "friction", "--G", "1/s", "--omega-range", "1e-300", "1"], "--omega-range = [1e-300, 1.0]"),
+    (["limit-cycle", "friction", "--G", "1/s", "--omega-range", "1e-300", "1"], "omega range = [1e-300, 1.0]"),
     (["limit-cycle", "friction", "--G", "10/s", "--verify", "--samples-per-period", "0"],
      "--samples-per-period: 0 is out of range"),
     (["sweep", "friction", "--F", "10", "--omega", "1", "--out", "o", "--jobs", "-3"], "--jobs: -3 is out of range"),

@@ -31,7 +31,8 @@ import pytest
 from native_fmu_helpers import HEADER, with_crc
 from test_periodic import LOOPS as PERIODIC  # tests/test_periodic.py's loops
 
-from dfwb.engine.periodic import MAX_CHUNKS, LoopProblem, find_cycles
+from dfwb.engine.cycles import find_cycles
+from dfwb.engine.periodic import MAX_CHUNKS, LoopProblem
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.hybrid import Budget
 from dfwb.fmus.loops import STICK, BacklashLoop, FrictionLoop, StaticBacklashLoop
@@ -291,28 +292,38 @@ def problem(core, plant, G, params=None, native=True, max_chunks=None):
 
 def _same_cycle(a, b):
     for name in ("omega", "period", "amplitude_x", "F", "stable", "multipliers", "residual", "iterations", "state",
-                 "level", "harmonics", "counts", "started_from", "prediction"):
+                 "returns", "harmonics", "counts", "signature", "spectrum", "sections", "swing", "started_from",
+                 "prediction", "df"):
         assert getattr(a, name) == getattr(b, name), name
     for name in ("t", "y", "f"):
         assert np.array_equal(a.trace[name], b.trace[name]), name
     assert a.trace["events"] == b.trace["events"]
 
 
+def _hits(p, state, count):
+    """The (time, state, stopped kind) of ``count`` section hits from ``state`` (the event stops)."""
+    solver, hits = p.solver(state), []
+    for _ in range(count):
+        assert p.hit(solver, p.horizon)
+        hits.append((solver.t, solver.state(), solver.stopped))
+    return hits
+
+
 @pytest.mark.parametrize("name", list(PERIODIC))
-def test_settle_and_shoot_are_bit_identical(core, name):
+def test_section_hits_and_shooting_are_bit_identical(core, name):
     plant, G, params, start = PERIODIC[name]
     results = []
     for native in (False, True):
         p = problem(core, plant, G, params, native)
         t0 = time.perf_counter()
-        settled = p.settle(p.rest_start(start), period=2.0)
-        cycle = p.shoot(*settled, period=2.0)
-        results.append((settled, cycle, p.budget.left, time.perf_counter() - t0))
-    (s_py, c_py, left_py, t_py), (s_c, c_c, left_c, t_c) = results
-    assert s_c == s_py
+        hits = _hits(p, p.rest_start(start), 40)
+        cycle = p.shoot(hits[-1][1], on_section=True)
+        results.append((hits, cycle, p.budget.left, time.perf_counter() - t0))
+    (h_py, c_py, left_py, t_py), (h_c, c_c, left_c, t_c) = results
+    assert h_c == h_py and h_c[-1][2] in {kind for _key, kind in p.legs[-1]}
     _same_cycle(c_py, c_c)
     assert left_c == left_py  # the same chunks integrated, through the shared Budget
-    print(f"\n{name}: settle + shoot, Python {t_py:.3f} s, C {t_c:.3f} s ({t_py / t_c:.0f}x), "
+    print(f"\n{name}: 40 section hits + shoot, Python {t_py:.3f} s, C {t_c:.3f} s ({t_py / t_c:.0f}x), "
           f"{MAX_CHUNKS - left_py} chunks")
 
 
@@ -328,7 +339,8 @@ def test_find_cycles_with_predictions_is_bit_identical(core):
     for native in (False, True):
         p = problem(core, "friction", "20 + 100/s + 2*s/(0.1*s+1)", native=native)
         t0 = time.perf_counter()
-        found.append((*find_cycles(p, predictions), p.budget.left, time.perf_counter() - t0))
+        search = find_cycles(p, predictions, amplitudes=[0.3], boundaries=False)
+        found.append((search.cycles, search.links, p.budget.left, time.perf_counter() - t0))
     (cycles_py, links_py, left_py, t_py), (cycles_c, links_c, left_c, t_c) = found
     assert links_c == links_py == [0, 1] and left_c == left_py
     assert len(cycles_c) == len(cycles_py) == 2
@@ -339,14 +351,15 @@ def test_find_cycles_with_predictions_is_bit_identical(core):
 
 
 def test_a_study_too_stiff_for_its_budget_stops_alike(core):
-    messages = []
+    outcomes = []
     for native in (False, True):
         p = problem(core, "friction", "20 + 100/s + 2*s/(1e-4*s+1)", native=native, max_chunks=20_000)
-        with pytest.raises(PlantError, match="more than 20000 chunks") as error:
-            find_cycles(p, [])
-        messages.append((str(error.value), p.budget.left))
-    assert messages[0] == messages[1]
-    assert messages[0][1] < 0
+        with pytest.raises(PlantError, match="more than 20000 chunks"):
+            p.solver(p.rest_start(0.1)).advance(1e3)
+        search = find_cycles(p, [])
+        outcomes.append((search.coverage.as_dict(), [vars(f) for f in search.fates], p.budget.left))
+    assert outcomes[0] == outcomes[1]
+    assert outcomes[0][2] < 0 and outcomes[0][0]["complete"] is False
 
 
 def test_shared_modes_bound_a_step_as_in_python(core):
@@ -658,12 +671,10 @@ def test_time_per_event_and_per_period(core):
         per = []
         for native in (False, True):
             p = problem(core, plant, G, params, native)
-            settled = p.settle(p.rest_start(start), period=2.0)
-            state, level = settled
-            first = p.first_return(state, level, 100.0)
+            first = p.first_return(_hits(p, p.rest_start(start), 40)[-1][1])
             periods, t0 = 0, time.perf_counter()
             while time.perf_counter() - t0 < 0.3 or periods < 3:
-                first = p.first_return(first[0], level, 100.0)
+                first = p.first_return(first[0])
                 periods += 1
             per.append((time.perf_counter() - t0) / periods)
         rows.append(f"{name}: one period (a return to the section, a new solver each) Python {1e3 * per[0]:.2f} ms, "

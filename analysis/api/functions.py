@@ -14,61 +14,26 @@ from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 
-from dfwb.api.responses import DescribingFunctionResponse, LimitCycleResponse
 from dfwb.base.errors import InputError
+from dfwb.base.values import integer as _integer
+from dfwb.base.values import reals
+from dfwb.base.values import short as _short
 from dfwb.engine.describing import HARMONICS, DFEngine, check_point
 from dfwb.plants import plant as find_plant
+from dfwb.studies.responses import ContinuationResponse, DescribingFunctionResponse, LimitCycleResponse
 from dfwb.studies.sweep import MAX_POINTS
 
-__all__ = ["describing_function", "limit_cycles", "transfer_function", "run_scene", "sweep", "grid"]
+__all__ = ["describing_function", "limit_cycles", "continuation", "transfer_function", "run_scene", "sweep", "grid"]
 
 ArrayLike = Union[float, Sequence, np.ndarray]
 
 
-def _leaves(value, limit):
-    """The numbers in a nested list/tuple/range, counted without building them (stops past ``limit``)."""
-    total, stack = 0, [value]
-    while stack and total <= limit:
-        item = stack.pop()
-        if isinstance(item, np.ndarray):
-            total += item.size
-        elif isinstance(item, range):
-            total += len(item)
-        elif isinstance(item, (list, tuple)):
-            stack.extend(item)
-        else:
-            total += 1
-    return total
+ADVICE = " in one call (split it, or use dfwb.sweep)"
 
 
 def _reals(name, value):
-    """``value`` as a float array: real numbers only (no bool, complex, text or objects), counted before it is built."""
-    if _leaves(value, MAX_POINTS) > MAX_POINTS:
-        raise InputError(f"{name} has more than {MAX_POINTS} points: at most {MAX_POINTS} in one call "
-                         "(split it, or use dfwb.sweep)")
-    try:
-        array = np.asarray(value)
-    except (TypeError, ValueError):
-        array = None
-    if array is None or array.dtype.kind not in "iuf":
-        raise InputError(f"{name} = {_short(value)} is not a number or an array of numbers "
-                         "(real ones: no bool, complex, text or None)")
-    if array.size > MAX_POINTS:
-        raise InputError(f"{name} has {array.size} points: at most {MAX_POINTS} in one call "
-                         "(split it, or use dfwb.sweep)")
-    return array.astype(float)
-
-
-def _short(value):
-    text = " ".join(repr(value).split())
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _integer(name, value):
-    """An integer option (a Python or numpy integer, not a bool), as int."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} = {_short(value)} is not an integer")
-    return int(value)
+    """``value`` as a float array of at most MAX_POINTS real numbers."""
+    return reals(name, value, MAX_POINTS, ADVICE)
 
 
 def _grid(F: ArrayLike, omega: ArrayLike) -> tuple:
@@ -185,81 +150,64 @@ def transfer_function(G: Any):
     >>> G.num[0][0].tolist(), G.den[0][0].tolist()
     ([20.0, 40.0], [1.0, 20.0])
     """
-    import control as ct
+    from dfwb.engine.transfer import to_transfer_function
 
-    from dfwb.engine.transfer import MAX_DEGREE, check_transfer_function, from_coefficients, parse_transfer_function
-
-    if isinstance(G, str):
-        return parse_transfer_function(G)
-    if isinstance(G, (ct.TransferFunction, ct.StateSpace)):
-        text = f"the {type(G).__name__} {G.name!r}"  # str(G) is a multi-line table
-        if G.ninputs != 1 or G.noutputs != 1:
-            raise InputError(f"G(s) = {text} must have one input and one output (it has {G.ninputs} and "
-                             f"{G.noutputs})")
-        if isinstance(G, ct.StateSpace):
-            if G.nstates > MAX_DEGREE:
-                raise InputError(f"G(s) = {text} has {G.nstates} states: a degree of at most {MAX_DEGREE} is allowed")
-            if not all(np.all(np.isfinite(np.asarray(m, dtype=complex))) for m in (G.A, G.B, G.C, G.D)):
-                raise InputError(f"G(s) = {text} has matrix entries that are not finite")
-            if not G.isctime():
-                raise InputError(f"G(s) = {text} must be a continuous-time system (dt = 0), not dt = {G.dt}")
-        return check_transfer_function(G, text)
-    if isinstance(G, (tuple, list)) and len(G) == 2:
-        try:
-            num, den = (_reals(name, part) for name, part in zip(("num", "den"), G))
-        except InputError as error:
-            raise InputError(f"G = {_short(G)}: num and den must be lists of real numbers ({error})") from None
-        if num.ndim > 1 or den.ndim > 1:
-            raise InputError(f"G = {_short(G)}: num and den must be flat lists of real numbers")
-        if max(num.size, den.size) > MAX_DEGREE + 1:
-            raise InputError(f"G = {_short(G)}: a polynomial of degree {max(num.size, den.size) - 1}, "
-                             f"at most {MAX_DEGREE} is allowed")
-        return from_coefficients(np.atleast_1d(num).tolist(), np.atleast_1d(den).tolist(), names=("num", "den"))
-    raise InputError(f"G = {_short(G)} is not a controller: give an expression in s, (num, den), "
-                     "or a python-control TransferFunction or StateSpace")
+    return to_transfer_function(G)
 
 
-def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_range: tuple = (0.1, 100.0),
-                 n_F: int = 16, n_omega: int = 48, exact: bool = False, fmu_dir: Optional[Union[str, Path]] = None,
-                 progress: bool = False, **params: float) -> LimitCycleResponse:
+def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
+                 n_F: int = 16, n_omega: int = 48, exact: bool = False, verify: bool = False,
+                 samples_per_period: int = 512, amplitudes: Optional[Sequence[float]] = None,
+                 fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
+                 **params: float) -> LimitCycleResponse:
     """The limit cycles of a plant under negative feedback through a controller G(s).
 
     Solves the harmonic balance ``1 + G(jw) N(F, w) = 0`` in both unknowns F and w:
     a DF map of ``n_F x n_omega`` points locates the candidates, Newton steps on
     the exact DF refine each, and Loeb's criterion judges its stability
-    (:mod:`dfwb.engine.limit_cycles`).
+    (:mod:`dfwb.engine.limit_cycles`). The ranges are derived from the plant and
+    G unless given (:mod:`dfwb.engine.scales`): from the force that moves the
+    plant to what the linear loop allows, frequencies around its crossover.
 
     Parameters
     ----------
     plant : str
         A registered plant, e.g. ``"static-backlash"``.
-    G : str, (num, den), control.TransferFunction or control.StateSpace
+    G : str, callable, (num, den), control.TransferFunction or control.StateSpace
         The controller from the plant output (position) to its input force,
-        force = -G(s) position (see :func:`transfer_function`).
-    F_range : (float, float), keyword-only
-        Force amplitudes searched [N].
-    omega_range : (float, float), keyword-only
-        Frequencies searched [rad/s].
+        force = -G(s) position (see :func:`transfer_function`). An expression may
+        name parameters (``"Kp + Ki/s"``) whose values come with ``params``; a
+        function of named parameters may build a python-control system.
+    F_range : (float, float), optional, keyword-only
+        Force amplitudes searched [N] (default: derived).
+    omega_range : (float, float), optional, keyword-only
+        Frequencies searched [rad/s] (default: derived).
     n_F, n_omega : int, keyword-only
         The DF map's size (2 to 1000 each).
     exact : bool, keyword-only
-        Also find the true cycles of the exact closed loop (shooting from the
-        predictions and from simulations, Floquet stability; :mod:`dfwb.engine.periodic`)
-        and link each prediction to its true cycle.
+        Also find the true cycles of the exact closed loop (a systematic search of
+        starts and section hits, Floquet stability; :mod:`dfwb.engine.cycles`), link
+        each prediction to its true cycle and say what the search covered.
+    verify : bool, keyword-only
+        Also judge each prediction by closed-loop co-simulation of the FMUs.
+    samples_per_period : int, keyword-only
+        The judge's steps per predicted period.
+    amplitudes : list of float, optional, keyword-only
+        The exact search's start amplitudes of the output (default: derived).
     fmu_dir : path, optional, keyword-only
         Where the FMUs are.
     progress : bool, keyword-only
-        Show a progress bar while the map is computed.
+        Show progress while the map and the search run.
     **params : float
-        Plant parameters, e.g. ``eps=0.2``.
+        Plant parameters (``eps=0.2``) and G's parameters (``Kp=10``).
 
     Returns
     -------
     LimitCycleResponse
         ``.predictions`` (list of :class:`~dfwb.engine.limit_cycles.Cycle`, sorted by F),
-        the DF map (``.F_grid``, ``.omega_grid``, ``.N_grid``) and ``.plot()``; with
-        ``exact``, ``.cycles`` (list of :class:`~dfwb.engine.periodic.TrueCycle`) and
-        ``.links`` (for each prediction the index of its true cycle, or None).
+        the DF map (``.F_grid``, ``.omega_grid``, ``.N_grid``), ``.plot()`` and ``.summary()``;
+        with ``exact``, ``.cycles`` (list of :class:`~dfwb.engine.periodic.TrueCycle`),
+        ``.links`` (for each prediction the index of its true cycle, or None) and ``.coverage``.
 
     Examples
     --------
@@ -272,36 +220,86 @@ def limit_cycles(plant: str, G: Any, *, F_range: tuple = (1.0, 100.0), omega_ran
     ...                           n_F=8, n_omega=24, exact=True, eps=0.2)
     >>> [(round(c.omega, 6), round(c.amplitude_x, 7), c.stable) for c in exact.cycles], exact.links
     ([(7.92883, 0.028911, True)], [0])
+    >>> hunting = dfwb.limit_cycles("friction", "Kp + Ki/s", exact=True, Kp=10, Ki=2)
+    >>> hunting.predictions, [(round(c.period, 4), round(c.amplitude_x, 5)) for c in hunting.cycles]
+    ([], [(57.2625, 0.23665)])
     """
-    from dfwb.engine.limit_cycles import search
+    from dfwb.studies.limit_cycles import analyse
 
-    spec = find_plant(plant)
-    checked = spec.checked(params)
-    controller = transfer_function(G)
-    try:
-        ranges = [(float(lo), float(hi)) for lo, hi in (F_range, omega_range)]
-    except (TypeError, ValueError):
-        raise InputError(f"F_range = {F_range!r} and omega_range = {omega_range!r} must be (low, high) pairs "
-                         "of numbers") from None
     n_F, n_omega = _integer("n_F", n_F), _integer("n_omega", n_omega)
-    if not isinstance(exact, bool):
-        raise InputError(f"exact = {exact!r} must be True or False")
-    problem = None
-    if exact:
-        from dfwb.engine.periodic import LoopProblem
+    samples_per_period = _integer("samples_per_period", samples_per_period)
+    for name, flag in (("exact", exact), ("verify", verify), ("progress", progress)):
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} = {flag!r} must be True or False")
+    with _reporter(f"limit cycles of {plant}", progress) as report:
+        return analyse(plant, G, params, F_range=F_range, omega_range=omega_range, n_F=n_F, n_omega=n_omega,
+                       exact=exact, verify=verify, samples_per_period=samples_per_period, amplitudes=amplitudes,
+                       fmu_dir=fmu_dir, progress=report if progress else None)
 
-        problem = LoopProblem(spec.name, controller, checked, fmu_dir=fmu_dir)
-    engine = DFEngine(spec.name, fmu_dir=fmu_dir)
-    found = search(spec.name, controller, checked, ranges[0], ranges[1], n_F, n_omega, engine=engine,
-                   progress=progress)
-    cycles, links = [], []
-    if problem is not None:
-        from dfwb.engine.periodic import find_cycles
 
-        cycles, links = find_cycles(problem, found.cycles)
-    return LimitCycleResponse(plant=spec.name, params=checked, G=controller, predictions=found.cycles,
-                              F_grid=found.F_grid, omega_grid=found.omega_grid, N_grid=found.N_grid,
-                              cycles=cycles, links=links)
+def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, *,
+                 sources: Union[str, Sequence[str]] = ("truth", "df"), max_points: int = 200,
+                 starts: Optional[Sequence[float]] = None, fmu_dir: Optional[Union[str, Path]] = None,
+                 progress: bool = False, **params: float) -> ContinuationResponse:
+    """Limit cycles followed in one parameter, with their bifurcations: which values make the loop hunt.
+
+    The true cycles the systematic search finds at the range's ends (and at ``starts``), and the DF's
+    predictions there, are each followed by pseudo-arclength continuation through the range, past folds;
+    bifurcations are detected and located to 1e-7 of the range: folds, period doublings and tori from the
+    Floquet multipliers, and the nonsmooth ones from the cycle's events (a stick phase or an impact appearing
+    or vanishing; two branches meeting where the stick phase shrinks to nothing, a nonsmooth fold), and
+    branches going to infinity at the linear loop's stability boundary (:mod:`dfwb.engine.continuation`).
+
+    Parameters
+    ----------
+    plant : str
+        A plant with an exact loop: ``friction``, ``backlash``, ``static-backlash``.
+    G : str, callable, (num, den) or python-control system
+        The controller; an expression may name parameters (``"Kp + Ki/s"``).
+    parameter : str
+        The parameter followed: one of G's or of the plant's (``"Ki"``, ``"Fs"``, ``"eps"``).
+    start, stop : float
+        Its range.
+    sources : "truth", "df" or both, keyword-only
+        Follow the true cycles, the DF's predictions, or both.
+    max_points : int, keyword-only
+        Points per branch, at most (2 to 10000).
+    starts : list of float, optional, keyword-only
+        Parameter values where branches are searched for (default: start and stop).
+    fmu_dir : path, optional, keyword-only
+        Where the FMUs are.
+    progress : bool, keyword-only
+        Show progress.
+    **params : float
+        The other parameters of G and of the plant.
+
+    Returns
+    -------
+    ContinuationResponse
+        ``.branches``, ``.bifurcations``, ``.plot()`` (the bifurcation diagram), ``.summary()``, ``.as_dict()``.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> r = dfwb.continuation("friction", "Kp + Ki/s", "Ki", 1, 30, Kp=10, sources="truth")
+    >>> [(b.kind, round(b.parameter, 4)) for b in r.bifurcations]
+    [('infinity', 5.0), ('nonsmooth-fold', 24.773)]
+    """
+    from dfwb.studies.continuation import follow
+
+    for name, flag in (("progress", progress),):
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} = {flag!r} must be True or False")
+    with _reporter(f"continuation of {plant} in {parameter}", progress) as report:
+        return follow(plant, G, parameter, start, stop, params, sources=sources, max_points=max_points,
+                      starts=starts, fmu_dir=fmu_dir, progress=report if progress else None)
+
+
+def _reporter(title, enabled):
+    """A progress(stage, done, total) shown as a rich display (nothing when not ``enabled``)."""
+    from dfwb.studies.progress import Reporter
+
+    return Reporter(title, enabled)
 
 
 def run_scene(scene: Union[str, Path, Any], out_dir: Optional[Union[str, Path]] = None, *,

@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from tqdm import tqdm
 
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine
 from dfwb.engine.transfer import check_transfer_function
@@ -120,12 +119,14 @@ class _Balance:
         return None
 
 
-def df_map(engine, params, F_grid, omega_grid, progress=False):
-    """N on the grid: an array [len(F_grid), len(omega_grid)] of complex."""
+def df_map(engine, params, F_grid, omega_grid, progress=None):
+    """N on the grid: an array [len(F_grid), len(omega_grid)] of complex; ``progress(done, total)`` per row."""
     N = np.empty((len(F_grid), len(omega_grid)), dtype=complex)
-    points = [(i, j) for i in range(len(F_grid)) for j in range(len(omega_grid))]
-    for i, j in tqdm(points, disable=not progress, unit="pt", desc="DF map"):
-        N[i, j] = engine.point(F_grid[i], omega_grid[j], params).N
+    for i in range(len(F_grid)):
+        for j in range(len(omega_grid)):
+            N[i, j] = engine.point(F_grid[i], omega_grid[j], params).N
+        if progress:
+            progress((i + 1) * len(omega_grid), N.size)
     return N
 
 
@@ -163,7 +164,7 @@ class Search:
 
 
 def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
-            engine=None, progress=False):
+            engine=None, progress=None):
     """Every limit cycle of ``plant`` under the controller ``G`` in the given ranges.
 
     See :func:`search`, which also returns the DF map."""
@@ -171,7 +172,7 @@ def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0
 
 
 def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
-           engine=None, progress=False):
+           engine=None, progress=None):
     """The limit cycles and the DF map they were found on.
 
     Parameters
@@ -189,6 +190,8 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
         The DF map's size (2 to 1000 each).
     engine : DFEngine, optional
         The engine to use (default: a new one of ``plant``).
+    progress : callable, optional
+        ``progress(done, total)`` as the map's points are computed.
 
     Returns
     -------

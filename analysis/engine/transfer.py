@@ -1,9 +1,16 @@
 """Controllers G(s) from user text, parsed safely, as python-control transfer functions.
 
-Only numbers, the variable ``s``, ``+ - * / **`` (integer powers) and
-parentheses are accepted: the text is parsed into Python's syntax tree and
-every node is checked against that list before anything is evaluated, so
-user text is never ``eval``-ed.
+Only numbers, the variable ``s``, named parameters, ``+ - * / **`` (integer
+powers) and parentheses are accepted: the text is parsed into Python's
+syntax tree and every node is checked against that list before anything is
+evaluated, so user text is never ``eval``-ed. A name other than ``s`` is a
+parameter of the controller (``"Kp + Ki/s"``); each needs a value.
+
+The arithmetic is python-control's (the same polynomial products and sums in
+the same order, so the coefficients are the ones ``control.tf`` arithmetic
+gives), done on plain coefficient arrays: a :class:`TransferFamily` parsed
+once evaluates in microseconds for each set of parameter values, which a
+continuation needs.
 
 Examples
 --------
@@ -11,6 +18,8 @@ Examples
 >>> G = parse_transfer_function("100*(s+1)/(s+10)")
 >>> G.num[0][0].tolist(), G.den[0][0].tolist()
 ([100.0, 100.0], [1.0, 10.0])
+>>> parse_transfer_function("Kp + Ki/s", {"Kp": 10, "Ki": 2}).num[0][0].tolist()
+[10.0, 2.0]
 >>> parse_transfer_function("s**2/(s+1)")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
@@ -19,16 +28,87 @@ dfwb.base.errors.InputError: G(s) = s**2/(s+1) is improper (numerator degree 2 >
 
 import ast
 import math
+import re
 
 import control as ct
 import numpy as np
 
 from dfwb.base.errors import InputError
+from dfwb.base.values import reals, short
 
 ALLOWED_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 MAX_LENGTH = 1000  # characters of an expression: a controller is a line, not a file
 MAX_DEPTH = 100  # nesting of the syntax tree
 MAX_DEGREE = 20  # of a numerator or denominator, at every step of the evaluation
+MAX_PARAMETERS = 32  # named parameters in one expression
+MAX_COEFFICIENTS = 10_000  # numbers read from a (num, den) pair before its degree is judged
+PARAMETER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")  # a parameter's name
+
+
+class _Rational:
+    """num(s) / den(s) as coefficient arrays (highest power first), with python-control's SISO arithmetic."""
+
+    __slots__ = ("num", "den")
+
+    def __init__(self, num, den):
+        self.num, self.den = _trim(num), _trim(den)
+
+    @staticmethod
+    def of(value):
+        return value if isinstance(value, _Rational) else _Rational(np.array([float(value)]), np.array([1.0]))
+
+    def __neg__(self):
+        return _Rational(self.num * -1, self.den)
+
+    def __add__(self, other):
+        other = _Rational.of(other)
+        return _Rational(_polyadd(_polymul(self.num, other.den), _polymul(other.num, self.den)),
+                         _polymul(self.den, other.den))
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        return self + (-other)
+
+    def __rsub__(self, other):
+        return (-self) + other
+
+    def __mul__(self, other):
+        other = _Rational.of(other)
+        return _Rational(_polymul(self.num, other.num), _polymul(self.den, other.den))
+
+    def __rmul__(self, other):
+        return _Rational.of(other) * self
+
+    def __truediv__(self, other):
+        other = _Rational.of(other)
+        return _Rational(_polymul(self.num, other.den), _polymul(self.den, other.num))
+
+    def __rtruediv__(self, other):
+        return _Rational.of(other) / self
+
+    def degree(self):
+        return max(len(self.num), len(self.den)) - 1
+
+
+_polymul = np.convolve  # what numpy.polymul computes, without its conversions
+
+
+def _polyadd(a, b):
+    """numpy.polyadd of two 1-D arrays (the shorter padded with leading zeros)."""
+    if len(a) < len(b):
+        a = np.concatenate((np.zeros(len(b) - len(a)), a))
+    elif len(b) < len(a):
+        b = np.concatenate((np.zeros(len(a) - len(b)), b))
+    return a + b
+
+
+def _trim(coefficients):
+    """Leading zeros removed (all zeros: [0]), as python-control truncates its polynomials."""
+    if coefficients[0] != 0.0:
+        return coefficients
+    nonzero = np.flatnonzero(coefficients)
+    return coefficients[nonzero[0]:] if nonzero.size else np.zeros(1)
 
 
 def _number(value, text):
@@ -43,8 +123,8 @@ def _number(value, text):
 
 
 def _checked_degree(value, text):
-    if isinstance(value, ct.TransferFunction):
-        degree = max(len(value.num[0][0]), len(value.den[0][0])) - 1
+    if isinstance(value, _Rational):
+        degree = value.degree()
         if degree > MAX_DEGREE:
             raise InputError(f"G(s) = {text}: a polynomial of degree {degree}, at most {MAX_DEGREE} is allowed")
     elif not math.isfinite(value):
@@ -63,36 +143,62 @@ def _depth(node, limit):
     return depth
 
 
-def _evaluate(node, text):
-    """Value of a checked syntax-tree node: a float or a python-control TransferFunction."""
+def _evaluate(node, text, values):
+    """Value of a checked syntax-tree node: a float or a :class:`_Rational`; ``values`` give the parameters."""
     if isinstance(node, ast.Expression):
-        return _evaluate(node.body, text)
+        return _evaluate(node.body, text, values)
     if isinstance(node, ast.Constant) and type(node.value) in (int, float):
         return _number(node.value, text)
-    if isinstance(node, ast.Name) and node.id == "s":
-        return ct.tf("s")
+    if isinstance(node, ast.Name):
+        if node.id == "s":
+            return _Rational(np.array([1.0, 0.0]), np.array([1.0]))
+        return values[node.id]
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
-        value = _evaluate(node.operand, text)
+        value = _evaluate(node.operand, text, values)
         return -value if isinstance(node.op, ast.USub) else value
     if isinstance(node, ast.BinOp) and type(node.op) in ALLOWED_OPERATORS:
-        left, right = _evaluate(node.left, text), _evaluate(node.right, text)
+        left, right = _evaluate(node.left, text, values), _evaluate(node.right, text, values)
         if isinstance(node.op, ast.Pow):
-            if isinstance(right, ct.TransferFunction) or not (0 <= right <= MAX_DEGREE and right == int(right)):
+            if isinstance(right, _Rational) or not (0 <= right <= MAX_DEGREE and right == int(right)):
                 raise InputError(f"G(s) = {text}: only integer powers 0..{MAX_DEGREE} of an expression are allowed")
             result = 1.0
             for _ in range(int(right)):
                 result = _checked_degree(result * left, text)
             return result
-        if isinstance(node.op, ast.Div) and not isinstance(right, ct.TransferFunction) and right == 0:
+        if isinstance(node.op, ast.Div) and not isinstance(right, _Rational) and right == 0:
             raise InputError(f"G(s) = {text}: division by zero")
         return _checked_degree({ast.Add: lambda: left + right, ast.Sub: lambda: left - right,
                                 ast.Mult: lambda: left * right, ast.Div: lambda: left / right}[type(node.op)](), text)
-    what = type(node).__name__
-    if isinstance(node, ast.Name):
-        what = f"the name {node.id!r} (the only variable is s)"
-    elif isinstance(node, ast.Constant):
-        what = f"the constant {node.value!r}"
-    raise InputError(f"G(s) = {text}: {what} is not allowed (numbers, s, + - * / **, parentheses)")
+    raise AssertionError("unchecked node")  # _check refused it before
+
+
+def _check_tree(tree, text):
+    """The parameters' names of a syntax tree, first appearance first; InputError for any node not allowed."""
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Expression, ast.Load)) or type(node) in ALLOWED_OPERATORS:
+            continue
+        if isinstance(node, (ast.UAdd, ast.USub)) or (isinstance(node, ast.UnaryOp)
+                                                     and isinstance(node.op, (ast.UAdd, ast.USub))):
+            continue
+        if isinstance(node, ast.BinOp) and type(node.op) in ALLOWED_OPERATORS:
+            continue
+        if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+            continue
+        if isinstance(node, ast.Name) and PARAMETER.fullmatch(node.id):
+            if node.id != "s" and node.id not in names:
+                names.append(node.id)
+            continue
+        what = type(node).__name__
+        if isinstance(node, ast.Name):
+            what = f"the name {node.id!r} (a parameter is a letter or _, then letters, digits or _)"
+        elif isinstance(node, ast.Constant):
+            what = f"the constant {node.value!r}"
+        raise InputError(f"G(s) = {text}: {what} is not allowed (numbers, s, parameters, + - * / **, "
+                         "parentheses)")
+    if len(names) > MAX_PARAMETERS:
+        raise InputError(f"G(s) = {text}: {len(names)} parameters, at most {MAX_PARAMETERS}")
+    return tuple(sorted(names, key=lambda name: text.find(name)))
 
 
 def check_transfer_function(G, text=None):
@@ -122,30 +228,84 @@ def check_transfer_function(G, text=None):
     return G
 
 
-def parse_transfer_function(text):
-    """A proper python-control TransferFunction from an expression in s."""
-    if not isinstance(text, str) or not text.strip():
-        raise InputError("G(s) is empty: give an expression in s, e.g. '100*(s+1)/(s+10)'")
-    if len(text) > MAX_LENGTH:
-        raise InputError(f"G(s) is {len(text)} characters long: at most {MAX_LENGTH}")
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError as error:
-        raise InputError(f"G(s) = {text} does not parse: {error.msg} at column {error.offset} "
-                         f"(write products with *, e.g. 2*s)") from None
-    except (RecursionError, MemoryError):
-        raise InputError(f"G(s) = {text[:40]}...: nested too deeply to parse") from None
-    if _depth(tree, MAX_DEPTH) > MAX_DEPTH:
-        raise InputError(f"G(s) = {text[:40]}...: nested more than {MAX_DEPTH} levels deep")
-    try:
-        value = _evaluate(tree, text)
-    except ValueError as error:
-        if str(error).startswith("G(s)"):
-            raise
-        raise InputError(f"G(s) = {text}: {error}") from None
-    except (ArithmeticError, FloatingPointError) as error:
-        raise InputError(f"G(s) = {text}: {error}") from None
-    return check_transfer_function(value, text)
+class TransferFamily:
+    """A controller G(s) with named parameters, parsed and checked once, evaluated for any values.
+
+    Attributes
+    ----------
+    text : str
+        The expression.
+    names : tuple of str
+        Its parameters, in the order they first appear.
+
+    Examples
+    --------
+    >>> family = TransferFamily("Kp + Ki/s + Kd*s/(Tf*s + 1)")
+    >>> family.names
+    ('Kp', 'Ki', 'Kd', 'Tf')
+    >>> family.coefficients({"Kp": 10, "Ki": 2, "Kd": 1, "Tf": 0.1})
+    ([2.0, 10.2, 2.0], [0.1, 1.0, 0.0])
+    """
+
+    def __init__(self, text):
+        if not isinstance(text, str) or not text.strip():
+            raise InputError("G(s) is empty: give an expression in s, e.g. '100*(s+1)/(s+10)'")
+        if len(text) > MAX_LENGTH:
+            raise InputError(f"G(s) is {len(text)} characters long: at most {MAX_LENGTH}")
+        try:
+            tree = ast.parse(text.strip(), mode="eval")
+        except SyntaxError as error:
+            raise InputError(f"G(s) = {text} does not parse: {error.msg} at column {error.offset} "
+                             f"(write products with *, e.g. 2*s)") from None
+        except (RecursionError, MemoryError):
+            raise InputError(f"G(s) = {text[:40]}...: nested too deeply to parse") from None
+        if _depth(tree, MAX_DEPTH) > MAX_DEPTH:
+            raise InputError(f"G(s) = {text[:40]}...: nested more than {MAX_DEPTH} levels deep")
+        self.text, self._tree = text, tree
+        self.names = _check_tree(tree, text)
+
+    def values(self, values):
+        """The parameters' values from ``values`` (a mapping; other names ignored), checked: finite numbers."""
+        out = {}
+        for name in self.names:
+            if name not in values:
+                raise InputError(f"G(s) = {self.text}: the parameter {name} is given no value (set it, e.g. "
+                                 f"{name}=1)")
+            value = values[name]
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise InputError(f"G(s) parameter {name} = {value!r:.40} is not a number")
+            if not math.isfinite(float(value)):
+                raise InputError(f"G(s) parameter {name} = {value!r} is not finite")
+            out[name] = float(value)
+        return out
+
+    def _rational(self, values):
+        try:
+            value = _evaluate(self._tree, self.text, self.values(values))
+        except ValueError as error:
+            if str(error).startswith("G(s)"):
+                raise
+            raise InputError(f"G(s) = {self.text}: {error}") from None
+        except (ArithmeticError, FloatingPointError) as error:
+            raise InputError(f"G(s) = {self.text}: {error}") from None
+        if not isinstance(value, _Rational):
+            raise InputError(f"G(s) = {self.text} has no s: a controller must depend on s")
+        return value
+
+    def transfer_function(self, values=None):
+        """The checked python-control TransferFunction at ``values``."""
+        value = self._rational(values or {})
+        return check_transfer_function(ct.tf(value.num, value.den), self.text)
+
+    def coefficients(self, values=None):
+        """(num, den) at ``values``, highest power first, as python-control would hold them (not checked)."""
+        value = self._rational(values or {})
+        return [float(c) for c in value.num], [float(c) for c in value.den]
+
+
+def parse_transfer_function(text, values=None):
+    """A proper python-control TransferFunction from an expression in s (``values``: its parameters')."""
+    return TransferFamily(text).transfer_function(values)
 
 
 def from_coefficients(num, den, names=("--num", "--den")):
@@ -157,3 +317,36 @@ def from_coefficients(num, den, names=("--num", "--den")):
     if not any(den):
         raise InputError(f"G(s) den = {den} is zero")
     return check_transfer_function(ct.tf(list(num), list(den)), f"({num})/({den})")
+
+
+def to_transfer_function(G):
+    """G as a checked TransferFunction: an expression in s, (num, den), or a python-control system (see
+    :func:`dfwb.transfer_function`)."""
+    if isinstance(G, str):
+        return parse_transfer_function(G)
+    if isinstance(G, (ct.TransferFunction, ct.StateSpace)):
+        text = f"the {type(G).__name__} {G.name!r}"  # str(G) is a multi-line table
+        if G.ninputs != 1 or G.noutputs != 1:
+            raise InputError(f"G(s) = {text} must have one input and one output (it has {G.ninputs} and "
+                             f"{G.noutputs})")
+        if isinstance(G, ct.StateSpace):
+            if G.nstates > MAX_DEGREE:
+                raise InputError(f"G(s) = {text} has {G.nstates} states: a degree of at most {MAX_DEGREE} is allowed")
+            if not all(np.all(np.isfinite(np.asarray(m, dtype=complex))) for m in (G.A, G.B, G.C, G.D)):
+                raise InputError(f"G(s) = {text} has matrix entries that are not finite")
+            if not G.isctime():
+                raise InputError(f"G(s) = {text} must be a continuous-time system (dt = 0), not dt = {G.dt}")
+        return check_transfer_function(G, text)
+    if isinstance(G, (tuple, list)) and len(G) == 2:
+        try:
+            num, den = (reals(name, part, MAX_COEFFICIENTS) for name, part in zip(("num", "den"), G))
+        except InputError as error:
+            raise InputError(f"G = {short(G)}: num and den must be lists of real numbers ({error})") from None
+        if num.ndim > 1 or den.ndim > 1:
+            raise InputError(f"G = {short(G)}: num and den must be flat lists of real numbers")
+        if max(num.size, den.size) > MAX_DEGREE + 1:
+            raise InputError(f"G = {short(G)}: a polynomial of degree {max(num.size, den.size) - 1}, "
+                             f"at most {MAX_DEGREE} is allowed")
+        return from_coefficients(np.atleast_1d(num).tolist(), np.atleast_1d(den).tolist(), names=("num", "den"))
+    raise InputError(f"G = {short(G)} is not a controller: give an expression in s, (num, den), "
+                     "or a python-control TransferFunction or StateSpace")

@@ -13,6 +13,11 @@ finding on its dense output, the switching logic applied by hand at each
 event and the integration restarted from there. The tests compare the event
 sequences, the event times and the final states of the two.
 
+A run can also stop at an event its caller chooses (``until``) and sample
+the state from solve_ivp's dense output (``t_eval``): enough to build a
+Poincare map of the loop and to integrate over a period without dfwb, as
+``tests/test_cycle_truth.py`` does to check dfwb's limit-cycle search.
+
 It imports only numpy, scipy, the controller's matrices
 (:meth:`dfwb.fmus.linear_system.LinearSystem.matrices`, which also checks b
 and a) and the error classes; nothing of :mod:`dfwb.fmus.hybrid` or
@@ -116,6 +121,8 @@ class _Loop:
         self.counts = {}
         self.nfev = 0
         self.first_step = None  # a cap on the next piece's first step (a bounce's duration)
+        self.stopped = False  # whether ``until`` stopped the run at an event
+        self.samples = None  # the states at run's t_eval (None without)
 
     # -- the controller ---------------------------------------------------------------
     def force(self, X):
@@ -134,22 +141,27 @@ class _Loop:
         return 0.0
 
     # -- the walk -------------------------------------------------------------------------
-    def _solve(self, rhs, t_end, events, first_step):
+    def _solve(self, rhs, t_end, events, first_step, dense):
         kwargs = {} if first_step is None else {"first_step": min(first_step, t_end - self.t)}
         sol = solve_ivp(rhs, (self.t, t_end), self.X, method=self.method, rtol=self.rtol, atol=self.atol,
-                        events=events, max_step=self.max_step, **kwargs)
+                        events=events, max_step=self.max_step, dense_output=dense, **kwargs)
         self.nfev += sol.nfev
         if sol.status == -1:
             raise RunError(f"solve_ivp failed at t = {sol.t[-1]!r} s in mode {self.mode_name()}: {sol.message}")
         return sol
 
-    def run(self, t_end):
+    def run(self, t_end, t_eval=None, until=None):
+        """Walk the events to ``t_end`` (or to the event ``until`` stops at); the state at ``t_eval`` if given."""
+        dense = t_eval is not None
+        if dense:
+            self.samples = np.full((len(t_eval), len(self.X)), np.nan)
+            taken = 0  # t_eval[:taken] are sampled
         while self.t < t_end:
             rhs, events, kinds = self.system()
             first = self.first_step
             self.first_step = None
             for retry in range(RETRIES + 1):
-                sol = self._solve(rhs, t_end, events, first)
+                sol = self._solve(rhs, t_end, events, first, dense)
                 if sol.status != 1:
                     break
                 which = min((float(te[0]), i) for i, te in enumerate(sol.t_events) if te.size)
@@ -157,6 +169,11 @@ class _Loop:
                     break
                 # found at the piece's start: the departure itself, or a return within the first step
                 first = (t_end - self.t if first is None else first) / 16.0
+            if dense:  # the piece covers (its start, its end], the first one also t = 0
+                end = int(np.searchsorted(t_eval, sol.t[-1], side="right"))
+                if end > taken:
+                    self.samples[taken:end] = sol.sol(t_eval[taken:end]).T
+                    taken = end
             if sol.status != 1:
                 self.t, self.X = t_end, sol.y[:, -1].copy()
                 break
@@ -166,7 +183,14 @@ class _Loop:
                                f"{kinds[index]}): the motion chatters")
             self.t, self.X = t_ev, sol.y_events[index][0].copy()
             self.log.append((t_ev, kinds[index]))
+            before = self.mode_name()
             self.fire(kinds[index])
+            if until is not None and until(kinds[index], before):
+                self.stopped = True
+                break
+        if dense:  # no piece integrated (t_end = 0): the times at the start take the initial state
+            end = int(np.searchsorted(t_eval, self.t, side="right"))
+            self.samples[taken:end] = self.X
         return self
 
 
@@ -452,8 +476,22 @@ def _initial_state(plant, p, n, state):
     return X
 
 
+def _times(t_eval, t_end):
+    """``t_eval`` as a float array, checked: sorted finite times in [0, t_end] (PlantError naming a bad one)."""
+    if isinstance(t_eval, (str, bytes)) or not hasattr(t_eval, "__len__") or np.ndim(t_eval) != 1:
+        raise PlantError(f"t_eval = {t_eval!r} is out of range: a sorted sequence of times in [0, t_end]"
+                         .replace("\n", " "))
+    allowed = f"must be a finite time in [0, t_end] = [0, {t_end!r}] (s)"
+    times = [_check(f"t_eval[{i}]", v, lambda v: 0.0 <= v <= t_end, allowed) for i, v in enumerate(t_eval)]
+    for i in range(1, len(times)):
+        if times[i] < times[i - 1]:
+            raise PlantError(f"t_eval[{i}] = {times[i]!r} is out of range: t_eval must be sorted, and "
+                             f"t_eval[{i - 1}] = {times[i - 1]!r} is later")
+    return np.array(times, dtype=float)
+
+
 def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
-                          max_step=np.inf, max_events=MAX_EVENTS):
+                          max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None):
     """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
 
     Parameters
@@ -487,6 +525,24 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         solve_ivp's largest step (no limit by default).
     max_events : int
         The most events allowed before t_end.
+    t_eval : sequence of float, optional
+        Sorted times in [0, t_end] (s) at which to sample the loop state (the
+        result's ``samples``). Each is read from solve_ivp's dense output of
+        the piece (the integration between two events) that contains it; a
+        time exactly at an event is read from the piece that ends there, so
+        it is the state just *before* the event's switching logic acts (an
+        impact's velocities before the impact). Dense output is asked for
+        only when ``t_eval`` is given (it costs a few more right-hand side
+        evaluations per step, counted in ``nfev``; the steps, events and
+        states are unchanged).
+    until : callable, optional
+        ``until(kind, mode_before) -> bool``, called after every event with
+        the event's kind (as in ``events``) and the name of the mode the loop
+        was in just before it (as the result's ``mode`` spells it: "stick",
+        "slide+", "slide-"; "free", "contact-", "contact+"; "free",
+        "engaged-", "engaged+"). When it returns True the run stops right
+        there: ``state`` and ``mode`` are those the event left, ``t`` is the
+        event's time, and the samples of later times are NaN.
 
     Returns
     -------
@@ -496,15 +552,19 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         spells it: "band", "break+", "break-", "gap 0", "gap h", "release",
         "engage+", "engage-", "reverse"), ``mode`` (the final mode's name),
         ``counts`` (sticks, impacts or engagements), ``nfev`` (right-hand side
-        evaluations), ``t`` (= t_end). Counted as dfwb.fmus.loops counts them:
-        stick phases including one from t = 0, impacts, engagements by an
-        event (not one at t = 0).
+        evaluations), ``t`` (= t_end, or the time of the event ``until``
+        stopped at). Counted as dfwb.fmus.loops counts them: stick phases
+        including one from t = 0, impacts, engagements by an event (not one
+        at t = 0). With ``t_eval``, also ``samples``: a numpy array of shape
+        (len(t_eval), state size), the loop state (ordered as ``state``) at
+        each of the times (NaN after an ``until`` stop).
 
     Raises
     ------
     PlantError
-        A plant name, coefficient, parameter, state or t_end out of range (the
-        message names it).
+        A plant name, coefficient, parameter, state, t_end, t_eval (unsorted,
+        outside [0, t_end], not finite) or until (not callable) out of range
+        (the message names it).
     RunError
         More than ``max_events`` events, or solve_ivp failing.
 
@@ -513,6 +573,23 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
     >>> r = closed_loop_reference("friction", [30.0, 60.0], [0.0], 2.0, {"x0": 0.3})
     >>> [kind for _t, kind in r["events"]][:3]
     ['band', 'break+', 'band']
+
+    Stop the first time the mass comes to rest from sliding forwards, and
+    sample the state on the way (the first sample is the start, x0 = 0.3 at
+    rest with z = 0):
+
+    >>> seen = []
+    >>> def stop(kind, mode_before):
+    ...     seen.append((kind, mode_before))
+    ...     return kind == "band" and mode_before == "slide+"
+    >>> r = closed_loop_reference("friction", [30.0, 60.0], [0.0], 20.0, {"x0": 0.3}, t_eval=[0.0, 0.5, 19.0],
+    ...                           until=stop)
+    >>> seen
+    [('band', 'slide-'), ('break+', 'stick'), ('band', 'slide+')]
+    >>> r["mode"], r["t"] == r["events"][-1][0] < 20.0, r["state"][1]
+    ('stick', True, 0.0)
+    >>> r["samples"][0].tolist(), bool(r["samples"][1, 1] < 0.0), bool(np.isnan(r["samples"][2]).all())
+    ([0.3, 0.0, 0.0], True, True)
     """
     if plant not in _CLASSES:
         raise PlantError(f"plant = {plant!r} is out of range: one of {PLANTS}")
@@ -521,9 +598,16 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
     _check("t_end", t_end, lambda v: v >= 0.0, "must be a finite number >= 0 (s)")
     if not (isinstance(max_events, int) and max_events >= 0):
         raise PlantError(f"max_events = {max_events!r} is out of range: a whole number >= 0")
+    if t_eval is not None:
+        t_eval = _times(t_eval, float(t_end))
+    if until is not None and not callable(until):
+        raise PlantError(f"until = {until!r} is out of range: a callable until(kind, mode_before) or None")
     p = _parameters(plant, params)
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
-    loop.run(float(t_end))
-    return {"state": [float(v) for v in loop.X], "events": list(loop.log), "mode": loop.mode_name(),
-            "counts": dict(loop.counts), "nfev": loop.nfev, "t": float(t_end)}
+    loop.run(float(t_end), t_eval, until)
+    result = {"state": [float(v) for v in loop.X], "events": list(loop.log), "mode": loop.mode_name(),
+              "counts": dict(loop.counts), "nfev": loop.nfev, "t": loop.t if loop.stopped else float(t_end)}
+    if t_eval is not None:
+        result["samples"] = loop.samples
+    return result

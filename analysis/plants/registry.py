@@ -196,6 +196,11 @@ class Plant:
         return self.model.__name__
 
     @property
+    def unit(self):
+        """The output's unit (its FMU variable's)."""
+        return next((unit for name, unit, *_ in self.model.all_outputs() if name == self.output), "")
+
+    @property
     def loop_start(self):
         """The parameter the closed loop starts the plant from (its position)."""
         return self.position

@@ -220,7 +220,8 @@ def true_cycle_response(ax, true_cycles):
         trace = c.trace
         t = trace["t"] / c.period
         kind = "stable" if c.stable else "unstable"
-        line, = ax.plot(t, (trace["y"] - c.level) / c.amplitude_x, lw=1.2,
+        middle = 0.5 * (np.max(trace["y"]) + np.min(trace["y"]))
+        line, = ax.plot(t, (trace["y"] - middle) / c.amplitude_x, lw=1.2,
                         label=f"y / {c.amplitude_x:.4g} m ({kind}, w = {c.omega:.4g})")
         lines.append(line)
         lines += ax.plot(t, trace["f"] / c.F, lw=0.9, ls="--", color=line.get_color(), label=f"f / {c.F:.4g} N")
@@ -266,3 +267,50 @@ def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=(), tru
         ax.set_title("the judge: co-simulation; dashed: predicted amplitude, dotted: predicted period\n"
                      "(a run that leaves its cycle, as from an unstable one, runs off the plot)", fontsize=9)
     return save(figure, path.parent, path.stem)
+
+
+BRANCH_COLOURS = {"truth": "tab:blue", "df": "tab:orange"}
+BIFURCATION_MARKERS = {"fold": "o", "nonsmooth-fold": "D", "sliding": "s", "grazing": "^", "period-doubling": "v",
+                       "torus": "P", "branch-point": "X", "infinity": "|"}
+
+
+def bifurcation_diagram(ax, response):
+    """Amplitude against the parameter: each branch (truth blue, DF orange; stable solid, unstable dashed) and
+    each bifurcation marked and named; returns the branch lines."""
+    lines, labelled = [], set()
+    for branch in response.branches:
+        colour = BRANCH_COLOURS.get(branch.source, "k")
+        points = branch.points
+        start = 0
+        for i in range(1, len(points) + 1):  # runs of equal stability, each one line
+            if i < len(points) and points[i].stable == points[start].stable:
+                continue
+            run = points[max(start - 1, 0):i]
+            stable = points[start].stable
+            label = f"{'truth' if branch.source == 'truth' else 'DF'}, {'stable' if stable else 'unstable'}"
+            line, = ax.plot([p.parameter for p in run], [p.amplitude_x for p in run], color=colour,
+                            ls="-" if stable else "--", lw=1.8 if stable else 1.2,
+                            label=None if label in labelled else label)
+            labelled.add(label)
+            lines.append(line)
+            start = i
+    for b in response.bifurcations:
+        colour = BRANCH_COLOURS.get(b.source, "k")
+        if b.kind == "infinity":
+            ax.axvline(b.parameter, color=colour, ls=":", lw=1.0)
+            ax.annotate(f"{b.kind} ({b.source})\n{response.parameter} = {b.parameter:.4g}", (b.parameter, 1.0),
+                        xycoords=("data", "axes fraction"), xytext=(3, -4), textcoords="offset points",
+                        va="top", fontsize=8, color=colour)
+            continue
+        ax.plot([b.parameter], [b.amplitude_x], BIFURCATION_MARKERS.get(b.kind, "o"), ms=8, mfc="w", mec=colour,
+                mew=1.5)
+        ax.annotate(f"{b.kind}\n{response.parameter} = {b.parameter:.6g}", (b.parameter, b.amplitude_x),
+                    xytext=(6, 6), textcoords="offset points", fontsize=8, color=colour)
+    ax.set_yscale("log")
+    ax.set_xlabel(response.parameter)
+    ax.set_ylabel(f"first-harmonic amplitude of the output [{response.unit}]")
+    ax.set_title(f"{response.plant} under G = {response.G}: limit cycles against {response.parameter}", fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    if lines:
+        ax.legend(fontsize=8)
+    return lines

@@ -28,10 +28,11 @@ True
 import functools
 import hashlib
 import json
+import math
 import warnings
 from pathlib import Path
 
-from dfwb.base.files import ensure_folder, read_bytes, user_cache_dir, write_atomic
+from dfwb.base.files import ensure_folder, file_digest, read_bytes, user_cache_dir, write_atomic
 
 FORMAT = 2
 MAX_ENTRY = 64 << 20  # bytes: the largest entries (a figure's PNG and SVG) are a few hundred kB
@@ -77,6 +78,24 @@ def solver_revision():
 def drawing_revision():
     """Revision of the code that draws figures (part of a cached figure's key)."""
     return revision(DRAWING)
+
+
+def fmu_revision(path):
+    """The source hash the FMU was built from (its content is a function of it)."""
+    from dfwb.build_fmus.recorded import recorded_hash
+
+    return recorded_hash(path) or file_digest(path)
+
+
+def finite(document):
+    """JSON-safe: infinities and NaN become None."""
+    if isinstance(document, float):
+        return document if math.isfinite(document) else None
+    if isinstance(document, dict):
+        return {k: finite(v) for k, v in document.items()}
+    if isinstance(document, (list, tuple)):
+        return [finite(v) for v in document]
+    return document
 
 
 def canonical(document):

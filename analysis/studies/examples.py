@@ -11,7 +11,8 @@ Each example is a scene, ``scenes/lc_<name>.toml`` (``dfwb run`` runs one with
 the cache). ``dfwb examples [--out DIR]`` runs them all: the harmonic balance
 on the exact DF (:mod:`dfwb.engine.limit_cycles`), the judge (plant FMU and
 LinearSystem.fmu co-simulated at a fixed step, :mod:`dfwb.engine.closed_loop`)
-and the true cycles of the exact closed loop (:mod:`dfwb.engine.periodic`),
+and the true cycles of the exact closed loop (:mod:`dfwb.engine.cycles`), all by
+:func:`dfwb.studies.limit_cycles.analyse`,
 then the judge's step study against the truth with Richardson's
 extrapolation; it writes ``example_<name>.png``, ``examples.md`` and
 ``examples.json``.
@@ -20,11 +21,9 @@ extrapolation; it writes ``example_<name>.png``, ``examples.md`` and
 import json
 from pathlib import Path
 
-from dfwb.engine.closed_loop import judge_errors, step_study, verify
-from dfwb.engine.describing import DFEngine
-from dfwb.engine.limit_cycles import search
-from dfwb.engine.periodic import LoopProblem, find_cycles, relative_errors
-from dfwb.plotting.plots import limit_cycle_figure
+from dfwb.engine.closed_loop import judge_errors, step_study
+from dfwb.engine.cycles import relative_errors
+from dfwb.studies.limit_cycles import analyse
 from dfwb.studies.scene import load_scene, shipped_scenes
 
 STEP_STUDY = (256, 512, 1024, 2048)  # steps per true period
@@ -56,15 +55,11 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print, f
     results, studies = {}, []
     for example in examples():
         name, plant, text, params = example.name, example.plant, example.G, example.params
-        G = example.transfer_function()
-        found = search(plant, G, params, example.F_range, example.omega_range, engine=DFEngine(plant, fmu_dir))
-        predictions = found.cycles
-        checks, runs = [], []
-        for cycle in predictions:
-            outcome, run = verify(plant, G, cycle, params, samples_per_period, fmu_dir=fmu_dir)
-            checks.append(outcome)
-            runs.append((cycle, run))
-        truths, links = find_cycles(LoopProblem(plant, G, params, fmu_dir=fmu_dir), predictions)
+        response = analyse(plant, example.controller(), params, F_range=example.F_range,
+                           omega_range=example.omega_range, n_F=example.n_F, n_omega=example.n_omega, exact=True,
+                           verify=True, samples_per_period=samples_per_period, fmu_dir=fmu_dir)
+        G, predictions, checks = response.G, response.predictions, response.verification
+        truths, links = response.cycles, response.links
         for i, (cycle, check) in enumerate(zip(predictions, checks)):
             j = links[i]
             judged = (f"{check['omega']:.5g} | {check['amplitude_x']:.4g} | {check['settled']}" if check["omega"]
@@ -91,10 +86,8 @@ def run_examples(out_dir="out/examples", samples_per_period=512, report=print, f
         for true in (t for t in truths if t.stable):
             study = step_study(plant, G, true, params, STEP_STUDY, fmu_dir=fmu_dir)
             studies.append((name, true, study))
-        png = limit_cycle_figure(out_dir / f"example_{name}.png", G, found.F_grid, found.omega_grid, found.N_grid,
-                                 predictions, runs, truths)
-        results[name] = {"predictions": [dict(c.as_dict(), true_cycle=j) for c, j in zip(predictions, links)],
-                         "verification": checks, "cycles": [c.as_dict() for c in truths]}
+        png = response.figure(out_dir / f"example_{name}.png")
+        results[name] = response.as_dict()
         report(f"{png}: {len(predictions)} prediction(s), {len(truths)} true cycle(s)")
     lines += ["", "## The judge's step against the truth", "",
               "The co-simulation holds each signal over a step, a first-order error in the step; Richardson's "

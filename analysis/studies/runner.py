@@ -35,8 +35,18 @@ from dfwb.base.runlog import RunLog
 from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
 from dfwb.fmi.location import fmu_path
 from dfwb.plants import plant as find_plant
-from dfwb.studies.cache import Cache, CacheWarning, NoCache, code_revision, digest, drawing_revision, solver_revision
+from dfwb.studies.cache import (
+    Cache,
+    CacheWarning,
+    NoCache,
+    code_revision,
+    digest,
+    drawing_revision,
+    finite,
+    fmu_revision,
+)
 from dfwb.studies.executor import Chunk, Executor, chunked
+from dfwb.studies.progress import Display
 from dfwb.studies.scene import PAPER_FIGURES, Point, Scene, load_scene
 from dfwb.studies.sweep import MAX_POINTS
 
@@ -45,13 +55,6 @@ MAX_MANIFEST = 64 << 20  # bytes
 RUN_COLUMNS = ["series", "key"] + COLUMNS
 MAX_LOG_ROWS = 2 * MAX_POINTS  # the log of one scene: its points once, plus the rewrite's limit-cycle map rows
 SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results.csv)
-
-
-def fmu_revision(path):
-    """The source hash the FMU was built from (its content is a function of it)."""
-    from dfwb.build_fmus.recorded import recorded_hash
-
-    return recorded_hash(path) or file_digest(path)
 
 
 @dataclass
@@ -243,95 +246,45 @@ class SceneRun:
 
     # -- limit cycles ---------------------------------------------------------------------
     def limit_cycles(self, display):
+        """{name: LimitCycleResponse} of the scene's [[limit_cycle]]s: their DF maps computed as the scene's points
+        (in parallel, cached), the rest by :func:`dfwb.studies.limit_cycles.analyse` with the run's cache."""
         if not self.scene.limit_cycle:
             return {}
         import numpy as np
 
-        from dfwb.engine.limit_cycles import search
+        from dfwb.engine.scales import search_ranges
+        from dfwb.studies.limit_cycles import analyse
 
         results = {}
         table = _Points(self, self.settings(HARMONICS))
         for lc in self.scene.limit_cycle:
-            G = lc.transfer_function()
-            params = find_plant(lc.plant).checked(lc.params)
-            F_grid = np.geomspace(*lc.F_range, lc.n_F)
-            omega_grid = np.geomspace(*lc.omega_range, lc.n_omega)
-            grid = [(lc.plant, F, w, params) for F in F_grid for w in omega_grid]
+            family = lc.family()
+            problem = family.problem(fmu_dir=self.fmu_dir)
+            F_range, omega_range = search_ranges(problem, lc.F_range, lc.omega_range)
+            params = family.params()
+            grid = [(lc.plant, F, w, params) for F in np.geomspace(*F_range, lc.n_F)
+                    for w in np.geomspace(*omega_range, lc.n_omega)]
             keys = self.compute_points(grid, table, display, f"{lc.name}: DF map")
             self.map_rows += [dict(to_row(self.values[name]), series=lc.name, key=name) for name in keys]
             engine = _CachedEngine(self, table, lc.plant)
-            found = search(lc.plant, G, params, lc.F_range, lc.omega_range, lc.n_F, lc.n_omega, engine=engine)
-            cycles = found.cycles
+            tasks = {}
+
+            def progress(stage, done, total, name=lc.name):
+                if stage == "DF map":  # its points were computed above: shown there
+                    return
+                if stage not in tasks:
+                    tasks[stage] = [display.add(f"{name}: {stage}", total, 0, 0), 0]
+                display.advance(tasks[stage][0], done - tasks[stage][1])
+                tasks[stage][1] = done
+
+            hits = self.cache.hits
+            results[lc.name] = analyse(lc.plant, lc.controller(), lc.params, F_range=F_range,
+                                       omega_range=omega_range, n_F=lc.n_F, n_omega=lc.n_omega, exact=lc.exact,
+                                       verify=lc.verify, samples_per_period=lc.samples_per_period,
+                                       fmu_dir=self.fmu_dir, engine=engine, cache=self.cache, progress=progress)
             self.outcome.computed += engine.computed
-            self.outcome.cache_hits += engine.hits
-            checks, runs = [], []
-            if lc.verify:
-                task = display.add(f"{lc.name}: judge", len(cycles), 0, 0)
-                for cycle in cycles:
-                    outcome, run = self.judge(lc, G, params, cycle)
-                    checks.append(outcome)
-                    runs.append((cycle, run))
-                    display.advance(task, 1)
-            true_cycles, links = [], []
-            if lc.exact:
-                task = display.add(f"{lc.name}: exact loop", 1, 0, 0)
-                true_cycles, links = self.exact(lc, G, params, cycles)
-                display.advance(task, 1)
-            results[lc.name] = {"G": G, "cycles": cycles, "verification": checks, "runs": runs,
-                                "true_cycles": true_cycles, "links": links,
-                                "F_grid": found.F_grid, "omega_grid": found.omega_grid, "N_grid": found.N_grid}
+            self.outcome.cache_hits += engine.hits + (self.cache.hits - hits - engine.hits)
         return results
-
-    def exact(self, lc, G, params, cycles):
-        """(true cycles, links) of the exact closed loop around the predictions, cached."""
-        import numpy as np
-
-        from dfwb.engine.periodic import LoopProblem, TrueCycle, find_cycles
-
-        key = {"kind": "exact", "code": self.code, "solvers": solver_revision(), "plant": lc.plant, "params": params,
-               "G": [G.num[0][0].tolist(), G.den[0][0].tolist()],
-               "predictions": [[c.F, c.omega, c.amplitude_x] for c in cycles]}
-        value = self.cache.get(key)
-        if value is None:
-            found, links = find_cycles(LoopProblem(lc.plant, G, params, fmu_dir=self.fmu_dir), cycles)
-            value = {"cycles": [dict(c.as_dict(), trace={"t": c.trace["t"].tolist(), "y": c.trace["y"].tolist(),
-                                                         "f": c.trace["f"].tolist(),
-                                                         "events": [[t, str(k)] for t, k in c.trace["events"]]})
-                                for c in found], "links": links}
-            self.cache.put(key, _finite(value))
-        else:
-            self.outcome.cache_hits += 1
-        true_cycles = []
-        for entry in value["cycles"]:
-            trace = entry["trace"]
-            entry = dict(entry, trace={"t": np.array(trace["t"]), "y": np.array(trace["y"]),
-                                       "f": np.array(trace["f"]), "events": [tuple(e) for e in trace["events"]]})
-            true_cycles.append(TrueCycle(**entry))
-        return true_cycles, value["links"]
-
-    def judge(self, lc, G, params, cycle):
-        """(outcome, the run's last 10 periods) of the co-simulation judge of one cycle, cached."""
-        import numpy as np
-
-        from dfwb.engine.closed_loop import LoopRun, verify
-
-        controller = fmu_path("LinearSystem", self.fmu_dir)
-        key = {"kind": "verify", "fmu": [self.revisions[lc.plant], fmu_revision(controller)], "code": self.code,
-               "plant": lc.plant, "params": params, "G": [G.num[0][0].tolist(), G.den[0][0].tolist()],
-               "cycle": [cycle.F, cycle.omega, cycle.amplitude_x], "samples_per_period": lc.samples_per_period}
-        value = self.cache.get(key)
-        if value is None:
-            outcome, run = verify(lc.plant, G, cycle, params, lc.samples_per_period, fmu_dir=self.fmu_dir)
-            tail = run.time >= run.time[-1] - 10 * cycle.period  # what the figure shows
-            value = {"outcome": outcome, "run": {"time": run.time[tail].tolist(), "step": run.step,
-                                                 "position": run.position[tail].tolist(),
-                                                 "force": run.force[tail].tolist()}}
-            self.cache.put(key, _finite(value))
-        else:
-            self.outcome.cache_hits += 1
-        run = value["run"]
-        return value["outcome"], LoopRun(np.array(run["time"]), np.array(run["position"]), np.array(run["force"]),
-                                         run["step"])
 
     # -- everything -------------------------------------------------------------------------
     def fingerprint(self, table, points):
@@ -394,7 +347,7 @@ class SceneRun:
                 mark[0] = now
 
             lap("start")  # the scene, the cache, the FMUs' revisions, the fingerprint
-            with _Display(self.progress, scene.title) as display:
+            with Display(self.progress, scene.title) as display:
                 self.compute_points(points, table, display, "DF points")
                 lap("points")
                 traces = self.traces(display)
@@ -425,18 +378,8 @@ class SceneRun:
             self.write(f"traces/{name}.csv", buffer.getvalue())
         document = {"title": self.scene.title, "series": data,
                     "traces": {name: f"traces/{name}.csv" for name in traces},
-                    "limit_cycles": {name: _finite(self.cycle_document(r)) for name, r in cycles.items()}}
+                    "limit_cycles": {name: finite(r.as_dict()) for name, r in cycles.items()}}
         self.write("results.json", json.dumps(document))
-
-    @staticmethod
-    def cycle_document(r):
-        """A limit cycle's results.json entry: predictions and judge, and with ``exact`` the true cycles."""
-        from dfwb.engine.periodic import report
-
-        document = {"predictions": [c.as_dict() for c in r["cycles"]], "verification": r["verification"]}
-        if r["true_cycles"] or r["links"]:
-            document["predictions"], document["cycles"] = report(r["cycles"], r["true_cycles"], r["links"])
-        return document
 
     def draw(self, data, traces, cycles, fingerprint):
         """Draw each figure, or copy it from the cache when this very run drew it before.
@@ -489,9 +432,7 @@ class SceneRun:
             return paper.sections
         if figure.kind == "limit_cycle":
             for name, png in zip(figure.series, pngs):
-                r = cycles[name]
-                plots.limit_cycle_figure(self.out / png, r["G"], r["F_grid"], r["omega_grid"], r["N_grid"],
-                                         r["cycles"], r["runs"], r["true_cycles"])
+                cycles[name].figure(self.out / png)
             return []
         plots.scene_figure(self.out, figure, data, traces, self.scene)
         return []
@@ -528,38 +469,7 @@ class SceneRun:
             if step > 1:
                 lines.append(f"\nEvery {step}th of {len(rows)} points; all are in `results.csv`.")
         for name, r in cycles.items():
-            lines += ["", f"## Limit cycles: {name}", "", "| F [N] | w [rad/s] | amplitude | stable | distortion "
-                      "| judge F | judge w | settled |", "|---|---|---|---|---|---|---|---|"]
-            for i, c in enumerate(r["cycles"]):
-                v = r["verification"][i] if r["verification"] else None
-                judged = (f"{v['F']:.4g} | {v['omega']:.4g} | {v['settled']}" if v else "- | - | not asked")
-                lines.append(f"| {c.F:.6g} | {c.omega:.6g} | {c.amplitude_x:.4g} | {c.stable} | {c.distortion:.3g} "
-                             f"| {judged} |")
-            if not r["cycles"]:
-                lines.append("| no cycle in the ranges | | | | | | | |")
-            if r["true_cycles"] or r["links"]:
-                from dfwb.engine.closed_loop import judge_errors
-                from dfwb.engine.periodic import relative_errors
-
-                lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
-                          "multipliers), and the DF's relative errors against them:", "",
-                          "| true w [rad/s] | amplitude | F [N] | stable | max multiplier | per period "
-                          "| DF prediction | DF error w | DF error amplitude | DF error F | judge error w "
-                          "| judge error amplitude |", "|---" * 12 + "|"]
-                for c in r["true_cycles"]:
-                    errors = "not predicted | | | | | |"
-                    if c.prediction is not None:
-                        e = relative_errors(r["cycles"][c.prediction], c)
-                        errors = f"{c.prediction} | {e['omega']:+.2%} | {e['amplitude_x']:+.2%} | {e['F']:+.2%} | "
-                        v = r["verification"][c.prediction] if r["verification"] else None
-                        j = judge_errors(v, c) if v and v["settled"] else None
-                        errors += (f"{j['omega']:+.2%} | {j['amplitude_x']:+.2%} |" if j else "- | - |")
-                    counts = ", ".join(f"{v} {k}" for k, v in c.counts.items())
-                    lines.append(f"| {c.omega:.8g} | {c.amplitude_x:.6g} | {c.F:.6g} | {c.stable} | "
-                                 f"{max(c.multipliers):.3g} | {counts} | {errors}")
-                missed = [i for i, j in enumerate(r["links"]) if j is None]
-                if missed:
-                    lines.append(f"\nPrediction(s) {missed}: no true cycle near them (false alarms).")
+            lines += ["", f"## Limit cycles: {name}", "", r.markdown()]
         self.write("summary.md", "\n".join(lines) + "\n")
 
 
@@ -589,53 +499,6 @@ class _CachedEngine:
         return DFResult.from_dict(dict(value, params=params))
 
 
-class _Display:
-    """A rich progress display: points done, cache hits, time left (silent when off).
-
-    It starts with the first task that has work left, showing the tasks complete before it: a run that
-    finds everything done (in the cache) has nothing to wait for, and neither shows nor loads a display."""
-
-    def __init__(self, enabled, title):
-        self.enabled, self.title = enabled, title
-        self.progress = None
-        self._complete = []  # tasks complete when added, before the display started
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        if self.progress is not None:
-            self.progress.stop()
-
-    def _start(self):
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-        from rich.table import Column
-
-        label = Column(max_width=32, no_wrap=True, overflow="ellipsis")
-        self.progress = Progress(TextColumn("{task.description}", table_column=label), BarColumn(bar_width=20),
-                                 MofNCompleteColumn(), TextColumn("[cyan]{task.fields[hits]} cached"),
-                                 TextColumn("time left"),
-                                 TimeRemainingColumn(compact=True))
-        self.progress.console.print(f"[bold]{self.title}")
-        self.progress.start()
-        for label, total, done, hits in self._complete:
-            self.progress.add_task(label, total=total, completed=done, hits=hits)
-
-    def add(self, label, total, done, hits):
-        if not self.enabled or total == 0:
-            return None
-        if self.progress is None:
-            if done >= total:  # nothing to wait for (never advanced): shown if the display starts later
-                self._complete.append((label, total, done, hits))
-                return None
-            self._start()
-        return self.progress.add_task(label, total=total, completed=done, hits=hits)
-
-    def advance(self, task, n):
-        if task is not None:
-            self.progress.advance(task, n)
-
-
 def _names_match(stored, pngs, files):
     """Whether a cached figure entry names exactly the files of its figure (and is shaped as written)."""
     try:
@@ -644,17 +507,6 @@ def _names_match(stored, pngs, files):
                 and all(png in pngs for _, png, _ in stored["sections"]))
     except (KeyError, TypeError, ValueError, AttributeError):
         return False
-
-
-def _finite(document):
-    """JSON-safe: infinities and NaN become None."""
-    if isinstance(document, float):
-        return document if math.isfinite(document) else None
-    if isinstance(document, dict):
-        return {k: _finite(v) for k, v in document.items()}
-    if isinstance(document, (list, tuple)):
-        return [_finite(v) for v in document]
-    return document
 
 
 def open_cache(cache):

@@ -232,12 +232,12 @@ class LimitCycle:
 
     name: str = rule(Name)
     plant: str = rule(PlantName)
-    params: dict = rule(Params, {})
+    params: dict = rule(Params, {})  # the plant's parameters and G's
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
     den: Optional[list] = rule(ListOf(Finite), None)
-    F_range: list = rule(ListOf(Force, min_length=2, max_length=2))
-    omega_range: list = rule(ListOf(Frequency, min_length=2, max_length=2))
+    F_range: Optional[list] = rule(ListOf(Force, min_length=2, max_length=2), None)  # None: derived
+    omega_range: Optional[list] = rule(ListOf(Frequency, min_length=2, max_length=2), None)
     n_F: int = rule(Integer(ge=2, le=1000), 16)
     n_omega: int = rule(Integer(ge=2, le=1000), 48)
     verify: bool = rule(Boolean(), False)
@@ -245,24 +245,33 @@ class LimitCycle:
     samples_per_period: int = rule(Integer(ge=16, le=100_000), 512)
 
     def __post_init__(self):
-        _check_plant(self.plant, self.params)
         if self.exact and find_plant(self.plant).loop is None:
             raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop")
         for key in ("F_range", "omega_range"):
-            lo, hi = getattr(self, key)
-            if not lo < hi:
-                raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
-        self.transfer_function()
+            if getattr(self, key) is not None:
+                lo, hi = getattr(self, key)
+                if not lo < hi:
+                    raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
+        self.family()
 
-    def transfer_function(self):
-        """G(s) as a python-control TransferFunction (ValueError naming the problem)."""
-        from dfwb.engine.transfer import from_coefficients, parse_transfer_function
+    def controller(self):
+        """G as given: the expression (with parameters), or a TransferFunction of num and den."""
+        from dfwb.engine.transfer import from_coefficients
 
         if (self.G is None) == (self.num is None and self.den is None):
             raise InputError("give the controller either as G = \"...\" or as num = [...] and den = [...]")
         if self.G is not None:
-            return parse_transfer_function(self.G)
+            return self.G
         return from_coefficients(self.num or [], self.den or [], names=("num", "den"))
+
+    def family(self):
+        """The :class:`~dfwb.engine.family.LoopFamily` of the plant, G and params (checked)."""
+        from dfwb.engine.family import LoopFamily
+
+        try:
+            return LoopFamily(self.plant, self.controller(), self.params)
+        except PlantError as error:
+            raise InputError(str(error)) from None
 
 
 @SECTION

@@ -287,13 +287,20 @@ DFWB_API int dfwb_loop_new(int plant, const double *params, size_t nparams, cons
                            size_t nstate, const double *section, dfwb_loop **out, char *err, size_t errlen);
 
 /* HybridSolver.advance: integrate exactly to t_end (finite, >= the current time, at most 1e12 chunks of the
- * fastest mode built so far), firing every event on the way; with stop_at_section, stop early at the next
- * upward crossing of the section (then the current time is the crossing's). budget_left: NULL for none,
- * else the chunks the study may still integrate (a Budget shared by several loops: decremented per chunk,
- * below 0 refused naming budget_total; written back on refusal too). Events: at most 10000 per chunk of
- * the fastest mode spanned. */
-DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_at_section, long long *budget_left,
+ * fastest mode built so far), firing every event on the way. stop: bits of what ends the advance early (then
+ * the current time is that instant): 1, the next upward crossing of the section; 1 << (1 + 16 key + kind),
+ * the first event of kind (DFWB_EVENT_*) fired from mode key (0..2), the state then the one the event left
+ * (dfwb_loop_stopped tells which kind stopped it, 0 none). budget_left: NULL for none, else the chunks the
+ * study may still integrate (a Budget shared by several loops: decremented per chunk, below 0 refused naming
+ * budget_total; written back on refusal too). Events: at most 10000 per chunk of the fastest mode spanned. */
+DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, unsigned long long stop, long long *budget_left,
                                long long budget_total, char *err, size_t errlen);
+DFWB_API int dfwb_loop_stopped(const dfwb_loop *p); /* the event kind the last advance stopped at, 0: none */
+/* dfwb_loop_advance to each of times[0..n-1] (non-decreasing) in turn, the state there into states[i * size ..]
+ * (the loop's state size): many samples of one run in one call. Refused as advance refuses (then the samples
+ * before the refused time are written). */
+DFWB_API int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, long long *budget_left,
+                              long long budget_total, char *err, size_t errlen);
 
 DFWB_API double dfwb_loop_time(const dfwb_loop *p);
 DFWB_API long long dfwb_loop_events(const dfwb_loop *p);

@@ -353,6 +353,7 @@ void dfwb_hy_init(dfwb_hy *hy, int n, dfwb_hy_system_fn system, dfwb_hy_fire_fn 
     hy->n = n;
     hy->t = 0.0;
     hy->events = 0;
+    hy->stopped = 0;
     for (j = 0; j < DFWB_HY_MODES; j++)
         hy->modes[j] = NULL;
     hy->has_section = section_L != NULL;
@@ -583,11 +584,12 @@ static void add_crossing(dfwb_hy *hy, double t, const double *X)
     hy->ncrossings += 1;
 }
 
-int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *budget_left, long long budget_total,
-                    dfwb_err *err)
+int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long long *budget_left,
+                    long long budget_total, dfwb_err *err)
 {
     double fastest = 0.0, limit, fired = 0.0, chunks = 0.0;
     int i, have = 0, rc;
+    hy->stopped = 0;
     if (!(isfinite(t_end) && t_end >= hy->t)) {
         char r[DFWB_REPR_SIZE], rt[DFWB_REPR_SIZE];
         dfwb_repr(t_end, r);
@@ -624,7 +626,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *b
             const double tau = hy->event_tau;
             const int kind = hy->event_kind;
             double t, X[DFWB_HY_DIM];
-            int key, departing;
+            int key, departing, fired_from;
             fired += 1.0;
             if (fired > limit) {
                 char r0[DFWB_REPR_SIZE], r1[DFWB_REPR_SIZE];
@@ -655,13 +657,14 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *b
                 rc = begin(hy, t, X, hy->key, 1, &index, err);
                 if (rc != DFWB_OK)
                     return rc;
-                if (stop_at_section && kind == DFWB_HY_SECTION_UP) {
+                if ((stop & DFWB_HY_STOP_SECTION) && kind == DFWB_HY_SECTION_UP) {
                     t_end = t;
                     break;
                 }
                 continue;
             }
             key = hy->key;
+            fired_from = hy->key;
             departing = -1;
             rc = hy->fire(hy, t, kind, X, &key, &departing, err);
             if (rc != DFWB_OK)
@@ -671,6 +674,11 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *b
             rc = begin(hy, t, X, key, departing >= 0 ? 1 : 0, &departing, err);
             if (rc != DFWB_OK)
                 return rc;
+            if (kind > 0 && kind < 16 && (stop & DFWB_HY_STOP_EVENT(fired_from, kind))) {
+                hy->stopped = kind;
+                t_end = t;
+                break;
+            }
             continue;
         }
         if (hy->b > t_end)

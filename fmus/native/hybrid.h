@@ -29,6 +29,10 @@
 #define DFWB_HY_MAX_CHUNKS_PER_STEP 10000000
 #endif
 #define DFWB_HY_SECTION_UP 101   /* "section+": an upward crossing of the watched function (not an event) */
+/* What dfwb_hy_advance stops at (bits of ``stop``): the section's next upward crossing, and the first event of
+ * ``kind`` (DFWB_EVENT_*, below 16) fired from mode ``key`` (0..2). */
+#define DFWB_HY_STOP_SECTION 1ULL
+#define DFWB_HY_STOP_EVENT(key, kind) (1ULL << (1 + 16 * (key) + (kind)))
 #define DFWB_HY_SECTION_DOWN 102 /* "section-" */
 
 /* An event function: the event ``kind`` (DFWB_EVENT_* or a section) where L.X + l0 falls to zero. */
@@ -82,6 +86,7 @@ typedef struct dfwb_hy {
     int first, searched, has_event;
     double event_tau;
     int event_kind;
+    int stopped;                        /* the event kind the last advance stopped at (not state), 0: none */
     /* the upward crossings of the section not read yet: (t, X[n]) each */
     double *crossings;
     size_t ncrossings, crossings_cap;
@@ -100,9 +105,10 @@ dfwb_hy_mode *dfwb_hy_mode_of(dfwb_hy *hy, int key, dfwb_err *err);
 int dfwb_hy_after(dfwb_hy *hy, int key, int index, const double *X, int *sign, dfwb_err *err);
 /* HybridSolver.start: begin at t0 in mode ``key`` (departing: an index, or -1). */
 int dfwb_hy_start(dfwb_hy *hy, double t0, const double *X0, int key, int departing, dfwb_err *err);
-/* HybridSolver.advance; budget_left NULL: unbounded, else the chunks left (decremented; below 0 refused). */
-int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_at_section, long long *budget_left, long long budget_total,
-                    dfwb_err *err);
+/* HybridSolver.advance; stop: DFWB_HY_STOP_* bits (0: to t_end); budget_left NULL: unbounded, else the chunks left
+ * (decremented; below 0 refused). */
+int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long long *budget_left,
+                    long long budget_total, dfwb_err *err);
 /* HybridSolver.state: X at hy->t. */
 void dfwb_hy_state(const dfwb_hy *hy, double *X);
 /* Deep copy (its own modes, crossings, log; a fresh workspace); 0 when out of memory (dst then freed). */

@@ -516,14 +516,33 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
 }
 
 /* -- the API ------------------------------------------------------------------------------------ */
-int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_at_section, long long *budget_left,
+int dfwb_loop_advance(dfwb_loop *p, double t_end, unsigned long long stop, long long *budget_left,
                       long long budget_total, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_err_init(&err, errbuf, errlen);
     if (p == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_advance: NULL instance");
-    return dfwb_err_finish(&err, dfwb_hy_advance(&p->hy, t_end, stop_at_section, budget_left, budget_total, &err));
+    return dfwb_err_finish(&err, dfwb_hy_advance(&p->hy, t_end, stop, budget_left, budget_total, &err));
+}
+
+int dfwb_loop_stopped(const dfwb_loop *p) { return p == NULL ? 0 : p->hy.stopped; }
+
+int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, long long *budget_left,
+                     long long budget_total, char *errbuf, size_t errlen)
+{
+    dfwb_err err;
+    size_t i;
+    int rc = DFWB_OK;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (p == NULL || (n > 0 && (times == NULL || states == NULL)))
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_sample: NULL argument");
+    for (i = 0; i < n && rc == DFWB_OK; i++) {
+        rc = dfwb_hy_advance(&p->hy, times[i], 0, budget_left, budget_total, &err);
+        if (rc == DFWB_OK)
+            dfwb_hy_state(&p->hy, states + i * (size_t)p->hy.n);
+    }
+    return dfwb_err_finish(&err, rc);
 }
 
 double dfwb_loop_time(const dfwb_loop *p) { return p == NULL ? NAN : p->hy.t; }

@@ -1,0 +1,644 @@
+"""Limit cycles followed in one parameter: pseudo-arclength continuation of the true cycles and of the DF's
+predictions, their bifurcations detected and located.
+
+A branch is a curve of solutions of H(y) = 0 with y = (x, lambda): for a true
+cycle x are the section coordinates u of its state and H(u, lambda) =
+P^returns(u; lambda) - u (the return map of :mod:`dfwb.engine.periodic` at
+that parameter value); for a DF prediction x = (ln F, ln w) and H is the
+harmonic balance 1 + G(jw) N(F, w) (real and imaginary parts). The curve is
+followed by arclength in coordinates scaled by the orbit's swing and the
+parameter range, so it passes smooth folds where the parameter turns back:
+each step predicts along the tangent (the null vector of dH, oriented as the
+last one) and corrects by Newton's method on H = 0 and the arclength
+condition, the step halved where the corrector fails and grown where it
+converges at once.
+
+Between two accepted points of a branch of true cycles a bifurcation is
+detected and then located by walking the branch from the earlier point with
+steps halved wherever the next one is past the change, to 1e-7 of the
+parameter's range:
+
+* **discontinuity-induced**, from the cycle's event sequence over a period
+  (its signature): a stick phase or contact appearing or vanishing
+  (``sliding``), an impact or an engagement appearing or vanishing
+  (``grazing``); where the branch turns back there, two branches meet at a
+  ``nonsmooth-fold``: their Floquet multipliers need not pass through 1, so
+  only the events see it (the hunting cycle and the unstable cycle above it
+  of a PI-controlled friction mass meet that way);
+* **smooth**, from the Floquet multipliers: a real one leaving the unit
+  circle through +1 where the parameter turns back (``fold``), through -1
+  (``period-doubling``), a complex pair leaving it (``torus``);
+* a branch whose amplitude grows without bound ends at ``infinity``: where
+  the linear loop (the nonlinearity removed) loses its stability.
+
+A DF branch has ``fold`` points, where -1/N touches G(jw) (the parameter
+turns back, Loeb's stability verdict changes).
+
+Every loop is bounded: a branch by ``max_points`` and by the step's lower
+bound, a corrector by MAX_CORRECTOR iterations, a location by MAX_LOCATE steps.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dfwb.base.errors import InputError
+from dfwb.fmus.exact import PlantError
+
+TOL = 1e-10  # the corrector's residual (scaled)
+MAX_CORRECTOR = 8  # Newton iterations per corrector, at most
+REFRESHES = 2  # fresh Jacobians a corrector may take when the chord converges slowly
+FD = 1e-7  # finite-difference step, scaled
+DS = (1e-6, 0.02, 0.15)  # the step: smallest, first, largest (scaled arclength)
+MAX_LOCATE = 400  # steps of a bifurcation's location, at most
+LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (scaled: relative to the range)
+AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows this many times its start's goes to infinity
+MAX_POINTS = 200  # per branch
+
+
+@dataclass
+class Point:
+    """One solution on a branch: the cycle (or prediction) at one parameter value."""
+
+    parameter: float
+    omega: float
+    amplitude_x: float
+    F: float
+    stable: bool
+    multipliers: list
+    period: float
+    signature: tuple = ()
+    state: list = field(default_factory=list, repr=False)
+
+    def as_dict(self):
+        return {"parameter": self.parameter, "omega": self.omega, "amplitude_x": self.amplitude_x, "F": self.F,
+                "stable": self.stable, "multipliers": self.multipliers, "period": self.period,
+                "events": list(self.signature)}
+
+
+@dataclass
+class Branch:
+    """A branch of cycles (``source`` "truth") or of DF predictions ("df"), its points in arclength order."""
+
+    source: str
+    points: list
+    ends: list = field(default_factory=list)  # [(parameter, why it stops)] at the first and last point
+    returns: int = 1
+
+    def as_dict(self):
+        return {"source": self.source, "returns": self.returns, "points": [p.as_dict() for p in self.points],
+                "ends": [{"parameter": value, "reason": reason} for value, reason in self.ends]}
+
+
+@dataclass
+class Bifurcation:
+    """Where a branch changes its nature: ``kind`` (see the module docstring), located to ``accuracy``."""
+
+    kind: str
+    parameter: float
+    omega: float
+    amplitude_x: float
+    source: str
+    detail: str = ""
+    accuracy: float = 0.0
+
+    def as_dict(self):
+        return {"kind": self.kind, "parameter": self.parameter, "omega": self.omega,
+                "amplitude_x": self.amplitude_x, "source": self.source, "detail": self.detail,
+                "accuracy": self.accuracy}
+
+
+# -- the two systems: H(y) = 0 for true cycles and for DF predictions ------------------------------------------------
+class CycleSystem:
+    """H(u, lambda) = P^returns(u) - u of the exact loop at each parameter value, scaled by the swing."""
+
+    source = "truth"
+
+    def __init__(self, family, name, span, returns, swing, period, fmu_dir=None, budget=None):
+        self.family, self.name, self.span, self.returns = family, name, span, returns
+        self.swing = np.asarray(swing, dtype=float)  # of the section coordinates u
+        self.period, self.fmu_dir, self.budget = period, fmu_dir, budget
+        self._problems = {}
+
+    def problem(self, value):
+        """The loop at a parameter value (a few kept: a corrector and its Jacobian revisit them)."""
+        problem = self._problems.get(value)
+        if problem is None:
+            if len(self._problems) > 8:
+                self._problems.clear()
+            problem = self._problems[value] = self.family.problem({self.name: value}, self.fmu_dir, self.budget)
+            if self.budget is None:
+                self.budget = problem.budget  # every problem of the branch draws on the first one's budget
+        return problem
+
+    def scale(self):
+        return np.concatenate([self.swing, [self.span]])
+
+    def residual(self, y):
+        """H(y) scaled by the swing, and (the return time, the events fired); (None, None) where the orbit does
+        not return."""
+        value = float(y[-1])
+        try:
+            problem = self.problem(value)
+        except InputError:  # a parameter value the plant or G refuses (a mass through 0, ...)
+            return None, None
+        X = problem.on_section(list(y[:-1]))
+        result = problem.first_return(X, self.returns, 20.0 * self.period)
+        if result is None:
+            return None, None
+        return (np.array(problem.reduced(result[0])) - y[:-1]) / self.swing, result[1:]
+
+    @staticmethod
+    def same_kind(a, b):
+        """Whether two residuals' orbits fire as many events (the map is smooth between them)."""
+        return a[1] == b[1]
+
+    def describe(self, y, J, info):
+        """The :class:`Point` at y (J: dH/dy scaled; info: the return time and the events)."""
+        T = info[0]
+        problem = self.problem(float(y[-1]))
+        X = problem.on_section(list(y[:-1]))
+        n = len(y) - 1
+        M = J[:, :n] + np.eye(n)
+        spectrum = sorted((complex(m) for m in np.linalg.eigvals(M)), key=abs, reverse=True)
+        harmonics, F, _counts, trace = problem.period_trace(X, T)
+        self.period = T
+        swing = problem._swing(X, T)
+        self.swing = np.maximum(np.array([v for i, v in enumerate(swing) if i != problem.pivot]), 1e-300)
+        return Point(parameter=float(y[-1]), omega=2.0 * math.pi / T, amplitude_x=harmonics[1], F=F,
+                     stable=all(abs(m) < 1.0 for m in spectrum), multipliers=[abs(m) for m in spectrum], period=T,
+                     signature=tuple(str(k) for _t, k in trace["events"]), state=X), spectrum
+
+    def signature(self, y, info):
+        """The event kinds of one period from the section state at y (info: the return time, the events)."""
+        problem = self.problem(float(y[-1]))
+        solver = problem._make(problem.on_section(list(y[:-1])))
+        solver.event_log = []
+        solver.advance(info[0])
+        return tuple(str(k) for _t, k in solver.event_log)
+
+
+class PredictionSystem:
+    """H(ln F, ln w, lambda) = 1 + G(jw) N(F, w): the DF's harmonic balance at each parameter value."""
+
+    source = "df"
+
+    def __init__(self, family, name, span, engine, F_range):
+        self.family, self.name, self.span, self.engine = family, name, span, engine
+        self.log_F = (math.log(F_range[0]), math.log(F_range[1]))
+        self._cache = {}
+
+    def scale(self):
+        return np.array([1.0, 1.0, self.span])
+
+    @staticmethod
+    def same_kind(a, b):
+        return True
+
+    def residual(self, y):
+        u, v, value = (float(c) for c in y)
+        if not self.log_F[0] <= u <= self.log_F[1] or not -9.0 <= v <= 11.5:
+            return None, None
+        try:
+            G, params = self._at(value)
+            N = self.engine.point(math.exp(u), math.exp(v), params).N
+        except (InputError, PlantError):
+            return None, None
+        if N == 0:
+            return None, None  # the plant does not move: no balance
+        R = 1.0 + complex(G(1j * math.exp(v))) * N
+        return np.array([R.real, R.imag]), N
+
+    def _at(self, value):
+        if value not in self._cache:
+            if len(self._cache) > 16:
+                self._cache.clear()
+            self._cache[value] = (self.family.G({self.name: value}), self.family.params({self.name: value}))
+        return self._cache[value]
+
+    def describe(self, y, J, N):
+        F, omega = math.exp(y[0]), math.exp(y[1])
+        loeb = float(J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0])
+        return Point(parameter=float(y[2]), omega=omega, amplitude_x=abs(N) * F, F=F, stable=loeb > 0.0,
+                     multipliers=[], period=2.0 * math.pi / omega, state=[F, omega]), loeb
+
+
+# -- pseudo-arclength ------------------------------------------------------------------------------------------------
+def _jacobian(system, y, r, extra=None):
+    """dH/dy (scaled columns: d/d(y_j / scale_j)) by forward differences, or None.
+
+    A side whose solution is not of the base's kind (``system.same_kind``: as many events) is replaced by the
+    other: next to a switching the difference stays where the map is smooth."""
+    D = system.scale()
+    if extra is None:
+        r, extra = system.residual(y)
+        if r is None:
+            return None
+    columns = []
+    for j in range(len(y)):
+        trial = np.array(y, dtype=float)
+        trial[j] += FD * D[j]
+        ahead, ahead_extra = system.residual(trial)
+        if ahead is not None and system.same_kind(ahead_extra, extra):
+            columns.append((ahead - r) / FD)
+            continue
+        trial[j] = y[j] - FD * D[j]
+        behind, behind_extra = system.residual(trial)
+        if behind is not None and (system.same_kind(behind_extra, extra) or ahead is None):
+            columns.append((r - behind) / FD)
+        elif ahead is not None:
+            columns.append((ahead - r) / FD)
+        else:
+            return None
+    return np.array(columns).T
+
+
+def _tangent(J, previous):
+    """The unit null vector of J oriented along ``previous`` (the bordered system [J; previous] t = e_n)."""
+    n = J.shape[1]
+    A = np.vstack([J, previous])
+    b = np.zeros(n)
+    b[-1] = 1.0
+    try:
+        t = np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        t = np.linalg.svd(J)[2][-1]
+        t = t if t @ previous >= 0 else -t
+    return t / np.linalg.norm(t)
+
+
+def _correct(system, y_start, normal, anchor, J=None):
+    """Newton on [H(y) = 0, normal . (y - anchor) / scale = 0] from y_start: (y, r, extra, J) or None."""
+    D = system.scale()
+    y = np.array(y_start, dtype=float)
+    r, extra = system.residual(y)
+    if r is None:
+        return None
+    refreshes = 0
+    if J is None:
+        J = _jacobian(system, y, r, extra)
+        if J is None:
+            return None
+    previous = math.inf
+    for _ in range(MAX_CORRECTOR):
+        condition = float(normal @ ((y - anchor) / D))
+        size = max(float(np.abs(r).max()), abs(condition))
+        if size <= TOL:
+            return y, r, extra, J
+        if size > 0.25 * previous and refreshes < REFRESHES:  # the chord converges slowly: a fresh Jacobian
+            J = _jacobian(system, y, r, extra)
+            refreshes += 1
+            if J is None:
+                return None
+        previous = size
+        try:
+            step = np.linalg.solve(np.vstack([J, normal]), -np.concatenate([r, [condition]]))
+        except np.linalg.LinAlgError:
+            return None
+        y = y + step * D
+        r, extra = system.residual(y)
+        if r is None:
+            return None
+    condition = float(normal @ ((y - anchor) / D))
+    return (y, r, extra, J) if max(float(np.abs(r).max()), abs(condition)) <= TOL else None
+
+
+@dataclass
+class _Node:
+    """An accepted point with what the next step needs."""
+
+    y: np.ndarray
+    J: np.ndarray
+    tangent: np.ndarray
+    point: Point
+    detail: object  # the system's: the spectrum (truth) or Loeb's value (DF)
+    info: object  # the residual's extra: (return time, events) (truth) or N (DF)
+
+
+def _node(system, y, r, extra, J, previous_tangent):
+    """Describe an accepted solution (a fresh Jacobian there: the tangent and the multipliers)."""
+    J = _jacobian(system, y, r, extra) if J is None else J
+    if J is None:
+        return None
+    point, detail = system.describe(y, J, extra)
+    return _Node(y, J, _tangent(J, previous_tangent), point, detail, extra)
+
+
+def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE_LIMIT, progress=None):
+    """The branch from the solution y0 in the direction of the parameter's sign ``direction``, within ``bounds``.
+
+    Returns (nodes, reason): the accepted nodes in order (y0's first) and why the branch stopped.
+    """
+    r, extra = system.residual(y0)
+    if r is None:
+        return [], "the start is not a solution"
+    J = _jacobian(system, y0, r, extra)
+    if J is None:
+        return [], "the start's neighbourhood does not return to the section"
+    start = np.zeros(len(y0))
+    start[-1] = direction
+    node = _node(system, y0, r, extra, J, start)
+    nodes, ds = [node], DS[1]
+    amplitude0 = max(node.point.amplitude_x, 1e-300)
+    lo, hi = bounds
+    while len(nodes) < max_points:
+        D = system.scale()
+        last = nodes[-1]
+        predicted = last.y + ds * last.tangent * D
+        corrected = None
+        if lo <= predicted[-1] <= hi:
+            corrected = _correct(system, predicted, last.tangent, predicted, last.J)
+        else:  # beyond the range: end exactly on its edge (the parameter fixed there)
+            edge = hi if predicted[-1] > hi else lo
+            fixed = np.zeros(len(y0))
+            fixed[-1] = 1.0
+            guess = last.y + (edge - last.y[-1]) / (predicted[-1] - last.y[-1]) * (predicted - last.y)
+            guess[-1] = edge
+            corrected = _correct(system, guess, fixed, guess, last.J)
+            if corrected is not None:
+                node = _node(system, *corrected[:3], None, last.tangent)
+                if node is not None:
+                    nodes.append(node)
+                    return nodes, "the end of the range"
+            corrected = None
+        if corrected is None:
+            ds *= 0.5
+            if ds < DS[0]:
+                return nodes, "the branch cannot be followed further (the corrector fails even at tiny steps)"
+            continue
+        node = _node(system, *corrected[:3], None, last.tangent)
+        if node is None:
+            ds *= 0.5
+            if ds < DS[0]:
+                return nodes, "the branch cannot be followed further (no Jacobian)"
+            continue
+        nodes.append(node)
+        if progress:
+            progress(len(nodes))
+        if node.point.amplitude_x > limit * amplitude0:
+            return nodes, "infinity"
+        ds = min(DS[2], ds * 1.5)
+    return nodes, f"{max_points} points"
+
+
+# -- bifurcations ------------------------------------------------------------------------------------------------------
+def locate(system, a, b, differs, span):
+    """Follow the branch from node a towards node b until just before ``differs(y, r, extra)`` turns True.
+
+    Small arclength steps, the tangent renewed at each accepted point (so the walk stays on a's side of the
+    branch up to a kink, where a straight march would leave it), the step halved where the next point differs
+    or cannot be found. Returns (the last solution like a, (y, r, extra, J); the first that differs, or None;
+    the bracket's width in the parameter), when the step is LOCATE (scaled) or after MAX_LOCATE steps.
+    """
+    D = system.scale()
+    here, tangent = (a.y, None, a.info, a.J), a.tangent
+    ds = 0.5 * float(np.linalg.norm((b.y - a.y) / D))
+    after = None
+    for _ in range(MAX_LOCATE):
+        if ds <= LOCATE:
+            break
+        predicted = here[0] + ds * tangent * D
+        solution = _correct(system, predicted, tangent, predicted)
+        if solution is None or differs(*solution[:3]):
+            after = solution or after
+            ds *= 0.5
+            continue
+        J = _jacobian(system, solution[0], solution[1], solution[2])
+        if J is None:
+            ds *= 0.5
+            continue
+        here, tangent = (solution[0], solution[1], solution[2], J), _tangent(J, tangent)
+    return here, after, ds * span
+
+
+def _measure(system, solution):
+    """The :class:`Point` of a located solution (y, r, extra, J)."""
+    y, _r, extra, J = solution
+    J = J if J is not None else _jacobian(system, y, None)
+    return system.describe(y, J, extra)[0]
+
+
+def _outside(multipliers):
+    """(real > +1, real < -1, complex) counts of multipliers outside the unit circle (1e-9 of slack)."""
+    out = [m for m in multipliers if abs(m) > 1.0 + 1e-9]
+    return (sum(1 for m in out if abs(m.imag) <= 1e-9 * abs(m) and m.real > 0),
+            sum(1 for m in out if abs(m.imag) <= 1e-9 * abs(m) and m.real < 0),
+            sum(1 for m in out if abs(m.imag) > 1e-9 * abs(m)))
+
+
+STICKS = {"break+", "break-", "release"}  # events that begin or end a stick phase or a contact
+TOUCHES = {"gap 0", "gap h", "engage+", "engage-", "reverse"}  # impacts and engagements
+
+
+def _changed(before, after):
+    """What appears or vanishes between two event sequences, in words, and the kind of bifurcation it makes."""
+    from collections import Counter
+
+    gained, lost = Counter(after) - Counter(before), Counter(before) - Counter(after)
+    moved = set(gained) | set(lost)
+    kind = "sliding" if moved & STICKS else "grazing"
+    what = []
+    if gained:
+        what.append("gains " + ", ".join(f"{n} {k}" for k, n in sorted(gained.items())))
+    if lost:
+        what.append("loses " + ", ".join(f"{n} {k}" for k, n in sorted(lost.items())))
+    if not what:
+        what.append("reorders its events")
+    return kind, "the period " + " and ".join(what) + f" ({' '.join(before)} -> {' '.join(after)})"
+
+
+def bifurcations(system, nodes, span):
+    """The bifurcations between consecutive nodes of a branch, each located (see the module docstring):
+    [(i, Bifurcation, the located Points to insert after node i)]."""
+    found = []
+    truth = system.source == "truth"
+    for i, (a, b) in enumerate(zip(nodes, nodes[1:])):
+        turns = a.tangent[-1] * b.tangent[-1] < 0.0
+        if truth and a.point.signature != b.point.signature:
+            signature = a.point.signature
+            before, after, width = locate(system, a, b, lambda y, r, T: system.signature(y, T) != signature, span)
+            value = float(before[0][-1])
+            fold = (a.y[-1] - value) * (b.y[-1] - value) > 0.0
+            kind, what = _changed(a.point.signature, b.point.signature)
+            sides = [_measure(system, solution) for solution in (before, after) if solution is not None]
+            multipliers = " | ".join(", ".join(f"{m:.3g}" for m in side.multipliers) for side in sides)
+            found.append((i, Bifurcation("nonsmooth-fold" if fold else kind, value, sides[0].omega,
+                                         sides[0].amplitude_x, system.source,
+                                         f"{what}; |multipliers| {multipliers} on its two sides"
+                                         + ("; two branches meet and end there" if fold else ""), width), sides))
+            continue
+        if turns:
+            sign = a.tangent[-1]
+
+            def beyond(y, r, extra):
+                J = _jacobian(system, y, r, extra)
+                return J is not None and _tangent(J, a.tangent)[-1] * sign < 0.0
+
+            before, after, width = locate(system, a, b, beyond, span)
+            value = float(before[0][-1]) if after is None else 0.5 * float(before[0][-1] + after[0][-1])
+            here = _measure(system, before)
+            found.append((i, Bifurcation("fold", value, here.omega, here.amplitude_x, system.source,
+                                         "the branch turns back: two cycles meet" if truth else
+                                         "the branch turns back: -1/N touches G(jw)", width), [here]))
+            continue
+        if truth:
+            outside_a, outside_b = _outside(a.detail), _outside(b.detail)
+            for index, kind in ((1, "period-doubling"), (2, "torus"), (0, "branch-point")):
+                if outside_a[index] != outside_b[index]:
+                    def crossed(y, r, extra, index=index):
+                        J = _jacobian(system, y, r, extra)
+                        if J is None:
+                            return False
+                        n = len(y) - 1
+                        return _outside(np.linalg.eigvals(J[:, :n] + np.eye(n)))[index] != outside_a[index]
+
+                    before, after, width = locate(system, a, b, crossed, span)
+                    value = float(before[0][-1]) if after is None else 0.5 * float(before[0][-1] + after[0][-1])
+                    here = _measure(system, before)
+                    found.append((i, Bifurcation(kind, value, here.omega, here.amplitude_x, system.source,
+                                                 "a multiplier leaves the unit circle through -1" if index == 1
+                                                 else "a complex pair of multipliers leaves the unit circle"
+                                                 if index == 2 else
+                                                 "a multiplier passes through +1 where the branch does not turn",
+                                                 width), [here]))
+    return found
+
+
+# -- whole branches ----------------------------------------------------------------------------------------------------
+def _known(branches, source, value, point):
+    """Whether a solution at ``value`` lies on a branch already followed: between two of its points that bracket
+    the value, w and X interpolated within 1% and the same stability and events."""
+    for branch in branches:
+        if branch.source != source:
+            continue
+        for p, q in zip(branch.points, branch.points[1:] or branch.points):
+            lo, hi = sorted((p.parameter, q.parameter))
+            if not lo - 1e-12 * max(abs(value), 1.0) <= value <= hi + 1e-12 * max(abs(value), 1.0):
+                continue
+            w = 0.0 if hi == lo else (value - p.parameter) / (q.parameter - p.parameter)
+            omega = p.omega + w * (q.omega - p.omega)
+            amplitude = p.amplitude_x + w * (q.amplitude_x - p.amplitude_x)
+            near = abs(omega - point.omega) <= 1e-2 * point.omega and \
+                abs(amplitude - point.amplitude_x) <= 1e-2 * point.amplitude_x
+            if near and p.stable == point.stable and tuple(getattr(point, "signature", ())) in (p.signature, ()):
+                return True
+    return False
+
+
+def linear_boundary(family, name, value, direction, bounds, fmu_dir=None):
+    """Where the linear loop's stability changes next from ``value`` towards ``direction`` within bounds, or None."""
+    from dfwb.engine.scales import linear_poles
+
+    def stable(v):
+        try:
+            return all(p.real < 0.0 for p in linear_poles(family.problem({name: v}, fmu_dir)))
+        except InputError:
+            return None
+
+    here = stable(value)
+    edge = bounds[1] if direction > 0 else bounds[0]
+    grid = np.linspace(value, edge, 65)[1:]
+    previous = value
+    for v in grid:  # bounded: a scan, then a bisection
+        state = stable(float(v))
+        if state is not None and state != here:
+            lo, hi = previous, float(v)
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                if stable(mid) == here:
+                    lo = mid
+                else:
+                    hi = mid
+            return 0.5 * (lo + hi)
+        previous = float(v)
+    return None
+
+
+def trace(system_of, y0, bounds, max_points=MAX_POINTS, progress=None):
+    """The branch through the solution y0, followed both ways: (nodes, [(system, nodes, reason)] per half).
+
+    ``system_of()`` makes a fresh system (each half carries its own scales)."""
+    halves = []
+    for direction in (-1.0, 1.0):
+        system = system_of()
+        nodes, reason = follow(system, np.array(y0, dtype=float), direction, bounds, max_points, progress=progress)
+        halves.append((system, nodes, reason))
+    back, forward = halves[0][1], halves[1][1]
+    return back[::-1] + forward[1:], halves
+
+
+def _assemble(source, halves, span, family, name, bounds, fmu_dir, returns=1):
+    """The Branch and its bifurcations from the two halves traced from one start."""
+    found, ends, runs = [], [], []
+    for system, nodes, reason in halves:
+        located = bifurcations(system, nodes, span)
+        found += [bifurcation for _i, bifurcation, _points in located]
+        inserts = {}
+        for i, _bifurcation, points in located:
+            inserts.setdefault(i, []).extend(points)
+        runs.append([point for i, node in enumerate(nodes) for point in [node.point] + inserts.get(i, [])])
+        if not nodes:
+            continue
+        last = nodes[-1]
+        ends.append((last.point.parameter, reason))
+        if reason == "infinity":
+            direction = 1.0 if last.tangent[-1] > 0 else -1.0
+            value = linear_boundary(family, name, last.point.parameter, direction, bounds, fmu_dir)
+            detail = ("the amplitude grows without bound as the parameter approaches the linear loop's stability "
+                      "boundary" if value is not None else "the amplitude grows without bound (no change of the "
+                      "linear loop's stability found in the range)")
+            found.append(Bifurcation("infinity", last.point.parameter if value is None else value, last.point.omega,
+                                     last.point.amplitude_x, source, detail))
+    back, forward = runs
+    return Branch(source, back[::-1] + forward[1:], ends, returns), found
+
+
+def continue_cycles(family, name, bounds, starts, fmu_dir=None, max_points=MAX_POINTS, progress=None):
+    """Branches of true cycles through each start ``(value, TrueCycle)``, and their bifurcations.
+
+    A start on a branch already followed is skipped. All problems of one branch share one work budget.
+    """
+    span = bounds[1] - bounds[0]
+    branches, found = [], []
+    for value, cycle in starts:
+        if _known(branches, "truth", value, cycle):
+            continue
+        problem = family.problem({name: value}, fmu_dir)
+        swing = [v for i, v in enumerate(cycle.swing) if i != problem.pivot]
+        y0 = problem.reduced(cycle.state) + [value]
+
+        def system_of(cycle=cycle, swing=swing, budget=problem.budget):
+            return CycleSystem(family, name, span, cycle.returns, swing, cycle.period, fmu_dir, budget)
+
+        _nodes, halves = trace(system_of, y0, bounds, max_points, progress)
+        branch, more = _assemble("truth", halves, span, family, name, bounds, fmu_dir, cycle.returns)
+        if branch.points:
+            branches.append(branch)
+            found += more
+    return branches, found
+
+
+def _df_end(system, nodes, reason):
+    """Why a DF branch ends, in the DF's terms: where the force falls to what barely moves the plant, N -> 0."""
+    if nodes and reason.startswith("the branch cannot") and nodes[-1].y[0] <= system.log_F[0] + 1e-3:
+        return "the force falls to the least that moves the plant (below it N = 0: no balance)"
+    return reason
+
+
+def continue_predictions(family, name, bounds, starts, engine, F_range, max_points=MAX_POINTS, progress=None):
+    """Branches of DF predictions through each start ``(value, Cycle)``, and their folds."""
+    span = bounds[1] - bounds[0]
+    branches, found = [], []
+    for value, prediction in starts:
+        if _known(branches, "df", value, prediction):
+            continue
+        y0 = [math.log(prediction.F), math.log(prediction.omega), value]
+        _nodes, halves = trace(lambda: PredictionSystem(family, name, span, engine, F_range), y0, bounds,
+                               max_points, progress)
+        halves = [(system, nodes, _df_end(system, nodes, reason)) for system, nodes, reason in halves]
+        branch, more = _assemble("df", halves, span, family, name, bounds, None)
+        if branch.points:
+            branches.append(branch)
+            found += more
+    return branches, found

@@ -1,0 +1,165 @@
+"""A plant in feedback with a controller, both with named parameters: where their values meet and are checked.
+
+A continuation follows a cycle in one parameter and a hunting map covers
+two; either may belong to the controller (``Kp`` of ``"Kp + Ki/s"``, or an
+argument of a function that builds a python-control system) or to the plant
+(``Fs``, ``eps``). A :class:`LoopFamily` holds the plant, the controller
+and the values given, refuses what cannot work before anything runs (a
+parameter of G given no value, a name that is both G's and the plant's, a
+parameter named ``s``, an unknown name), and makes the loop at any values.
+
+Examples
+--------
+>>> family = LoopFamily("friction", "Kp + Ki/s", {"Kp": 10, "Ki": 2, "Fs": 8})
+>>> family.names
+('Kp', 'Ki', 'M', 'B', 'Fc', 'Fs', 'Dv')
+>>> family.G({"Ki": 3}).num[0][0].tolist(), family.params({"Ki": 3})
+([10.0, 3.0], {'Fs': 8.0})
+"""
+
+import inspect
+import math
+
+from dfwb.base.errors import InputError
+from dfwb.plants import plant as find_plant
+
+
+def _number(name, value):
+    """A finite float of a value given for a parameter (text from the command line too)."""
+    if isinstance(value, bool):
+        raise InputError(f"{name} = {value!r} is not a number")
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{name} = {value!r:.60} is not a number") from None
+    if not math.isfinite(number):
+        raise InputError(f"{name} = {value!r:.60} is not finite: give a finite number")
+    return number
+
+
+class _Built:
+    """A controller built by a function of its parameters (``lambda Kp, Ki: control.tf(...)``)."""
+
+    def __init__(self, function):
+        try:
+            signature = inspect.signature(function)
+        except (TypeError, ValueError):
+            raise InputError(f"G = {function!r:.60}: cannot read the parameters of this function") from None
+        kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+        if any(p.kind not in kinds for p in signature.parameters.values()):
+            raise InputError(f"G = {function!r:.60}: a function of named parameters only (no *args, **kwargs)")
+        self.function, self.names = function, tuple(signature.parameters)
+        self.text = getattr(function, "__name__", "G")
+
+    def transfer_function(self, values):
+        from dfwb.engine.transfer import to_transfer_function
+
+        arguments = {name: values[name] for name in self.names}
+        try:
+            system = self.function(**arguments)
+        except Exception as error:  # the user's function: its failure is the user's to read, in one line
+            raise InputError(f"G = {self.text}({', '.join(f'{k}={v:g}' for k, v in arguments.items())}) raised "
+                             f"{type(error).__name__}: {error}") from None
+        return to_transfer_function(system)
+
+
+class _Fixed:
+    """A controller without parameters."""
+
+    names = ()
+
+    def __init__(self, G):
+        from dfwb.engine.transfer import to_transfer_function
+
+        self.G = to_transfer_function(G)
+        self.text = "G(s)"
+
+    def transfer_function(self, values):
+        return self.G
+
+
+class LoopFamily:
+    """A plant in feedback with G(s), their parameters named, the values given checked.
+
+    Parameters
+    ----------
+    plant : str
+        A registered plant with an exact loop.
+    G : str, callable, (num, den), control.TransferFunction or control.StateSpace
+        An expression in ``s`` whose other names are parameters (``"Kp + Ki/s"``); a
+        function of named parameters returning a python-control system; or a fixed system.
+    values : dict, optional
+        Values of G's parameters and of the plant's (``{"Kp": 10, "Fs": 8}``).
+    free : iterable of str
+        Parameters that take their values later (a continuation's, a map's axes): they need none now.
+    """
+
+    def __init__(self, plant, G, values=None, free=()):
+        from dfwb.engine.transfer import TransferFamily
+
+        self.spec = spec = find_plant(plant)
+        if isinstance(G, str):
+            self.controller = TransferFamily(G)
+        elif callable(G) and not hasattr(G, "num") and not hasattr(G, "A"):
+            self.controller = _Built(G)
+        else:
+            self.controller = _Fixed(G)
+        starts = spec.loop.initial_parameters if spec.loop is not None else ()
+        self.plant_names = tuple(name for name in spec.defaults() if name not in starts)  # not where it starts
+        clash = [name for name in self.controller.names if name in self.plant_names]
+        if clash:
+            raise InputError(f"{clash[0]} is both a parameter of G(s) and of the {spec.name} plant: rename it in G")
+        self.names = tuple(self.controller.names) + self.plant_names
+        values = dict(values or {})
+        self.values = {}
+        for name, value in values.items():
+            self.check_name(name)
+            self.values[name] = _number(name, value)
+        free = tuple(free)
+        for name in free:
+            self.check_name(name)
+        missing = [name for name in self.controller.names if name not in self.values and name not in free]
+        if missing:
+            raise InputError(f"G(s) = {self.controller.text}: the parameter {missing[0]} is given no value "
+                             f"(set it, e.g. {missing[0]}=1)")
+        spec.check({k: v for k, v in self.values.items() if k in self.plant_names})
+
+    def check_name(self, name):
+        """Refuse a name that is no parameter of G or of the plant (or is s)."""
+        if name == "s":
+            raise InputError("s is the variable of G(s), not a parameter: name the parameter otherwise")
+        if name not in self.names:
+            allowed = ", ".join(self.names)
+            raise InputError(f"unknown parameter {name!r}: G's and the {self.spec.name} plant's are {allowed}")
+
+    def merged(self, values=None):
+        """The values given, updated by ``values`` (checked as numbers)."""
+        merged = dict(self.values)
+        for name, value in (values or {}).items():
+            self.check_name(name)
+            merged[name] = _number(name, value)
+        return merged
+
+    def G(self, values=None):
+        """The controller at the values (a python-control TransferFunction, checked)."""
+        merged = self.merged(values)
+        missing = [name for name in self.controller.names if name not in merged]
+        if missing:
+            raise InputError(f"G(s) = {self.controller.text}: the parameter {missing[0]} is given no value")
+        return self.controller.transfer_function(merged)
+
+    def params(self, values=None):
+        """The plant's parameters at the values (checked, as the plant checks them)."""
+        merged = self.merged(values)
+        return self.spec.checked({k: v for k, v in merged.items() if k in self.plant_names})
+
+    def problem(self, values=None, fmu_dir=None, budget=None):
+        """The :class:`~dfwb.engine.periodic.LoopProblem` at the values."""
+        from dfwb.engine.periodic import LoopProblem
+
+        return LoopProblem(self.spec.name, self.G(values), self.params(values), fmu_dir=fmu_dir, budget=budget)
+
+    def describe(self, values=None):
+        """The values as one short text: ``Kp = 10, Ki = 2, Fs = 8``."""
+        merged = self.merged(values)
+        return ", ".join(f"{name} = {merged[name]:.6g}" for name in self.names if name in merged)

@@ -1,0 +1,129 @@
+"""A continuation study, the one way dfwb does it (the API, ``dfwb continue`` and scenes call :func:`follow`).
+
+For a parameter of the controller or of the plant over a range: the true
+cycles found by the systematic search (:func:`dfwb.engine.cycles.find_cycles`)
+at the range's ends, and the DF's predictions there (on ranges derived from
+the plant and G), each followed by pseudo-arclength through the range with
+its bifurcations located (:mod:`dfwb.engine.continuation`). A cycle or
+prediction that lies on a branch already followed is not followed again.
+"""
+
+import math
+
+from dfwb.base.errors import InputError
+from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
+from dfwb.engine.family import LoopFamily
+from dfwb.studies.responses import ContinuationResponse
+
+SOURCES = ("truth", "df")
+MAX_STARTS = 16  # parameter values searched for starts, at most
+
+
+def check_parameter(family, name, start, stop):
+    """(name, (lo, hi)) of a continuation or map axis, refused in one line before anything runs."""
+    if not isinstance(name, str):
+        raise InputError(f"parameter = {name!r:.60}: give its name (a parameter of G or of the plant)")
+    family.check_name(name)
+    values = []
+    for label, value in (("start", start), ("stop", stop)):
+        if isinstance(value, bool):
+            raise InputError(f"{name} {label} = {value!r} is not a number")
+        try:
+            value = float(value)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(f"{name} {label} = {value!r:.60} is not a number") from None
+        if not math.isfinite(value):
+            raise InputError(f"{name} {label} = {value!r}: the range's ends must be finite numbers")
+        values.append(value)
+    if values[0] == values[1]:
+        raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty (give START:STOP with "
+                         "START != STOP)")
+    return name, (min(values), max(values))
+
+
+def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
+           fmu_dir=None, progress=None):
+    """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.
+
+    ``values``: G's and the plant's other parameters; ``starts``: parameter values where cycles and
+    predictions are searched to start branches from (default: the range's two ends); ``progress``:
+    ``progress(stage, done, total)``. Returns a :class:`~dfwb.studies.responses.ContinuationResponse`.
+    """
+    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine.describing import F_RANGE, DFEngine
+    from dfwb.engine.limit_cycles import search
+    from dfwb.engine.scales import search_ranges
+
+    if parameter in (values or {}):
+        raise InputError(f"{parameter} is the parameter followed: give its range, not a value for it")
+    family = LoopFamily(plant, G, values, free=(parameter,) if isinstance(parameter, str) else ())
+    name, bounds = check_parameter(family, parameter, start, stop)
+    sources = _sources(sources)
+    if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 10_000:
+        raise InputError(f"max_points = {max_points!r}: an integer from 2 to 10000 (points per branch)")
+    at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
+    searches, notes, cycle_starts, prediction_starts, ranges = [], [], [], [], []
+    engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
+    for k, value in enumerate(at):
+        try:
+            problem = family.problem({name: value}, fmu_dir)
+        except InputError as error:
+            notes.append(f"{name} = {value:g}: {error}")
+            continue
+        if "truth" in sources:
+            found = find_cycles(problem)
+            searches.append({"parameter": value, "cycles": len(found.cycles), "coverage": found.coverage.as_dict()})
+            cycle_starts += [(value, cycle) for cycle in found.cycles]
+        if "df" in sources:
+            F, omega = search_ranges(problem)
+            ranges.append(F)
+            predictions = search(family.spec.name, problem.G, problem.params, F, omega, engine=engine).cycles
+            prediction_starts += [(value, prediction) for prediction in predictions]
+        if progress:
+            progress("starts", k + 1, len(at))
+    branches, bifurcations = [], []
+    if cycle_starts:
+        more, found = continue_cycles(family, name, bounds, cycle_starts, fmu_dir, max_points)
+        branches += more
+        bifurcations += found
+    if prediction_starts:
+        F_range = (min(F[0] for F in ranges), min(max(F[1] for F in ranges) * 10.0, F_RANGE[1]))
+        more, found = continue_predictions(family, name, bounds, prediction_starts, engine, F_range, max_points)
+        branches += more
+        bifurcations += found
+    return ContinuationResponse(plant=family.spec.name, G=_text(G), parameter=name, range=list(bounds),
+                                values=family.merged(), branches=branches,
+                                bifurcations=sorted(bifurcations, key=lambda b: (b.source, b.parameter)),
+                                searches=searches, notes=notes, unit=family.spec.unit)
+
+
+def _sources(sources):
+    if isinstance(sources, str):
+        sources = (sources,)
+    try:
+        chosen = tuple(dict.fromkeys(sources))
+    except TypeError:
+        raise InputError(f"sources = {sources!r:.60}: give some of {', '.join(SOURCES)}") from None
+    if not chosen or any(source not in SOURCES for source in chosen):
+        raise InputError(f"sources = {sources!r:.60}: give some of {', '.join(SOURCES)}")
+    return chosen
+
+
+def _starts(starts, bounds):
+    try:
+        values = sorted({float(v) for v in starts})
+    except (TypeError, ValueError):
+        raise InputError(f"starts = {starts!r:.60}: a list of parameter values") from None
+    if not 1 <= len(values) <= MAX_STARTS or not all(bounds[0] <= v <= bounds[1] for v in values):
+        raise InputError(f"starts = {starts!r:.60}: 1 to {MAX_STARTS} values within [{bounds[0]:g}, {bounds[1]:g}]")
+    return values
+
+
+def _text(G):
+    """G as text for reports: the expression, or num/den."""
+    if isinstance(G, str):
+        return G
+    num = getattr(G, "num", None)
+    if num is not None:
+        return f"({list(map(float, G.num[0][0]))}) / ({list(map(float, G.den[0][0]))})"
+    return getattr(G, "__name__", "G")

@@ -1,0 +1,144 @@
+"""A limit-cycle analysis, the one way dfwb does it (the API, the command line and scenes all call :func:`analyse`).
+
+For a plant under a controller G(s):
+
+1. the describing function's predictions, solving G(jw) N(F, w) = -1 on a DF
+   map over ranges derived from the plant and G when none are given
+   (:mod:`dfwb.engine.scales`: from the force that moves the plant to what the
+   linear loop allows), refined by Newton (:mod:`dfwb.engine.limit_cycles`);
+2. with ``verify``, the co-simulation judge of each prediction
+   (:func:`dfwb.engine.closed_loop.verify`);
+3. with ``exact``, the true cycles of the exact closed loop, found by the
+   systematic search with its coverage (:func:`dfwb.engine.cycles.find_cycles`),
+   each prediction linked to its true cycle.
+
+A cache (:class:`dfwb.studies.cache.Cache`) keeps the judge's runs and the
+exact search under keys of everything they depend on; a DF ``engine`` may be
+given (a scene's reads its points from the run and the cache).
+"""
+
+import math
+
+from dfwb.base.errors import InputError
+from dfwb.engine.describing import DFEngine
+from dfwb.engine.family import LoopFamily
+from dfwb.engine.scales import search_ranges
+from dfwb.studies.cache import code_revision, finite, fmu_revision, solver_revision
+from dfwb.studies.responses import LimitCycleResponse
+
+
+def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_omega=48, exact=False, verify=False,
+            samples_per_period=512, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None):
+    """The limit cycles of ``plant`` under ``G``: :class:`~dfwb.studies.responses.LimitCycleResponse`.
+
+    ``values``: G's parameters and the plant's; ``progress``: ``progress(stage, done, total)`` or None;
+    the rest as :func:`dfwb.limit_cycles`.
+    """
+    from dfwb.engine.limit_cycles import search
+
+    family = LoopFamily(plant, G, values)
+    spec, controller, params = family.spec, family.G(), family.params()
+    if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
+        raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
+    problem = family.problem(fmu_dir=fmu_dir) if spec.loop is not None else None
+    if exact and problem is None:
+        raise InputError(f"plant {spec.name!r} has no exact closed loop: exact is available for "
+                         "friction, backlash and static-backlash")
+    F, omega = search_ranges(problem, F_range, omega_range)
+    if amplitudes is not None:
+        amplitudes = _amplitudes(amplitudes)
+    engine = engine or DFEngine(spec.name, fmu_dir=fmu_dir)
+    found = search(spec.name, controller, params, F, omega, n_F, n_omega, engine=engine,
+                   progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
+    predictions = found.cycles
+    verification, runs = [], []
+    if verify:
+        for i, prediction in enumerate(predictions):
+            outcome, run = _judge(spec, controller, params, prediction, samples_per_period, fmu_dir, cache)
+            verification.append(outcome)
+            runs.append((prediction, run))
+            if progress:
+                progress("judge", i + 1, len(predictions))
+    search_result = None
+    if exact:
+        search_result = _exact(problem, predictions, amplitudes, cache, progress)
+    return LimitCycleResponse(plant=spec.name, params=params, G=controller, predictions=predictions,
+                              F_grid=found.F_grid, omega_grid=found.omega_grid, N_grid=found.N_grid,
+                              cycles=search_result.cycles if search_result else [],
+                              links=search_result.links if search_result else [],
+                              coverage=search_result.coverage if search_result else None,
+                              verification=verification, runs=runs, F_range=list(F), omega_range=list(omega),
+                              values=family.merged(), unit=spec.unit)
+
+
+def _amplitudes(amplitudes):
+    """Start amplitudes: 1 to 100 positive finite numbers."""
+    try:
+        values = [float(a) for a in amplitudes]
+    except (TypeError, ValueError):
+        raise InputError(f"amplitudes = {amplitudes!r:.60}: expected a list of positive numbers") from None
+    if not 1 <= len(values) <= 100 or not all(math.isfinite(a) and a > 0.0 for a in values):
+        raise InputError(f"amplitudes = {amplitudes!r:.60}: expected 1 to 100 positive, finite numbers")
+    return sorted(values)
+
+
+def _coefficients(G):
+    return [G.num[0][0].tolist(), G.den[0][0].tolist()]
+
+
+def _judge(spec, G, params, prediction, samples_per_period, fmu_dir, cache):
+    """(outcome, run) of the co-simulation judge of one prediction (its run's last 10 periods), cached."""
+    import numpy as np
+
+    from dfwb.engine.closed_loop import CONTROLLER, LoopRun, verify
+    from dfwb.fmi.location import fmu_path
+
+    fmus = [fmu_revision(fmu_path(spec, fmu_dir)), fmu_revision(fmu_path(CONTROLLER, fmu_dir))]
+    key = {"kind": "verify", "fmu": fmus,
+           "code": code_revision(), "plant": spec.name, "params": params, "G": _coefficients(G),
+           "cycle": [prediction.F, prediction.omega, prediction.amplitude_x], "samples_per_period": samples_per_period}
+    value = cache.get(key) if cache is not None else None
+    if value is None:
+        outcome, run = verify(spec.name, G, prediction, params, samples_per_period, fmu_dir=fmu_dir)
+        tail = run.time >= run.time[-1] - 10 * prediction.period  # what the figure shows
+        value = {"outcome": outcome, "run": {"time": run.time[tail].tolist(), "step": run.step,
+                                             "position": run.position[tail].tolist(),
+                                             "force": run.force[tail].tolist()}}
+        if cache is not None:
+            cache.put(key, finite(value))
+    run = value["run"]
+    return value["outcome"], LoopRun(np.array(run["time"]), np.array(run["position"]), np.array(run["force"]),
+                                     run["step"])
+
+
+def _exact(problem, predictions, amplitudes, cache, progress):
+    """The exact search around the predictions (:func:`dfwb.engine.cycles.find_cycles`), cached."""
+    import numpy as np
+
+    from dfwb.engine import cycles as search
+    from dfwb.engine.periodic import TrueCycle
+
+    key = {"kind": "exact", "code": code_revision(), "solvers": solver_revision(), "plant": problem.spec.name,
+           "params": problem.params, "G": _coefficients(problem.G), "amplitudes": amplitudes,
+           "predictions": [[c.F, c.omega, c.amplitude_x] for c in predictions]}
+    value = cache.get(key) if cache is not None else None
+    if value is None:
+        def report(done, total, label):
+            if progress is not None and done is not None:
+                progress("exact loop", done, total)
+
+        found = search.find_cycles(problem, predictions, amplitudes, progress=report)
+        value = {"cycles": [dict(c.as_dict(), trace={"t": c.trace["t"].tolist(), "y": c.trace["y"].tolist(),
+                                                     "f": c.trace["f"].tolist(),
+                                                     "events": [[t, str(k)] for t, k in c.trace["events"]]})
+                            for c in found.cycles], "links": found.links, "coverage": found.coverage.as_dict()}
+        if cache is not None:
+            cache.put(key, finite(value))
+        return found
+    cycles = []
+    for entry in value["cycles"]:
+        trace = entry["trace"]
+        entry = dict(entry, trace={"t": np.array(trace["t"]), "y": np.array(trace["y"]), "f": np.array(trace["f"]),
+                                   "events": [tuple(e) for e in trace["events"]]})
+        cycles.append(TrueCycle(**entry))
+    return search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), [])

@@ -1,0 +1,430 @@
+"""The response objects of the public API: results with a ``.plot()``, in python-control's style.
+
+:class:`DescribingFunctionResponse` holds N(F, omega) over a broadcast grid of
+force amplitudes and frequencies, :class:`LimitCycleResponse` the predicted
+limit cycles of a plant under a controller G(s) with the DF map they were
+found on. Both keep the per-point data in the one record shape of a DF point
+(:meth:`dfwb.engine.describing.DFResult.as_dict`) or the engine's
+:class:`~dfwb.engine.limit_cycles.Cycle`, and draw a Nyquist plot of -1/N
+with units on the axes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DescribingFunctionResponse", "LimitCycleResponse", "ContinuationResponse"]
+
+
+@dataclass(eq=False)
+class DescribingFunctionResponse:
+    """The describing function N(F, omega) of a plant over a grid of points.
+
+    Made by :func:`dfwb.describing_function`. Arrays are shaped like
+    ``np.broadcast(F, omega)``; for scalar F and omega (shape ``()``) ``N`` is
+    a complex scalar and ``periodic`` a bool scalar.
+
+    Attributes
+    ----------
+    plant : str
+        The plant's registry name.
+    params : dict
+        The plant parameters given (checked, as floats; defaults not filled in).
+    F : ndarray of float
+        Force amplitude [N] of every point (broadcast).
+    omega : ndarray of float
+        Frequency [rad/s] of every point (broadcast).
+    N : ndarray of complex
+        The describing function X_1 / F [m/N].
+    harmonics : ndarray of float
+        |X_k| [m], k = 0 .. harmonics, on a trailing axis: shape ``N.shape + (harmonics + 1,)``.
+    periodic : ndarray of bool
+        Whether the response at the point settled on a periodic orbit.
+    points : list of dict
+        The record of every point (:meth:`dfwb.engine.describing.DFResult.as_dict`), in C
+        (row-major) order of the grid: ``points[i]`` belongs to ``N.flat[i]``. The same shape
+        as a row of ``results.json`` (and, flattened, of ``results.csv``).
+    """
+
+    plant: str
+    params: dict
+    F: np.ndarray
+    omega: np.ndarray
+    N: Any
+    harmonics: np.ndarray
+    periodic: Any
+    points: list = field(repr=False)
+
+    @property
+    def shape(self) -> tuple:
+        """The grid's shape, ``np.broadcast(F, omega).shape``."""
+        return np.shape(self.F)
+
+    @property
+    def minus_inverse(self) -> np.ndarray:
+        """-1/N [N/m], NaN where N = 0 (a plant that does not engage)."""
+        N = np.asarray(self.N, dtype=complex)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(N == 0, np.nan + 0j, -1.0 / np.where(N == 0, 1.0, N))
+
+    def plot(self, ax=None, **style) -> list:
+        """Nyquist plot of -1/N: one line along the last axis of the grid per leading index.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Where to draw; a new figure's axes when None.
+        **style
+            Passed to ``ax.plot`` (e.g. ``marker="o"``).
+
+        Returns
+        -------
+        list of matplotlib.lines.Line2D
+            The lines drawn, one per curve.
+
+        Examples
+        --------
+        >>> import dfwb
+        >>> response = dfwb.describing_function("friction", F=[[10.0], [20.0]], omega=[0.5, 1.0, 2.0])
+        >>> lines = response.plot()
+        >>> len(lines), lines[0].axes.get_xlabel()
+        (2, 'Re{-1/N} [N/m]')
+        """
+        from dfwb.plotting.plots import IM_INVERSE, RE_INVERSE, get_axes
+
+        ax = get_axes(ax)
+        inverse = np.atleast_1d(self.minus_inverse)
+        F = np.atleast_1d(self.F)
+        omega = np.atleast_1d(self.omega)
+        curves = inverse.reshape(-1, inverse.shape[-1])
+        forces = F.reshape(curves.shape)
+        omegas = omega.reshape(curves.shape)
+        lines = []
+        for values, Fs, ws in zip(curves, forces, omegas):
+            label = f"{self.plant}: " + (f"F = {Fs[0]:g} N" if np.all(Fs == Fs[0]) else f"omega = {ws[0]:g} rad/s")
+            kwargs = dict({"marker": "o", "ms": 4} if len(values) == 1 else {}, label=label)
+            kwargs.update(style)
+            line, = ax.plot(values.real, values.imag, **kwargs)
+            lines.append(line)
+        ax.set_xlabel(RE_INVERSE)
+        ax.set_ylabel(IM_INVERSE)
+        ax.grid(alpha=0.3)
+        return lines
+
+
+@dataclass(eq=False)
+class LimitCycleResponse:
+    """Limit cycles of a plant under a controller G(s), predicted by harmonic balance G(jw) N(F, w) = -1.
+
+    Made by :func:`dfwb.limit_cycles`.
+
+    Attributes
+    ----------
+    plant : str
+        The plant's registry name.
+    params : dict
+        The plant parameters given (checked, as floats).
+    G : control.TransferFunction
+        The controller, force = -G(s) position.
+    predictions : list of dfwb.engine.limit_cycles.Cycle
+        Sorted by F; empty when there is none in the ranges. Each has ``F`` [N], ``omega``
+        [rad/s], ``N`` [m/N], ``amplitude_x`` [m], ``period`` [s], ``stable`` (Loeb's
+        criterion), ``loeb``, ``distortion``, ``residual``, ``periodic`` and ``as_dict()``.
+    F_grid : ndarray of float
+        The DF map's force amplitudes [N].
+    omega_grid : ndarray of float
+        The DF map's frequencies [rad/s].
+    N_grid : ndarray of complex
+        N on the map [m/N], shape ``(len(F_grid), len(omega_grid))``.
+    cycles : list of dfwb.engine.periodic.TrueCycle
+        With ``exact=True``: the exact closed loop's periodic orbits (``omega``, ``period``,
+        ``amplitude_x``, ``F``, ``stable``, ``multipliers``, ``prediction``, ``df``, ``as_dict()``).
+    links : list
+        With ``exact=True``: for each prediction the index of its true cycle in ``cycles``, or
+        None (no true cycle near it: a false alarm).
+    coverage : dfwb.engine.cycles.Coverage or None
+        With ``exact=True``: what the search of the true cycles covered (starts, amplitudes,
+        horizon): no true cycle means none reached from there.
+    verification : list of dict
+        With ``verify=True``: the co-simulation judge of each prediction.
+    runs : list of (Cycle, LoopRun)
+        With ``verify=True``: each judged prediction and its run's last periods.
+    F_range, omega_range : list of float
+        The DF map's ranges [N], [rad/s] (derived from the plant and G unless given).
+    values : dict
+        G's parameters and the plant's as given.
+    unit : str
+        The plant output's unit.
+    """
+
+    plant: str
+    params: dict
+    G: Any
+    predictions: list
+    F_grid: np.ndarray = field(repr=False)
+    omega_grid: np.ndarray = field(repr=False)
+    N_grid: np.ndarray = field(repr=False)
+    cycles: list = field(default_factory=list)
+    links: list = field(default_factory=list)
+    coverage: Any = None
+    verification: list = field(default_factory=list, repr=False)
+    runs: list = field(default_factory=list, repr=False)
+    F_range: list = field(default_factory=list)
+    omega_range: list = field(default_factory=list)
+    values: dict = field(default_factory=dict)
+    unit: str = "m"
+
+    @property
+    def exact(self):
+        """Whether the exact loop was searched."""
+        return self.coverage is not None
+
+    def as_dict(self) -> dict:
+        """The answer as JSON types: what ``dfwb limit-cycle --json`` prints and a scene's results.json holds."""
+        from dfwb.engine.closed_loop import judge_errors
+        from dfwb.engine.cycles import relative_errors
+
+        document = {"plant": self.plant, "G": {"num": [float(c) for c in self.G.num[0][0]],
+                                               "den": [float(c) for c in self.G.den[0][0]]},
+                    "params": self.params, "values": self.values, "F_range": list(self.F_range),
+                    "omega_range": list(self.omega_range), "predictions": []}
+        for i, prediction in enumerate(self.predictions):
+            entry = prediction.as_dict()
+            if self.exact:
+                j = self.links[i]
+                entry["true_cycle"] = j
+                entry["error"] = None if j is None else relative_errors(prediction, self.cycles[j])
+            document["predictions"].append(entry)
+        if self.verification:
+            document["verification"] = []
+            for i, outcome in enumerate(self.verification):
+                outcome = dict(outcome)
+                if self.exact:
+                    j = self.links[i]
+                    outcome["error_vs_true"] = (judge_errors(outcome, self.cycles[j])
+                                                if j is not None and outcome["settled"] else None)
+                document["verification"].append(outcome)
+        if self.exact:
+            document["cycles"] = [cycle.as_dict() for cycle in self.cycles]
+            document["coverage"] = self.coverage.as_dict()
+        return document
+
+    def summary(self) -> str:
+        """What was found, in a few lines with units (what ``dfwb limit-cycle`` prints)."""
+        from dfwb.engine.cycles import relative_errors
+
+        u = self.unit
+        lines = [f"{len(self.predictions)} limit cycle(s) of {self.plant} predicted by the describing function in "
+                 f"F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N, omega {self.omega_range[0]:.4g} to "
+                 f"{self.omega_range[1]:.4g} rad/s"]
+        for i, c in enumerate(self.predictions):
+            line = (f"  [{i}] F = {c.F:.8g} N, omega = {c.omega:.8g} rad/s, period {c.period:.6g} s, amplitude "
+                    f"{c.amplitude_x:.6g} {u}, {'stable' if c.stable else 'unstable'}, distortion {c.distortion:.3g}")
+            if self.verification:
+                v = self.verification[i]
+                line += ("\n    judge: settled at F = {F:.6g} N, omega = {omega:.6g} rad/s (off the prediction by "
+                         "{rel_error_F:.2%}, {rel_error_omega:.2%})".format(**v) if v["settled"] else
+                         f"\n    judge: not settled: {v['reason']}")
+            if self.exact:
+                j = self.links[i]
+                line += ("\n    no true cycle near it: a false alarm" if j is None else
+                         "\n    true cycle [{}]: DF error omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
+                         .format(j, **relative_errors(c, self.cycles[j])))
+            lines.append(line)
+        if self.exact:
+            lines.append(f"{len(self.cycles)} true cycle(s) of the exact closed loop (shooting, Floquet multipliers); "
+                         + self.coverage.summary(u))
+            for j, c in enumerate(self.cycles):
+                which = "not predicted by the DF" if c.prediction is None else f"prediction [{c.prediction}]"
+                per_period = ", ".join(f"{value} {name}" for name, value in c.counts.items())
+                lines.append(f"  [{j}] omega = {c.omega:.10g} rad/s, period {c.period:.10g} s, amplitude "
+                             f"{c.amplitude_x:.10g} {u}, F = {c.F:.10g} N, {'stable' if c.stable else 'unstable'} "
+                             f"(|multipliers| {', '.join(f'{m:.3g}' for m in c.multipliers)}), {per_period} per "
+                             f"period, residual {c.residual:.1e}; {which}" + (f"\n      {c.df}" if c.df else ""))
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.summary()
+
+    def markdown(self) -> str:
+        """Tables of the predictions (and judge), and of the true cycles with the DF's errors (a scene's
+        summary.md)."""
+        from dfwb.engine.closed_loop import judge_errors
+        from dfwb.engine.cycles import relative_errors
+
+        u = self.unit
+        lines = [f"| F [N] | w [rad/s] | amplitude [{u}] | stable | distortion | judge F | judge w | settled |",
+                 "|---|---|---|---|---|---|---|---|"]
+        for i, c in enumerate(self.predictions):
+            v = self.verification[i] if self.verification else None
+            judged = ("- | - | not asked" if not v else f"{v['F']:.4g} | {v['omega']:.4g} | True" if v["settled"]
+                      else f"- | - | no: {v['reason']}")
+            lines.append(f"| {c.F:.6g} | {c.omega:.6g} | {c.amplitude_x:.4g} | {c.stable} | {c.distortion:.3g} "
+                         f"| {judged} |")
+        if not self.predictions:
+            lines.append(f"| no cycle in F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N | | | | | | | |")
+        if self.exact:
+            lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
+                      "multipliers), and the DF's relative errors against them; " + self.coverage.summary(u) + ":", "",
+                      f"| true w [rad/s] | amplitude [{u}] | F [N] | stable | max multiplier | per period "
+                      "| DF prediction | DF error w | DF error amplitude | DF error F | judge error w "
+                      "| judge error amplitude |", "|---" * 12 + "|"]
+            for c in self.cycles:
+                errors = ("not predicted" + (" (the DF cannot represent it)" if c.df else "")) + " | | | | | |"
+                if c.prediction is not None:
+                    e = relative_errors(self.predictions[c.prediction], c)
+                    errors = f"{c.prediction} | {e['omega']:+.2%} | {e['amplitude_x']:+.2%} | {e['F']:+.2%} | "
+                    v = self.verification[c.prediction] if self.verification else None
+                    j = judge_errors(v, c) if v and v["settled"] else None
+                    errors += (f"{j['omega']:+.2%} | {j['amplitude_x']:+.2%} |" if j else "- | - |")
+                counts = ", ".join(f"{v} {k}" for k, v in c.counts.items())
+                lines.append(f"| {c.omega:.8g} | {c.amplitude_x:.6g} | {c.F:.6g} | {c.stable} | "
+                             f"{max(c.multipliers):.3g} | {counts} | {errors}")
+            missed = [i for i, j in enumerate(self.links) if j is None]
+            if missed:
+                lines.append(f"\nPrediction(s) {missed}: no true cycle near them (false alarms).")
+        return "\n".join(lines)
+
+    def figure(self, path):
+        """The Nyquist plane, the judge's runs and the true cycles over a period, written to ``path`` (PNG, SVG)."""
+        from dfwb.plotting.plots import limit_cycle_figure
+
+        return limit_cycle_figure(path, self.G, self.F_grid, self.omega_grid, self.N_grid, self.predictions,
+                                  self.runs, self.cycles)
+
+    def plot(self, ax=None, curves: int = 6) -> list:
+        """Nyquist plot: G(jw), -1/N(F, w) for ``curves`` forces of the map, the predictions marked.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Where to draw; a new figure's axes when None.
+        curves : int
+            How many -1/N curves (forces of the map) to draw.
+
+        Returns
+        -------
+        list of matplotlib.lines.Line2D
+            G(jw) first, then the -1/N curves, then one marker per prediction (filled: stable),
+            then one star per true cycle (``exact=True``).
+
+        Examples
+        --------
+        >>> import dfwb
+        >>> response = dfwb.limit_cycles("static-backlash", "20*(s+2)/(s+20)", F_range=(0.01, 100),
+        ...                              omega_range=(0.1, 50), n_F=6, n_omega=12)
+        >>> lines = response.plot()
+        >>> len(lines), lines[0].get_label(), lines[0].axes.get_xlabel()
+        (8, 'G(jw)', 'Re [N/m]')
+        """
+        from dfwb.plotting.plots import get_axes, limit_cycle_plane
+
+        return limit_cycle_plane(get_axes(ax, figsize=(6.5, 5)), self.G, self.F_grid, self.omega_grid,
+                                 self.N_grid, self.predictions, curves, true_cycles=self.cycles)
+
+
+@dataclass(eq=False)
+class ContinuationResponse:
+    """Limit cycles followed in one parameter: branches of true cycles and of DF predictions, and bifurcations.
+
+    Made by :func:`dfwb.continuation`.
+
+    Attributes
+    ----------
+    plant : str
+        The plant's registry name.
+    G : str
+        The controller as given.
+    parameter : str
+        The parameter followed (of G or of the plant).
+    range : list of float
+        [low, high] of the parameter.
+    values : dict
+        The other parameters' values.
+    branches : list of dfwb.engine.continuation.Branch
+        Each with ``source`` ("truth" or "df"), ``points`` (``parameter``, ``omega`` [rad/s],
+        ``amplitude_x`` [unit], ``F`` [N], ``stable``, ``multipliers``, ``period`` [s], ``signature``) and
+        ``ends`` (why each end stops).
+    bifurcations : list of dfwb.engine.continuation.Bifurcation
+        ``kind`` (``fold``, ``nonsmooth-fold``, ``sliding``, ``grazing``, ``period-doubling``, ``torus``,
+        ``branch-point``, ``infinity``), ``parameter``, ``omega``, ``amplitude_x``, ``source``, ``detail``
+        and ``accuracy`` (the located bracket's width in the parameter).
+    searches : list of dict
+        At each parameter value searched for true cycles: how many were found and the search's coverage.
+    notes : list of str
+        Parameter values that could not be searched, and why.
+    unit : str
+        The plant output's unit.
+    """
+
+    plant: str
+    G: str
+    parameter: str
+    range: list
+    values: dict
+    branches: list
+    bifurcations: list
+    searches: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    unit: str = "m"
+
+    def as_dict(self) -> dict:
+        """JSON types: what ``dfwb continue --json`` prints."""
+        return {"plant": self.plant, "G": self.G, "parameter": self.parameter, "range": self.range,
+                "values": self.values, "branches": [b.as_dict() for b in self.branches],
+                "bifurcations": [b.as_dict() for b in self.bifurcations], "searches": self.searches,
+                "notes": self.notes}
+
+    def summary(self) -> str:
+        """The branches and bifurcations in a few lines."""
+        lo, hi = self.range
+        lines = [f"{self.plant} under G = {self.G}" + (f" ({_values(self.values)})" if self.values else "")
+                 + f", {self.parameter} from {lo:g} to {hi:g}: {len(self.branches)} branch(es)"]
+        for i, branch in enumerate(self.branches):
+            stable = sum(p.stable for p in branch.points)
+            values = [p.parameter for p in branch.points]
+            lines.append(f"  [{i}] {branch.source}: {len(branch.points)} points, {self.parameter} "
+                         f"{min(values):.6g} to {max(values):.6g}, {stable} stable; ends: "
+                         + "; ".join(f"at {v:.6g}, {why}" for v, why in branch.ends))
+        for b in self.bifurcations:
+            lines.append(f"  {b.source} {b.kind} at {self.parameter} = {b.parameter:.8g} (+-{b.accuracy:.1g}): "
+                         f"omega {b.omega:.6g} rad/s, amplitude {b.amplitude_x:.6g} {self.unit}; {b.detail}")
+        lines += [f"  note: {note}" for note in self.notes]
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.summary()
+
+    def plot(self, ax=None) -> list:
+        """The bifurcation diagram: amplitude against the parameter, truth and DF, stable solid, unstable dashed,
+        each bifurcation marked and named. Returns the lines drawn.
+
+        Examples
+        --------
+        >>> import dfwb
+        >>> response = dfwb.continuation("friction", "Kp + Ki/s", "Ki", 1, 4, Kp=10, sources="truth",
+        ...                              max_points=20)
+        >>> lines = response.plot()
+        >>> lines[0].axes.get_xlabel()
+        'Ki'
+        """
+        from dfwb.plotting.plots import bifurcation_diagram, get_axes
+
+        return bifurcation_diagram(get_axes(ax, figsize=(7, 5)), self)
+
+    def figure(self, path):
+        """The diagram written to ``path`` (PNG and SVG)."""
+        import matplotlib.pyplot as plt
+
+        from dfwb.plotting.plots import bifurcation_diagram, save
+
+        figure, ax = plt.subplots(figsize=(8, 5.5))
+        bifurcation_diagram(ax, self)
+        return save(figure, path.parent, path.stem)
+
+
+def _values(values):
+    return ", ".join(f"{name} = {value:g}" for name, value in values.items())
