@@ -8,7 +8,8 @@ response objects with a ``.plot()``.
 - :func:`limit_cycles` -- limit cycles of a plant under a controller G(s)
   (:class:`LimitCycleResponse`); :func:`transfer_function` reads a G(s);
 - :func:`continuation` -- cycles followed in one parameter, with bifurcations
-  (:class:`ContinuationResponse`);
+  (:class:`ContinuationResponse`); :func:`hunting_map` -- which settings of two
+  parameters make the machine hunt, truth and DF (:class:`HuntingMapResponse`);
 - :func:`run_scene`, :func:`sweep` and :func:`grid` -- studies written to a folder;
 - :func:`plant`, :func:`names`, :class:`Plant`, :func:`register` -- the plant registry
   (:mod:`dfwb.plants`, whose ``PLANTS`` maps each name to its entry);
@@ -40,6 +41,7 @@ from typing import TYPE_CHECKING
 _PUBLIC = {
     "describing_function": "dfwb.api.functions", "limit_cycles": "dfwb.api.functions",
     "continuation": "dfwb.api.functions", "ContinuationResponse": "dfwb.studies.responses",
+    "hunting_map": "dfwb.api.functions", "HuntingMapResponse": "dfwb.studies.responses",
     "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.functions",
     "sweep": "dfwb.api.functions", "grid": "dfwb.api.functions",
     "DescribingFunctionResponse": "dfwb.studies.responses", "LimitCycleResponse": "dfwb.studies.responses",
@@ -52,7 +54,8 @@ _PUBLIC = {
 __all__ = [
     "__version__",
     "describing_function", "DescribingFunctionResponse",
-    "limit_cycles", "LimitCycleResponse", "continuation", "ContinuationResponse", "transfer_function",
+    "limit_cycles", "LimitCycleResponse", "continuation", "ContinuationResponse", "hunting_map",
+    "HuntingMapResponse", "transfer_function",
     "run_scene", "sweep", "grid",
     "plant", "plants", "names", "Plant", "register", "unregister",
     "DfwbError", "PlantError", "InputError", "RunError",
@@ -86,4 +89,9 @@ if TYPE_CHECKING:  # the names as static analysers and IDEs see them
     )
     from dfwb.base.errors import DfwbError, InputError, PlantError, RunError
     from dfwb.plants import Plant, names, plant, register, unregister
-    from dfwb.studies.responses import ContinuationResponse, DescribingFunctionResponse, LimitCycleResponse
+    from dfwb.studies.responses import (
+        ContinuationResponse,
+        DescribingFunctionResponse,
+        HuntingMapResponse,
+        LimitCycleResponse,
+    )

@@ -20,7 +20,11 @@ products with the rows L A^(k-1) / k! (cached per mode). Its first zero is
 found by :func:`~.exact.first_root` from a bound on its second derivative, so
 no event is ever stepped over, and refined to machine precision. The chunk
 grid depends only on the piece start, never on where an importer asks for
-the state: results are bit-identical for any communication step.
+the state: results are bit-identical for any communication step. Where
+A^2 = 0 term by term (a stuck mass whose controller integrates its
+position) the series ends after two terms and is exact on a chunk of any
+length: such a mode is walked in chunks of 2^20 s, so a minute-long stick
+phase is one chunk, not sixty.
 
 An event leaves the state on a boundary; the next mode's function for that
 boundary is zero there. Such a *departing* function is searched, on the
@@ -46,6 +50,7 @@ MAX_TERMS = 40
 EVENTS_PER_CHUNK = 10_000
 TIME_LIMIT = 1e12  # chunks of the fastest mode in [0, t]: beyond, ulp(t) is a sizeable part of a chunk
 MAX_CHUNKS_PER_STEP = 10_000_000  # the chunks one step may integrate (a study's Budget is at most this)
+NILPOTENT_CHUNK = 2.0 ** 20  # s: the chunk of a mode whose series ends (see nilpotency)
 TREND_ROUNDING = 64.0 * EPS  # a Taylor coefficient within this (relative to its scale) is zero
 SECTION_UP, SECTION_DOWN = "section+", "section-"  # crossings of a watched function (re-anchor, not events)
 SECTION = (SECTION_UP, SECTION_DOWN)
@@ -57,6 +62,21 @@ def _matvec(A, x):
 
 def _dot(a, b):
     return sum(x * y for x, y in zip(a, b))
+
+
+def nilpotency(A):
+    """1 where A = 0, 2 where A != 0 and A^2 = 0 term by term (each product A_iq A_qj has a zero factor), else 0.
+
+    Exact, not rounded: such a mode's motion is a polynomial of degree at most 2 in time, its Taylor series
+    ends, and a chunk of any length (NILPOTENT_CHUNK) is exact; its event functions are at most quadratic,
+    which the zero search resolves over any span. Higher indices keep the ordinary chunks (a long chunk of a
+    cubic would cost the search many evaluations)."""
+    n = len(A)
+    if all(a == 0.0 for row in A for a in row):
+        return 1
+    if all(A[i][q] == 0.0 or A[q][j] == 0.0 for i in range(n) for q in range(n) for j in range(n)):
+        return 2
+    return 0
 
 
 def balance(A):
@@ -94,8 +114,8 @@ class Mode:
     each event function the rows L A^(k-1) / k! and their absolute values.
     """
 
-    __slots__ = ("key", "A", "c", "events", "h", "terms", "psi", "rows", "abs_rows", "absA", "scale", "reach",
-                 "norms", "tail", "curvature_tail")
+    __slots__ = ("key", "A", "c", "events", "h", "resolution", "terms", "psi", "rows", "abs_rows", "absA", "scale",
+                 "reach", "norms", "tail", "curvature_tail")
 
     def __init__(self, key, A, c, events):
         self.key, self.A, self.c, self.events = key, A, c, tuple(events)
@@ -103,12 +123,16 @@ class Mode:
         d = balance(A)
         rho = max(sum(abs(A[i][j]) * d[j] / d[i] for j in range(n)) for i in range(n))
         self.scale = d
-        # A = 0: X' is constant and one term is exact on any chunk
-        self.h = h = TAYLOR_RADIUS / rho if rho > 0.0 else 1.0
+        # the time scale the mode resolves (A = 0: none; 1 s serves the time limits)
+        self.resolution = h = TAYLOR_RADIUS / rho if rho > 0.0 else 1.0
         terms, term = 1, 1.0
         while rho > 0.0 and terms < MAX_TERMS and term > TAYLOR_TOLERANCE:
             terms += 1
             term *= TAYLOR_RADIUS / terms
+        index = nilpotency(A)
+        if index:  # A^index = 0: the series ends after index terms, exact on any chunk (a stuck mass's integrator)
+            h, terms = NILPOTENT_CHUNK, index
+        self.h = h
         self.terms = terms
         self.absA = [[abs(a) for a in row] for row in A]
         # Psi by Horner: h (I + A h/2 (I + A h/3 (...)))
@@ -132,8 +156,8 @@ class Mode:
         self.reach = [[sum(row[j] * h ** k for k, row in enumerate(abs_rows, start=1)) for j in range(n)]
                       for abs_rows in self.abs_rows]
         self.norms = [sum(abs(v) * dj for v, dj in zip(L, d)) for _kind, L, _l0 in self.events]
-        self.tail = 2.0 * h / math.factorial(self.terms + 1)
-        self.curvature_tail = 2.0 * rho / math.factorial(self.terms - 1) if self.terms > 1 else 0.0
+        self.tail = 0.0 if index else 2.0 * h / math.factorial(self.terms + 1)
+        self.curvature_tail = 0.0 if index or self.terms == 1 else 2.0 * rho / math.factorial(self.terms - 1)
 
     def balanced_size(self, dX):
         """|D^-1 X'|_inf: the size of X' in the norm the Taylor bounds use."""
@@ -375,7 +399,7 @@ class HybridSolver:
                 and t_end >= self.t):
             raise PlantError(f"t_end = {t_end!r} is out of range: the end of a step must be a finite number >= "
                              f"the current time {self.t!r}")
-        fastest = min(mode.h for mode in self._modes.values())
+        fastest = min(mode.resolution for mode in self._modes.values())
         if t_end > TIME_LIMIT * fastest:
             raise PlantError(f"t_end = {t_end!r} s is out of range: at most {TIME_LIMIT * fastest:.6g} s "
                              f"({TIME_LIMIT:g} chunks of the fastest mode, where a float still resolves them)")

@@ -89,7 +89,7 @@ omega_range = [0.1, 50.0]
 @pytest.mark.parametrize("change, message", [
     (("G = \"20*(s+2)/(s+20)\"", "G = \"s**2/(s+1)\""), "limit_cycle[0]: G(s) = s**2/(s+1) is improper"),
     (("G = \"20*(s+2)/(s+20)\"", "G = \"__import__('os')\""),
-     "limit_cycle[0]: G(s) = __import__('os'): Call is not allowed (numbers, s, + - * / **, parentheses)"),
+     "limit_cycle[0]: G(s) = __import__('os'): Call is not allowed (numbers, s, parameters, + - * / **, parentheses)"),
     (("G = \"20*(s+2)/(s+20)\"", "num = [1.0]"), "limit_cycle[0]: num and den both need at least one coefficient"),
     (("G = \"20*(s+2)/(s+20)\"", ""), "limit_cycle[0]: give the controller either as G"),
     (("G = \"20*(s+2)/(s+20)\"", "G = \"1/(s+1)\"\nnum = [1.0]"), "give the controller either as G"),

@@ -9,6 +9,7 @@ the plant's FMU names them (``M``, ``Fc``, ``eps``, ...; see
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Optional, Sequence, Union
 
@@ -20,10 +21,16 @@ from dfwb.base.values import reals
 from dfwb.base.values import short as _short
 from dfwb.engine.describing import HARMONICS, DFEngine, check_point
 from dfwb.plants import plant as find_plant
-from dfwb.studies.responses import ContinuationResponse, DescribingFunctionResponse, LimitCycleResponse
+from dfwb.studies.responses import (
+    ContinuationResponse,
+    DescribingFunctionResponse,
+    HuntingMapResponse,
+    LimitCycleResponse,
+)
 from dfwb.studies.sweep import MAX_POINTS
 
-__all__ = ["describing_function", "limit_cycles", "continuation", "transfer_function", "run_scene", "sweep", "grid"]
+__all__ = ["describing_function", "limit_cycles", "continuation", "hunting_map", "transfer_function", "run_scene",
+           "sweep", "grid"]
 
 ArrayLike = Union[float, Sequence, np.ndarray]
 
@@ -222,7 +229,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     ([(7.92883, 0.028911, True)], [0])
     >>> hunting = dfwb.limit_cycles("friction", "Kp + Ki/s", exact=True, Kp=10, Ki=2)
     >>> hunting.predictions, [(round(c.period, 4), round(c.amplitude_x, 5)) for c in hunting.cycles]
-    ([], [(57.2625, 0.23665)])
+    ([], [(57.2628, 0.23665)])
     """
     from dfwb.studies.limit_cycles import analyse
 
@@ -293,6 +300,72 @@ def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, 
     with _reporter(f"continuation of {plant} in {parameter}", progress) as report:
         return follow(plant, G, parameter, start, stop, params, sources=sources, max_points=max_points,
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None)
+
+
+def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Union[str, Path]] = None,
+                jobs: Optional[int] = None, dask: Optional[str] = None, cache: Union[bool, str, Path] = False,
+                amplitudes: Optional[int] = None, curves: bool = True, resume: bool = True,
+                fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
+                **params: float) -> HuntingMapResponse:
+    """Which settings of two parameters make the machine hunt: a map, by the truth and by the DF.
+
+    Each cell of the grid ``x`` by ``y`` is classified by the exact loop's systematic search (hunts with a
+    stable cycle, its amplitude and period; only unstable cycles; diverges; no cycle in the range searched)
+    and by the describing function (a stable prediction, only unstable ones, none), side by side, with the
+    linear loop's stability boundary and the bifurcation curves continued across the map
+    (:mod:`dfwb.engine.hunting`, :mod:`dfwb.studies.hunting`).
+
+    Parameters
+    ----------
+    plant : str
+        A plant with an exact loop.
+    G : str, callable, (num, den) or python-control system
+        The controller; an expression may name parameters (``"Kp + Ki/s"``).
+    x, y : (str, float, float, int)
+        Each axis: a parameter of G or of the plant, its first and last value and the number of cells
+        (2 to 1000; at most 10000 cells in all).
+    out_dir : path, optional, keyword-only
+        A folder for ``cells.csv`` (appended as cells finish: a killed map resumes), ``cells.json``,
+        ``map.json`` and ``hunting_map.png``.
+    jobs : int, optional, keyword-only
+        Worker processes (default: all cores, once the work shows it is worth it); 1: this process.
+    dask : str, optional, keyword-only
+        ``"local"`` or a dask.distributed scheduler's address.
+    cache : bool or path, keyword-only
+        Keep cells in the user's cache (True) or a folder; False: no cache.
+    amplitudes : int, optional, keyword-only
+        Start amplitudes per cell (default 5: one per decade of the loop's span).
+    curves : bool, keyword-only
+        Continue the bifurcations across the map.
+    resume : bool, keyword-only
+        Keep the cells ``out_dir`` already holds.
+    fmu_dir : path, optional, keyword-only
+    progress : bool, keyword-only
+    **params : float
+        The other parameters of G and of the plant.
+
+    Returns
+    -------
+    HuntingMapResponse
+        ``.cells``, ``.classes(source)``, ``.linear``, ``.curves``, ``.plot()``, ``.summary()``, ``.as_dict()``.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> m = dfwb.hunting_map("friction", "Kp + Ki/s", ("Kp", 5, 20, 2), ("Ki", 1, 4, 2), jobs=1, curves=False)
+    >>> m.classes("truth").tolist()
+    [['stable', 'stable'], ['stable', 'stable']]
+    """
+    from dfwb.studies.hunting import run_map
+
+    for name, flag in (("curves", curves), ("resume", resume), ("progress", progress)):
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} = {flag!r} must be True or False")
+    if out_dir is not None and not isinstance(out_dir, (str, os.PathLike)):
+        raise InputError(f"out_dir = {_short(out_dir)} is not a folder: give a path")
+    with _reporter(f"hunting map of {plant}", progress) as report:
+        return run_map(plant, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
+                       amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None)
 
 
 def _reporter(title, enabled):

@@ -102,6 +102,9 @@ class Bifurcation:
     source: str
     detail: str = ""
     accuracy: float = 0.0
+    state: list = field(default=None, repr=False)  # the located solution: its coordinates, then the parameter
+    side: float = 0.0  # +1 where the branch reached it with the parameter rising, -1 falling
+    returns: int = 1  # section hits per period of the cycles there
 
     def as_dict(self):
         return {"kind": self.kind, "parameter": self.parameter, "omega": self.omega,
@@ -412,6 +415,11 @@ def locate(system, a, b, differs, span):
     return here, after, ds * span
 
 
+def _side(a, value):
+    """+1 where node a lies below the located parameter value (the branch reaches it rising), else -1."""
+    return 1.0 if value >= a.y[-1] else -1.0
+
+
 def _measure(system, solution):
     """The :class:`Point` of a located solution (y, r, extra, J)."""
     y, _r, extra, J = solution
@@ -466,7 +474,8 @@ def bifurcations(system, nodes, span):
             found.append((i, Bifurcation("nonsmooth-fold" if fold else kind, value, sides[0].omega,
                                          sides[0].amplitude_x, system.source,
                                          f"{what}; |multipliers| {multipliers} on its two sides"
-                                         + ("; two branches meet and end there" if fold else ""), width), sides))
+                                         + ("; two branches meet and end there" if fold else ""), width,
+                                         list(before[0]), _side(a, value)), sides))
             continue
         if turns:
             sign = a.tangent[-1]
@@ -480,7 +489,8 @@ def bifurcations(system, nodes, span):
             here = _measure(system, before)
             found.append((i, Bifurcation("fold", value, here.omega, here.amplitude_x, system.source,
                                          "the branch turns back: two cycles meet" if truth else
-                                         "the branch turns back: -1/N touches G(jw)", width), [here]))
+                                         "the branch turns back: -1/N touches G(jw)", width, list(before[0]),
+                                         _side(a, value)), [here]))
             continue
         if truth:
             outside_a, outside_b = _outside(a.detail), _outside(b.detail)
@@ -501,7 +511,7 @@ def bifurcations(system, nodes, span):
                                                  else "a complex pair of multipliers leaves the unit circle"
                                                  if index == 2 else
                                                  "a multiplier passes through +1 where the branch does not turn",
-                                                 width), [here]))
+                                                 width, list(before[0]), _side(a, value)), [here]))
     return found
 
 
@@ -591,6 +601,8 @@ def _assemble(source, halves, span, family, name, bounds, fmu_dir, returns=1):
             found.append(Bifurcation("infinity", last.point.parameter if value is None else value, last.point.omega,
                                      last.point.amplitude_x, source, detail))
     back, forward = runs
+    for bifurcation in found:
+        bifurcation.returns = returns
     return Branch(source, back[::-1] + forward[1:], ends, returns), found
 
 

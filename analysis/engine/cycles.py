@@ -37,7 +37,7 @@ Examples
 >>> [(round(c.omega, 6), round(c.amplitude_x, 6), c.stable) for c in found.cycles]
 [(0.109725, 0.236652, True)]
 >>> found.coverage.outcomes
-{'cycle': 36}
+{'cycle': 34, 'rest': 2}
 """
 
 import math
@@ -331,8 +331,9 @@ def find_cycles(problem, predictions=(), amplitudes=None, horizon=None, max_retu
         The longest wait for a section hit [s] (default: the loop's, for the smallest amplitude).
     max_returns : int
         Section hits a run may take.
-    boundaries : bool
-        Bisect basin boundaries for the unstable cycles between basins.
+    boundaries : bool or "unless-stable"
+        Bisect basin boundaries for the unstable cycles between basins ("unless-stable": only when no
+        stable cycle was found, as a map needs: a stable one settles its verdict).
     progress : callable, optional
         ``progress(done, total, label)`` after each run.
 
@@ -362,7 +363,7 @@ def find_cycles(problem, predictions=(), amplitudes=None, horizon=None, max_retu
             ends.setdefault(start.part, []).append((start, search.run(start)))
             if progress:
                 progress(len(predictions) + k + 1, total, start.label)
-        if boundaries:
+        if boundaries is True or (boundaries == "unless-stable" and not any(c.stable for c in search.cycles)):
             coverage.boundaries = _bisect(search, ends, plan, progress)
     except PlantError:  # the budget is spent: report what was covered
         if not problem.exhausted():

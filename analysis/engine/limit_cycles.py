@@ -208,9 +208,15 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
     params = engine.plant.check(params or {})
     F_grid, omega_grid = np.geomspace(F_lo, F_hi, n_F), np.geomspace(w_lo, w_hi, n_omega)
     N_grid = df_map(engine, params, F_grid, omega_grid, progress)
+    return balance(engine, G, params, F_grid, omega_grid, N_grid)
+
+
+def balance(engine, G, params, F_grid, omega_grid, N_grid):
+    """The limit cycles of G on a DF map already computed (one map serves every controller of a plant):
+    candidates where both parts of 1 + G N change sign, refined by Newton on the exact DF."""
     R = 1.0 + np.array([complex(G(1j * w)) for w in omega_grid]) * N_grid
     balance = _Balance(engine, G, params)
-    bounds = (math.log(F_lo), math.log(F_hi), math.log(w_lo), math.log(w_hi))
+    bounds = (math.log(F_grid[0]), math.log(F_grid[-1]), math.log(omega_grid[0]), math.log(omega_grid[-1]))
     cycles = []
     for i, j in candidates(R):
         u = 0.5 * (math.log(F_grid[i]) + math.log(F_grid[i + 1]))

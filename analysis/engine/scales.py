@@ -25,9 +25,9 @@ Examples
 >>> from dfwb.engine.periodic import LoopProblem
 >>> scales = loop_scales(LoopProblem("friction", "10 + 2/s"))
 >>> round(scales.omega_c, 4), round(scales.length, 4), scales.stable
-(3.1915, 0.6898, True)
+(3.1458, 0.6986, True)
 >>> [round(v, 3) for v in scales.F_range()], [round(v, 5) for v in scales.omega_range()]
-[[7.0, 1433.553], [0.00319, 319.15]]
+([7.0, 7439.064], [0.00315, 314.5786])
 """
 
 import math

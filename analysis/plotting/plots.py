@@ -314,3 +314,64 @@ def bifurcation_diagram(ax, response):
     if lines:
         ax.legend(fontsize=8)
     return lines
+
+
+CLASS_COLOURS = {"unstable": "#f4a261", "diverges": "#3a3a3a", "none": "#f2f2f2", "incomplete": "#bdbdbd",
+                 "error": "#e63946"}
+CURVE_STYLES = {"truth": "-", "df": "--"}
+
+
+def hunting_map(response, axes=None):
+    """Truth and DF side by side (a :class:`dfwb.studies.responses.HuntingMapResponse`); returns the two axes."""
+    from matplotlib import colors
+    from matplotlib.patches import Patch
+
+    from dfwb.engine.hunting import LABELS, hunting
+
+    if axes is None:
+        _, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
+    xs, ys = np.asarray(response.xs), np.asarray(response.ys)
+    dx, dy = (xs[-1] - xs[0]) / max(len(xs) - 1, 1), (ys[-1] - ys[0]) / max(len(ys) - 1, 1)
+    extent = (xs[0] - dx / 2, xs[-1] + dx / 2, ys[0] - dy / 2, ys[-1] + dy / 2)
+    amplitudes = [c["amplitude_x"] for row in response.cells for cell in row for source in ("truth", "df")
+                  if source in cell for c in [hunting(cell, source)] if c is not None]
+    norm = colors.LogNorm(min(amplitudes), max(amplitudes) * (1.0 + 1e-9)) if amplitudes else None
+    cmap = plt.get_cmap("viridis")
+    image = None
+    for ax, source, title in ((axes[0], "truth", "the truth: the exact loop's cycles"),
+                              (axes[1], "df", "the describing function's predictions")):
+        rgba = np.zeros((len(ys), len(xs), 4))
+        for j, row in enumerate(response.cells):
+            for i, cell in enumerate(row):
+                kind = cell[source]["class"] if source in cell else "error"
+                best = hunting(cell, source) if kind == "stable" else None
+                rgba[j, i] = cmap(norm(best["amplitude_x"])) if best is not None else colors.to_rgba(
+                    CLASS_COLOURS.get(kind, "w"))
+        ax.imshow(rgba, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
+        linear = response.linear
+        stable = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["stable"]])
+        if np.nanmin(stable) < 0.5 < np.nanmax(stable):
+            ax.contour(linear["x"], linear["y"], stable, levels=[0.5], colors="crimson", linewidths=1.6)
+        for curve in response.curves:
+            points = np.array(curve.points)
+            ax.plot(points[:, 0], points[:, 1], CURVE_STYLES.get(curve.source, "-"), color="white", lw=2.6)
+            ax.plot(points[:, 0], points[:, 1], CURVE_STYLES.get(curve.source, "-"), color="k", lw=1.3)
+        ax.set_title(title, fontsize=11)
+        ax.set_xlabel(response.x)
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
+        image = image or plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    axes[0].set_ylabel(response.y)
+    handles = [Patch(color=CLASS_COLOURS[k], label=LABELS[k]) for k in ("unstable", "diverges", "none")]
+    handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))
+    for source in sorted({c.source for c in response.curves}):
+        kinds = ", ".join(sorted({c.kind for c in response.curves if c.source == source}))
+        handles.append(plt.Line2D([], [], color="k", ls=CURVE_STYLES.get(source, "-"),
+                                  label=f"{'truth' if source == 'truth' else 'DF'}: {kinds}"))
+    figure = axes[0].figure
+    figure.legend(handles=handles, fontsize=9, loc="outside lower center", ncol=min(len(handles), 3))
+    if norm is not None:
+        bar = figure.colorbar(image, ax=list(axes), fraction=0.04, pad=0.02)
+        bar.set_label(f"hunts: first-harmonic amplitude of the output [{response.unit}]")
+    axes[0].figure.suptitle(f"{response.plant} under G = {response.G}: where it hunts", fontsize=12)
+    return axes

@@ -1,4 +1,4 @@
-"""Where DF points are computed: in this process, in local processes, or on a Dask cluster.
+"""Where DF points (and a hunting map's cells) are computed: in this process, in local processes, or on Dask.
 
 Work goes out in chunks of points of one plant with one engine setting;
 results come back as each chunk finishes, in any order, so the caller can
@@ -45,16 +45,21 @@ class Chunk:
     points: tuple
 
 
+def engine_for(plant, fmu, settings, fmu_data=None):
+    """This worker thread's DF engine of a plant FMU (built once; shipped FMU bytes written locally first)."""
+    from dfwb.engine.describing import DFEngine  # the engine (fmpy, numpy) loads where points are computed
+
+    path = _materialize(fmu, fmu_data) if fmu_data is not None else fmu
+    key = (threading.get_ident(), plant, settings, str(path))
+    if key not in _ENGINES:
+        _ENGINES[key] = DFEngine(plant, fmu=path, **dict(settings))
+    return _ENGINES[key]
+
+
 def compute(chunk, fmu_data=None):
     """(code revision, the as_dict() of every point of a chunk); ``fmu_data``: the FMU's bytes, shipped to a
     remote worker. The revision lets the client refuse results of a worker that runs other code."""
-    from dfwb.engine.describing import DFEngine  # the engine (fmpy, numpy) loads where points are computed
-
-    path = _materialize(chunk.fmu, fmu_data) if fmu_data is not None else chunk.fmu
-    key = (threading.get_ident(), chunk.plant, chunk.settings, str(path))
-    if key not in _ENGINES:
-        _ENGINES[key] = DFEngine(chunk.plant, fmu=path, **dict(chunk.settings))
-    engine = _ENGINES[key]
+    engine = engine_for(chunk.plant, chunk.fmu, chunk.settings, fmu_data)
     return code_revision(), [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
 
 
@@ -148,27 +153,31 @@ class Executor:
             self._cluster.close()
         self._pool = self._client = self._cluster = None
 
-    def run(self, chunks):
-        """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest."""
-        for chunk, (revision, results) in self._run(list(chunks)):
+    def run(self, chunks, function=None):
+        """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest.
+
+        ``function(chunk, fmu_data=None)`` computes a chunk and returns (code revision, results): DF points
+        (:func:`compute`) by default; a module-level function, so that workers can import it."""
+        function = function or compute
+        for chunk, (revision, results) in self._run(list(chunks), function):
             if revision != code_revision():
                 raise RunError(f"a worker ran dfwb code revision {revision}, this process has {code_revision()}: "
                                    "install the same dfwb on every worker")
             yield chunk, results
 
-    def _run(self, chunks):
+    def _run(self, chunks, function):
         if not chunks:
             return
         if self.dask:
-            yield from self._run_dask(chunks)
+            yield from self._run_dask(chunks, function)
         elif self.jobs == 1 or len(chunks) == 1:
             for chunk in chunks:
-                yield chunk, compute(chunk)
+                yield chunk, function(chunk)
         else:
             done = 0
             while self._local_first and done < len(chunks) and self._local_seconds < POOL_AFTER:
                 started = time.perf_counter()
-                result = compute(chunks[done])
+                result = function(chunks[done])
                 self._local_seconds += time.perf_counter() - started
                 yield chunks[done], result
                 done += 1
@@ -182,7 +191,7 @@ class Executor:
                 self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
                                                          multiprocessing.get_context("spawn"),
                                                          initializer=_orphan_watch, initargs=(os.getpid(),))
-            waiting = {self._pool.submit(compute, chunk): chunk for chunk in chunks}
+            waiting = {self._pool.submit(function, chunk): chunk for chunk in chunks}
             try:
                 for future in futures.as_completed(waiting):
                     yield waiting[future], future.result()
@@ -207,14 +216,14 @@ class Executor:
                     raise RunError(f"cannot reach the Dask scheduler {self.dask!r}: {error}") from None
         return self._client
 
-    def _run_dask(self, chunks):
+    def _run_dask(self, chunks, function):
         from distributed import as_completed
 
         client = self.client()
         for path in {chunk.fmu for chunk in chunks}:
             if path not in self._shipped:
                 self._shipped[path] = client.scatter(Path(path).read_bytes(), broadcast=True)
-        waiting = {client.submit(compute, chunk, self._shipped[chunk.fmu], pure=False): chunk for chunk in chunks}
+        waiting = {client.submit(function, chunk, self._shipped[chunk.fmu], pure=False): chunk for chunk in chunks}
         try:
             for future in as_completed(waiting):
                 yield waiting[future], future.result()

@@ -12,11 +12,12 @@ with units on the axes.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["DescribingFunctionResponse", "LimitCycleResponse", "ContinuationResponse"]
+__all__ = ["DescribingFunctionResponse", "LimitCycleResponse", "ContinuationResponse", "HuntingMapResponse"]
 
 
 @dataclass(eq=False)
@@ -428,3 +429,116 @@ class ContinuationResponse:
 
 def _values(values):
     return ", ".join(f"{name} = {value:g}" for name, value in values.items())
+
+
+@dataclass(eq=False)
+class HuntingMapResponse:
+    """Which settings of two parameters make the loop hunt: every cell classified by the truth and the DF.
+
+    Made by :func:`dfwb.hunting_map`.
+
+    Attributes
+    ----------
+    plant, G : str
+        The plant and the controller as given.
+    x, y : str
+        The two parameters (of G or of the plant).
+    xs, ys : list of float
+        Their values, the cells' columns and rows.
+    values : dict
+        The other parameters' values.
+    cells : list of list of dict
+        ``cells[j][i]`` at (xs[i], ys[j]): ``truth`` (``class``: ``stable`` = hunts, ``unstable``: only
+        unstable cycles, ``diverges``, ``none``: no cycle in the range searched, ``incomplete``; ``cycles``;
+        ``coverage``), ``df`` (``class``, ``predictions``) and ``linear`` (``stable``); or ``error``.
+    linear : dict
+        The linear loop's stability on a fine grid: ``x``, ``y``, ``stable`` (rows).
+    curves : list of dfwb.engine.hunting.Curve
+        Bifurcations continued across the map (``kind``, ``source``, ``points``).
+    counts : dict
+        Cells computed, from the cache, resumed from the folder.
+    seconds : float
+    out_dir : path or None
+        Where the map was written (``cells.csv``, ``cells.json``, ``map.json``, ``hunting_map.png``).
+    """
+
+    plant: str
+    G: str
+    x: str
+    xs: list
+    y: str
+    ys: list
+    values: dict
+    cells: list = field(repr=False)
+    linear: dict = field(repr=False)
+    curves: list = field(default_factory=list)
+    unit: str = "m"
+    counts: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    out_dir: Any = None
+
+    def classes(self, source="truth") -> np.ndarray:
+        """The class of every cell as an array of text, shape (len(ys), len(xs)) ("error" where it failed)."""
+        return np.array([[cell[source]["class"] if source in cell else "error" for cell in row] for row in self.cells])
+
+    def as_dict(self) -> dict:
+        """JSON types: what ``dfwb map --json`` prints and cells.json holds."""
+        cells = [dict(cell) for row in self.cells for cell in row]
+        return {"plant": self.plant, "G": self.G, "x": {"name": self.x, "values": self.xs},
+                "y": {"name": self.y, "values": self.ys}, "values": self.values, "cells": cells,
+                "linear": self.linear, "curves": [c.as_dict() for c in self.curves], "counts": self.counts,
+                "seconds": self.seconds}
+
+    def summary(self) -> str:
+        """Counts of each class, truth and DF, and where they disagree."""
+        from collections import Counter
+
+        from dfwb.engine.hunting import LABELS
+
+        truth, df = self.classes("truth"), self.classes("df")
+        lines = [f"{self.plant} under G = {self.G}" + (f" ({_values(self.values)})" if self.values else "")
+                 + f": {truth.size} cells, {self.x} {self.xs[0]:g} to {self.xs[-1]:g}, {self.y} {self.ys[0]:g} to "
+                 f"{self.ys[-1]:g} ({self.counts.get('computed', 0)} computed, {self.counts.get('cached', 0)} "
+                 f"cached, {self.counts.get('resumed', 0)} resumed; {self.seconds:.1f} s)"]
+        for source, classes in (("truth", truth), ("DF", df)):
+            counted = Counter(classes.ravel().tolist())
+            lines.append(f"  {source}: " + ", ".join(f"{n} {LABELS.get(k, k)}" for k, n in counted.most_common()))
+        hunts = truth == "stable"
+        missed = int(np.sum(hunts & (df != "stable")))
+        false = int(np.sum(~hunts & (df == "stable")))
+        lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting in "
+                     f"{false} that do not")
+        for curve in self.curves:
+            lines.append(f"  {curve.source} {curve.kind} curve through {len(curve.points)} columns")
+        if self.out_dir is not None:
+            lines.append(f"  written to {self.out_dir}: cells.csv, cells.json, hunting_map.png")
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.summary()
+
+    def plot(self, axes=None) -> list:
+        """Truth and DF side by side: hunting cells coloured by the cycle's amplitude, the other classes in
+        flat colours, the linear loop's stability boundary and the bifurcation curves drawn over both.
+
+        Returns the two axes."""
+        from dfwb.plotting.plots import hunting_map
+
+        return hunting_map(self, axes)
+
+    def write(self, out_dir):
+        """cells.json and hunting_map.png (and .svg) into ``out_dir`` (its cells.csv and map.json are written
+        as the map runs)."""
+        import json
+
+        import matplotlib.pyplot as plt
+
+        from dfwb.base.files import write_atomic
+        from dfwb.plotting.plots import save
+        from dfwb.studies.cache import finite
+
+        out_dir = Path(out_dir)
+        write_atomic(out_dir / "cells.json", json.dumps(finite(self.as_dict()), indent=1).encode())
+        figure, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
+        self.plot(axes)
+        return save(figure, out_dir, "hunting_map")

@@ -102,13 +102,30 @@ static void balance(const dfwb_hy_mode *m, double *d)
     }
 }
 
+/* nilpotency: 1 where A = 0, 2 where A != 0 and every product A_iq A_qj has a zero factor, else 0. */
+static int nilpotency(const dfwb_hy_mode *m)
+{
+    int i, j, q, zero = 1;
+    for (i = 0; i < m->n; i++)
+        for (j = 0; j < m->n; j++)
+            zero &= m->A[i][j] == 0.0;
+    if (zero)
+        return 1;
+    for (i = 0; i < m->n; i++)
+        for (q = 0; q < m->n; q++)
+            for (j = 0; j < m->n; j++)
+                if (m->A[i][q] != 0.0 && m->A[q][j] != 0.0)
+                    return 0;
+    return 2;
+}
+
 /* Mode.__init__ after system(key) filled n, A, c and the system's events (the section's are added here). */
 static int build_mode(dfwb_hy *hy, int key, dfwb_hy_mode *m, dfwb_err *err)
 {
     double d[DFWB_HY_DIM], P[DFWB_HY_DIM][DFWB_HY_DIM], AP[DFWB_HY_DIM][DFWB_HY_DIM];
     double r[DFWB_HY_DIM], ra[DFWB_HY_DIM], r2[DFWB_HY_DIM], ra2[DFWB_HY_DIM];
     double rho = 0.0, term;
-    int n, i, j, k, e, rc;
+    int n, i, j, k, e, rc, index;
     memset(m, 0, sizeof *m);
     m->key = key;
     rc = hy->system(hy, key, m, err);
@@ -137,12 +154,17 @@ static int build_mode(dfwb_hy *hy, int key, dfwb_hy_mode *m, dfwb_err *err)
     }
     for (i = 0; i < n; i++)
         m->scale[i] = d[i];
-    m->h = rho > 0.0 ? TAYLOR_RADIUS / rho : 1.0;
+    m->resolution = m->h = rho > 0.0 ? TAYLOR_RADIUS / rho : 1.0;
     m->terms = 1;
     term = 1.0;
     while (rho > 0.0 && m->terms < DFWB_HY_MAX_TERMS && term > TAYLOR_TOLERANCE) {
         m->terms += 1;
         term *= TAYLOR_RADIUS / (double)m->terms;
+    }
+    index = nilpotency(m);
+    if (index) { /* A^index = 0: the series ends after index terms, exact on any chunk */
+        m->h = DFWB_HY_NILPOTENT_CHUNK;
+        m->terms = index;
     }
     for (i = 0; i < n; i++)
         for (j = 0; j < n; j++)
@@ -207,8 +229,8 @@ static int build_mode(dfwb_hy *hy, int key, dfwb_hy_mode *m, dfwb_err *err)
         if (err->overflow != NULL) /* Python raised OverflowError at the power */
             return DFWB_E_MATH;
     }
-    m->tail = 2.0 * m->h / FACTORIAL[m->terms + 1];
-    m->curvature_tail = m->terms > 1 ? 2.0 * rho / FACTORIAL[m->terms - 1] : 0.0;
+    m->tail = index ? 0.0 : 2.0 * m->h / FACTORIAL[m->terms + 1];
+    m->curvature_tail = index || m->terms == 1 ? 0.0 : 2.0 * rho / FACTORIAL[m->terms - 1];
     return DFWB_OK;
 }
 
@@ -597,9 +619,9 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long lon
         return dfwb_fail(err, DFWB_E_VALUE, "t_end = %s is out of range: the end of a step must be a finite number "
                          ">= the current time %s", r, rt);
     }
-    for (i = 0; i < DFWB_HY_MODES; i++) /* min(mode.h for mode in self._modes.values()) */
-        if (hy->modes[i] != NULL && (!have || hy->modes[i]->h < fastest)) {
-            fastest = hy->modes[i]->h;
+    for (i = 0; i < DFWB_HY_MODES; i++) /* min(mode.resolution for mode in self._modes.values()) */
+        if (hy->modes[i] != NULL && (!have || hy->modes[i]->resolution < fastest)) {
+            fastest = hy->modes[i]->resolution;
             have = 1;
         }
     if (t_end > DFWB_HY_TIME_LIMIT * fastest) {

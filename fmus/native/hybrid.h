@@ -25,6 +25,7 @@
 #define DFWB_HY_MAX_TERMS 40    /* MAX_TERMS */
 #define DFWB_HY_EVENTS_PER_CHUNK 10000
 #define DFWB_HY_TIME_LIMIT 1e12
+#define DFWB_HY_NILPOTENT_CHUNK 1048576.0 /* NILPOTENT_CHUNK = 2 ** 20 s */
 #ifndef DFWB_HY_MAX_CHUNKS_PER_STEP /* MAX_CHUNKS_PER_STEP; -D at build time sets a smaller bound (tests) */
 #define DFWB_HY_MAX_CHUNKS_PER_STEP 10000000
 #endif
@@ -47,7 +48,7 @@ typedef struct {
     int key, n, nev;
     double A[DFWB_HY_DIM][DFWB_HY_DIM], c[DFWB_HY_DIM];
     dfwb_hy_event ev[DFWB_HY_EVENTS];
-    double h;
+    double h, resolution;               /* the chunk; the time scale the mode resolves (Mode.resolution) */
     int terms;
     double scale[DFWB_HY_DIM];
     double absA[DFWB_HY_DIM][DFWB_HY_DIM];

@@ -1,0 +1,259 @@
+"""Hunting maps: two parameters over a grid, each cell classified by the truth and by the DF, side by side.
+
+Each cell is one setting of the two parameters (of the controller or of the plant), classified by
+:func:`dfwb.engine.hunting.classify`: the exact loop's systematic search (hunts with a stable cycle, only
+unstable cycles, diverges, no cycle in the range searched) and the describing function's verdict. Over
+controller parameters one DF map of the plant serves every cell, computed once here and shipped to the
+workers.
+
+Cells run in worker processes or on Dask (:class:`dfwb.studies.executor.Executor`), are cached like DF
+points (:mod:`dfwb.studies.cache`, keyed by everything a cell depends on) and, with an output folder, are
+appended to ``cells.csv`` as they finish (checksummed rows, :mod:`dfwb.base.runlog`): a killed map resumes
+with what it had. A cell that fails (a parameter value the plant refuses) is reported as such, never the map.
+The linear loop's stability boundary (the plant with its nonlinearity removed) is computed on a fine grid,
+and the bifurcation curves are continued in the two parameters from the folds found on the way
+(:func:`dfwb.engine.hunting.fold_curves`).
+"""
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dfwb.base.errors import DfwbError, InputError
+from dfwb.base.files import folder_lock, read_bytes, write_atomic
+from dfwb.base.runlog import RunLog
+from dfwb.engine.family import LoopFamily
+from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, solver_revision
+from dfwb.studies.continuation import check_parameter
+from dfwb.studies.executor import Executor, engine_for
+from dfwb.studies.responses import HuntingMapResponse
+
+MAX_CELLS = 10_000  # a 100 x 100 map: tens of minutes on two cores
+MAX_SIDE = 1_000
+COLUMNS = ["x", "y", "truth", "truth_omega", "truth_amplitude", "df", "df_omega", "df_amplitude", "linear", "cell"]
+LINEAR_GRID = 80  # the linear loop's stability is drawn from this many points per side
+CHUNK = 4  # cells per task
+
+
+@dataclass(frozen=True)
+class MapChunk:
+    """Cells of one map for one worker: the plant, its FMU, G (text, coefficients or a function), the fixed
+    values, the axes' names, the cells' (x, y), the shared DF map (or None) and the start amplitudes."""
+
+    plant: str
+    fmu: str
+    G: object
+    values: tuple
+    axes: tuple
+    cells: tuple
+    dfmap: object
+    amplitudes: int
+
+
+def compute_cells(chunk, fmu_data=None):
+    """(code revision, the classified cells) of a chunk; a cell that cannot be computed says why."""
+    from dfwb.engine.hunting import DFMap, classify
+
+    engine = engine_for(chunk.plant, chunk.fmu, (), fmu_data)
+    G = chunk.G if not isinstance(chunk.G, tuple) else (list(chunk.G[0]), list(chunk.G[1]))
+    family = LoopFamily(chunk.plant, G, dict(chunk.values), free=chunk.axes)
+    dfmap = None
+    if chunk.dfmap is not None:
+        F, omega, re, im = (np.array(part) for part in chunk.dfmap)
+        dfmap = DFMap(F, omega, re + 1j * im)
+    fmu_dir = Path(chunk.fmu).parent if fmu_data is None else None
+    cells = []
+    for x, y in chunk.cells:
+        values = dict(zip(chunk.axes, (x, y)))
+        try:
+            problem = family.problem(values, fmu_dir)
+            amplitudes = problem.scales.amplitudes(chunk.amplitudes)
+            cell = classify(problem, engine, dfmap, amplitudes)
+        except DfwbError as error:
+            cell = {"error": " ".join(str(error).split())}
+        cells.append(dict(cell, x=x, y=y))
+    return code_revision(), cells
+
+
+def _axis(family, axis, label):
+    """(name, [values]) of an axis given as (name, start, stop, n)."""
+    try:
+        name, start, stop, count = axis
+    except (TypeError, ValueError):
+        raise InputError(f"{label} = {axis!r:.60}: give (NAME, START, STOP, N)") from None
+    name, (lo, hi) = check_parameter(family, name, start, stop)
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 2 <= count <= MAX_SIDE:
+        raise InputError(f"{label} {name}: N = {count!r} cells: an integer from 2 to {MAX_SIDE}")
+    values = np.linspace(float(start), float(stop), int(count))
+    return name, [float(v) for v in values]
+
+
+def _row(cell):
+    from dfwb.engine.hunting import hunting
+
+    row = {"x": repr(cell["x"]), "y": repr(cell["y"]), "cell": json.dumps(finite(cell), sort_keys=True)}
+    if "error" in cell:
+        return dict(row, truth="error", df="error", linear="")
+    for source in ("truth", "df"):
+        row[source] = cell[source]["class"]
+        best = hunting(cell, source)
+        row[f"{source}_omega"] = "" if best is None else repr(best["omega"])
+        row[f"{source}_amplitude"] = "" if best is None else repr(best["amplitude_x"])
+    row["linear"] = "stable" if cell["linear"]["stable"] else "unstable"
+    return row
+
+
+def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, cache=False, fmu_dir=None,
+            amplitudes=None, curves=True, resume=True, progress=None):
+    """The hunting map of ``plant`` under ``G`` over the axes ``x`` and ``y`` (each (NAME, START, STOP, N)).
+
+    Returns a :class:`~dfwb.studies.responses.HuntingMapResponse`; see :func:`dfwb.hunting_map`.
+    """
+    from dfwb.engine.hunting import MAP_AMPLITUDES, df_map_for, linear_map
+    from dfwb.fmi.location import fmu_path
+    from dfwb.studies.runner import open_cache
+
+    fixed = dict(values or {})
+    names = [a[0] if isinstance(a, (tuple, list)) and a else None for a in (x, y)]
+    for name in names:
+        if name in fixed:
+            raise InputError(f"{name} is an axis of the map: give its range, not a value for it")
+    if names[0] == names[1]:
+        raise InputError(f"x and y are both {names[0]}: a map needs two different parameters")
+    family = LoopFamily(plant, G, fixed, free=tuple(n for n in names if isinstance(n, str)))
+    (x_name, xs), (y_name, ys) = _axis(family, x, "x"), _axis(family, y, "y")
+    if len(xs) * len(ys) > MAX_CELLS:
+        raise InputError(f"a map of {len(xs)} x {len(ys)} = {len(xs) * len(ys)} cells: at most {MAX_CELLS} "
+                         "(fewer cells, or several maps)")
+    count = MAP_AMPLITUDES if amplitudes is None else amplitudes
+    if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 100:
+        raise InputError(f"amplitudes = {count!r}: the number of start amplitudes per cell, 1 to 100")
+    spec = family.spec
+    fmu = str(fmu_path(spec, fmu_dir))
+    engine = engine_for(spec.name, fmu, ())
+    started = time.perf_counter()
+    shared = None
+    if x_name not in family.plant_names and y_name not in family.plant_names:  # one DF map serves every cell
+        corners = [family.problem({x_name: a, y_name: b}, fmu_dir) for a in (xs[0], xs[-1]) for b in (ys[0], ys[-1])]
+        grid = df_map_for(corners, engine)
+        shared = (grid.F_grid.tolist(), grid.omega_grid.tolist(), grid.N_grid.real.tolist(), grid.N_grid.imag.tolist())
+    if isinstance(G, str):
+        G_key = chunk_G = G
+    elif family.built:  # a Python function cannot go to another process, nor name a cache entry: computed here
+        G_key, chunk_G, jobs, dask, cache = None, G, 1, None, False
+    else:
+        G_key = [family.G().num[0][0].tolist(), family.G().den[0][0].tolist()]
+        chunk_G = (tuple(G_key[0]), tuple(G_key[1]))
+    definition = {"plant": spec.name, "G": G_key, "values": family.merged(), "x": [x_name, xs], "y": [y_name, ys],
+                  "amplitudes": count, "dfmap": None if shared is None else digest([shared[0], shared[1]])}
+    base = {"kind": "map-cell", "code": code_revision(), "solvers": solver_revision(), "fmu": fmu_revision(fmu),
+            "plant": spec.name, "G": definition["G"], "values": family.merged(), "axes": [x_name, y_name],
+            "amplitudes": count, "dfmap": definition["dfmap"]}
+    store = open_cache(cache)
+    cells = {}
+    wanted = [(a, b) for b in ys for a in xs]
+    with _folder(out_dir, definition, len(wanted), resume) as log:
+        if log is not None:
+            for row in log.read():
+                try:
+                    cell = json.loads(row["cell"])
+                    cells[(float(cell["x"]), float(cell["y"]))] = cell
+                except (KeyError, TypeError, ValueError):
+                    continue
+        resumed = len(cells)
+        hits = 0
+        for point in wanted:
+            if point in cells:
+                continue
+            value = store.get(dict(base, x=point[0], y=point[1]))
+            if value is not None:
+                cells[point] = value
+                hits += 1
+                if log is not None:
+                    log.append([_row(value)])
+        pending = [point for point in wanted if point not in cells]
+        chunks = [MapChunk(spec.name, fmu, chunk_G, tuple(sorted(family.merged().items())), (x_name, y_name),
+                           tuple(pending[i:i + CHUNK]), shared, count) for i in range(0, len(pending), CHUNK)]
+        done = len(wanted) - len(pending)
+        if progress:
+            progress("cells", done, len(wanted))
+        with Executor(jobs, dask) as executor:
+            for _chunk, results in executor.run(chunks, compute_cells):
+                for cell in results:
+                    point = (cell["x"], cell["y"])
+                    cells[point] = cell
+                    if "error" not in cell:
+                        store.put(dict(base, x=point[0], y=point[1]), finite(cell))
+                if log is not None:
+                    log.append([_row(cell) for cell in results])
+                done += len(results)
+                if progress:
+                    progress("cells", done, len(wanted))
+    grid = [[cells[(a, b)] for a in xs] for b in ys]
+    linear = linear_map(family, x_name, (xs[0], xs[-1]), y_name, (ys[0], ys[-1]), LINEAR_GRID, fmu_dir)
+    found_curves = []
+    if curves:
+        from dfwb.engine.hunting import fold_curves
+
+        found_curves = fold_curves(family, x_name, xs, y_name, ys, grid, fmu_dir, engine,
+                                   progress=None if progress is None else (lambda d, t: progress("curves", d, t)))
+    response = HuntingMapResponse(plant=spec.name, G=family.controller.text, x=x_name, xs=xs, y=y_name, ys=ys,
+                                  values={k: v for k, v in family.merged().items() if k not in (x_name, y_name)},
+                                  cells=grid, linear=linear, curves=found_curves, unit=spec.unit,
+                                  counts={"cells": len(wanted), "computed": len(pending), "cached": hits,
+                                          "resumed": resumed},
+                                  seconds=time.perf_counter() - started, out_dir=out_dir)
+    if out_dir is not None:
+        response.write(Path(out_dir))
+    return response
+
+
+class _folder:
+    """The output folder of a map, locked while it runs: map.json (the definition) and the cells' log.
+
+    A folder holding another map's log is refused unless ``resume`` is False (then the log starts over)."""
+
+    def __init__(self, out_dir, definition, cells, resume):
+        self.out_dir, self.definition, self.cells, self.resume = out_dir, definition, cells, resume
+        self._lock = self._log = None
+
+    def __enter__(self):
+        if self.out_dir is None:
+            return None
+        out = Path(self.out_dir)
+        self._lock = folder_lock(out)
+        self._lock.__enter__()
+        stored = out / "map.json"
+        log = RunLog(out / "cells.csv", COLUMNS, max_rows=self.cells)
+        text = json.dumps(finite(self.definition), sort_keys=True)
+        if self.resume and stored.exists() and _stored(stored) != json.loads(text):
+            self._lock.__exit__(None, None, None)
+            raise InputError(f"{out} holds a different map (see {stored}): use another folder, or do not resume")
+        if not self.resume:
+            log.path.unlink(missing_ok=True)
+        write_atomic(stored, text)
+        self._log = log
+        log.__enter__()
+        return log
+
+    def __exit__(self, *exc):
+        if self._log is not None:
+            self._log.__exit__(*exc)
+        if self._lock is not None:
+            self._lock.__exit__(*exc)
+
+
+def _stored(path):
+    try:
+        return json.loads(read_bytes(path, 64 << 20, "map definition"))
+    except (OSError, ValueError):
+        return None
+
+
+def cells_of(path):
+    """The cells a map's cells.csv holds (verified rows), for a reader of the output folder."""
+    log = RunLog(Path(path), COLUMNS, max_rows=MAX_CELLS)
+    return [json.loads(row["cell"]) for row in log.read()]
