@@ -10,6 +10,7 @@ response objects with a ``.plot()``.
 - :func:`continuation` -- cycles followed in one parameter, with bifurcations
   (:class:`ContinuationResponse`); :func:`hunting_map` -- which settings of two
   parameters make the machine hunt, truth and DF (:class:`HuntingMapResponse`);
+  :func:`limit_cycle_margin` -- the gain factors k for which k G hunts (:class:`MarginResponse`);
 - :func:`run_scene`, :func:`sweep` and :func:`grid` -- studies written to a folder;
 - :func:`plant`, :func:`names`, :class:`Plant`, :func:`register` -- the plant registry
   (:mod:`dfwb.plants`, whose ``PLANTS`` maps each name to its entry);
@@ -42,6 +43,7 @@ _PUBLIC = {
     "describing_function": "dfwb.api.functions", "limit_cycles": "dfwb.api.functions",
     "continuation": "dfwb.api.functions", "ContinuationResponse": "dfwb.studies.responses",
     "hunting_map": "dfwb.api.functions", "HuntingMapResponse": "dfwb.studies.responses",
+    "limit_cycle_margin": "dfwb.api.functions", "MarginResponse": "dfwb.studies.responses",
     "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.functions",
     "sweep": "dfwb.api.functions", "grid": "dfwb.api.functions",
     "DescribingFunctionResponse": "dfwb.studies.responses", "LimitCycleResponse": "dfwb.studies.responses",
@@ -55,7 +57,7 @@ __all__ = [
     "__version__",
     "describing_function", "DescribingFunctionResponse",
     "limit_cycles", "LimitCycleResponse", "continuation", "ContinuationResponse", "hunting_map",
-    "HuntingMapResponse", "transfer_function",
+    "HuntingMapResponse", "limit_cycle_margin", "MarginResponse", "transfer_function",
     "run_scene", "sweep", "grid",
     "plant", "plants", "names", "Plant", "register", "unregister",
     "DfwbError", "PlantError", "InputError", "RunError",

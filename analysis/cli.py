@@ -19,7 +19,7 @@ from pathlib import Path
 from dfwb.base.errors import InputError
 
 FMU_DIR_HELP = "$DFWB_FMU_DIR, else a per-user folder, ~/.cache/dfwb/fmus"
-FIGURE_COMMANDS = {"limit-cycle", "continue", "examples", "bench", "run", "paper", "demo"}  # they write figures
+FIGURE_COMMANDS = {"limit-cycle", "continue", "map", "margin", "examples", "bench", "run", "paper", "demo"}
 
 
 
@@ -255,6 +255,47 @@ def cmd_continue(args):
     return 0
 
 
+def cmd_map(args):
+    from dfwb.studies.hunting import run_map
+    from dfwb.studies.progress import Reporter
+
+    axes = []
+    for option, text in (("--x", args.x), ("--y", args.y)):
+        name, parts = _range(text, option)
+        if len(parts) != 3 or parts[2] != int(parts[2]):
+            raise InputError(f"{option} {text!r}: expected NAME=START:STOP:N with N a whole number of cells")
+        axes.append((name, parts[0], parts[1], int(parts[2])))
+    out = args.out or Path("out/maps") / f"{args.plant}_{axes[0][0]}_{axes[1][0]}"
+    with Reporter(f"hunting map of {args.plant}", not args.json) as report:
+        response = run_map(args.plant, _controller(args), axes[0], axes[1], _assignments(args.set, "--set"),
+                           out_dir=out, jobs=args.jobs, dask=args.dask, cache=_cache(args), fmu_dir=args.fmus,
+                           curves=not args.no_curves, resume=not args.no_resume, progress=report)
+    if args.json:
+        json.dump(response.as_dict(), sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(response.summary())
+    return 0
+
+
+def cmd_margin(args):
+    from dfwb.studies.margin import gain_margin
+    from dfwb.studies.progress import Reporter
+
+    plot = _plot_path(args.plot) if args.plot else None
+    with Reporter(f"limit-cycle margin of {args.plant}", not args.json) as report:
+        response = gain_margin(args.plant, _controller(args), _assignments(args.set, "--set"),
+                               k_range=tuple(args.k_range), count=args.count, fmu_dir=args.fmus, progress=report)
+    if plot:
+        response.figure(plot)
+    if args.json:
+        json.dump(response.as_dict(), sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        print(response.summary())
+    return 0
+
+
 def _plot_path(text):
     """The --plot file, checked before anything is computed: a .png in a folder that exists."""
     path = Path(text)
@@ -433,17 +474,31 @@ def parser():
     fmu_options(cycle)
     cycle.set_defaults(run=cmd_limit_cycle)
 
+    def scene_options(command):
+        command.add_argument("--jobs", action=_Once, type=_jobs, default=None,
+                             help="worker processes, or Dask workers with --dask local (default: all cores)")
+        command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
+                             help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
+        command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
+                             help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
+        command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+        fmu_options(command)
+        command.add_argument("--quiet", action="store_true", help="no progress display")
+
+    def controller_options(command):
+        command.add_argument("plant", choices=plant_names, help="the plant")
+        command.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
+                                                       "e.g. 'Kp + Ki/s'")
+        command.add_argument("--num", type=float, nargs="+", action="extend", help="controller numerator")
+        command.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator")
+        command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
+                             help="parameters of G and of the plant")
+
     follow = commands.add_parser("continue", help="follow limit cycles in one parameter of G or of the plant: "
                                                  "branches, bifurcations, the diagram")
-    follow.add_argument("plant", choices=[n for n in plant_names], help="the plant")
-    follow.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
-                                                  "e.g. 'Kp + Ki/s'")
-    follow.add_argument("--num", type=float, nargs="+", action="extend", help="controller numerator coefficients")
-    follow.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator coefficients")
+    controller_options(follow)
     follow.add_argument("--parameter", action=_Once, required=True, metavar="NAME=START:STOP",
                         help="the parameter followed and its range, e.g. Ki=1:30")
-    follow.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
-                        help="the other parameters of G and of the plant")
     follow.add_argument("--source", action=_Once, choices=("both", "truth", "df"), default="both",
                         help="follow the true cycles, the DF's predictions, or both (default: %(default)s)")
     follow.add_argument("--max-points", action=_Once, type=_integer(2, 10_000), default=200,
@@ -452,6 +507,33 @@ def parser():
     follow.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(follow)
     follow.set_defaults(run=cmd_continue)
+
+    hunting = commands.add_parser("map", help="which settings of two parameters make the machine hunt: truth and "
+                                              "DF side by side, cached and resumable")
+    controller_options(hunting)
+    hunting.add_argument("--x", action=_Once, required=True, metavar="NAME=START:STOP:N",
+                         help="the horizontal axis: a parameter of G or of the plant, e.g. Kp=1:50:30")
+    hunting.add_argument("--y", action=_Once, required=True, metavar="NAME=START:STOP:N",
+                         help="the vertical axis, e.g. Ki=0.1:25:30")
+    hunting.add_argument("--out", action=_Once, type=Path,
+                         help="output folder (default: out/maps/<plant>_<x>_<y>); resumed if it holds this map")
+    hunting.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
+    hunting.add_argument("--no-curves", action="store_true", help="skip the bifurcation curves")
+    hunting.add_argument("--json", action="store_true", help="print one JSON object")
+    scene_options(hunting)
+    hunting.set_defaults(run=cmd_map)
+
+    margin = commands.add_parser("margin", help="the gain factors k for which k G hunts, truth and DF: how much "
+                                                "more gain before it hunts")
+    controller_options(margin)
+    margin.add_argument("--k-range", action=_Once, type=float, nargs=2, default=(0.01, 100.0), metavar=("LO", "HI"),
+                        help="gain factors searched, LO < 1 < HI (default: 0.01 100)")
+    margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=25,
+                        help="gain factors scanned, log-spaced (default: %(default)s)")
+    margin.add_argument("--plot", action=_Once, help="write the plot to this PNG")
+    margin.add_argument("--json", action="store_true", help="print one JSON object")
+    fmu_options(margin)
+    margin.set_defaults(run=cmd_margin)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
     examples.add_argument("--out", action=_Once, type=Path, default=Path("out/examples"),
@@ -476,17 +558,6 @@ def parser():
     stress.add_argument("--parts", action=_Once, type=_integer(1, 10_000), default=1,
                         help="split the set into this many pieces (default: 1)")
     stress.set_defaults(run=cmd_stress)
-
-    def scene_options(command):
-        command.add_argument("--jobs", action=_Once, type=_jobs, default=None,
-                             help="worker processes, or Dask workers with --dask local (default: all cores)")
-        command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
-                             help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
-        command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
-                             help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
-        command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
-        fmu_options(command)
-        command.add_argument("--quiet", action="store_true", help="no progress display")
 
     run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
     run.add_argument("scenes", type=Path, nargs="+", action="extend", metavar="SCENE.toml",
@@ -520,7 +591,7 @@ def main(argv=None):
     prog = f"dfwb {args.command}"
     if getattr(args, "fmu", None):  # the process and its workers run this kind of plant FMU
         os.environ["DFWB_FMU"] = args.fmu
-    if args.command in FIGURE_COMMANDS and (args.command not in ("limit-cycle", "continue") or args.plot):
+    if args.command in FIGURE_COMMANDS and (args.command not in ("limit-cycle", "continue", "margin") or args.plot):
         from dfwb.plotting.backend import use_batch_backend
 
         use_batch_backend()  # figures go to files, in batch: no display is needed

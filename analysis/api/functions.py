@@ -26,11 +26,12 @@ from dfwb.studies.responses import (
     DescribingFunctionResponse,
     HuntingMapResponse,
     LimitCycleResponse,
+    MarginResponse,
 )
 from dfwb.studies.sweep import MAX_POINTS
 
-__all__ = ["describing_function", "limit_cycles", "continuation", "hunting_map", "transfer_function", "run_scene",
-           "sweep", "grid"]
+__all__ = ["describing_function", "limit_cycles", "continuation", "hunting_map", "limit_cycle_margin",
+           "transfer_function", "run_scene", "sweep", "grid"]
 
 ArrayLike = Union[float, Sequence, np.ndarray]
 
@@ -366,6 +367,56 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     with _reporter(f"hunting map of {plant}", progress) as report:
         return run_map(plant, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
                        amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None)
+
+
+def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = (1e-2, 1e2), count: int = 25, df: bool = True,
+                       fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
+                       **params: float) -> MarginResponse:
+    """The limit-cycle margin of a controller: the gain factors k for which k G makes the machine hunt.
+
+    "How much more gain can I use before it hunts?": ``count`` gain factors log-spaced over ``k_range`` are
+    classified by the truth (the exact loop's search: a stable cycle) and by the DF (a stable prediction);
+    each boundary between hunting and not is located, the truth's by continuing the stable cycle to the
+    bifurcation that ends it (a fold, a nonsmooth fold, a loss of stability, infinity at the linear loop's
+    stability boundary), the DF's by bisection (:mod:`dfwb.engine.margin`).
+
+    Parameters
+    ----------
+    plant : str
+    G : str, callable, (num, den) or python-control system
+        The controller at k = 1; an expression's parameters come with ``params``.
+    k_range : (float, float), keyword-only
+        Gain factors searched: 0 < low < 1 < high.
+    count : int, keyword-only
+        Gain factors scanned (3 to 1000).
+    df : bool, keyword-only
+        Also the DF's margin.
+    fmu_dir : path, optional, keyword-only
+    progress : bool, keyword-only
+    **params : float
+        G's and the plant's parameters.
+
+    Returns
+    -------
+    MarginResponse
+        ``.truth`` and ``.df`` (each with ``intervals``, ``boundaries``, ``hunts_at(k)``, ``room()``),
+        ``.summary()``, ``.plot()``, ``.as_dict()``.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> m = dfwb.limit_cycle_margin("friction", "20 + 100/s + 2*s/(0.1*s+1)", count=9, df=False)
+    >>> m.truth.hunts_at(1.0), [(round(b.k, 5), b.kind) for b in m.truth.boundaries]
+    (True, [(0.83005, 'nonsmooth-fold')])
+    """
+    from dfwb.studies.margin import gain_margin
+
+    for name, flag in (("df", df), ("progress", progress)):
+        if not isinstance(flag, bool):
+            raise InputError(f"{name} = {flag!r} must be True or False")
+    with _reporter(f"limit-cycle margin of {plant}", progress) as report:
+        return gain_margin(plant, G, params, k_range=k_range, count=_integer("count", count), df=df, fmu_dir=fmu_dir,
+                           progress=report if progress else None)
 
 
 def _reporter(title, enabled):

@@ -55,6 +55,8 @@ MAX_LOCATE = 400  # steps of a bifurcation's location, at most
 LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (scaled: relative to the range)
 AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows this many times its start's goes to infinity
 MAX_POINTS = 200  # per branch
+TURN = 1e-3  # a step this small without a solution: look for the other side of a kink (see _turn)
+TURN_REACH = (1e-3, 1e-2, 3e-2)  # how far past the last point it is looked for (scaled)
 
 
 @dataclass
@@ -367,6 +369,12 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
             corrected = None
         if corrected is None:
             ds *= 0.5
+            if ds < TURN and getattr(system, "source", "") == "truth":
+                turned = _turn(system, last)
+                if turned is not None:  # the branch turned back at a kink: go on along the other side
+                    nodes.append(turned)
+                    ds = DS[1]
+                    continue
             if ds < DS[0]:
                 return nodes, "the branch cannot be followed further (the corrector fails even at tiny steps)"
             continue
@@ -383,6 +391,32 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
             return nodes, "infinity"
         ds = min(DS[2], ds * 1.5)
     return nodes, f"{max_points} points"
+
+
+def _turn(system, last):
+    """The other side of a kink just past node ``last``: a solution at last's parameter value with other events.
+
+    Where the step has shrunk without a solution, the branch may turn back sharply at a kink (a stick phase
+    shrinking to nothing, where the cycle meets one without it): no hyperplane across the old tangent meets
+    the returning side. Newton at last's parameter value from points a little past last along its tangent
+    (the solution there of another event sequence lies that way) finds it; its tangent points away from last.
+    Returns the new node, or None.
+    """
+    D = system.scale()
+    fixed = np.zeros(len(last.y))
+    fixed[-1] = 1.0
+    for reach in TURN_REACH:
+        guess = last.y + reach * last.tangent * D
+        guess[-1] = last.y[-1]
+        corrected = _correct(system, guess, fixed, guess)
+        if corrected is None or system.same_kind(corrected[2], last.info):
+            continue
+        y, r, extra, J = corrected
+        away = (y - last.y) / D
+        node = _node(system, y, r, extra, None, away / max(np.linalg.norm(away), 1e-300))
+        if node is not None and node.point.signature != last.point.signature:
+            return node
+    return None
 
 
 # -- bifurcations ------------------------------------------------------------------------------------------------------
@@ -471,9 +505,10 @@ def bifurcations(system, nodes, span):
             kind, what = _changed(a.point.signature, b.point.signature)
             sides = [_measure(system, solution) for solution in (before, after) if solution is not None]
             multipliers = " | ".join(", ".join(f"{m:.3g}" for m in side.multipliers) for side in sides)
+            where = "on its two sides" if len(sides) == 2 else "there"
             found.append((i, Bifurcation("nonsmooth-fold" if fold else kind, value, sides[0].omega,
                                          sides[0].amplitude_x, system.source,
-                                         f"{what}; |multipliers| {multipliers} on its two sides"
+                                         f"{what}; |multipliers| {multipliers} {where}"
                                          + ("; two branches meet and end there" if fold else ""), width,
                                          list(before[0]), _side(a, value)), sides))
             continue

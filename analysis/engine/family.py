@@ -79,6 +79,24 @@ class _Fixed:
         return self.G
 
 
+class _Scaled:
+    """k G: a controller times a gain factor named ``name`` (a margin's parameter)."""
+
+    def __init__(self, inner, name):
+        self.inner, self.name = inner, name
+        self.names = tuple(inner.names) + (name,)
+        self.text = f"{name} * ({inner.text})"
+
+    def transfer_function(self, values):
+        from dfwb.engine.transfer import check_transfer_function
+
+        return check_transfer_function(values[self.name] * self.inner.transfer_function(values), self.text)
+
+    def coefficients(self, values):
+        G = self.transfer_function(values)
+        return [float(c) for c in G.num[0][0]], [float(c) for c in G.den[0][0]]
+
+
 class LoopFamily:
     """A plant in feedback with G(s), their parameters named, the values given checked.
 
@@ -164,6 +182,16 @@ class LoopFamily:
 
         return LoopProblem(self.spec.name, self.G(values), self.params(values), fmu_dir=fmu_dir, budget=budget)
 
+    def scaled(self, name):
+        """The family of ``name`` * G: the gain factor a free parameter (refused if G or the plant has it)."""
+        if name in self.names:
+            raise InputError(f"{name} names a parameter of G or of the plant already: it cannot be the gain factor")
+        scaled = copy.copy(self)
+        scaled.controller = _Scaled(self.controller, name)
+        scaled.names = (name,) + self.names
+        scaled._linear = {}
+        return scaled
+
     def at(self, values):
         """The family with more values fixed (a map's column: its x given)."""
         fixed = copy.copy(self)
@@ -172,7 +200,11 @@ class LoopFamily:
         return fixed
 
     def linear_stable(self, values=None):
-        """Whether the linear loop (the nonlinearity removed) is stable at the values: the roots of
+        """Whether the linear loop (the nonlinearity removed) is stable at the values."""
+        return self.linear_growth(values) < 0.0
+
+    def linear_growth(self, values=None):
+        """The largest real part of the linear loop's poles at the values (< 0: stable): the roots of
         den_G den_P + num_G num_P, without building the exact loop (a map asks it at 10^4 points)."""
         import numpy as np
 
@@ -180,7 +212,7 @@ class LoopFamily:
         if isinstance(self.controller, _Fixed) or self.built:
             G = self.G(values)
             num_g, den_g = G.num[0][0], G.den[0][0]
-        else:
+        else:  # an expression (or one scaled): its coefficients without building a checked system
             num_g, den_g = self.controller.coefficients(merged)
         params = self.params(values)
         key = tuple(sorted(params.items()))
@@ -192,7 +224,7 @@ class LoopFamily:
         size = max(len(a), len(b))
         characteristic = np.pad(a, (size - len(a), 0)) + np.pad(b, (size - len(b), 0))
         poles = np.roots(characteristic)
-        return bool(poles.size) and bool(np.all(poles.real < 0.0))
+        return float(poles.real.max()) if poles.size else math.inf
 
     def describe(self, values=None):
         """The values as one short text: ``Kp = 10, Ki = 2, Fs = 8``."""

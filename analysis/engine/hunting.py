@@ -132,18 +132,20 @@ class Curve:
 
 
 def linear_map(family, x_name, x_range, y_name, y_range, n, fmu_dir=None):
-    """The linear loop's stability on an n x n grid: {"x", "y", "stable": rows of bools (None: refused)}."""
+    """The linear loop on an n x n grid: {"x", "y", "growth": rows of the largest real part of its poles
+    [1/s] (< 0: stable; None where G or the plant refuses the values)}; its zero contour is the boundary."""
     xs, ys = np.linspace(*x_range, n), np.linspace(*y_range, n)
     rows = []
     for b in ys:
         row = []
         for a in xs:
             try:
-                row.append(family.linear_stable({x_name: float(a), y_name: float(b)}))
-            except Exception:  # noqa: BLE001 (a value the plant or G refuses: no verdict there)
+                growth = family.linear_growth({x_name: float(a), y_name: float(b)})
+                row.append(growth if math.isfinite(growth) else None)
+            except DfwbError:  # a value the plant or G refuses: no verdict there
                 row.append(None)
         rows.append(row)
-    return {"x": xs.tolist(), "y": ys.tolist(), "stable": rows}
+    return {"x": xs.tolist(), "y": ys.tolist(), "growth": rows}
 
 
 def fold_curves(family, x_name, xs, y_name, ys, grid=None, fmu_dir=None, engine=None, progress=None):

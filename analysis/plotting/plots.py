@@ -349,9 +349,9 @@ def hunting_map(response, axes=None):
                     CLASS_COLOURS.get(kind, "w"))
         ax.imshow(rgba, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
         linear = response.linear
-        stable = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["stable"]])
-        if np.nanmin(stable) < 0.5 < np.nanmax(stable):
-            ax.contour(linear["x"], linear["y"], stable, levels=[0.5], colors="crimson", linewidths=1.6)
+        growth = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["growth"]])
+        if np.nanmin(growth) < 0.0 < np.nanmax(growth):
+            ax.contour(linear["x"], linear["y"], growth, levels=[0.0], colors="crimson", linewidths=1.6)
         for curve in response.curves:
             points = np.array(curve.points)
             ax.plot(points[:, 0], points[:, 1], CURVE_STYLES.get(curve.source, "-"), color="white", lw=2.6)
@@ -375,3 +375,39 @@ def hunting_map(response, axes=None):
         bar.set_label(f"hunts: first-harmonic amplitude of the output [{response.unit}]")
     axes[0].figure.suptitle(f"{response.plant} under G = {response.G}: where it hunts", fontsize=12)
     return axes
+
+
+def margin_plot(ax, response):
+    """The hunting cycle's amplitude against the gain factor k, truth and DF; returns the lines."""
+    lines = []
+    for margin, offset in ((response.truth, 0), (response.df, 1)):
+        if margin is None:
+            continue
+        colour = BRANCH_COLOURS.get(margin.source, "k")
+        name = "truth" if margin.source == "truth" else "DF"
+        ks = [k for k, _kind, a, _w in margin.scan if a]
+        amplitudes = [a for _k, _kind, a, _w in margin.scan if a]
+        line, = ax.plot(ks, amplitudes, "o-" if margin.source == "truth" else "s--", color=colour, ms=4,
+                        label=f"{name}: hunting amplitude")
+        lines.append(line)
+        for lo, hi in margin.intervals:
+            ax.axvspan(lo, hi, ymin=0.0 + 0.5 * offset, ymax=0.5 + 0.5 * offset, color=colour, alpha=0.12)
+        for i, b in enumerate(margin.boundaries):
+            ax.axvline(b.k, color=colour, ls=":", lw=1.0)
+            ax.annotate(f"{name}: {b.kind}\nk = {b.k:.4g}", (b.k, 0.04 + 0.5 * offset + 0.12 * (i % 2)),
+                        xycoords=("data", "axes fraction"), xytext=(4, 0), textcoords="offset points", fontsize=8,
+                        color=colour)
+    ax.axvline(1.0, color="k", lw=1.2)
+    ax.annotate("k = 1: G as given", (1.0, 0.5), xycoords=("data", "axes fraction"), xytext=(-4, 0),
+                textcoords="offset points", ha="right", rotation=90, va="center", fontsize=8)
+    ax.set_xscale("log")
+    if lines and any(len(line.get_xdata()) for line in lines):
+        ax.set_yscale("log")
+    ax.set_xlabel("gain factor k (the controller is k G)")
+    ax.set_ylabel(f"first-harmonic amplitude [{response.unit}]")
+    ax.set_title(f"{response.plant} under k ({response.G}): where it hunts\n(shaded: truth in the lower half, "
+                 "the DF in the upper)", fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    if lines:
+        ax.legend(fontsize=8)
+    return lines

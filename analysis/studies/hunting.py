@@ -155,14 +155,13 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     store = open_cache(cache)
     cells = {}
     wanted = [(a, b) for b in ys for a in xs]
-    with _folder(out_dir, definition, len(wanted), resume) as log:
-        if log is not None:
-            for row in log.read():
-                try:
-                    cell = json.loads(row["cell"])
-                    cells[(float(cell["x"]), float(cell["y"]))] = cell
-                except (KeyError, TypeError, ValueError):
-                    continue
+    with _folder(out_dir, definition, len(wanted), resume) as (log, rows):
+        for row in rows:
+            try:
+                cell = json.loads(row["cell"])
+                cells[(float(cell["x"]), float(cell["y"]))] = cell
+            except (KeyError, TypeError, ValueError):
+                continue
         resumed = len(cells)
         hits = 0
         for point in wanted:
@@ -214,6 +213,7 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
 class _folder:
     """The output folder of a map, locked while it runs: map.json (the definition) and the cells' log.
 
+
     A folder holding another map's log is refused unless ``resume`` is False (then the log starts over)."""
 
     def __init__(self, out_dir, definition, cells, resume):
@@ -221,8 +221,9 @@ class _folder:
         self._lock = self._log = None
 
     def __enter__(self):
+        """(the log to append to, the verified rows it held); (None, []) without a folder."""
         if self.out_dir is None:
-            return None
+            return None, []
         out = Path(self.out_dir)
         self._lock = folder_lock(out)
         self._lock.__enter__()
@@ -235,9 +236,10 @@ class _folder:
         if not self.resume:
             log.path.unlink(missing_ok=True)
         write_atomic(stored, text)
+        rows = log.read()  # before it is opened to append to
         self._log = log
         log.__enter__()
-        return log
+        return log, rows
 
     def __exit__(self, *exc):
         if self._log is not None:

@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DescribingFunctionResponse", "LimitCycleResponse", "ContinuationResponse", "HuntingMapResponse"]
+__all__ = ["DescribingFunctionResponse", "LimitCycleResponse", "ContinuationResponse", "HuntingMapResponse",
+           "MarginResponse"]
 
 
 @dataclass(eq=False)
@@ -452,7 +453,8 @@ class HuntingMapResponse:
         unstable cycles, ``diverges``, ``none``: no cycle in the range searched, ``incomplete``; ``cycles``;
         ``coverage``), ``df`` (``class``, ``predictions``) and ``linear`` (``stable``); or ``error``.
     linear : dict
-        The linear loop's stability on a fine grid: ``x``, ``y``, ``stable`` (rows).
+        The linear loop on a fine grid: ``x``, ``y``, ``growth`` (rows of the largest real part of its poles
+        [1/s]; negative: stable; its zero contour is the stability boundary).
     curves : list of dfwb.engine.hunting.Curve
         Bifurcations continued across the map (``kind``, ``source``, ``points``).
     counts : dict
@@ -542,3 +544,82 @@ class HuntingMapResponse:
         figure, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
         self.plot(axes)
         return save(figure, out_dir, "hunting_map")
+
+
+@dataclass(eq=False)
+class MarginResponse:
+    """The gain factors k for which k G makes the machine hunt, by the truth and by the DF.
+
+    Made by :func:`dfwb.limit_cycle_margin`.
+
+    Attributes
+    ----------
+    plant, G : str
+        The plant and the controller as given (k = 1).
+    values : dict
+        The parameters of G and of the plant.
+    k_range : list of float
+        The gain factors searched.
+    truth, df : dfwb.engine.margin.Margin
+        Each: ``intervals`` ([k_lo, k_hi] where k G hunts), ``boundaries`` (``k``, ``kind`` of what ends
+        or starts the hunting: a bifurcation's kind or "bisected", ``starts``, ``accuracy``), ``scan``
+        (k, class, amplitude, omega), ``hunts_at(k)`` and ``room()``: the factors by which the gain may fall
+        or grow from 1 before the verdict changes.
+    """
+
+    plant: str
+    G: str
+    values: dict
+    k_range: list
+    truth: Any
+    df: Any = None
+    unit: str = "m"
+
+    def as_dict(self) -> dict:
+        """JSON types: what ``dfwb margin --json`` prints."""
+        return {"plant": self.plant, "G": self.G, "values": self.values, "k_range": self.k_range,
+                "truth": self.truth.as_dict(), "df": None if self.df is None else self.df.as_dict()}
+
+    def summary(self) -> str:
+        """The answer to "how much more gain before it hunts?", truth and DF."""
+        lo, hi = self.k_range
+        lines = [f"{self.plant} under k G, G = {self.G}" + (f" ({_values(self.values)})" if self.values else "")
+                 + f", k from {lo:g} to {hi:g}:"]
+        for margin in (self.truth, self.df):
+            if margin is None:
+                continue
+            name = "truth" if margin.source == "truth" else "DF"
+            ranges = ", ".join(f"[{a:.6g}, {b:.6g}]" for a, b in margin.intervals) or "nowhere in the range"
+            down, up = margin.room()
+            if margin.hunts_at(1.0):
+                verdict = "hunts as it is (k = 1)"
+                change = [f"stops below k = {down:.6g}" if down else "", f"stops above k = {up:.6g}" if up else ""]
+            else:
+                verdict = "does not hunt as it is (k = 1)"
+                change = [f"hunts once the gain grows {up:.6g} times" if up else "",
+                          f"hunts once it falls to {down:.6g} times" if down else ""]
+            change = "; ".join(c for c in change if c) or "no change within the range"
+            lines.append(f"  {name}: {verdict}; {change}. Hunts for k in {ranges}")
+            for b in margin.boundaries:
+                lines.append(f"    at k = {b.k:.8g} (+-{b.accuracy:.1g}) hunting {'starts' if b.starts else 'stops'}: "
+                             f"{b.kind}" + (f" ({b.detail})" if b.detail else ""))
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.summary()
+
+    def plot(self, ax=None) -> list:
+        """Hunting amplitude against k (log-log), truth and DF; the hunting ranges shaded, k = 1 marked."""
+        from dfwb.plotting.plots import get_axes, margin_plot
+
+        return margin_plot(get_axes(ax, figsize=(7, 4.5)), self)
+
+    def figure(self, path):
+        """The plot written to ``path`` (PNG and SVG)."""
+        import matplotlib.pyplot as plt
+
+        from dfwb.plotting.plots import margin_plot, save
+
+        figure, ax = plt.subplots(figsize=(7.5, 4.8))
+        margin_plot(ax, self)
+        return save(figure, path.parent, path.stem)
