@@ -32,6 +32,7 @@ import math
 import warnings
 from pathlib import Path
 
+from dfwb.base.errors import RunError
 from dfwb.base.files import ensure_folder, file_digest, read_bytes, user_cache_dir, write_atomic
 
 FORMAT = 2
@@ -176,3 +177,18 @@ class NoCache:
 
     def put(self, key, value):
         pass
+
+
+def open_cache(cache):
+    """``cache``: True (the user's cache directory), a path, or False/None (off)."""
+    if not cache:
+        return NoCache()
+    if isinstance(cache, (Cache, NoCache)):
+        return cache
+    store = Cache() if cache is True else Cache(cache)
+    if store.root.exists() and not store.root.is_dir():
+        if cache is not True:  # the user named it: a mistake to say at once
+            raise RunError(f"--cache {store.root} is a file, not a folder")
+        warnings.warn(f"the cache {store.root} is a file, not a folder: results are not cached", CacheWarning)
+        return NoCache()
+    return store

@@ -26,7 +26,7 @@ from dfwb.base.errors import DfwbError, InputError
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
 from dfwb.engine.family import LoopFamily
-from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, solver_revision
+from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
 from dfwb.studies.continuation import check_parameter
 from dfwb.studies.executor import Executor, engine_for
 from dfwb.studies.responses import HuntingMapResponse
@@ -114,7 +114,6 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     """
     from dfwb.engine.hunting import MAP_AMPLITUDES, df_map_for, linear_map
     from dfwb.fmi.location import fmu_path
-    from dfwb.studies.runner import open_cache
 
     fixed = dict(values or {})
     names = [a[0] if isinstance(a, (tuple, list)) and a else None for a in (x, y)]

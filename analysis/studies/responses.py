@@ -373,12 +373,26 @@ class ContinuationResponse:
     notes: list = field(default_factory=list)
     unit: str = "m"
 
+    @classmethod
+    def from_dict(cls, data):
+        """The response :meth:`as_dict` wrote (a cached continuation; the section states are not kept)."""
+        from dfwb.engine.continuation import Bifurcation, Branch, Point
+
+        branches = [Branch(b["source"], [Point(**{k: v for k, v in p.items() if k != "events"},
+                                               signature=tuple(p["events"])) for p in b["points"]],
+                           [(e["parameter"], e["reason"]) for e in b["ends"]], b["returns"])
+                    for b in data["branches"]]
+        return cls(plant=data["plant"], G=data["G"], parameter=data["parameter"], range=data["range"],
+                   values=data["values"], branches=branches,
+                   bifurcations=[Bifurcation(**b) for b in data["bifurcations"]], searches=data["searches"],
+                   notes=data["notes"], unit=data.get("unit", "m"))
+
     def as_dict(self) -> dict:
         """JSON types: what ``dfwb continue --json`` prints."""
         return {"plant": self.plant, "G": self.G, "parameter": self.parameter, "range": self.range,
                 "values": self.values, "branches": [b.as_dict() for b in self.branches],
                 "bifurcations": [b.as_dict() for b in self.bifurcations], "searches": self.searches,
-                "notes": self.notes}
+                "notes": self.notes, "unit": self.unit}
 
     def summary(self) -> str:
         """The branches and bifurcations in a few lines."""
@@ -533,17 +547,22 @@ class HuntingMapResponse:
         as the map runs)."""
         import json
 
-        import matplotlib.pyplot as plt
-
         from dfwb.base.files import write_atomic
-        from dfwb.plotting.plots import save
         from dfwb.studies.cache import finite
 
         out_dir = Path(out_dir)
         write_atomic(out_dir / "cells.json", json.dumps(finite(self.as_dict()), indent=1).encode())
+        return self.figure(out_dir / "hunting_map.png")
+
+    def figure(self, path):
+        """The map written to ``path`` (PNG and SVG)."""
+        import matplotlib.pyplot as plt
+
+        from dfwb.plotting.plots import save
+
         figure, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
         self.plot(axes)
-        return save(figure, out_dir, "hunting_map")
+        return save(figure, Path(path).parent, Path(path).stem)
 
 
 @dataclass(eq=False)

@@ -25,7 +25,6 @@ import io
 import json
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,14 +35,13 @@ from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_
 from dfwb.fmi.location import fmu_path
 from dfwb.plants import plant as find_plant
 from dfwb.studies.cache import (
-    Cache,
-    CacheWarning,
-    NoCache,
     code_revision,
     digest,
     drawing_revision,
     finite,
     fmu_revision,
+    open_cache,
+    solver_revision,
 )
 from dfwb.studies.executor import Chunk, Executor, chunked
 from dfwb.studies.progress import Display
@@ -354,19 +352,73 @@ class SceneRun:
                 lap("traces")
                 cycles = self.limit_cycles(display)
                 lap("limit cycles")
+                studies = self.continuations(display)
+                lap("continuations")
+                studies.update(self.maps(display))
+                lap("maps")
             data, csv_rows = self.series_rows(table)
             self.outcome.points = len(self.values)
-            self.write_results(data, csv_rows, traces, cycles)
+            self.write_results(data, csv_rows, traces, cycles, studies)
             lap("results")
-            self.draw(data, traces, cycles, fingerprint)
+            self.draw(data, traces, dict(cycles, **studies), fingerprint)
             lap("figures")
             self.outcome.rejected = self.cache.rejected + self.log.rejected
             self.outcome.seconds = time.perf_counter() - started
-            self.write_summary(data, cycles)
+            self.write_summary(data, cycles, studies)
             self.write_manifest(fingerprint)
         return self.outcome
 
-    def write_results(self, data, csv_rows, traces, cycles):
+    # -- continuations and maps ----------------------------------------------------------------------
+    def continuations(self, display):
+        """{name: ContinuationResponse} of the scene's [[continuation]]s, cached whole."""
+        from dfwb.studies.continuation import follow
+        from dfwb.studies.responses import ContinuationResponse
+
+        results = {}
+        for c in self.scene.continuation:
+            spec = find_plant(c.plant)
+            fmu = fmu_path(spec, self.fmu_dir)
+            G = c.controller()
+            key = {"kind": "continuation", "code": self.code, "solvers": solver_revision(), "fmu": fmu_revision(fmu),
+                   "plant": c.plant, "G": G if isinstance(G, str) else [G.num[0][0].tolist(), G.den[0][0].tolist()],
+                   "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
+                   "sources": c.sources, "max_points": c.max_points}
+            value = self.cache.get(key)
+            task = display.add(f"{c.name}: continuation", 1, 0, 0)
+            if value is None:
+                response = follow(c.plant, G, c.parameter, c.start, c.stop, c.params, sources=tuple(c.sources),
+                                  max_points=c.max_points, fmu_dir=self.fmu_dir)
+                self.cache.put(key, finite(response.as_dict()))
+            else:
+                self.outcome.cache_hits += 1
+                response = ContinuationResponse.from_dict(value)
+            display.advance(task, 1)
+            results[c.name] = response
+        return results
+
+    def maps(self, display):
+        """{name: HuntingMapResponse} of the scene's [[map]]s, each in its folder ``map_<name>`` (resumed)."""
+        from dfwb.studies.hunting import run_map
+
+        results = {}
+        for m in self.scene.map:
+            tasks = {}
+
+            def progress(stage, done, total, name=m.name):
+                if stage not in tasks:
+                    tasks[stage] = [display.add(f"{name}: {stage}", total, done, 0), done]
+                display.advance(tasks[stage][0], done - tasks[stage][1])
+                tasks[stage][1] = done
+
+            folder = self.out / f"map_{m.name}"
+            results[m.name] = run_map(m.plant, m.controller(), *m.axes(), m.params, out_dir=folder,
+                                      jobs=self.executor.jobs, dask=self.executor.dask, cache=self.cache,
+                                      fmu_dir=self.fmu_dir, amplitudes=m.amplitudes, curves=m.curves,
+                                      progress=progress)
+            self.written += [path for path in folder.iterdir() if path.is_file()]
+        return results
+
+    def write_results(self, data, csv_rows, traces, cycles, studies=None):
         self.write("results.csv", self.log.text(csv_rows + self.map_rows))
         if traces:
             ensure_folder(self.out / "traces")
@@ -378,7 +430,11 @@ class SceneRun:
             self.write(f"traces/{name}.csv", buffer.getvalue())
         document = {"title": self.scene.title, "series": data,
                     "traces": {name: f"traces/{name}.csv" for name in traces},
-                    "limit_cycles": {name: finite(r.as_dict()) for name, r in cycles.items()}}
+                    "limit_cycles": {name: finite(r.as_dict()) for name, r in cycles.items()},
+                    "continuations": {name: finite(r.as_dict()) for name, r in (studies or {}).items()
+                                      if name in {c.name for c in self.scene.continuation}},
+                    "maps": {name: {"folder": f"map_{name}", "cells": "cells.json", "summary": r.summary()}
+                             for name, r in (studies or {}).items() if name in {m.name for m in self.scene.map}}}
         self.write("results.json", json.dumps(document))
 
     def draw(self, data, traces, cycles, fingerprint):
@@ -412,7 +468,7 @@ class SceneRun:
         """The PNG file names a figure writes (each with an SVG twin), known before drawing."""
         if figure.kind == "paper":
             return [f"{PAPER_FIGURES[figure.paper].file}.png"]
-        if figure.kind == "limit_cycle":
+        if figure.kind in ("limit_cycle", "continuation", "map"):
             return [f"{figure.name}_{name}.png" for name in figure.series]
         return [f"{figure.name}.png"]
 
@@ -430,14 +486,14 @@ class SceneRun:
                                    f"scene's points ({type(error).__name__}: {error}); it expects those of "
                                    f"scenes/{PAPER_FIGURES[figure.paper].file}.toml") from None
             return paper.sections
-        if figure.kind == "limit_cycle":
+        if figure.kind in ("limit_cycle", "continuation", "map"):
             for name, png in zip(figure.series, pngs):
                 cycles[name].figure(self.out / png)
             return []
         plots.scene_figure(self.out, figure, data, traces, self.scene)
         return []
 
-    def write_summary(self, data, cycles):
+    def write_summary(self, data, cycles, studies=None):
         o, scene = self.outcome, self.scene
         lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
         # every DF point is computed, resumed or a cache hit; cache_hits also counts traces and judge runs
@@ -470,6 +526,9 @@ class SceneRun:
                 lines.append(f"\nEvery {step}th of {len(rows)} points; all are in `results.csv`.")
         for name, r in cycles.items():
             lines += ["", f"## Limit cycles: {name}", "", r.markdown()]
+        for name, r in (studies or {}).items():
+            what = "Continuation" if name in {c.name for c in self.scene.continuation} else "Hunting map"
+            lines += ["", f"## {what}: {name}", "", "```", r.summary(), "```"]
         self.write("summary.md", "\n".join(lines) + "\n")
 
 
@@ -507,19 +566,6 @@ def _names_match(stored, pngs, files):
                 and all(png in pngs for _, png, _ in stored["sections"]))
     except (KeyError, TypeError, ValueError, AttributeError):
         return False
-
-
-def open_cache(cache):
-    """``cache``: True (the user's cache directory), a path, or False/None (off)."""
-    if not cache:
-        return NoCache()
-    store = Cache() if cache is True else Cache(cache)
-    if store.root.exists() and not store.root.is_dir():
-        if cache is not True:  # the user named it: a mistake to say at once
-            raise RunError(f"--cache {store.root} is a file, not a folder")
-        warnings.warn(f"the cache {store.root} is a file, not a folder: results are not cached", CacheWarning)
-        return NoCache()
-    return store
 
 
 def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=None, progress=True):

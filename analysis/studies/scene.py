@@ -2,7 +2,9 @@
 
 A scene says which plant and parameters, which excitation grid and which
 results: DF points (``[[series]]``), time traces (``[[trace]]``), limit
-cycles against a G(s) (``[[limit_cycle]]``) and figures (``[[figure]]``).
+cycles against a G(s) (``[[limit_cycle]]``), cycles followed in one
+parameter with their bifurcations (``[[continuation]]``), hunting maps over
+two parameters (``[[map]]``) and figures (``[[figure]]``).
 Everything is checked when the file is read (types, unknown keys, plant
 parameter ranges through the solvers' own checks, grids, G(s), references
 between sections), and a problem is one :class:`SceneError` naming the file,
@@ -89,11 +91,12 @@ NonNegative = Number(ge=0)
 Finite = Number()
 Name = Text(pattern=r"[A-Za-z_][A-Za-z0-9_-]*", max_length=64)
 Params = TableOf(Finite)
-FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "paper")
+FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "continuation", "map", "paper")
 MAX_BYTES = 1 << 20  # a scene file: a page of TOML, never a device or a data file read whole
 MAX_SAMPLES = 2_000_000
 MAX_MESSAGE = 300  # characters of a SceneError: the file, the key, the problem and what is allowed
 MAX_TRACE_PERIODS = 100_000  # the horizon the stress suite covers; a trace is for looking at, not for soaking
+MAX_STUDIES = 100  # continuations and maps in one scene: each takes seconds to minutes
 SECTION = dataclass(frozen=True, kw_only=True)  # a scene's table: fields by name, read by dfwb.base.schema.record
 
 
@@ -225,6 +228,27 @@ class Trace:
                                  f"(allowed: {', '.join(known)})")
 
 
+def _controller(section):
+    """G as a section gives it: the expression (with parameters), or a TransferFunction of num and den."""
+    from dfwb.engine.transfer import from_coefficients
+
+    if (section.G is None) == (section.num is None and section.den is None):
+        raise InputError("give the controller either as G = \"...\" or as num = [...] and den = [...]")
+    if section.G is not None:
+        return section.G
+    return from_coefficients(section.num or [], section.den or [], names=("num", "den"))
+
+
+def _family(section, free=()):
+    """The :class:`~dfwb.engine.family.LoopFamily` of a section's plant, G and params (checked)."""
+    from dfwb.engine.family import LoopFamily
+
+    try:
+        return LoopFamily(section.plant, _controller(section), section.params, free=free)
+    except PlantError as error:
+        raise InputError(str(error)) from None
+
+
 @SECTION
 class LimitCycle:
     """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation
@@ -256,22 +280,90 @@ class LimitCycle:
 
     def controller(self):
         """G as given: the expression (with parameters), or a TransferFunction of num and den."""
-        from dfwb.engine.transfer import from_coefficients
-
-        if (self.G is None) == (self.num is None and self.den is None):
-            raise InputError("give the controller either as G = \"...\" or as num = [...] and den = [...]")
-        if self.G is not None:
-            return self.G
-        return from_coefficients(self.num or [], self.den or [], names=("num", "den"))
+        return _controller(self)
 
     def family(self):
         """The :class:`~dfwb.engine.family.LoopFamily` of the plant, G and params (checked)."""
-        from dfwb.engine.family import LoopFamily
+        return _family(self)
 
-        try:
-            return LoopFamily(self.plant, self.controller(), self.params)
-        except PlantError as error:
-            raise InputError(str(error)) from None
+
+@SECTION
+class Continuation:
+    """Limit cycles (true and predicted) followed in one parameter of G or of the plant, with bifurcations."""
+
+    name: str = rule(Name)
+    plant: str = rule(PlantName)
+    params: dict = rule(Params, {})  # the other parameters of the plant and of G
+    G: Optional[str] = rule(Text(), None)
+    num: Optional[list] = rule(ListOf(Finite), None)
+    den: Optional[list] = rule(ListOf(Finite), None)
+    parameter: str = rule(Text(max_length=64))
+    start: float = rule(Finite)
+    stop: float = rule(Finite)
+    sources: list = rule(ListOf(OneOf("truth", "df"), min_length=1, max_length=2), ["truth", "df"])
+    max_points: int = rule(Integer(ge=2, le=10_000), 200)
+
+    def __post_init__(self):
+        from dfwb.studies.continuation import check_parameter
+
+        if find_plant(self.plant).loop is None:
+            raise InputError(f"plant {self.plant!r} has no exact closed loop to follow cycles of")
+        if self.parameter in self.params:
+            raise InputError(f"{self.parameter} is the parameter followed: give its range, not a value in params")
+        check_parameter(_family(self, free=(self.parameter,)), self.parameter, self.start, self.stop)
+
+    def controller(self):
+        return _controller(self)
+
+
+@SECTION
+class Axis:
+    """A map's axis: a parameter of G or of the plant from ``start`` to ``stop`` in ``n`` cells."""
+
+    name: str = rule(Text(max_length=64))
+    start: float = rule(Finite)
+    stop: float = rule(Finite)
+    n: int = rule(Integer(ge=2, le=1000))
+
+
+@SECTION
+class Map:
+    """A hunting map: every cell of two parameters classified by the truth and by the DF."""
+
+    name: str = rule(Name)
+    plant: str = rule(PlantName)
+    params: dict = rule(Params, {})
+    G: Optional[str] = rule(Text(), None)
+    num: Optional[list] = rule(ListOf(Finite), None)
+    den: Optional[list] = rule(ListOf(Finite), None)
+    x: Axis = rule(Table(Axis))
+    y: Axis = rule(Table(Axis))
+    amplitudes: int = rule(Integer(ge=1, le=100), 5)
+    curves: bool = rule(Boolean(), True)
+
+    def __post_init__(self):
+        from dfwb.studies.continuation import check_parameter
+        from dfwb.studies.hunting import MAX_CELLS
+
+        if find_plant(self.plant).loop is None:
+            raise InputError(f"plant {self.plant!r} has no exact closed loop to classify")
+        if self.x.name == self.y.name:
+            raise InputError(f"x and y are both {self.x.name}: a map needs two different parameters")
+        for axis in (self.x, self.y):
+            if axis.name in self.params:
+                raise InputError(f"{axis.name} is an axis of the map: give its range, not a value in params")
+        family = _family(self, free=(self.x.name, self.y.name))
+        for axis in (self.x, self.y):
+            check_parameter(family, axis.name, axis.start, axis.stop)
+        if self.x.n * self.y.n > MAX_CELLS:
+            raise InputError(f"a map of {self.x.n} x {self.y.n} = {self.x.n * self.y.n} cells: at most {MAX_CELLS}")
+
+    def controller(self):
+        return _controller(self)
+
+    def axes(self):
+        """(x, y) as (name, start, stop, n)."""
+        return tuple((a.name, a.start, a.stop, a.n) for a in (self.x, self.y))
 
 
 @SECTION
@@ -310,7 +402,8 @@ class Point:
 
 @SECTION
 class Scene:
-    """A study: see the module docstring; ``[[series]]``, ``[[trace]]``, ``[[limit_cycle]]``, ``[[figure]]``."""
+    """A study: see the module docstring; ``[[series]]``, ``[[trace]]``, ``[[limit_cycle]]``, ``[[continuation]]``,
+    ``[[map]]``, ``[[figure]]``."""
 
     title: str = rule(Checked(Text(), _has_title))
     description: str = rule(Text(), "")
@@ -319,17 +412,28 @@ class Scene:
     series: list = rule(ListOf(Table(Series)), [])
     trace: list = rule(ListOf(Table(Trace)), [])
     limit_cycle: list = rule(ListOf(Table(LimitCycle)), [])
+    continuation: list = rule(ListOf(Table(Continuation)), [])
+    map: list = rule(ListOf(Table(Map)), [])
     figure: list = rule(ListOf(Table(Figure)), [])
 
     def __post_init__(self):
-        if not (self.series or self.trace or self.limit_cycle):
-            raise InputError("the scene asks for nothing: give at least one [[series]], [[trace]] or [[limit_cycle]]")
+        if not (self.series or self.trace or self.limit_cycle or self.continuation or self.map):
+            raise InputError("the scene asks for nothing: give at least one [[series]], [[trace]], [[limit_cycle]], "
+                             "[[continuation]] or [[map]]")
         seen = set()
-        for group in (self.series, self.trace, self.limit_cycle, self.figure):
+        for group in (self.series, self.trace, self.limit_cycle, self.continuation, self.map, self.figure):
             for item in group:
                 if item.name in seen:
                     raise InputError(f"the name {item.name!r} is used twice: names must be unique in a scene")
                 seen.add(item.name)
+        from dfwb.studies.hunting import MAX_CELLS
+
+        if len(self.continuation) + len(self.map) > MAX_STUDIES:
+            raise InputError(f"{len(self.continuation) + len(self.map)} continuations and maps: at most {MAX_STUDIES} "
+                             "in one scene (split it)")
+        cells = sum(m.x.n * m.y.n for m in self.map)
+        if cells > MAX_CELLS:
+            raise InputError(f"{cells} map cells in all: at most {MAX_CELLS} in one scene (split it)")
         size = sum(s.size() for s in self.series) + sum(lc.n_F * lc.n_omega for lc in self.limit_cycle)
         if size > MAX_POINTS:
             raise InputError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
@@ -362,7 +466,8 @@ class Computed:
         self.series = {s.name: s.plant for s in scene.series}
         self.traces = {t.name: (t.plant, t.outputs) for t in scene.trace}
         self.pools = {"nyquist": set(self.series), "re_im": set(self.series), "harmonics": set(self.series),
-                      "trace": set(self.traces), "limit_cycle": {lc.name for lc in scene.limit_cycle}}
+                      "trace": set(self.traces), "limit_cycle": {lc.name for lc in scene.limit_cycle},
+                      "continuation": {c.name for c in scene.continuation}, "map": {m.name for m in scene.map}}
 
 
 def _check_figure(computed, i, figure):
@@ -389,7 +494,8 @@ def _check_figure(computed, i, figure):
         raise InputError(f"{where}: series is empty (allowed: {', '.join(sorted(pool)) or 'none in this scene'})")
     for name in figure.series:
         if name not in pool:
-            what = {"trace": "[[trace]]", "limit_cycle": "[[limit_cycle]]"}.get(figure.kind, "[[series]]")
+            what = {"trace": "[[trace]]", "limit_cycle": "[[limit_cycle]]", "continuation": "[[continuation]]",
+                    "map": "[[map]]"}.get(figure.kind, "[[series]]")
             raise InputError(f"{where}: {shown(name)} is not a {what} of this scene "
                              f"(allowed: {', '.join(sorted(pool)) or 'none'})")
 
