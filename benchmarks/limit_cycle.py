@@ -3,26 +3,32 @@
 For each case (a plant in feedback with G(s), and a start): ``LoopProblem.shoot``
 is timed over ``--repeats`` runs, interleaved across the cases, medians
 reported. The target: one cycle in well under a second. Each run is
-instrumented by wrapping methods on its own ``LoopProblem`` instance (the
-library is not touched):
+instrumented by wrapping methods on its own ``LoopProblem`` instance, and,
+for the time of the run, the module function ``dfwb.engine.periodic.jacobian``
+(the library's files are not touched):
 
-* ``first_return`` (one exact period of the loop, fmus/loops.py on
-  fmus/hybrid.py): calls counted and timed, so the table gives the number of
-  exact periods integrated and the mean cost of one;
-* the phases of ``shoot``: *setup* (the section level, the first returns, the
-  Newton scales: everything up to the end of ``_swing``), *Newton* (from
-  there to ``_finish``: the forward-difference Jacobians and the damped line
-  search), *multipliers* (the central-difference Jacobian in ``_finish``) and
-  *trace* (``period_trace``: the harmonics over one period).
+* ``first_return`` (the ``returns``-th hit of the event section: one exact
+  period of the loop, in C on the compiled core, or in Python with
+  ``DFWB_FMU=python``): calls counted and timed, so the table gives the number
+  of exact periods integrated and the mean cost of one;
+* the phases of ``shoot`` = ``converge`` (Newton) + ``finish``: *setup* (the
+  loop's scales and horizon, the first returns, the Newton scales: everything
+  up to the end of the first ``_swing``), *Newton* (from there to the end of
+  ``converge``: the forward-difference Jacobians and the damped line search),
+  *multipliers* (``monodromy`` in ``finish``: a first return, the scales and
+  the central-difference Jacobian) and *trace* (``period_trace``: the
+  harmonics over one period); what ``finish`` does besides (the eigenvalues,
+  the section states, the swing) is reported apart.
 
 The time per Newton iteration is the Newton phase over the iterations (the
 initial residual included, so a case that converges in 0 iterations has
 none). Then, once per distinct loop: the DF prediction (``search`` on the
-scene's ranges) and ``find_cycles`` from those predictions, timed. With
-``--profile`` each case's ``shoot`` is also run once under cProfile and the
-shares of the main functions are reported.
+scene's ranges) and ``dfwb.engine.cycles.find_cycles`` from those
+predictions, timed, with its coverage line (``CycleSearch.coverage.summary()``).
+With ``--profile`` each case's ``shoot`` is also run once under cProfile and
+the shares of the main functions are reported.
 
-Usage: ``.venv/bin/python benchmarks/limit_cycle.py [--repeats 3] [--quick] [--profile] [--no-find-cycles]
+Usage: ``.venv/bin/python benchmarks/limit_cycle.py [--repeats 7] [--quick] [--profile] [--no-find-cycles]
 [--out out/bench_limit_cycle]``. Writes ``limit_cycle.md`` and ``limit_cycle.json`` into ``--out``.
 """
 
@@ -37,8 +43,10 @@ import statistics
 import time
 from pathlib import Path
 
+from dfwb.engine import periodic
+from dfwb.engine.cycles import find_cycles
 from dfwb.engine.limit_cycles import search
-from dfwb.engine.periodic import LoopProblem, find_cycles
+from dfwb.engine.periodic import LoopProblem
 from dfwb.engine.transfer import parse_transfer_function
 
 PID = "20 + 100/s + 2*s/(0.1*s+1)"
@@ -68,12 +76,13 @@ class Probe:
     def __init__(self, problem):
         self.problem = problem
         self.phase = "setup"
-        self.periods = dict.fromkeys(PHASES, 0)
+        self.periods = dict.fromkeys(PHASES, 0)  # first_return calls per phase
         self.period_seconds = 0.0
-        self.marks = {}  # end of _swing, start of _finish, start and end of period_trace
+        self.marks = {}  # end of the first _swing (Newton begins), end of converge
+        self.seconds = {"multipliers": 0.0, "trace": 0.0}
         self.jacobian_seconds = {"newton": 0.0, "multipliers": 0.0}
-        first_return, swing, finish = problem.first_return, problem._swing, problem._finish
-        jacobian, trace = problem._jacobian, problem.period_trace
+        first_return, swing, converge = problem.first_return, problem._swing, problem.converge
+        monodromy, trace = problem.monodromy, problem.period_trace
 
         def counted_first_return(*args, **kwargs):
             started = time.perf_counter()
@@ -81,63 +90,85 @@ class Probe:
                 return first_return(*args, **kwargs)
             finally:
                 self.period_seconds += time.perf_counter() - started
-                self.periods[self.phase] += 1
+                self.periods[self.phase] = self.periods.get(self.phase, 0) + 1
 
         def marked_swing(*args, **kwargs):
             value = swing(*args, **kwargs)
-            self.marks["newton"] = time.perf_counter()
-            self.phase = "newton"
+            if self.phase == "setup":  # the Newton scales: setup ends, Newton begins
+                self.marks["newton"] = time.perf_counter()
+                self.phase = "newton"
             return value
 
-        def marked_finish(*args, **kwargs):
-            self.marks["finish"] = time.perf_counter()
-            self.phase = "multipliers"
-            return finish(*args, **kwargs)
+        def marked_converge(*args, **kwargs):
+            try:
+                return converge(*args, **kwargs)
+            finally:
+                self.marks["converged"] = time.perf_counter()
+                self.phase = "finish"
 
-        def timed_jacobian(*args, **kwargs):
+        def timed_monodromy(*args, **kwargs):
+            self.phase = "multipliers"
+            started = time.perf_counter()
+            try:
+                return monodromy(*args, **kwargs)
+            finally:
+                self.seconds["multipliers"] += time.perf_counter() - started
+                self.phase = "finish"
+
+        def timed_trace(*args, **kwargs):
+            self.phase = "trace"
+            started = time.perf_counter()
+            try:
+                return trace(*args, **kwargs)
+            finally:
+                self.seconds["trace"] += time.perf_counter() - started
+                self.phase = "finish"
+
+        problem.first_return = counted_first_return
+        problem._swing = marked_swing
+        problem.converge = marked_converge
+        problem.monodromy = timed_monodromy
+        problem.period_trace = timed_trace
+
+    def _timed_jacobian(self, jacobian):
+        def timed(*args, **kwargs):
             started = time.perf_counter()
             try:
                 return jacobian(*args, **kwargs)
             finally:
                 if self.phase in self.jacobian_seconds:
                     self.jacobian_seconds[self.phase] += time.perf_counter() - started
+        return timed
 
-        def marked_trace(*args, **kwargs):
-            self.phase = "trace"
-            started = time.perf_counter()
-            try:
-                return trace(*args, **kwargs)
-            finally:
-                self.marks["trace"] = time.perf_counter() - started
-
-        problem.first_return = counted_first_return
-        problem._swing = marked_swing
-        problem._finish = marked_finish
-        problem._jacobian = timed_jacobian
-        problem.period_trace = marked_trace
-
-    def shoot(self, start):
-        X, level, period = start
-        started, cpu = time.perf_counter(), time.process_time()
-        cycle = self.problem.shoot(X, level, period)
-        ended, cpu = time.perf_counter(), time.process_time() - cpu
+    def shoot(self, X):
+        jacobian = periodic.jacobian  # a module function (converge and monodromy call it): wrapped for this run
+        periodic.jacobian = self._timed_jacobian(jacobian)
+        try:
+            started, cpu = time.perf_counter(), time.process_time()
+            cycle = self.problem.shoot(X)
+            ended, cpu = time.perf_counter(), time.process_time() - cpu
+        finally:
+            periodic.jacobian = jacobian
         phases = {}
-        if "newton" in self.marks and "finish" in self.marks:
-            phases = {"setup": self.marks["newton"] - started, "newton": self.marks["finish"] - self.marks["newton"],
-                      "multipliers": self.jacobian_seconds["multipliers"], "trace": self.marks.get("trace", 0.0),
+        if "newton" in self.marks and "converged" in self.marks:
+            phases = {"setup": self.marks["newton"] - started, "newton": self.marks["converged"] - self.marks["newton"],
+                      "multipliers": self.seconds["multipliers"], "trace": self.seconds["trace"],
                       "newton jacobians": self.jacobian_seconds["newton"]}
-            phases["finish, other"] = ended - self.marks["finish"] - phases["multipliers"] - phases["trace"]
+            phases["finish, other"] = ended - self.marks["converged"] - phases["multipliers"] - phases["trace"]
         return {"seconds": ended - started, "cpu_seconds": cpu, "cycle": cycle, "phases": phases,
-                "periods": dict(self.periods), "period_seconds": self.period_seconds}
+                "periods": {phase: self.periods.get(phase, 0) for phase in PHASES},
+                "period_seconds": self.period_seconds}
 
 
 def make_start(problem, start, predictions):
-    """(X, level, period) for LoopProblem.shoot."""
+    """The loop state LoopProblem.shoot starts from (its first hit of the section is the first Newton iterate)."""
     kind, value = start
     if kind == "rest":
-        return problem.rest_start(value), None, None
-    X, period, level = problem.df_start(predictions[value])
-    return X, level, period
+        return problem.rest_start(value)
+    found = problem.df_start(predictions[value])  # (state, period) or None
+    if found is None:
+        raise SystemExit(f"df_start found no start on DF prediction {value} ({predictions[value]})")
+    return found[0]
 
 
 def cycle_summary(cycle):
@@ -145,33 +176,39 @@ def cycle_summary(cycle):
         return None
     return {"omega": float(cycle.omega), "period": float(cycle.period), "amplitude_x": cycle.amplitude_x,
             "F": cycle.F, "stable": cycle.stable, "multipliers": cycle.multipliers, "residual": cycle.residual,
-            "iterations": cycle.iterations, "counts": cycle.counts}
+            "iterations": cycle.iterations, "returns": cycle.returns, "counts": cycle.counts}
 
 
-def profile_shoot(plant, G, params, start, top=8):
+def profile_shoot(plant, G, params, X, top=8):
     """cProfile of one shoot: the top functions by own time and the shares of the main ones (cumulative)."""
     from dfwb.fmus import hybrid
 
     problem = LoopProblem(plant, G, params)
-    X, level, period = start
     profiler = cProfile.Profile()
     profiler.enable()
-    problem.shoot(X, level, period)
+    problem.shoot(X)
     profiler.disable()
     stats = pstats.Stats(profiler).stats  # (file, line, name) -> (cc, nc, tottime, cumtime, callers)
-    total = max(value[3] for key, value in stats.items() if key[2] == "shoot")
+    shoot = LoopProblem.shoot.__code__
+    total = stats[(shoot.co_filename, shoot.co_firstlineno, shoot.co_name)][3]
 
     def where(function):
-        code = function.__code__
-        return code.co_filename, code.co_firstlineno, code.co_name
+        code = getattr(function, "__code__", None)
+        return None if code is None else (code.co_filename, code.co_firstlineno, code.co_name)
 
-    watched = {"Mode.__init__ (a mode's Taylor data)": hybrid.Mode.__init__,
-               "Mode.coefficients (event polynomials)": hybrid.Mode.coefficients,
-               "Mode.state (dense output)": hybrid.Mode.state,
-               "HybridSolver._search (event search)": hybrid.HybridSolver._search,
-               "LoopProblem.level (256 samples)": LoopProblem.level,
-               "LoopProblem._swing (64 samples)": LoopProblem._swing,
-               "LoopProblem.period_trace": LoopProblem.period_trace}
+    loop = problem.cls  # the compiled core's loop (ctypes calls into C) or the Python one (dfwb.fmus.loops)
+    watched = {"loop.advance (integration, events)": loop.advance,
+               "loop.sample (dense output)": loop.sample,
+               "first_return": LoopProblem.first_return,
+               "converge (Newton)": LoopProblem.converge,
+               "jacobian (differences)": periodic.jacobian,
+               "monodromy (multipliers)": LoopProblem.monodromy,
+               "_swing (64 samples)": LoopProblem._swing,
+               "period_trace": LoopProblem.period_trace}
+    if issubclass(loop, hybrid.HybridSolver):  # the Python loop: its Taylor modes and event search
+        watched.update({"Mode.__init__ (a mode's Taylor data)": hybrid.Mode.__init__,
+                        "Mode.coefficients (event polynomials)": hybrid.Mode.coefficients,
+                        "HybridSolver._search (event search)": hybrid.HybridSolver._search})
     shares = {}
     for label, function in watched.items():
         value = stats.get(where(function))
@@ -179,12 +216,12 @@ def profile_shoot(plant, G, params, start, top=8):
     own = sorted(stats.items(), key=lambda item: -item[1][2])[:top]
     tops = [{"function": key[2] if key[0] == "~" else f"{Path(key[0]).name}:{key[1]}({key[2]})", "calls": value[1],
              "share": value[2] / total} for key, value in own]
-    return {"seconds": total, "cumulative": shares, "own_time": tops}
+    return {"seconds": total, "loop": f"{loop.__module__}.{loop.__name__}", "cumulative": shares, "own_time": tops}
 
 
 def main():
     options = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    options.add_argument("--repeats", type=int, default=3)
+    options.add_argument("--repeats", type=int, default=7)
     options.add_argument("--quick", action="store_true", help=f"one repeat, two cases ({', '.join(QUICK)})")
     options.add_argument("--profile", action="store_true", help="one cProfile run of each case's shoot")
     options.add_argument("--no-find-cycles", action="store_true", help="skip the DF search and find_cycles timing")
@@ -222,7 +259,7 @@ def main():
             run = Probe(LoopProblem(plant, G, params)).shoot(starts[name])
             runs[name].append(run)
             cycle = run["cycle"]
-            print(f"[{repeat + 1}/{repeats}] {name}: {run['seconds']:.3f} s, "
+            print(f"[{repeat + 1}/{repeats}] {name}: {1e3 * run['seconds']:.3g} ms, "
                   f"{sum(run['periods'].values())} periods, "
                   + (f"{cycle.iterations} Newton iterations" if cycle else "no cycle"), flush=True)
 
@@ -253,23 +290,25 @@ def main():
     if args.profile:
         for result, (name, plant, G, params, _start, _ranges) in zip(results, cases):
             result["profile"] = profile_shoot(plant, G, params, starts[name])
-            print(f"profiled {name}: {result['profile']['seconds']:.2f} s under cProfile", flush=True)
+            print(f"profiled {name}: {1e3 * result['profile']['seconds']:.3g} ms under cProfile", flush=True)
 
     discovery = []
     if not args.no_find_cycles:
         for (plant, G, params_key), loop in loops.items():
             problem = LoopProblem(plant, G, json.loads(params_key))
             started = time.perf_counter()
-            cycles, links = find_cycles(problem, loop["predictions"])
+            found = find_cycles(problem, loop["predictions"])
             seconds = time.perf_counter() - started
+            coverage = found.coverage.summary(problem.spec.unit)
             discovery.append({
                 "plant": plant, "G": G, "params": json.loads(params_key), "search_seconds": loop["search_seconds"],
                 "find_cycles_seconds": seconds,
                 "predictions": [{"omega": p.omega, "amplitude_x": p.amplitude_x, "stable": p.stable}
                                 for p in loop["predictions"]],
-                "cycles": [dict(cycle_summary(c), started_from=c.started_from) for c in cycles], "links": links})
+                "cycles": [dict(cycle_summary(c), started_from=c.started_from) for c in found.cycles],
+                "links": found.links, "coverage": found.coverage.as_dict(), "coverage_summary": coverage})
             print(f"find_cycles, {plant} under {G} {json.loads(params_key) or ''}: {seconds:.2f} s, "
-                  f"{len(cycles)} true cycle(s)", flush=True)
+                  f"{len(found.cycles)} true cycle(s); {coverage}", flush=True)
 
     machine = {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
                "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None}
@@ -286,50 +325,55 @@ def markdown(results, discovery, repeats, machine):
     lines = [f"# One true limit cycle of the exact loop: the cost of `LoopProblem.shoot` (medians of {repeats})", "",
              "Wall time of `shoot` from the start shown (the start itself not included), and the process's CPU time "
              "(on shared cores the wall time can be twice the CPU time), repeats interleaved across the cases. "
-             "*Periods*: calls of `first_return` (one exact period of the loop each), as setup + Newton + "
-             "multipliers. *Per period*: the mean wall time of one `first_return`. *Per Newton iteration*: the "
-             "Newton phase (forward-difference Jacobian and damped line search, the initial residual included) "
-             "over the iterations. Split: setup (level, first returns, scales) / Newton / multipliers (central "
-             "differences) / `period_trace`.", "",
-             "| case | start | shoot [s] | CPU [s] | Newton its | periods | per Newton it [ms] | per period [ms] | "
-             "split setup / Newton / mult. / trace [s] | omega [rad/s] | X | stable | residual |",
+             "*Periods*: calls of `first_return` (one exact period of the loop each: the section's hits, "
+             "`returns` of them), as setup + Newton + multipliers. *Per period*: the mean wall time of one "
+             "`first_return`. *Per Newton iteration*: the Newton phase of `converge` (forward-difference Jacobian "
+             "and damped line search, the initial residual included) over the iterations. Split: setup (the "
+             "loop's scales and horizon, the first returns, the Newton scales) / Newton (`converge` after the "
+             "scales) / multipliers (`monodromy` in `finish`: central differences) / `period_trace` / the rest of "
+             "`finish` (eigenvalues, section states, swing).", "",
+             "| case | start | shoot [ms] | CPU [ms] | Newton its | periods | per Newton it [ms] | per period [ms] | "
+             "split setup / Newton / mult. / trace / other [ms] | omega [rad/s] | X | stable | residual |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         c, p, ph = r["cycle"], r["periods"], r["phases"]
-        per_it = f"{1e3 * r['seconds_per_newton_iteration']:.0f}" if r["seconds_per_newton_iteration"] else "-"
-        per_period = f"{1e3 * r['median_seconds_per_period']:.1f}" if r["median_seconds_per_period"] else "-"
-        split = (" / ".join(f"{ph[k]:.2f}" for k in PHASES) if ph else "-")
+        per_it = f"{1e3 * r['seconds_per_newton_iteration']:.3g}" if r["seconds_per_newton_iteration"] else "-"
+        per_period = f"{1e3 * r['median_seconds_per_period']:.3g}" if r["median_seconds_per_period"] else "-"
+        split = (" / ".join(f"{1e3 * ph[k]:.3g}" for k in PHASES + ("finish, other",)) if ph else "-")
         counted = f"{r['total_periods']} ({p['setup']} + {p['newton']} + {p['multipliers']})"
         if c is None:
             found = "no cycle | " + " | ".join(["-"] * 8)
         else:
             found = (f"{c['iterations']} | {counted} | {per_it} | {per_period} | {split} | {c['omega']:.6f} | "
                      f"{c['amplitude_x']:.6g} | {'yes' if c['stable'] else 'no'} | {c['residual']:.1e}")
-        lines.append(f"| {r['case']} | {r['start']} | {r['median_seconds']:.3f} | {r['median_cpu_seconds']:.3f} | "
-                     f"{found} |")
+        lines.append(f"| {r['case']} | {r['start']} | {1e3 * r['median_seconds']:.3g} | "
+                     f"{1e3 * r['median_cpu_seconds']:.3g} | {found} |")
     worst = max(results, key=lambda r: r["median_seconds"])
     under = sum(r["median_seconds"] < 1.0 for r in results)
     under_cpu = sum(r["median_cpu_seconds"] < 1.0 for r in results)
     lines += ["", f"{under} of {len(results)} cases under 1 s of wall time ({under_cpu} in CPU time); the slowest, "
-              f"{worst['case']}, {worst['median_seconds']:.2f} s ({worst['median_cpu_seconds']:.2f} s CPU). "
+              f"{worst['case']}, {worst['median_seconds']:.3g} s ({worst['median_cpu_seconds']:.3g} s CPU). "
               "`first_return` takes "
               f"{min(r['median_period_share'] for r in results):.0%} to "
-              f"{max(r['median_period_share'] for r in results):.0%} of `shoot`; the rest is the section level and "
-              "the scales (sampled integrations), and `period_trace`."]
+              f"{max(r['median_period_share'] for r in results):.0%} of `shoot`; the rest is the loop's scales, the "
+              "Newton scales (`_swing`: sampled integrations), `period_trace` and the linear algebra."]
     df = [r for r in results if r["start"].startswith("df_start")]
     for r in df:
         lines.append(f"The DF start of {r['case']} (`df_start`: the plant's open-loop orbit, 60 periods) took "
                      f"{r['start_seconds']:.2f} s more, not counted above.")
     profiled = [r for r in results if "profile" in r]
     if profiled:
-        labels = list(profiled[0]["profile"]["cumulative"])
+        labels = list(dict.fromkeys(k for r in profiled for k in r["profile"]["cumulative"]))
         lines += ["", "## Where the time goes (one cProfile run of `shoot` each; cumulative shares)", "",
-                  "| case | under cProfile [s] | " + " | ".join(labels) + " |",
+                  "*loop*: each case's exact loop class, "
+                  + ", ".join(sorted({f"`{r['profile']['loop']}`" for r in profiled})) + ".", "",
+                  "| case | under cProfile [ms] | " + " | ".join(labels) + " |",
                   "|---|---|" + "---|" * len(labels)]
         for r in profiled:
             cumulative = r["profile"]["cumulative"]
-            lines.append(f"| {r['case']} | {r['profile']['seconds']:.2f} | "
-                         + " | ".join(f"{cumulative[k]['share']:.0%} ({cumulative[k]['calls']})" for k in labels)
+            lines.append(f"| {r['case']} | {1e3 * r['profile']['seconds']:.3g} | "
+                         + " | ".join(f"{cumulative[k]['share']:.0%} ({cumulative[k]['calls']})" if k in cumulative
+                                      else "-" for k in labels)
                          + " |")
         lines += ["", "Own time, top functions:", ""]
         for r in profiled:
@@ -338,8 +382,10 @@ def markdown(results, discovery, repeats, machine):
     if discovery:
         lines += ["", "## The whole discovery, once per loop", "",
                   "`search` (the DF map and harmonic balance on the scene's ranges, default 16 x 48 map), then "
-                  "`find_cycles` from its predictions (each shot directly and simulated until it settles; simulations "
-                  "from rest at two amplitudes), timed once.", "",
+                  "`dfwb.engine.cycles.find_cycles` from its predictions (each shot directly and run; runs from "
+                  "starts at the loop's default output amplitudes displacing the output, the velocity and each "
+                  "controller state both ways, each until it settles; basin boundaries bisected), timed once. "
+                  "Below the table, each search's coverage (`CycleSearch.coverage.summary()`).", "",
                   "| loop | DF search [s] | predictions (omega, X, stable) | find_cycles [s] | true cycles "
                   "(omega, X, stable, from) |", "|---|---|---|---|---|"]
         for d in discovery:
@@ -350,6 +396,10 @@ def markdown(results, discovery, repeats, machine):
                                f"{len(c['started_from'])} start(s)" for c in d["cycles"]) or "none"
             lines.append(f"| {loop} | {d['search_seconds']:.2f} | {predictions} | {d['find_cycles_seconds']:.2f} | "
                          f"{cycles} |")
+        lines.append("")
+        for d in discovery:
+            lines.append(f"- {d['plant']}, G = {d['G']}" + (f", {d['params']}" if d["params"] else "")
+                         + f": {d['coverage_summary']}")
     load = machine["load_average"]
     lines += ["", f"Machine: {machine['cpus']} shared, noisy cores ({machine['platform']}, Python {machine['python']}"
               + (f", load average {load[0]:.2f} at the end" if load else "") + "); single-process timings."]

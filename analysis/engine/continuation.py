@@ -29,7 +29,9 @@ parameter's range:
   circle through +1 where the parameter turns back (``fold``), through -1
   (``period-doubling``), a complex pair leaving it (``torus``);
 * a branch whose amplitude grows without bound ends at ``infinity``: where
-  the linear loop (the nonlinearity removed) loses its stability.
+  the linear loop (the nonlinearity removed) loses its stability; one whose
+  amplitude falls to zero ends where the cycle ``shrinks-to-rest`` (as the
+  hunting cycle does when the static friction falls to the Coulomb level).
 
 A DF branch has ``fold`` points, where -1/N touches G(jw) (the parameter
 turns back, Loeb's stability verdict changes).
@@ -53,7 +55,7 @@ FD = 1e-7  # finite-difference step, scaled
 DS = (1e-6, 0.02, 0.15)  # the step: smallest, first, largest (scaled arclength)
 MAX_LOCATE = 400  # steps of a bifurcation's location, at most
 LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (scaled: relative to the range)
-AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows this many times its start's goes to infinity
+AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows (falls) this many times its start's goes to infinity (rest)
 MAX_POINTS = 200  # per branch
 TURN = 1e-3  # a step this small without a solution: look for the other side of a kink (see _turn)
 TURN_REACH = (1e-3, 1e-2, 3e-2)  # how far past the last point it is looked for (scaled)
@@ -347,6 +349,8 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
     nodes, ds = [node], DS[1]
     amplitude0 = max(node.point.amplitude_x, 1e-300)
     lo, hi = bounds
+    if (y0[-1] >= hi and node.tangent[-1] > 0) or (y0[-1] <= lo and node.tangent[-1] < 0):
+        return nodes, "the end of the range"  # it starts on the edge, heading out
     while len(nodes) < max_points:
         D = system.scale()
         last = nodes[-1]
@@ -389,6 +393,8 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
             progress(len(nodes))
         if node.point.amplitude_x > limit * amplitude0:
             return nodes, "infinity"
+        if node.point.amplitude_x < amplitude0 / limit:
+            return nodes, "rest"
         ds = min(DS[2], ds * 1.5)
     return nodes, f"{max_points} points"
 
@@ -627,6 +633,12 @@ def _assemble(source, halves, span, family, name, bounds, fmu_dir, returns=1):
             continue
         last = nodes[-1]
         ends.append((last.point.parameter, reason))
+        if reason == "rest" and len(nodes) >= 2:  # the amplitude falls linearly to zero: extrapolate where
+            a, b = nodes[-2].point, nodes[-1].point
+            value = b.parameter - b.amplitude_x * (b.parameter - a.parameter) / (b.amplitude_x - a.amplitude_x)
+            found.append(Bifurcation("shrinks-to-rest", value, b.omega, 0.0, source,
+                                     "the cycle shrinks to nothing: its amplitude falls to zero (extrapolated "
+                                     "linearly from the branch's last points)", abs(value - b.parameter)))
         if reason == "infinity":
             direction = 1.0 if last.tangent[-1] > 0 else -1.0
             value = linear_boundary(family, name, last.point.parameter, direction, bounds, fmu_dir)

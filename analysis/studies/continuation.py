@@ -10,7 +10,7 @@ prediction that lies on a branch already followed is not followed again.
 
 import math
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily
 from dfwb.studies.responses import ContinuationResponse
@@ -38,6 +38,12 @@ def check_parameter(family, name, start, stop):
     if values[0] == values[1]:
         raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty (give START:STOP with "
                          "START != STOP)")
+    if name in family.plant_names:  # the plant's own range, at both ends (it is checked all along anyway)
+        for value in values:
+            try:
+                family.params({name: value})
+            except DfwbError as error:
+                raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: {error}") from None
     return name, (min(values), max(values))
 
 

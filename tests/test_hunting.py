@@ -1,0 +1,197 @@
+"""Hunting maps (dfwb.hunting_map, dfwb map) and limit-cycle margins (dfwb.limit_cycle_margin, dfwb margin).
+
+The oracle is a published result: with static friction above Coulomb friction, PID position control of a
+mass hunts for every stabilizing choice of gains, and it does not hunt when they are equal (Armstrong and
+Amin, "PID control in the presence of static friction: a comparison of algebraic and describing function
+analysis", Automatica 32(5), 1996). The map must say both; its claim of absence (Fs = Fc) is checked against
+a long independent event-driven simulation. A map equals the search cell by cell, resumes after a kill,
+reads its cells back from the cache, and draws the linear loop's boundary where python-control puts it.
+A margin's boundary is confirmed by cycles on its two sides.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import control
+import numpy as np
+import pytest
+
+import dfwb
+from dfwb.engine.cycles import find_cycles
+from dfwb.engine.family import LoopFamily
+from dfwb.plants.loop_reference import closed_loop_reference
+
+PI = "Kp + Ki/s"
+PID = "20 + 100/s + 2*s/(0.1*s+1)"
+
+
+@pytest.fixture(scope="module")
+def small_map():
+    return dfwb.hunting_map("friction", PI, ("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2), jobs=1, curves=False)
+
+
+def test_a_map_is_the_search_cell_by_cell(small_map):
+    family = LoopFamily("friction", PI, free=("Kp", "Ki"))
+    for j, Ki in enumerate(small_map.ys):
+        for i, Kp in enumerate(small_map.xs):
+            cell = small_map.cells[j][i]
+            direct = find_cycles(family.problem({"Kp": Kp, "Ki": Ki})).stable()
+            assert cell["truth"]["class"] == "stable" and len(direct) == 1
+            (mapped,) = [c for c in cell["truth"]["cycles"] if c["stable"]]
+            assert mapped["omega"] == pytest.approx(direct[0].omega, rel=1e-9)
+            assert mapped["amplitude_x"] == pytest.approx(direct[0].amplitude_x, rel=1e-9)
+            assert cell["linear"]["stable"] == (Ki < 0.5 * Kp)
+            G = family.G({"Kp": Kp, "Ki": Ki})
+            for p in cell["df"]["predictions"]:  # each a harmonic balance of the exact DF
+                N = dfwb.describing_function("friction", F=p["F"], omega=p["omega"]).N
+                assert abs(1 + complex(G(1j * p["omega"])) * N) < 1e-6
+
+
+def test_static_friction_above_coulomb_hunts_for_every_stabilizing_pi_and_never_at_coulomb():
+    axes = (("Kp", 2.0, 30.0, 4), ("Ki", 0.2, 12.0, 4))
+    above = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, Fs=7.0)
+    equal = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, Fs=5.0, Fc=5.0)
+    stabilizing = np.array([[Ki < 0.5 * Kp for Kp in above.xs] for Ki in above.ys])
+    assert stabilizing.any() and not stabilizing.all()
+    assert np.all(above.classes("truth")[stabilizing] == "stable")
+    assert not np.any(equal.classes("truth") == "stable")
+    for row in equal.cells:
+        for cell in row:
+            if cell["linear"]["stable"]:  # every run came to rest: no cycle in the range searched
+                assert cell["truth"]["class"] == "none" and set(cell["truth"]["coverage"]["outcomes"]) == {"rest"}
+    # the DF cannot see this hunting: its force lies below Fs, where N = 0
+    assert np.sum((above.classes("df") == "stable") & stabilizing) < stabilizing.sum() / 2
+
+
+def test_the_absence_at_coulomb_is_what_a_long_independent_simulation_does():
+    """Fs = Fc, Kp = 10, Ki = 2: from rest at 0.1 m the mass stops closer to 0 at every stick, for hours."""
+    state, sticks = [0.1, 0.0, 0.0], []
+    for _ in range(40):
+        run = closed_loop_reference("friction", [10.0, 2.0], [0.0], 1e5, {"Fs": 5.0, "Fc": 5.0}, state=state,
+                                    until=lambda kind, mode: kind == "band")
+        if run["t"] >= 1e5:
+            break  # stuck so close to 0 that the integrator takes longer than a day to move it
+        state = run["state"]
+        sticks.append(abs(state[0]))
+    assert len(sticks) >= 5
+    assert all(b < a for a, b in zip(sticks, sticks[1:])) and sticks[-1] < 1e-2 * sticks[0]
+
+
+def test_the_linear_boundary_is_where_python_control_puts_it(small_map):
+    linear = small_map.linear
+    plant = control.tf([1.0], [1.0, 0.5, 0.0])
+    for j in (0, 17, 40, 79):
+        for i in (0, 33, 79):
+            Kp, Ki, growth = linear["x"][i], linear["y"][j], linear["growth"][j][i]
+            poles = control.feedback(control.tf([Kp, Ki], [1.0, 0.0]) * plant, 1).poles()
+            assert growth == pytest.approx(float(np.max(poles.real)), abs=1e-9)
+
+
+def test_a_map_reads_its_cells_back_from_the_cache(tmp_path):
+    axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
+    first = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, cache=tmp_path / "cache")
+    again = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, cache=tmp_path / "cache")
+    assert first.counts["computed"] == 4 and again.counts == {"cells": 4, "computed": 0, "cached": 4, "resumed": 0}
+    assert again.as_dict()["cells"] == first.as_dict()["cells"]
+
+
+def test_a_killed_map_resumes_with_what_it_had(fmus, tmp_path):
+    out = tmp_path / "map"
+    argv = [sys.executable, "-m", "dfwb.cli", "map", "friction", "--G", PI, "--x", "Kp=5:20:3", "--y", "Ki=1:4:3",
+            "--out", str(out), "--jobs", "1", "--no-cache", "--no-curves", "--json", "--fmus",
+            str(fmus["FrictionMass"].parent)]
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    log = out / "cells.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and (not log.exists() or log.read_text().count("\n") < 3):
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    done = log.read_text().count("\n") - 1
+    assert 2 <= done < 9
+    resumed = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    report = json.loads(resumed.stdout)
+    assert report["counts"]["resumed"] >= done - 1 and report["counts"]["computed"] <= 9 - done + 1
+    fresh = dfwb.hunting_map("friction", PI, ("Kp", 5.0, 20.0, 3), ("Ki", 1.0, 4.0, 3), jobs=1, curves=False)
+    assert [(c["x"], c["y"], c["truth"]["class"], c["df"]["class"]) for c in report["cells"]] == \
+        [(c["x"], c["y"], c["truth"]["class"], c["df"]["class"]) for c in fresh.as_dict()["cells"]]
+    assert report["cells"][0]["truth"]["cycles"][0]["omega"] == \
+        pytest.approx(fresh.cells[0][0]["truth"]["cycles"][0]["omega"], rel=1e-12)
+
+
+def test_the_command_line_writes_the_map_and_its_json(fmus, tmp_path, capsys):
+    from dfwb.cli import main
+
+    out = tmp_path / "m"
+    assert main(["map", "friction", "--G", PI, "--x", "Kp=5:20:2", "--y", "Ki=1:4:2", "--out", str(out), "--jobs", "1",
+                 "--no-cache", "--json", "--fmus", str(fmus["FrictionMass"].parent)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert len(report["cells"]) == 4
+    cell = report["cells"][0]
+    assert {"x", "y", "truth", "df"} <= set(cell) and {"class", "cycles"} <= set(cell["truth"])
+    assert {"class", "predictions"} <= set(cell["df"])
+    assert {p.name for p in out.iterdir()} >= {"cells.csv", "cells.json", "map.json", "hunting_map.png"}
+    assert (out / "hunting_map.png").stat().st_size > 30_000
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--x", "Kp=1:50:1000", "--y", "Ki=0.1:25:1000"], "a map of 1000 x 1000 = 1000000 cells: at most 10000"),
+    (["--x", "Kp=1:nan:5", "--y", "Ki=0.1:25:5"], "Kp stop = nan: the range's ends must be finite"),
+    (["--x", "Kp=1:50:5", "--y", "Kp=0.1:25:5"], "x and y are both Kp"),
+    (["--x", "Kp=1:50:1", "--y", "Ki=0.1:25:5"], "N = 1 cells: an integer from 2 to 1000"),
+    (["--x", "Kp=1:50:2.5", "--y", "Ki=0.1:25:5"], "N a whole number of cells"),
+    (["--x", "Kp=1:50:5", "--y", "Ki=0.1:25:5", "--set", "Kp=3"], "Kp is an axis of the map"),
+    (["--x", "Kp=1:50:5", "--y", "M=-1:25:5", "--set", "Ki=2"], "M = -1.0 is out of range"),
+    (["--x", "Kp=1:50:5", "--y", "s=0:1:5"], "s is the variable of G(s)"),
+])
+def test_hostile_map_input_is_one_line_before_anything_runs(capsys, tmp_path, argv, message):
+    from dfwb.cli import main
+
+    started = time.perf_counter()
+    with pytest.raises(SystemExit) as exit_:
+        main(["map", "friction", "--G", PI, "--out", str(tmp_path / "m")] + argv)
+    assert exit_.value.code == 2 and time.perf_counter() - started < 5.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "m").exists()
+
+
+def test_a_margin_boundary_is_confirmed_on_its_two_sides():
+    margin = dfwb.limit_cycle_margin("friction", PID, count=9, df=False)
+    (boundary,) = margin.truth.boundaries
+    assert boundary.kind == "nonsmooth-fold" and boundary.starts and boundary.accuracy < 1e-4 * boundary.k
+    assert margin.truth.hunts_at(1.0) and margin.truth.room() == (boundary.k, None)
+    family = LoopFamily("friction", PID).scaled("k")
+    assert find_cycles(family.problem({"k": boundary.k * (1 + 1e-4)})).stable()
+    assert not find_cycles(family.problem({"k": boundary.k * (1 - 1e-4)})).stable()
+
+
+def test_a_pi_controller_that_keeps_its_ratio_hunts_at_every_gain(capsys):
+    """k (10 + 2/s): Ki / Kp = 0.2 < B / M for every k, so the linear loop is always stable: it always hunts."""
+    from dfwb.cli import main
+
+    assert main(["margin", "friction", "--G", "10 + 2/s", "--count", "7", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["truth"]["intervals"] == [[0.01, 100.0]] and report["truth"]["hunts_at_1"] is True
+    assert report["truth"]["boundaries"] == [] and report["truth"]["up"] is None
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--k-range", "2", "10"], "expected 0 < low < 1 < high"),
+    (["--k-range", "0", "10"], "expected 0 < low < 1 < high"),
+    (["--k-range", "0.1", "nan"], "expected 0 < low < 1 < high"),
+    (["--G", "k*(1 + 1/s)"], "the parameter k is given no value"),
+])
+def test_hostile_margin_input_is_one_line(capsys, argv, message):
+    from dfwb.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["margin", "friction"] + (argv if "--G" in argv else ["--G", "10 + 2/s"] + argv))
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
