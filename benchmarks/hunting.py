@@ -42,10 +42,11 @@ Usage: ``.venv/bin/python benchmarks/hunting.py [--quick] [--repeats 3] [--map-r
 import argparse
 import contextlib
 import json
-import math
 import os
 import platform
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from collections import Counter
@@ -58,7 +59,6 @@ from dfwb.engine import continuation as engine_continuation
 from dfwb.engine import cycles as engine_cycles
 from dfwb.engine import hunting as engine_hunting
 from dfwb.engine.periodic import LoopProblem
-from dfwb.studies import continuation as study_continuation
 from dfwb.studies import responses
 
 PLANT = "friction"
@@ -136,6 +136,7 @@ def run_map(size, jobs):
     targets = [(engine_hunting, "df_map_for", "df map"), (engine_hunting, "linear_map", "linear"),
                (engine_hunting, "fold_curves", "curves"), (responses.HuntingMapResponse, "write", "write")]
     with tempfile.TemporaryDirectory(prefix="dfwb_bench_map_") as out, wrapped(targets) as marks:
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
         cpu = children_cpu()
         started = time.perf_counter()
         response = dfwb.hunting_map(PLANT, G, MAP_X + (size,), MAP_Y + (size,), out_dir=out, jobs=jobs, cache=False,
@@ -149,7 +150,8 @@ def run_map(size, jobs):
               "linear map": linear[1] - linear[0], "curves": spent(marks, "curves"), "write": spent(marks, "write")}
     phases["other"] = seconds - sum(phases.values())
     cells = size * size
-    return {"seconds": seconds, "library_seconds": response.seconds, "phases": phases, "workers_cpu_seconds": cpu,
+    return {"seconds": seconds, "load_average": load, "library_seconds": response.seconds, "phases": phases,
+            "workers_cpu_seconds": cpu,
             "seconds_per_cell": seconds / cells, "cells_seconds_per_cell": phases["cells"] / cells,
             "counts": response.counts, "written": written, "response": response,
             "truth": dict(Counter(response.classes("truth").ravel().tolist())),
@@ -185,12 +187,12 @@ def sample_cells(response, side):
             built = time.perf_counter()
             cell = classify(problem, engine, dfmap, amplitudes)
             ended = time.perf_counter()
+            classes = (cell["truth"]["class"], cell["df"]["class"])
             in_map = response.cells[j][i]
             sample.append({"x": x, "y": y, "seconds": ended - started, "classify_seconds": ended - built,
-                           "truth": cell["truth"]["class"], "df": cell["df"]["class"],
-                           "runs": cell["truth"]["coverage"]["starts"],
-                           "same_as_map": (cell["truth"]["class"], cell["df"]["class"])
-                           == (in_map.get("truth", {}).get("class"), in_map.get("df", {}).get("class"))})
+                           "truth": classes[0], "df": classes[1], "runs": cell["truth"]["coverage"]["starts"],
+                           "same_as_map": classes == (in_map.get("truth", {}).get("class"),
+                                                      in_map.get("df", {}).get("class"))})
     return sample, dfmap_seconds
 
 
@@ -221,6 +223,17 @@ def run_find_cycles(Kp, Ki):
                                            for c in found.cycles],
             "runs": found.coverage.starts, "outcomes": found.coverage.outcomes,
             "coverage": found.coverage.summary()}
+
+
+def worker_start(runs=3):
+    """Median seconds for a fresh interpreter (this environment) to import what a map's worker imports."""
+    code = "import dfwb, dfwb.studies.hunting, dfwb.engine.hunting, dfwb.engine.cycles, dfwb.engine.limit_cycles"
+    times = []
+    for _ in range(runs):
+        started = time.perf_counter()
+        subprocess.run([sys.executable, "-c", code], check=True)
+        times.append(time.perf_counter() - started)
+    return statistics.median(times)
 
 
 def machine_info():
@@ -264,6 +277,8 @@ def main(argv=None):
               f"({run['seconds_per_cell']:.3f} s per cell); " + ", ".join(f"{p} {s:.1f} s"
                                                                           for p, s in run["phases"].items()),
               flush=True)
+    start_up = worker_start()
+    print(f"a worker's start-up (a fresh interpreter importing dfwb's map modules): {start_up:.2f} s", flush=True)
     response = maps[-1].pop("response")
     for run in maps:
         run.pop("response", None)
@@ -289,6 +304,7 @@ def main(argv=None):
 
     result = summarize(args, size, side, repeats, machine, maps, sample, cell_times, dfmap_seconds, continuations,
                        searches)
+    result["map"]["worker_start_seconds"] = start_up
     result["machine"]["load_average_end"] = os.getloadavg() if hasattr(os, "getloadavg") else None
     text = markdown(result)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -385,7 +401,8 @@ def markdown(r):
               f"jobs={m['jobs']}, cache=False, curves=True, out_dir=<a temporary folder>)`, after a warm-up 2 x 2 "
               "map in this process (imports, the FMU, matplotlib); the workers are spawned inside the call.", "",
               f"- **map wall time**: {m['seconds']:.1f} s"
-              + (f" (runs: {', '.join(f'{run['seconds']:.1f}' for run in m['runs'])} s)" if m["repeats"] > 1 else "")
+              + (" (runs: " + ", ".join(f"{run['seconds']:.1f}" for run in m["runs"]) + " s)" if m["repeats"] > 1
+                 else "")
               + f"; the response's own `seconds`: {m['runs'][-1]['library_seconds']:.1f} s (from after the "
               "argument checks to the curves' end, the folder's writing not included)",
               f"- **time per cell**: {m['seconds_per_cell']:.3f} s of wall time ({m['cells']} cells); the cells "
@@ -404,7 +421,11 @@ def markdown(r):
               f"{s['df_map_seconds']:.2f} s here.",
               f"- the sample's mean x {m['cells']} cells / {m['jobs']} workers = {s['projected_cells_seconds']:.1f} s "
               f"of cells on ideally shared workers, against {m['phases']['cells']:.1f} s measured for the cells "
-              "phase (worker start-up, imbalance and the machine's other load make the difference).",
+              f"phase: the difference is the workers' start-up (a fresh interpreter importing dfwb's map modules: "
+              f"{m['worker_start_seconds']:.2f} s here, then each builds its DF engine), the last chunks' "
+              "imbalance and the machine's other load (load average "
+              + ", ".join(f"{run['load_average']:.2f}" for run in m["runs"] if run["load_average"] is not None)
+              + " when the map started).",
               "- truth: " + ", ".join(f"{n} {k}" for k, n in sorted(m["truth"].items(), key=lambda kv: -kv[1]))
               + "; DF: " + ", ".join(f"{n} {k}" for k, n in sorted(m["df"].items(), key=lambda kv: -kv[1]))
               + "; bifurcation curves: " + (", ".join(f"{cv['source']} {cv['kind']} ({cv['points']} columns)"
@@ -441,7 +462,8 @@ def markdown(r):
               "`find_cycles(LoopProblem(\"friction\", f\"{Kp} + {Ki}/s\"))`: default starts (output amplitudes over "
               "the loop's span, displacing x, v and the integrator both ways), no DF predictions, basin boundaries "
               "bisected; the problem's construction included.", "",
-              "| Kp | Ki | find_cycles [ms] | runs | outcomes | cycles (omega, X, stable) |", "|---|---|---|---|---|---|"]
+              "| Kp | Ki | find_cycles [ms] | runs | outcomes | cycles (omega, X, stable) |",
+              "|---|---|---|---|---|---|"]
     for p in f["pairs"]:
         found = "; ".join(f"{cy['omega']:.4g}, {cy['amplitude_x']:.4g}, {'s' if cy['stable'] else 'u'}"
                           for cy in p["cycles"]) or "none"
