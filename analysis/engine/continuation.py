@@ -218,10 +218,13 @@ class PredictionSystem:
         return np.array([R.real, R.imag]), N
 
     def _at(self, value):
+        """(G as a function of s, the plant's parameters) at a parameter value (a few kept)."""
         if value not in self._cache:
             if len(self._cache) > 16:
                 self._cache.clear()
-            self._cache[value] = (self.family.G({self.name: value}), self.family.params({self.name: value}))
+            num, den = self.family.coefficients({self.name: value})
+            self._cache[value] = (lambda s: np.polyval(num, s) / np.polyval(den, s),
+                                  self.family.params({self.name: value}))
         return self._cache[value]
 
     def describe(self, y, J, N):

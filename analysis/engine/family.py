@@ -171,6 +171,15 @@ class LoopFamily:
             raise InputError(f"G(s) = {self.controller.text}: the parameter {missing[0]} is given no value")
         return self.controller.transfer_function(merged)
 
+    def coefficients(self, values=None):
+        """(num, den) of G at the values, highest power first: an expression's without building a checked
+        system (a DF continuation asks at every step), else the checked G's."""
+        merged = self.merged(values)
+        if isinstance(self.controller, _Fixed) or self.built:
+            G = self.G(values)
+            return [float(c) for c in G.num[0][0]], [float(c) for c in G.den[0][0]]
+        return self.controller.coefficients(merged)
+
     def params(self, values=None):
         """The plant's parameters at the values (checked, as the plant checks them)."""
         merged = self.merged(values)
@@ -208,12 +217,7 @@ class LoopFamily:
         den_G den_P + num_G num_P, without building the exact loop (a map asks it at 10^4 points)."""
         import numpy as np
 
-        merged = self.merged(values)
-        if isinstance(self.controller, _Fixed) or self.built:
-            G = self.G(values)
-            num_g, den_g = G.num[0][0], G.den[0][0]
-        else:  # an expression (or one scaled): its coefficients without building a checked system
-            num_g, den_g = self.controller.coefficients(merged)
+        num_g, den_g = self.coefficients(values)
         params = self.params(values)
         key = tuple(sorted(params.items()))
         if key not in self._linear:

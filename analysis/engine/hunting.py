@@ -117,6 +117,9 @@ def hunting(cell, source="truth"):
 TRACKED = ("fold", "nonsmooth-fold", "period-doubling", "torus")  # what changes hunting: followed across a map
 BACK = 0.02  # a bifurcation is found again from this part of the range before it, on the side it was reached
 TRACK_POINTS = 30  # continuation points per column, at most
+MAX_CURVES = 4  # bifurcation curves per source on one map
+MAX_SEEDS = 8  # attempts to seed one per source
+SEED_POINTS = 40  # continuation points across one cell, at most
 
 
 @dataclass
@@ -148,53 +151,107 @@ def linear_map(family, x_name, x_range, y_name, y_range, n, fmu_dir=None):
     return {"x": xs.tolist(), "y": ys.tolist(), "growth": rows}
 
 
-def fold_curves(family, x_name, xs, y_name, ys, grid=None, fmu_dir=None, engine=None, progress=None):
-    """The bifurcations that change hunting (TRACKED), continued in (x, y) across a map: found by a
-    continuation in y at the middle column, then located again column by column from where they were."""
+def fold_curves(family, x_name, xs, y_name, ys, grid, fmu_dir=None, engine=None, progress=None):
+    """The bifurcations that change hunting (TRACKED), continued in (x, y) across a map.
+
+    Each is seeded where a column's verdict (hunts or not, truth or DF) changes between two cells: the
+    hunting cell's cycle (or prediction) is continued in y across the two, and the bifurcation between
+    them located; then it is located again column by column, outwards from there, from where it was
+    (:func:`_relocate`). A change of verdict that a curve already passes through seeds nothing; at most
+    MAX_CURVES curves and MAX_SEEDS attempts per source: the work is bounded.
+    """
+    curves = []
+    sources = ("truth", "df") if engine is not None else ("truth",)
+    columns = sorted(range(len(xs)), key=lambda i: abs(i - (len(xs) - 1) / 2))  # from the middle outwards
+    done, total = 0, max(1, 2 * MAX_CURVES * len(xs))
+    for source in sources:
+        tried = 0
+        for i in columns:
+            for j in range(len(ys) - 1):
+                kinds = [_verdict(grid[j][i], source), _verdict(grid[j + 1][i], source)]
+                if None in kinds or kinds[0] == kinds[1] or _covered(curves, source, xs[i], ys[j], ys[j + 1]):
+                    continue
+                if tried >= MAX_SEEDS or sum(c.source == source for c in curves) >= MAX_CURVES:
+                    break
+                tried += 1
+                hunting = j if kinds[0] else j + 1
+                column = family.at({x_name: xs[i]})
+                seed, F_range = _seed(column, y_name, (ys[j], ys[j + 1]), ys[hunting], source, fmu_dir, engine)
+                if seed is None:
+                    continue
+                bounds = (min(ys), max(ys))
+                curve = Curve(seed.kind, source, [(xs[i], seed.parameter)])
+                for direction in (1, -1):
+                    here = seed
+                    for k in range(i + direction, len(xs) if direction > 0 else -1, direction):
+                        column = family.at({x_name: xs[k]})
+                        found = _relocate(column, y_name, bounds, here, fmu_dir, engine, F_range)
+                        if found is None:  # moved too far for a step from where it was: seed it in this column
+                            found = _reseed(column, y_name, ys, [row[k] for row in grid], here, source, fmu_dir,
+                                            engine)
+                        done += 1
+                        if progress:
+                            progress(min(done, total), total)
+                        if found is None:
+                            break
+                        here = found
+                        curve.points.append((xs[k], here.parameter))
+                curve.points.sort()
+                curves.append(curve)
+    return curves
+
+
+def _reseed(column, name, ys, cells, previous, source, fmu_dir, engine):
+    """The bifurcation of ``previous``'s kind seeded in a column at its change of verdict nearest to where
+    ``previous`` was, or None."""
+    changes = [j for j in range(len(ys) - 1) if None not in (_verdict(cells[j], source), _verdict(cells[j + 1], source))
+               and _verdict(cells[j], source) != _verdict(cells[j + 1], source)]
+    if not changes:
+        return None
+    j = min(changes, key=lambda j: abs(0.5 * (ys[j] + ys[j + 1]) - previous.parameter))
+    hunting = j if _verdict(cells[j], source) else j + 1
+    seed, _F = _seed(column, name, (ys[j], ys[j + 1]), ys[hunting], source, fmu_dir, engine)
+    return seed if seed is not None and seed.kind == previous.kind else None
+
+
+def _verdict(cell, source):
+    """Whether a cell hunts by ``source`` (None: no verdict there)."""
+    if source not in cell or cell[source]["class"] in ("incomplete", "error"):
+        return None
+    return cell[source]["class"] == "stable"
+
+
+def _covered(curves, source, x, y_lo, y_hi):
+    """Whether a curve of ``source`` passes column x between y_lo and y_hi."""
+    return any(c.source == source and any(px == x and min(y_lo, y_hi) <= py <= max(y_lo, y_hi) for px, py in c.points)
+               for c in curves)
+
+
+def _seed(column, name, bracket, hunting, source, fmu_dir, engine):
+    """(the TRACKED bifurcation between the two values of ``bracket``, the DF's force range), or (None, None):
+    the hunting cell's stable cycle or prediction at ``hunting`` continued across the bracket."""
     from dfwb.engine.continuation import continue_cycles, continue_predictions
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.limit_cycles import search
 
-    bounds = (min(ys), max(ys))
-    middle = xs[len(xs) // 2]
-    column = family.at({x_name: middle})
-    starts, predictions, F_range = [], [], None
-    for value in (ys[0], ys[-1]):
-        try:
-            problem = column.problem({y_name: value}, fmu_dir)
-        except DfwbError:
-            continue
+    lo, hi = sorted(bracket)
+    try:
+        problem = column.problem({name: hunting}, fmu_dir)
+    except DfwbError:
+        return None, None
+    F_range = None
+    if source == "truth":
         found = find_cycles(problem, amplitudes=problem.scales.amplitudes(MAP_AMPLITUDES), boundaries=False)
-        starts += [(value, c) for c in found.cycles]
-        if engine is not None:
-            F, omega = search_ranges(problem)
-            F_range = F if F_range is None else (min(F[0], F_range[0]), max(F[1], F_range[1]))
-            predictions += [(value, p) for p in search(problem.spec.name, problem.G, problem.params, F, omega,
-                                                       engine=engine).cycles]
-    seeds = continue_cycles(column, y_name, bounds, starts, fmu_dir)[1] if starts else []
-    if predictions:
-        F_range = (F_range[0], F_range[1] * 10.0)
-        seeds += continue_predictions(column, y_name, bounds, predictions, engine, F_range)[1]
-    seeds = [seed for seed in seeds if seed.kind in TRACKED and seed.state is not None]
-    curves = []
-    total = max(1, len(seeds) * (len(xs) - 1))
-    done = 0
-    for seed in seeds:
-        curve = Curve(seed.kind, seed.source, [(middle, seed.parameter)])
-        for direction in (1, -1):
-            here = seed
-            order = [x for x in xs if (x - middle) * direction > 0]
-            for x in sorted(order, key=lambda v: abs(v - middle)):
-                here = _relocate(family.at({x_name: x}), y_name, bounds, here, fmu_dir, engine, F_range)
-                done += 1
-                if progress:
-                    progress(done, total)
-                if here is None:
-                    break
-                curve.points.append((x, here.parameter))
-        curve.points.sort()
-        curves.append(curve)
-    return curves
+        starts = [(hunting, c) for c in found.stable()]
+        found = continue_cycles(column, name, (lo, hi), starts, fmu_dir, SEED_POINTS)[1] if starts else []
+    else:
+        F, omega = search_ranges(problem)
+        F_range = (F[0], F[1] * 10.0)
+        starts = [(hunting, p) for p in search(problem.spec.name, problem.G, problem.params, F, omega,
+                                               engine=engine).cycles if p.stable]
+        found = continue_predictions(column, name, (lo, hi), starts, engine, F_range, SEED_POINTS)[1] if starts else []
+    seeds = [b for b in found if b.kind in TRACKED and b.state is not None and lo <= b.parameter <= hi]
+    return (min(seeds, key=lambda b: abs(b.parameter - hunting)) if seeds else None), F_range
 
 
 def _relocate(column, name, bounds, seed, fmu_dir, engine, F_range):

@@ -527,7 +527,8 @@ class HuntingMapResponse:
         for curve in self.curves:
             lines.append(f"  {curve.source} {curve.kind} curve through {len(curve.points)} columns")
         if self.out_dir is not None:
-            lines.append(f"  written to {self.out_dir}: cells.csv, cells.json, hunting_map.png")
+            lines.append(f"  written to {self.out_dir}: cells.csv (as the cells finished), cells.json, map.json, "
+                         "hunting_map.png and .svg")
         return "\n".join(lines)
 
     def __str__(self):
