@@ -214,6 +214,11 @@ def cmd_limit_cycle(args):
         response = analyse(args.plant, G, values, F_range=args.F_range, omega_range=args.omega_range,
                            exact=args.exact, verify=args.verify, samples_per_period=args.samples_per_period,
                            fmu_dir=args.fmus, progress=report)
+    return _answer(args, response, plot)
+
+
+def _answer(args, response, plot=None):
+    """What an analysis command prints: its figure written to ``plot``, then JSON (--json) or its summary."""
     if plot:
         response.figure(plot)
     if args.json:
@@ -245,14 +250,7 @@ def cmd_continue(args):
     with Reporter(f"continuation of {args.plant} in {name}", not args.json) as report:
         response = follow(args.plant, _controller(args), name, *bounds, _assignments(args.set, "--set"),
                           sources=sources, max_points=args.max_points, fmu_dir=args.fmus, progress=report)
-    if plot:
-        response.figure(plot)
-    if args.json:
-        json.dump(response.as_dict(), sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        print(response.summary())
-    return 0
+    return _answer(args, response, plot)
 
 
 def cmd_map(args):
@@ -270,12 +268,7 @@ def cmd_map(args):
         response = run_map(args.plant, _controller(args), axes[0], axes[1], _assignments(args.set, "--set"),
                            out_dir=out, jobs=args.jobs, dask=args.dask, cache=_cache(args), fmu_dir=args.fmus,
                            curves=not args.no_curves, resume=not args.no_resume, progress=report)
-    if args.json:
-        json.dump(response.as_dict(), sys.stdout)
-        sys.stdout.write("\n")
-    else:
-        print(response.summary())
-    return 0
+    return _answer(args, response)
 
 
 def cmd_margin(args):
@@ -286,14 +279,7 @@ def cmd_margin(args):
     with Reporter(f"limit-cycle margin of {args.plant}", not args.json) as report:
         response = gain_margin(args.plant, _controller(args), _assignments(args.set, "--set"),
                                k_range=tuple(args.k_range), count=args.count, fmu_dir=args.fmus, progress=report)
-    if plot:
-        response.figure(plot)
-    if args.json:
-        json.dump(response.as_dict(), sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        print(response.summary())
-    return 0
+    return _answer(args, response, plot)
 
 
 def _plot_path(text):

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import DfwbError, InputError
 from dfwb.fmus.exact import PlantError
 
 TOL = 1e-10  # the corrector's residual (scaled)
@@ -58,6 +58,7 @@ LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (s
 AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows (falls) this many times its start's goes to infinity (rest)
 MAX_POINTS = 200  # per branch
 TURN = 1e-3  # a step this small without a solution: look for the other side of a kink (see _turn)
+COS_TURN = 0.9  # a step whose tangent turns more than this (cosine) is halved, unless it is already that small
 TURN_REACH = (1e-3, 1e-2, 3e-2)  # how far past the last point it is looked for (scaled)
 
 
@@ -148,7 +149,7 @@ class CycleSystem:
         value = float(y[-1])
         try:
             problem = self.problem(value)
-        except InputError:  # a parameter value the plant or G refuses (a mass through 0, ...)
+        except DfwbError:  # a parameter value the plant or G refuses (a mass through 0, eps below 0, ...)
             return None, None
         X = problem.on_section(list(y[:-1]))
         result = problem.first_return(X, self.returns, 20.0 * self.period)
@@ -374,7 +375,8 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
                     nodes.append(node)
                     return nodes, "the end of the range"
             corrected = None
-        if corrected is None:
+        node = None if corrected is None else _step(system, last, *corrected[:3], ds)
+        if node is None:  # no solution, or the branch bends too sharply for this step: a smaller one
             ds *= 0.5
             if ds < TURN and getattr(system, "source", "") == "truth":
                 turned = _turn(system, last)
@@ -385,12 +387,6 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
             if ds < DS[0]:
                 return nodes, "the branch cannot be followed further (the corrector fails even at tiny steps)"
             continue
-        node = _node(system, *corrected[:3], None, last.tangent)
-        if node is None:
-            ds *= 0.5
-            if ds < DS[0]:
-                return nodes, "the branch cannot be followed further (no Jacobian)"
-            continue
         nodes.append(node)
         if progress:
             progress(len(nodes))
@@ -400,6 +396,20 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
             return nodes, "rest"
         ds = min(DS[2], ds * 1.5)
     return nodes, f"{max_points} points"
+
+
+def _step(system, last, y, r, extra, ds):
+    """The node at a corrected solution, or None where the branch turns by more than COS_TURN from last's
+    tangent and the step is not yet tiny (a large step there may have jumped to another branch)."""
+    J = _jacobian(system, y, r, extra)
+    if J is None:
+        return None
+    chord = (y - last.y) / system.scale()
+    tangent = _tangent(J, chord)  # oriented along the step taken (past a kink: away from it)
+    if float(tangent @ last.tangent) < COS_TURN and ds > TURN:
+        return None
+    point, detail = system.describe(y, J, extra)
+    return _Node(y, J, tangent, point, detail, extra)
 
 
 def _turn(system, last):
@@ -482,6 +492,26 @@ STICKS = {"break+", "break-", "release"}  # events that begin or end a stick pha
 TOUCHES = {"gap 0", "gap h", "engage+", "engage-", "reverse"}  # impacts and engagements
 
 
+WALLS = ("gap 0", "gap h")
+
+
+def essential(signature):
+    """An event sequence with each run of impacts at one wall that ends in contact written once, as
+    "gap h ... contact": how many bounces an accumulation takes before the masses move together depends on
+    where it is cut (the next bounce below 1e-12 h), not on the cycle, so it is no bifurcation."""
+    events, out, i = list(signature), [], 0
+    while i < len(events):
+        j = i
+        while j + 1 < len(events) and events[j + 1] == events[i]:
+            j += 1
+        if events[i] in WALLS and j + 1 < len(events) and events[j + 1] == "release":
+            out.append(f"{events[i]} ... contact")
+        else:
+            out.extend(events[i:j + 1])
+        i = j + 1
+    return tuple(out)
+
+
 def _changed(before, after):
     """What appears or vanishes between two event sequences, in words, and the kind of bifurcation it makes."""
     from collections import Counter
@@ -506,13 +536,21 @@ def bifurcations(system, nodes, span):
     truth = system.source == "truth"
     for i, (a, b) in enumerate(zip(nodes, nodes[1:])):
         turns = a.tangent[-1] * b.tangent[-1] < 0.0
-        if truth and a.point.signature != b.point.signature:
-            signature = a.point.signature
-            before, after, width = locate(system, a, b, lambda y, r, T: system.signature(y, T) != signature, span)
+        if truth and essential(a.point.signature) != essential(b.point.signature):
+            signature = essential(a.point.signature)
+            before, after, width = locate(system, a, b,
+                                          lambda y, r, T: essential(system.signature(y, T)) != signature, span)
             value = float(before[0][-1])
             fold = (a.y[-1] - value) * (b.y[-1] - value) > 0.0
-            kind, what = _changed(a.point.signature, b.point.signature)
-            sides = [_measure(system, solution) for solution in (before, after) if solution is not None]
+            kind, what = _changed(signature, essential(b.point.signature))
+            sides = [_measure(system, before)]
+            if after is not None:
+                sides.append(_measure(system, after))
+            else:  # the other side at the same parameter value, just past the change
+                edge = _node(system, *before, a.tangent)
+                turned = edge and _turn(system, edge)
+                if turned:
+                    sides.append(turned.point)
             multipliers = " | ".join(", ".join(f"{m:.3g}" for m in side.multipliers) for side in sides)
             where = "on its two sides" if len(sides) == 2 else "there"
             found.append((i, Bifurcation("nonsmooth-fold" if fold else kind, value, sides[0].omega,
@@ -575,7 +613,8 @@ def _known(branches, source, value, point):
             amplitude = p.amplitude_x + w * (q.amplitude_x - p.amplitude_x)
             near = abs(omega - point.omega) <= 1e-2 * point.omega and \
                 abs(amplitude - point.amplitude_x) <= 1e-2 * point.amplitude_x
-            if near and p.stable == point.stable and tuple(getattr(point, "signature", ())) in (p.signature, ()):
+            signature = essential(getattr(point, "signature", ()))
+            if near and p.stable == point.stable and signature in (essential(p.signature), ()):
                 return True
     return False
 
@@ -656,6 +695,16 @@ def _assemble(source, halves, span, family, name, bounds, fmu_dir, returns=1):
     return Branch(source, back[::-1] + forward[1:], ends, returns), found
 
 
+def distinct(bifurcations):
+    """The bifurcations with those found twice (by two branches through one point) kept once."""
+    kept = []
+    for b in bifurcations:
+        if not any(k.kind == b.kind and k.source == b.source and abs(k.parameter - b.parameter)
+                   <= 10.0 * max(k.accuracy, b.accuracy, 1e-9 * max(abs(b.parameter), 1.0)) for k in kept):
+            kept.append(b)
+    return kept
+
+
 def continue_cycles(family, name, bounds, starts, fmu_dir=None, max_points=MAX_POINTS, progress=None):
     """Branches of true cycles through each start ``(value, TrueCycle)``, and their bifurcations.
 
@@ -678,7 +727,7 @@ def continue_cycles(family, name, bounds, starts, fmu_dir=None, max_points=MAX_P
         if branch.points:
             branches.append(branch)
             found += more
-    return branches, found
+    return branches, distinct(found)
 
 
 def _df_end(system, nodes, reason):
@@ -703,4 +752,4 @@ def continue_predictions(family, name, bounds, starts, engine, F_range, max_poin
         if branch.points:
             branches.append(branch)
             found += more
-    return branches, found
+    return branches, distinct(found)

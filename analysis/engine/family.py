@@ -25,17 +25,18 @@ from dfwb.base.errors import InputError
 from dfwb.plants import plant as find_plant
 
 
-def _number(name, value):
-    """A finite float of a value given for a parameter (text from the command line too)."""
+def number(name, value, finite="give a finite number"):
+    """A finite float of a value given for a parameter (text from the command line too); ``finite`` says
+    what is allowed when it is not."""
     if isinstance(value, bool):
         raise InputError(f"{name} = {value!r} is not a number")
     try:
-        number = float(value)
+        value_ = float(value)
     except (TypeError, ValueError, OverflowError):
         raise InputError(f"{name} = {value!r:.60} is not a number") from None
-    if not math.isfinite(number):
-        raise InputError(f"{name} = {value!r:.60} is not finite: give a finite number")
-    return number
+    if not math.isfinite(value_):
+        raise InputError(f"{name} = {value!r:.60}: {finite}")
+    return value_
 
 
 class _Built:
@@ -134,7 +135,7 @@ class LoopFamily:
         self.values = {}
         for name, value in values.items():
             self.check_name(name)
-            self.values[name] = _number(name, value)
+            self.values[name] = number(name, value)
         free = tuple(free)
         for name in free:
             self.check_name(name)
@@ -160,7 +161,7 @@ class LoopFamily:
         merged = dict(self.values)
         for name, value in (values or {}).items():
             self.check_name(name)
-            merged[name] = _number(name, value)
+            merged[name] = number(name, value)
         return merged
 
     def G(self, values=None):

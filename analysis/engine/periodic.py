@@ -346,12 +346,10 @@ class LoopProblem:
             if first is None:
                 return None
             X = first[0]
-        back = self.first_return(X, returns, horizon)
-        if back is None:
+        scaled = self._scaled_at(X, returns, horizon)
+        if scaled is None:
             return None
-        scale = self._swing(X, back[1])[[i for i in range(len(X)) if i != self.pivot]]
-        residual = self.scaled_map(scale, returns, horizon)
-        u = np.array(self.reduced(X)) / scale
+        scale, residual, u = scaled
         r, T = residual(u)
         if r is None:
             return None
@@ -383,6 +381,15 @@ class LoopProblem:
             u, r, T = trial, r_trial, T_trial
         return None
 
+    def _scaled_at(self, X, returns, horizon):
+        """(scale, scaled map, u) around the section state X: the scale the orbit's swing; None where X does not
+        return."""
+        back = self.first_return(X, returns, horizon)
+        if back is None:
+            return None
+        scale = self._swing(X, back[1])[[i for i in range(len(X)) if i != self.pivot]]
+        return scale, self.scaled_map(scale, returns, horizon), np.array(self.reduced(X)) / scale
+
     def scaled_map(self, scale, returns, horizon):
         """u -> (P^returns(u) - u, (return time, events fired)) in coordinates scaled by ``scale``; (None, None)
         where the orbit does not return."""
@@ -397,12 +404,10 @@ class LoopProblem:
     def monodromy(self, X, returns, horizon=None, step=FD_STEP_FINAL):
         """d P^returns / du at the section state X (central differences), or None."""
         horizon = self.horizon if horizon is None else horizon
-        back = self.first_return(X, returns, horizon)
-        if back is None:
+        scaled = self._scaled_at(X, returns, horizon)
+        if scaled is None:
             return None
-        scale = self._swing(X, back[1])[[i for i in range(len(X)) if i != self.pivot]]
-        residual = self.scaled_map(scale, returns, horizon)
-        u = np.array(self.reduced(X)) / scale
+        _scale, residual, u = scaled
         base = residual(u)
         J = jacobian(residual, u, base, step, central=True)
         if J is None:

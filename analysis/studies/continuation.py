@@ -8,11 +8,10 @@ its bifurcations located (:mod:`dfwb.engine.continuation`). A cycle or
 prediction that lies on a branch already followed is not followed again.
 """
 
-import math
 
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
-from dfwb.engine.family import LoopFamily
+from dfwb.engine.family import LoopFamily, number
 from dfwb.studies.responses import ContinuationResponse
 
 SOURCES = ("truth", "df")
@@ -24,17 +23,8 @@ def check_parameter(family, name, start, stop):
     if not isinstance(name, str):
         raise InputError(f"parameter = {name!r:.60}: give its name (a parameter of G or of the plant)")
     family.check_name(name)
-    values = []
-    for label, value in (("start", start), ("stop", stop)):
-        if isinstance(value, bool):
-            raise InputError(f"{name} {label} = {value!r} is not a number")
-        try:
-            value = float(value)
-        except (TypeError, ValueError, OverflowError):
-            raise InputError(f"{name} {label} = {value!r:.60} is not a number") from None
-        if not math.isfinite(value):
-            raise InputError(f"{name} {label} = {value!r}: the range's ends must be finite numbers")
-        values.append(value)
+    values = [number(f"{name} {label}", value, "the range's ends must be finite numbers")
+              for label, value in (("start", start), ("stop", stop))]
     if values[0] == values[1]:
         raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty (give START:STOP with "
                          "START != STOP)")
