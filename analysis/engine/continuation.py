@@ -529,6 +529,42 @@ def _changed(before, after):
     return kind, "the period " + " and ".join(what) + f" ({' '.join(before)} -> {' '.join(after)})"
 
 
+MAX_CHANGES = 8  # changes of the event sequence located between two points of a branch, at most
+
+
+def _nonsmooth(system, a, b, span):
+    """[(Bifurcation, its two sides' Points)] where the event sequence changes between nodes a and b.
+
+    Each change is located from the side before it; several may lie between two points (an impact after
+    another vanishing as a restitution grows), so the walk goes on from the far side of each, at most
+    MAX_CHANGES times. A change where the branch turns back (the far side heads back in the parameter) is a
+    nonsmooth fold."""
+    found, target = [], essential(b.point.signature)
+    for _ in range(MAX_CHANGES):
+        signature = essential(a.point.signature)
+        if signature == target:
+            break
+        before, after, width = locate(system, a, b, lambda y, r, T: essential(system.signature(y, T)) != signature,
+                                      span)
+        value = float(before[0][-1])
+        edge = _node(system, *before, a.tangent)
+        far = _node(system, *after, a.tangent) if after is not None else (edge and _turn(system, edge))
+        sides = [edge.point if edge else _measure(system, before)] + ([far.point] if far else [])
+        rising = value - a.y[-1]
+        fold = far.tangent[-1] * rising < 0.0 if far else (a.y[-1] - value) * (b.y[-1] - value) > 0.0
+        kind, what = _changed(signature, essential(sides[-1].signature) if far else target)
+        multipliers = " | ".join(", ".join(f"{m:.3g}" for m in side.multipliers) for side in sides)
+        where = "on its two sides" if len(sides) == 2 else "there"
+        found.append((Bifurcation("nonsmooth-fold" if fold else kind, value, sides[0].omega, sides[0].amplitude_x,
+                                  system.source, f"{what}; |multipliers| {multipliers} {where}"
+                                  + ("; two branches meet and end there" if fold else ""), width, list(before[0]),
+                                  _side(a, value)), sides))
+        if far is None:
+            break
+        a = far
+    return found
+
+
 def bifurcations(system, nodes, span):
     """The bifurcations between consecutive nodes of a branch, each located (see the module docstring):
     [(i, Bifurcation, the located Points to insert after node i)]."""
@@ -537,27 +573,7 @@ def bifurcations(system, nodes, span):
     for i, (a, b) in enumerate(zip(nodes, nodes[1:])):
         turns = a.tangent[-1] * b.tangent[-1] < 0.0
         if truth and essential(a.point.signature) != essential(b.point.signature):
-            signature = essential(a.point.signature)
-            before, after, width = locate(system, a, b,
-                                          lambda y, r, T: essential(system.signature(y, T)) != signature, span)
-            value = float(before[0][-1])
-            fold = (a.y[-1] - value) * (b.y[-1] - value) > 0.0
-            kind, what = _changed(signature, essential(b.point.signature))
-            sides = [_measure(system, before)]
-            if after is not None:
-                sides.append(_measure(system, after))
-            else:  # the other side at the same parameter value, just past the change
-                edge = _node(system, *before, a.tangent)
-                turned = edge and _turn(system, edge)
-                if turned:
-                    sides.append(turned.point)
-            multipliers = " | ".join(", ".join(f"{m:.3g}" for m in side.multipliers) for side in sides)
-            where = "on its two sides" if len(sides) == 2 else "there"
-            found.append((i, Bifurcation("nonsmooth-fold" if fold else kind, value, sides[0].omega,
-                                         sides[0].amplitude_x, system.source,
-                                         f"{what}; |multipliers| {multipliers} {where}"
-                                         + ("; two branches meet and end there" if fold else ""), width,
-                                         list(before[0]), _side(a, value)), sides))
+            found += [(i, bifurcation, sides) for bifurcation, sides in _nonsmooth(system, a, b, span)]
             continue
         if turns:
             sign = a.tangent[-1]
