@@ -1,8 +1,8 @@
 """The examples in ``examples/`` run as a user would run them, using only the public API.
 
 The scripts run in a subprocess with ``MPLBACKEND=Agg``, writing into a
-temporary folder. The notebook is executed without a Jupyter kernel
-(nbclient is not a dependency): its code cells run in order with ``exec``
+temporary folder. The notebooks are executed without a Jupyter kernel
+(nbclient is not a dependency): their code cells run in order with ``exec``
 in one namespace, after nbformat has read and validated the file; a
 notebook's last expression is not displayed, which changes nothing here.
 """
@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,6 +24,7 @@ SCRIPTS = sorted(EXAMPLES.glob("*.py"))
 def test_the_examples_exist():
     assert {p.name for p in SCRIPTS} >= {"df_sweep.py", "limit_cycle_study.py"}
     assert (EXAMPLES / "df_sweep.ipynb").exists()
+    assert (EXAMPLES / "hunting.ipynb").exists()
 
 
 @pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.name)
@@ -55,19 +57,90 @@ def test_the_notebook_runs(fmus, tmp_path, monkeypatch):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    notebook = nbformat.read(EXAMPLES / "df_sweep.ipynb", as_version=4)
-    nbformat.validate(notebook)
     monkeypatch.chdir(tmp_path)
-    namespace = {"__name__": "__main__"}
-    cells = [cell for cell in notebook.cells if cell.cell_type == "code"]
-    assert cells
     try:
-        for i, cell in enumerate(cells):
-            for line in cell.source.splitlines():
-                assert not line.lstrip().startswith(("%", "!")), f"cell {i}: a magic cannot run without IPython"
-                assert not line.lstrip().startswith(("from dfwb.", "import dfwb.")), f"cell {i}: not the public API"
-            exec(compile(cell.source, f"df_sweep.ipynb cell {i}", "exec"), namespace)
+        namespace = _run_notebook(nbformat, "df_sweep.ipynb")
         assert namespace["response"].N.shape == (3, 20) and len(namespace["lines"]) == 3
     finally:
         plt.close("all")
     assert list(tmp_path.iterdir()) == []  # the notebook writes no file
+
+
+def _run_notebook(nbformat, name):
+    """The namespace after the code cells of ``examples/<name>`` ran in order (the file read and validated)."""
+    notebook = nbformat.read(EXAMPLES / name, as_version=4)
+    nbformat.validate(notebook)
+    namespace = {"__name__": "__main__"}
+    cells = [cell for cell in notebook.cells if cell.cell_type == "code"]
+    assert cells
+    for i, cell in enumerate(cells):
+        for line in cell.source.splitlines():
+            assert not line.lstrip().startswith(("%", "!")), f"cell {i}: a magic cannot run without IPython"
+            assert not line.lstrip().startswith(("from dfwb.", "import dfwb.")), f"cell {i}: not the public API"
+        exec(compile(cell.source, f"{name} cell {i}", "exec"), namespace)
+    return namespace
+
+
+def _hunting(hunting_map):
+    """(linear loop stable, hunts by the truth, hunts by the DF): boolean arrays over a map's cells."""
+    linear = np.array([[cell["linear"]["stable"] for cell in row] for row in hunting_map.cells])
+    return linear, hunting_map.classes("truth") == "stable", hunting_map.classes("df") == "stable"
+
+
+def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
+    """examples/hunting.ipynb on 3 x 3 maps (DFWB_HUNTING_N; 12 x 12 as committed): what it says holds.
+
+    With Fs > Fc every PI and PID setting whose linear loop is stable hunts by the truth, and the DF misses
+    most of the hunting; with Fs = Fc nothing hunts; the PI loop at Kp = 10, Ki = 2 hunts with a period of
+    57.26 s that the DF cannot represent; the hunting branch in Ki ends in a nonsmooth fold near 24.77 and
+    at infinity at the linear boundary Ki = 5; the PID's margin: it hunts for any larger gain, the DF says not.
+    """
+    nbformat = pytest.importorskip("nbformat")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    notebook = nbformat.read(EXAMPLES / "hunting.ipynb", as_version=4)
+    code = [cell for cell in notebook.cells if cell.cell_type == "code"]
+    assert all(cell.outputs == [] and cell.execution_count is None for cell in code)  # committed without outputs
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("DFWB_HUNTING_N", "3")
+    try:
+        namespace = _run_notebook(nbformat, "hunting.ipynb")
+    finally:
+        plt.close("all")
+    assert list(tmp_path.iterdir()) == []  # the notebook writes no file
+    assert namespace["N"] == 3
+
+    one = namespace["one"]
+    assert one.predictions == [] and len(one.cycles) == 1
+    cycle = one.cycles[0]
+    assert cycle.stable and cycle.period == pytest.approx(57.26, abs=0.01) and cycle.F < 7.0
+    assert "below the threshold 7 N" in cycle.df
+
+    for name in ("pi_map", "pid_map"):  # Fs = 7 N > Fc = 5 N
+        linear, truth, df = _hunting(namespace[name])
+        assert linear.shape == (3, 3) and linear.any(), name
+        assert truth[linear].all(), f"{name}: a stabilizing setting that does not hunt"
+        assert (truth & ~df).sum() > truth.sum() / 2, f"{name}: the DF sees most of the hunting"
+        assert not (df & ~truth).any(), f"{name}: the DF predicts hunting the truth does not find"
+    for name in ("pi_coulomb", "pid_coulomb"):  # Fs = Fc = 5 N
+        linear, truth, df = _hunting(namespace[name])
+        assert linear.any() and not truth.any(), f"{name}: hunts without static friction"
+        assert df.any(), f"{name}: the DF's false alarm is gone"
+        assert set(namespace[name].classes("truth").ravel()) <= {"none", "diverges", "unstable", "incomplete"}
+    assert namespace["pi_coulomb"].values["Fs"] == namespace["pid_coulomb"].values["Fs"] == 5.0  # Fc = 5 N
+    assert "Fs" not in namespace["pi_map"].values and "Fs" not in namespace["pid_map"].values  # 7 N
+
+    kinds = [(b.kind, b.parameter) for b in namespace["branch"].bifurcations]
+    assert any(kind == "nonsmooth-fold" and 24.0 < value < 25.5 for kind, value in kinds), kinds
+    assert any(kind == "infinity" and value == pytest.approx(5.0, abs=1e-6) for kind, value in kinds), kinds
+    df_stable = [p.parameter for b in namespace["df_branch"].branches for p in b.points if p.stable]
+    assert df_stable and min(df_stable) > 12.0  # the DF is blind to the hunting at small Ki
+    assert any(b.kind == "fold" and 25.0 < b.parameter < 26.5 for b in namespace["df_branch"].bifurcations)
+
+    margin = namespace["margin"]
+    assert margin.truth.hunts_at(1.0) and margin.truth.hunts_at(2.0) and margin.truth.hunts_at(50.0)
+    assert not margin.truth.hunts_at(0.1)  # it diverges (the nonsmooth fold at k = 0.277)
+    assert margin.df.hunts_at(1.0) and not margin.df.hunts_at(2.0)  # the DF's false cure: more gain
