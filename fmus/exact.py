@@ -44,6 +44,10 @@ class PlantError(DfwbError, ValueError):
     """A parameter, input or step the plant cannot accept."""
 
 
+class Diverged(PlantError):
+    """A motion that grew beyond the solvers' bound on the state (the hybrid loops' MAX_STATE)."""
+
+
 def too_many_events(t, t_event, kind):
     """The PlantError of a step that fires more than MAX_EVENTS_PER_STEP events."""
     return PlantError(f"more than {MAX_EVENTS_PER_STEP} events in one step between t = {t!r} and t = {t_event!r} "

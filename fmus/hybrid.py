@@ -42,7 +42,7 @@ Plain Python (``math``) only: this module runs inside the FMUs.
 
 import math
 
-from .exact import EPS, MAX_EVENTS_PER_STEP, PlantError, first_root, too_many_events
+from .exact import EPS, MAX_EVENTS_PER_STEP, Diverged, PlantError, first_root, too_many_events
 
 TAYLOR_RADIUS = 1.0  # rho h: the Taylor terms decrease from the first
 TAYLOR_TOLERANCE = 2.0 ** -60  # relative truncation of a chunk's series
@@ -51,6 +51,7 @@ EVENTS_PER_CHUNK = 10_000
 TIME_LIMIT = 1e12  # chunks of the fastest mode in [0, t]: beyond, ulp(t) is a sizeable part of a chunk
 MAX_CHUNKS_PER_STEP = 10_000_000  # the chunks one step may integrate (a study's Budget is at most this)
 NILPOTENT_CHUNK = 2.0 ** 20  # s: the chunk of a mode whose series ends (see nilpotency)
+MAX_STATE = 1e150  # a state beyond this diverges: long before floating point's end, where no event resolves
 TREND_ROUNDING = 64.0 * EPS  # a Taylor coefficient within this (relative to its scale) is zero
 SECTION_UP, SECTION_DOWN = "section+", "section-"  # crossings of a watched function (re-anchor, not events)
 SECTION = (SECTION_UP, SECTION_DOWN)
@@ -237,8 +238,8 @@ class Budget:
         self.left -= 1
         if self.left < 0:
             raise PlantError(f"the exact loop needed more than {self.total} chunks of integration (at t = {t:.6g} s "
-                             f"a chunk is {h:.3g} s): the controller's or the plant's fastest time scale is too far "
-                             f"below the motion's for this study")
+                             f"a chunk is {h:.3g} s): this study's motions are too long for its work budget, or the "
+                             f"fastest time scale too far below the motion's")
 
 
 class Polynomial:
@@ -339,9 +340,9 @@ class HybridSolver:
 
     def _chunk_start(self, t, X, first=False):
         for x in X:
-            if not math.isfinite(x):
-                raise PlantError(f"the state became non-finite at t = {t!r} s ({X}): the loop diverges beyond "
-                                 f"floating point")
+            if not abs(x) <= MAX_STATE:
+                raise Diverged(f"the state left [-{MAX_STATE:g}, {MAX_STATE:g}] at t = {t!r} s ({X}): the loop "
+                               "diverges")
         self._a, self._X = t, X
         self._dX = self._mode.derivative(X)
         self._b = t + self._mode.h

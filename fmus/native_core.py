@@ -56,7 +56,7 @@ from pathlib import Path
 
 from . import loops as _loops
 from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
-from .exact import DfwbError, Drive, PlantError
+from .exact import DfwbError, Diverged, Drive, PlantError
 from .state import StateRefused
 
 __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", "NativeStaticBacklash",
@@ -64,7 +64,7 @@ __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", 
            "EVENT_KINDS", "NativeFrictionLoop", "NativeBacklashLoop", "NativeStaticBacklashLoop", "NativeMode",
            "LOOP_PARAMETERS"]
 
-ABI = 4  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 5  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 PARAMETERS = ("M", "B", "Fc", "Fs", "Dv", "F", "omega", "phi", "x0", "v0", "f", "harmonics")
 BACKLASH_PARAMETERS = ("M1", "M2", "h", "eps", "F", "omega", "phi", "x1_0", "v1_0", "v2_0", "gap0", "f",
                        "harmonics")
@@ -73,7 +73,7 @@ ERRLEN = 1024
 LOG_CAPACITY = 1 << 20  # events one step may record (16 bytes each in C, allocated as they come)
 
 # status codes of dfwb_core.h
-OK, E_VALUE, E_LIMIT, E_MATH, E_MEMORY, E_ARGUMENT, E_STATE = range(7)
+OK, E_VALUE, E_LIMIT, E_MATH, E_MEMORY, E_ARGUMENT, E_STATE, E_DIVERGED = range(8)
 
 # DFWB_EVENT_* -> EventKind (0: none)
 EVENT_KINDS = (None, EventKind.BREAK_UP, EventKind.BREAK_DOWN, EventKind.RELEASE, EventKind.EDGE, EventKind.BAND,
@@ -233,6 +233,8 @@ def _raise(code, buffer, originals=None, tails=()):
         raise MemoryError(message)
     if code == E_STATE:
         raise StateRefused(message)
+    if code == E_DIVERGED:
+        raise Diverged(message)
     raise CoreError(f"C core status {code}: {message}")
 
 

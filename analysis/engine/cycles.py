@@ -45,7 +45,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from dfwb.fmus.exact import PlantError
+from dfwb.fmus.exact import Diverged, PlantError
 
 P_MAX = 8  # section hits per period a run recognises
 MAX_RETURNS = 600  # section hits a run may take
@@ -57,6 +57,7 @@ DIVERGED = 1e4  # an output beyond this many times the largest start amplitude: 
 BISECTIONS = 40  # halvings of a basin boundary's amplitude interval, at most
 MAX_BOUNDARIES = 4  # basin boundaries searched, at most
 SAME_CYCLE = 1e-6  # two cycles with w and X this close (relative) are one
+Z_CAP = 1e6  # a controller state is displaced at most this many times its size in a motion of the start amplitude
 LINK_FACTOR = 2.0  # a prediction and a true cycle within this factor in w and X may be linked
 OUTCOMES = ("cycle", "rest", "diverged", "unsettled", "failed")
 
@@ -171,6 +172,9 @@ def starts(problem, amplitudes):
     velocity = next(i for i, name in enumerate(probe.coordinates) if name.startswith("v"))
     per_output = probe.translate([0.0] * m, 1.0)[0]  # the first coordinate (a position) per unit of output
     G_c = abs(complex(problem.G(1j * scales.omega_c)))
+    with np.errstate(all="ignore"):  # a controller state's size in a motion of unit output at omega_c
+        natural = np.abs(np.linalg.solve(1j * scales.omega_c * np.eye(n) - np.array(probe.Ac, dtype=complex),
+                                         np.array(probe.Bc, dtype=complex))) if n else np.zeros(0)
     out = []
     for a in amplitudes:
         out.append(Start(f"x = {a:.3g}", "x", a, problem.rest_start(a)))
@@ -180,9 +184,12 @@ def starts(problem, amplitudes):
         C = probe.C
         for i in range(n):
             size = abs(C[i]) if C[i] != 0.0 else max(max(abs(c) for c in C), 1e-300)
+            # the controller's force moved by G_c a; no further than Z_CAP times the state's size in a motion
+            # of amplitude a (a state that hardly moves the force, Ki = 1e-300, is not sent to 1e300)
+            shift = min(G_c * a / size, Z_CAP * a * float(natural[i])) if np.isfinite(natural[i]) else G_c * a / size
             for sign, label in ((1.0, "+"), (-1.0, "-")):
                 X = problem.rest_start(a)
-                X[m + i] = sign * G_c * a / size
+                X[m + i] = sign * shift
                 out.append(Start(f"x = {a:.3g}, z{i + 1} = {X[m + i]:.3g}", f"z{i + 1}{label}", a, X))
     return out
 
@@ -270,19 +277,20 @@ class _Search:
         hits, tried = [], {}
         for count in range(1, self.max_returns + 1):
             try:
-                if not problem.hit(solver, self.horizon):
-                    return Fate(label, "rest", hits=count - 1, time=solver.t,
-                                detail=f"no section hit within {self.horizon:.4g} s")
+                hit = problem.hit(solver, self.horizon)
+            except Diverged as error:
+                return Fate(label, "diverged", hits=count - 1, time=solver.t, detail=str(error))
             except PlantError as error:
                 if problem.exhausted():
                     raise
-                text = str(error)
-                outcome = "diverged" if "non-finite" in text else "failed"
-                return Fate(label, outcome, hits=count - 1, time=solver.t, detail=text)
+                return Fate(label, "failed", hits=count - 1, time=solver.t, detail=str(error))
             X = np.array(solver.state())
-            if not np.all(np.isfinite(X)) or abs(X[problem.output]) > self.divergence:
-                return Fate(label, "diverged", hits=count, time=solver.t,
+            if not abs(X[problem.output]) <= self.divergence:  # at a hit, or drifting away without one
+                return Fate(label, "diverged", hits=count - int(not hit), time=solver.t,
                             detail=f"the output reached {X[problem.output]:.3g}")
+            if not hit:
+                return Fate(label, "rest", hits=count - 1, time=solver.t,
+                            detail=f"no section hit within {self.horizon:.4g} s")
             hits.append(X)
             j = self.joined(hits)
             if j is not None:

@@ -88,7 +88,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 4
+#define DFWB_CORE_ABI 5
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -99,6 +99,7 @@ extern "C" {
 #define DFWB_E_MEMORY 4   /* malloc failed (Python: MemoryError) */
 #define DFWB_E_ARGUMENT 5 /* a NULL pointer where an object is needed, a buffer too small */
 #define DFWB_E_STATE 6    /* bytes that are not a valid state of this plant (Python: StateRefused) */
+#define DFWB_E_DIVERGED 7 /* a loop's state grew beyond DFWB_HY_MAX_STATE (Python: Diverged) */
 
 /* Plant kinds (the header of a state). */
 #define DFWB_PLANT_FRICTION 1

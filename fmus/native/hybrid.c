@@ -461,12 +461,12 @@ static int chunk_start(dfwb_hy *hy, double t, const double *X, int first, dfwb_e
     const dfwb_hy_mode *m = hy->modes[hy->key];
     int i;
     for (i = 0; i < hy->n; i++)
-        if (!isfinite(X[i])) {
+        if (!(fabs(X[i]) <= DFWB_HY_MAX_STATE)) {
             char rt[DFWB_REPR_SIZE], rx[DFWB_HY_DIM * (DFWB_REPR_SIZE + 2) + 4];
             dfwb_repr(t, rt);
             state_repr(X, hy->n, rx, sizeof rx);
-            return dfwb_fail(err, DFWB_E_VALUE, "the state became non-finite at t = %s s (%s): the loop diverges "
-                             "beyond floating point", rt, rx);
+            return dfwb_fail(err, DFWB_E_DIVERGED, "the state left [-1e+150, 1e+150] at t = %s s (%s): the loop "
+                             "diverges", rt, rx);
         }
     hy->a = t;
     if (X != hy->X)
@@ -721,8 +721,8 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long lon
                 format_g(hy->b, 6, rt, sizeof rt);
                 format_g(hy->modes[hy->key]->h, 3, rh, sizeof rh);
                 return dfwb_fail(err, DFWB_E_LIMIT, "the exact loop needed more than %lld chunks of integration (at "
-                                 "t = %s s a chunk is %s s): the controller's or the plant's fastest time scale is "
-                                 "too far below the motion's for this study", budget_total, rt, rh);
+                                 "t = %s s a chunk is %s s): this study's motions are too long for its work budget, or "
+                                 "the fastest time scale too far below the motion's", budget_total, rt, rh);
             }
         }
         {

@@ -26,6 +26,7 @@
 #define DFWB_HY_EVENTS_PER_CHUNK 10000
 #define DFWB_HY_TIME_LIMIT 1e12
 #define DFWB_HY_NILPOTENT_CHUNK 1048576.0 /* NILPOTENT_CHUNK = 2 ** 20 s */
+#define DFWB_HY_MAX_STATE 1e150 /* MAX_STATE */
 #ifndef DFWB_HY_MAX_CHUNKS_PER_STEP /* MAX_CHUNKS_PER_STEP; -D at build time sets a smaller bound (tests) */
 #define DFWB_HY_MAX_CHUNKS_PER_STEP 10000000
 #endif
