@@ -9,6 +9,8 @@ bifurcation is located and then confirmed by what the search finds on its two si
 - The DF's prediction for a PID controller turns back at a smooth fold (-1/N touches G(jw)); confirmed by
   the DF search on both sides.
 - The hunting cycle shrinks to rest as the static friction falls to the Coulomb level.
+- A branch whose work budget runs out ends there, keeping its points; a cached record of another shape
+  is recomputed, never trusted.
 - The command line prints the documented JSON and refuses hostile input in one line before anything runs.
 """
 
@@ -127,6 +129,7 @@ def test_the_command_line_prints_the_documented_json(fmus, capsys):
     (["--G", PI, "--set", "Kp=10", "--parameter", "Ki=nan:30"], "Ki start = nan: the range's ends must be finite"),
     (["--G", PI, "--set", "Kp=10", "--parameter", "Ki=1:inf"], "Ki stop = inf: the range's ends must be finite"),
     (["--G", PI, "--set", "Kp=10", "--parameter", "Ki=3:3"], "the range is empty"),
+    (["--G", PI, "--set", "Kp=10", "--parameter", "Ki=-1e308:1e308"], "wider than the floats"),
     (["--G", PI, "--set", "Kp=10", "--parameter", "s=1:3"], "s is the variable of G(s), not a parameter"),
     (["--G", PI, "--set", "Kp=10", "s=2", "--parameter", "Ki=1:3"], "s is the variable of G(s), not a parameter"),
     (["--G", PI, "--set", "Kp=10", "Ki=2", "--parameter", "Ki=1:3"], "Ki is the parameter followed"),
@@ -142,3 +145,53 @@ def test_hostile_input_is_one_line_before_anything_runs(capsys, argv, message):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
+
+
+def test_a_branch_whose_budget_runs_out_ends_there_with_its_points():
+    from dfwb.engine.continuation import SPENT, CycleSystem, follow
+    from dfwb.fmus.hybrid import Budget
+
+    family = LoopFamily("friction", PI, {"Kp": 10}, free=("Ki",))
+    problem = family.problem({"Ki": 2.0})
+    (cycle,) = find_cycles(problem).stable()
+    swing = [v for i, v in enumerate(cycle.swing) if i != problem.pivot]
+    system = CycleSystem(family, "Ki", 29.0, cycle.returns, swing, cycle.period, None, Budget(2000))
+    nodes, reason = follow(system, np.array(problem.reduced(cycle.state) + [2.0]), 1.0, (1.0, 30.0))
+    assert reason == SPENT and 2 <= len(nodes) and system.budget.left < 0
+    values = [node.y[-1] for node in nodes]
+    assert values == sorted(values) and values[-1] < 24.0  # short of the fold: the branch is cut, not made up
+    for node in nodes[1:3]:  # what it kept is the truth
+        (found,) = find_cycles(family.problem({"Ki": float(node.y[-1])})).stable()
+        assert found.period == pytest.approx(node.point.period, rel=1e-8)
+
+
+def test_a_cached_continuation_of_another_shape_is_recomputed(pi_in_ki):
+    from dfwb.studies.responses import ContinuationResponse
+    from dfwb.studies.runner import _cached_continuation
+
+    record = json.loads(json.dumps(pi_in_ki.as_dict()))
+    again = _cached_continuation(record)
+    assert again.as_dict() == record and again.summary() == pi_in_ki.summary()
+    crafted = []
+    for path, value in [(("range",), ["1", 30.0]), (("range",), [1.0]), (("branches",), [{"source": "truth"}]),
+                        (("branches", 0, "points"), []), (("branches", 0, "returns"), 0),
+                        (("branches", 0, "points", 0, "stable"), "yes"), (("bifurcations", 0, "parameter"), math.nan),
+                        (("bifurcations", 0, "kind"), ["fold"]), (("notes",), "text"), (("unit",), None),
+                        (("searches",), [{"parameter": 1.0}]), ((), [1, 2])]:
+        document = json.loads(json.dumps(record))
+        if not path:
+            document = value
+        else:
+            target = document
+            for key in path[:-1]:
+                target = target[key]
+            target[path[-1]] = value
+        crafted.append(document)
+    deep = []
+    for _ in range(100_000):
+        deep = [deep]
+    crafted.append(dict(record, notes=deep))
+    for document in crafted:
+        assert _cached_continuation(document) is None
+        with pytest.raises(ValueError):
+            ContinuationResponse.from_dict(document)

@@ -60,6 +60,7 @@ MAX_POINTS = 200  # per branch
 TURN = 1e-3  # a step this small without a solution: look for the other side of a kink (see _turn)
 COS_TURN = 0.9  # a step whose tangent turns more than this (cosine) is halved, unless it is already that small
 TURN_REACH = (1e-3, 1e-2, 3e-2)  # how far past the last point it is looked for (scaled)
+SPENT = "the work budget ran out (a study's exact runs are bounded; its bifurcations are not located)"
 
 
 @dataclass
@@ -127,6 +128,7 @@ class CycleSystem:
         self.family, self.name, self.span, self.returns = family, name, span, returns
         self.swing = np.asarray(swing, dtype=float)  # of the section coordinates u
         self.period, self.fmu_dir, self.budget = period, fmu_dir, budget
+        self.spent = False  # the work budget ran out: every later residual is refused
         self._problems = {}
 
     def problem(self, value):
@@ -152,7 +154,11 @@ class CycleSystem:
         except DfwbError:  # a parameter value the plant or G refuses (a mass through 0, eps below 0, ...)
             return None, None
         X = problem.on_section(list(y[:-1]))
-        result = problem.first_return(X, self.returns, 20.0 * self.period)
+        try:
+            result = problem.first_return(X, self.returns, 20.0 * self.period)
+        except PlantError:  # the budget is spent (first_return raises nothing else): the branch ends here
+            self.spent = True
+            return None, None
         if result is None:
             return None, None
         return (np.array(problem.reduced(result[0])) - y[:-1]) / self.swing, result[1:]
@@ -339,23 +345,42 @@ def _node(system, y, r, extra, J, previous_tangent):
 def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE_LIMIT, progress=None):
     """The branch from the solution y0 in the direction of the parameter's sign ``direction``, within ``bounds``.
 
-    Returns (nodes, reason): the accepted nodes in order (y0's first) and why the branch stopped.
+    Returns (nodes, reason): the accepted nodes in order (y0's first) and why the branch stopped (SPENT
+    where the system's work budget ran out: the nodes found until then are kept).
     """
+    nodes = []
+    try:
+        return _follow(system, y0, direction, bounds, max_points, limit, progress, nodes)
+    except PlantError:
+        if not _spent(system):
+            raise
+        return nodes, SPENT
+
+
+def _spent(system):
+    """Whether a system's work budget ran out (a DF system has none)."""
+    budget = getattr(system, "budget", None)
+    return getattr(system, "spent", False) or (budget is not None and budget.left < 0)
+
+
+def _follow(system, y0, direction, bounds, max_points, limit, progress, nodes):
     r, extra = system.residual(y0)
-    if r is None:
-        return [], "the start is not a solution"
-    J = _jacobian(system, y0, r, extra)
+    J = None if r is None else _jacobian(system, y0, r, extra)
     if J is None:
-        return [], "the start's neighbourhood does not return to the section"
+        return nodes, SPENT if _spent(system) else "the start is not a solution" if r is None else \
+            "the start's neighbourhood does not return to the section"
     start = np.zeros(len(y0))
     start[-1] = direction
     node = _node(system, y0, r, extra, J, start)
-    nodes, ds = [node], DS[1]
+    nodes.append(node)
+    ds = DS[1]
     amplitude0 = max(node.point.amplitude_x, 1e-300)
     lo, hi = bounds
     if (y0[-1] >= hi and node.tangent[-1] > 0) or (y0[-1] <= lo and node.tangent[-1] < 0):
         return nodes, "the end of the range"  # it starts on the edge, heading out
     while len(nodes) < max_points:
+        if _spent(system):
+            return nodes, SPENT
         D = system.scale()
         last = nodes[-1]
         predicted = last.y + ds * last.tangent * D
@@ -384,6 +409,8 @@ def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE
                     nodes.append(turned)
                     ds = DS[1]
                     continue
+            if _spent(system):
+                return nodes, SPENT
             if ds < DS[0]:
                 return nodes, "the branch cannot be followed further (the corrector fails even at tiny steps)"
             continue
@@ -681,7 +708,14 @@ def _assemble(source, halves, span, family, name, bounds, fmu_dir, returns=1):
     """The Branch and its bifurcations from the two halves traced from one start."""
     found, ends, runs = [], [], []
     for system, nodes, reason in halves:
-        located = bifurcations(system, nodes, span)
+        try:
+            located = [] if reason == SPENT else bifurcations(system, nodes, span)  # none located without work
+        except PlantError:
+            if not _spent(system):
+                raise
+            located = []
+        if _spent(system):  # spent while locating: what was located may be wrong
+            located, reason = [], SPENT
         found += [bifurcation for _i, bifurcation, _points in located]
         inserts = {}
         for i, _bifurcation, points in located:

@@ -8,6 +8,7 @@ its bifurcations located (:mod:`dfwb.engine.continuation`). A cycle or
 prediction that lies on a branch already followed is not followed again.
 """
 
+import math
 
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
@@ -18,17 +19,20 @@ SOURCES = ("truth", "df")
 MAX_STARTS = 16  # parameter values searched for starts, at most
 
 
-def check_parameter(family, name, start, stop):
-    """(name, (lo, hi)) of a continuation or map axis, refused in one line before anything runs."""
+def check_parameter(family, name, start, stop, plant=True):
+    """(name, (lo, hi)) of a continuation or map axis, refused in one line before anything runs.
+
+    ``plant``: check a plant parameter's ends against the plant's ranges (with the other values given;
+    a map of two plant parameters checks its corners instead)."""
     if not isinstance(name, str):
         raise InputError(f"parameter = {name!r:.60}: give its name (a parameter of G or of the plant)")
     family.check_name(name)
     values = [number(f"{name} {label}", value, "the range's ends must be finite numbers")
               for label, value in (("start", start), ("stop", stop))]
-    if values[0] == values[1]:
-        raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty (give START:STOP with "
-                         "START != STOP)")
-    if name in family.plant_names:  # the plant's own range, at both ends (it is checked all along anyway)
+    if values[0] == values[1] or not math.isfinite(values[1] - values[0]):
+        raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty or wider than the floats "
+                         "(give START:STOP with START != STOP, STOP - START finite)")
+    if plant and name in family.plant_names:  # the plant's own range, at both ends (checked all along anyway)
         for value in values:
             try:
                 family.params({name: value})
@@ -69,11 +73,19 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         if "truth" in sources:
             found = find_cycles(problem)
             searches.append({"parameter": value, "cycles": len(found.cycles), "coverage": found.coverage.as_dict()})
+            if not found.coverage.complete or found.coverage.outcomes.get("failed"):
+                notes.append(f"{name} = {value:g}: the search for true cycles is not settled ("
+                             + ("the work budget ran out" if not found.coverage.complete else "runs failed")
+                             + "): a branch may be missing")
             cycle_starts += [(value, cycle) for cycle in found.cycles]
         if "df" in sources:
             F, omega = search_ranges(problem)
+            try:
+                predictions = search(family.spec.name, problem.G, problem.params, F, omega, engine=engine).cycles
+            except DfwbError as error:  # the plant refuses a DF point here (a motion it cannot resolve)
+                notes.append(f"{name} = {value:g}: no DF search: {error}")
+                predictions = []
             ranges.append(F)
-            predictions = search(family.spec.name, problem.G, problem.params, F, omega, engine=engine).cycles
             prediction_starts += [(value, prediction) for prediction in predictions]
         if progress:
             progress("starts", k + 1, len(at))
@@ -94,6 +106,8 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
 
 
 def _sources(sources):
+    if sources == "both":
+        sources = SOURCES
     if isinstance(sources, str):
         sources = (sources,)
     try:
@@ -106,9 +120,13 @@ def _sources(sources):
 
 
 def _starts(starts, bounds):
+    if isinstance(starts, (int, float)) and not isinstance(starts, bool):
+        starts = [starts]
     try:
-        values = sorted({float(v) for v in starts})
-    except (TypeError, ValueError):
+        if isinstance(starts, (str, bytes)) or len(starts) > MAX_STARTS:
+            raise TypeError
+        values = sorted({number("starts", v) for v in starts})
+    except (TypeError, ValueError, InputError):
         raise InputError(f"starts = {starts!r:.60}: a list of parameter values") from None
     if not 1 <= len(values) <= MAX_STARTS or not all(bounds[0] <= v <= bounds[1] for v in values):
         raise InputError(f"starts = {starts!r:.60}: 1 to {MAX_STARTS} values within [{bounds[0]:g}, {bounds[1]:g}]")
