@@ -6,7 +6,8 @@ Amin, "PID control in the presence of static friction: a comparison of algebraic
 analysis", Automatica 32(5), 1996). The map must say both; its claim of absence (Fs = Fc) is checked against
 a long independent event-driven simulation. A map equals the search cell by cell, resumes after a kill,
 reads its cells back from the cache, and draws the linear loop's boundary where python-control puts it.
-A margin's boundary is confirmed by cycles on its two sides.
+A margin's boundary is confirmed by cycles on its two sides. What a map reads back (its folder, the cache)
+is checked: a crafted row or entry is recomputed, never shown.
 """
 
 import json
@@ -145,6 +146,10 @@ def test_the_command_line_writes_the_map_and_its_json(fmus, tmp_path, capsys):
     (["--x", "Kp=1:50:5", "--y", "Kp=0.1:25:5"], "x and y are both Kp"),
     (["--x", "Kp=1:50:1", "--y", "Ki=0.1:25:5"], "N = 1 cells: an integer from 2 to 1000"),
     (["--x", "Kp=1:50:2.5", "--y", "Ki=0.1:25:5"], "N a whole number of cells"),
+    (["--x", "Kp=1:50:inf", "--y", "Ki=0.1:25:5"], "N a whole number of cells"),
+    (["--x", "Kp=1:50:nan", "--y", "Ki=0.1:25:5"], "N a whole number of cells"),
+    (["--x", "Kp=-1e308:1e308:5", "--y", "Ki=0.1:25:5"], "wider than the floats"),
+    (["--x", "Fc=8:9:2", "--y", "Fs=1:2:2", "--set", "Kp=1", "Ki=1"], "the plant refuses every corner of the map"),
     (["--x", "Kp=1:50:5", "--y", "Ki=0.1:25:5", "--set", "Kp=3"], "Kp is an axis of the map"),
     (["--x", "Kp=1:50:5", "--y", "M=-1:25:5", "--set", "Ki=2"], "M = -1.0 is out of range"),
     (["--x", "Kp=1:50:5", "--y", "s=0:1:5"], "s is the variable of G(s)"),
@@ -182,9 +187,9 @@ def test_a_pi_controller_that_keeps_its_ratio_hunts_at_every_gain(capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--k-range", "2", "10"], "expected 0 < low < 1 < high"),
-    (["--k-range", "0", "10"], "expected 0 < low < 1 < high"),
-    (["--k-range", "0.1", "nan"], "expected 0 < low < 1 < high"),
+    (["--k-range", "2", "10"], "expected 1e-06 <= low < 1 < high <= 1e+06"),
+    (["--k-range", "0", "10"], "expected 1e-06 <= low < 1 < high <= 1e+06"),
+    (["--k-range", "0.1", "nan"], "expected 1e-06 <= low < 1 < high <= 1e+06"),
     (["--G", "k*(1 + 1/s)"], "the parameter k is given no value"),
 ])
 def test_hostile_margin_input_is_one_line(capsys, argv, message):
@@ -195,3 +200,147 @@ def test_hostile_margin_input_is_one_line(capsys, argv, message):
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
+
+
+def _rewrite_rows(log, change):
+    """cells.csv with change(row) applied to each row (None drops it) and the checksums made right again:
+    a row crafted by someone who knows the format."""
+    import csv
+
+    from dfwb.base.runlog import CHECKSUM, checksum
+
+    with open(log, newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    columns = list(rows[0])
+    kept = []
+    for i, row in enumerate(rows):
+        row = change(i, dict(row))
+        if row is not None:
+            row[CHECKSUM] = checksum(row, columns)
+            kept.append(row)
+    with open(log, "w", newline="") as stream:
+        writer = csv.DictWriter(stream, columns)
+        writer.writeheader()
+        writer.writerows(kept)
+
+
+def test_a_map_resumes_only_its_own_well_formed_cells(tmp_path):
+    axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
+    out = tmp_path / "m"
+    first = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, out_dir=out)
+    assert first.counts["computed"] == 4
+
+    def craft(i, row):
+        cell = json.loads(row["cell"])
+        if i == 0:
+            cell["truth"]["class"] = "hunts a lot"
+        elif i == 1:
+            row["key"] = "0" * 64  # another map's (or another code's) row
+        elif i == 2:
+            cell["truth"]["cycles"] = [{"omega": -1.0}]
+        row["cell"] = json.dumps(cell)
+        return row
+
+    _rewrite_rows(out / "cells.csv", craft)
+    again = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, out_dir=out)
+    assert again.counts["resumed"] == 1 and again.counts["computed"] == 3
+    assert again.as_dict()["cells"] == first.as_dict()["cells"]
+
+
+def test_a_crafted_cache_entry_of_a_map_cell_is_recomputed(tmp_path):
+    import hashlib
+
+    axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
+    first = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, cache=tmp_path / "cache")
+    entries = sorted((tmp_path / "cache").rglob("*.json"))
+    assert len(entries) == 4
+    for path, body in zip(entries[:3], (b'{"truth": 1}', b"[" * 100_000, b'{"x": 5.0, "y": 1.0, "error": 7}')):
+        head = json.loads(path.read_bytes().partition(b"\n")[0])
+        head["sha256"] = hashlib.sha256(body).hexdigest()  # a valid entry for its key, with a crafted value
+        path.write_bytes(json.dumps(head).encode() + b"\n" + body)
+    again = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, cache=tmp_path / "cache")
+    assert again.counts["cached"] == 1 and again.counts["computed"] == 3
+    assert again.as_dict()["cells"] == first.as_dict()["cells"]
+
+
+def test_a_map_under_a_function_never_resumes_another_functions_cells(tmp_path):
+    out = tmp_path / "m"
+    axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
+    dfwb.hunting_map("friction", lambda Kp, Ki: control.tf([Kp, Ki], [1, 0]), *axes, jobs=1, curves=False,
+                     out_dir=out)
+    doubled = dfwb.hunting_map("friction", lambda Kp, Ki: control.tf([2 * Kp, Ki], [1, 0]), *axes, jobs=1,
+                               curves=False, out_dir=out)
+    assert doubled.counts["resumed"] == 0 and doubled.counts["computed"] == 4
+    assert doubled.as_dict()["cells"] == dfwb.hunting_map("friction", "2*Kp + Ki/s", *axes, jobs=1,
+                                                          curves=False).as_dict()["cells"]
+
+
+@pytest.mark.parametrize("Kp, Ki", [(-10.0, 2.0), (-1.0, -1.0), (5.0, -3.0)])
+def test_a_loop_that_grows_without_crossing_the_section_diverges(Kp, Ki):
+    """An unstable loop can run away monotonically, never crossing the section again: not rest."""
+    from dfwb.engine.hunting import classify
+
+    cell = classify(LoopFamily("friction", PI, {"Kp": Kp, "Ki": Ki}).problem(), df=False)
+    assert cell["truth"]["class"] == "diverges" and not cell["linear"]["stable"]
+    assert cell["truth"]["coverage"]["outcomes"].get("diverged", 0) >= 10
+
+
+def test_a_search_with_failed_runs_settles_nothing():
+    from types import SimpleNamespace
+
+    from dfwb.engine.hunting import truth_class
+
+    def search(outcomes, complete=True):
+        return SimpleNamespace(stable=lambda: False, cycles=[],
+                               coverage=SimpleNamespace(outcomes=outcomes, complete=complete))
+
+    assert truth_class(search({"rest": 19, "failed": 1}))[0] == "incomplete"
+    assert truth_class(search({"rest": 20}, complete=False))[0] == "incomplete"
+    assert truth_class(search({"rest": 19, "diverged": 1}))[0] == "diverges"
+    assert truth_class(search({"rest": 20}))[0] == "none"
+
+
+def test_a_nearly_absent_controller_state_is_not_sent_to_1e300():
+    """Ki = 1e-300: displacing the integrator by the force G_c a / Ki would put it at 1e300 (every later
+    sum rounded away); it moves at most Z_CAP times its size in a motion of the start's amplitude."""
+    from dfwb.engine.cycles import Z_CAP, starts
+
+    problem = LoopFamily("friction", PI, {"Kp": 10, "Ki": 1e-300}).problem()
+    omega_c = problem.scales.omega_c
+    for start in starts(problem, [0.1, 1.0]):
+        assert abs(start.state[-1]) <= Z_CAP * start.amplitude / omega_c * (1 + 1e-12)
+    usual = LoopFamily("friction", PI, {"Kp": 10, "Ki": 2}).problem()  # a usual Ki is displaced as before
+    G_c = abs(complex(usual.G(1j * usual.scales.omega_c)))
+    assert max(abs(s.state[-1]) for s in starts(usual, [1.0])) == pytest.approx(G_c / 2.0, rel=1e-12)
+
+
+def test_the_gain_factor_does_not_collide_with_a_plant_parameter_named_k():
+    from dfwb.engine.margin import GAIN
+
+    family = LoopFamily("static-backlash", "1 + 0.5*s/(0.01*s + 1)", {"k": 2.0})
+    problem = family.scaled(GAIN).problem({GAIN: 3.0})
+    assert problem.params["k"] == 2.0
+    assert complex(problem.G(1j)) == pytest.approx(3.0 * complex(family.G()(1j)), rel=1e-12)
+
+
+def test_a_map_of_two_plant_parameters_reports_the_cells_the_plant_refuses():
+    """Fc and Fs over a grid where Fs < Fc at one corner: that cell says why, the others are computed."""
+    m = dfwb.hunting_map("friction", PI, ("Fc", 4.0, 6.0, 2), ("Fs", 5.0, 7.0, 2), jobs=1, curves=False,
+                         Kp=10, Ki=2)
+    classes = m.classes("truth")
+    assert classes[0][1] == "error" and "Fs" in m.cells[0][1]["error"]
+    assert classes[0][0] == classes[1][0] == classes[1][1] == "stable"
+
+
+def test_a_scenes_own_map_folder_starts_over_when_the_map_changes(tmp_path):
+    from dfwb.base.errors import InputError
+    from dfwb.studies.hunting import run_map
+
+    out = tmp_path / "map_pi"
+    run_map("friction", PI, ("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2), out_dir=out, jobs=1, curves=False)
+    edited = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 3.0, 2))
+    with pytest.raises(InputError, match="holds a different map"):
+        run_map("friction", PI, *edited, out_dir=out, jobs=1, curves=False)
+    again = run_map("friction", PI, *edited, out_dir=out, jobs=1, curves=False, own_folder=True)
+    assert again.counts["resumed"] == 0 and again.counts["computed"] == 4
+    assert json.loads((out / "map.json").read_text())["y"] == ["Ki", [1.0, 3.0]]

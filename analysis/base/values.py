@@ -1,14 +1,19 @@
-"""Values handed to dfwb by a program: shown shortly in messages, and turned into arrays only once counted.
+"""Values handed to dfwb by a program or read back from a file: shown shortly in messages, turned into
+arrays only once counted, and checked against the shape they must have.
 
 A caller may pass a list of a billion numbers, or one nested a million deep;
-each is refused in one line before numpy builds anything.
+each is refused in one line before numpy builds anything. A document read
+back from a cache or a log (which anyone can write) is used only if it
+:func:`conforms` to its schema.
 """
+
+import math
 
 import numpy as np
 
 from dfwb.base.errors import InputError
 
-__all__ = ["short", "leaves", "reals", "integer"]
+__all__ = ["short", "leaves", "reals", "integer", "conforms", "positive"]
 
 
 def short(value, width=80):
@@ -54,3 +59,45 @@ def integer(name, value):
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise InputError(f"{name} = {short(value)} is not an integer")
     return int(value)
+
+
+def positive(value):
+    """A finite number > 0 (a schema leaf of :func:`conforms`)."""
+    return conforms(value, float) and value > 0
+
+
+def conforms(value, schema):
+    """Whether a JSON document ``value`` has the shape ``schema`` describes.
+
+    ``float``: a finite number (not a bool); ``int``, ``bool``, ``str``: exactly that type; ``None``: None;
+    ``object``: anything; a tuple: any of its schemas; a frozenset: one of its texts; ``[s]``: a list of
+    ``s``; ``{key: s}``: a dict with exactly these keys (``...: object`` among them allows others), or
+    ``{str: s}`` a dict of texts to ``s``; another callable: a predicate. The walk follows the schema, so a
+    document nested a million deep costs no more than the schema's depth.
+
+    >>> conforms({"x": 1.5, "tags": ["a"]}, {"x": float, "tags": [str]})
+    True
+    >>> conforms({"x": float("nan"), "tags": []}, {"x": float, "tags": [str]})
+    False
+    """
+    if isinstance(schema, tuple):
+        return any(conforms(value, s) for s in schema)
+    if schema is None or schema is object:
+        return schema is object or value is None
+    if schema is float:
+        return type(value) in (int, float) and math.isfinite(value)
+    if schema in (int, bool, str):
+        return type(value) is schema
+    if isinstance(schema, frozenset):
+        return type(value) is str and value in schema
+    if isinstance(schema, list):
+        return type(value) is list and all(conforms(v, schema[0]) for v in value)
+    if isinstance(schema, dict):
+        if type(value) is not dict:
+            return False
+        if set(schema) == {str}:
+            return all(type(k) is str and conforms(v, schema[str]) for k, v in value.items())
+        named = {k: s for k, s in schema.items() if k is not ...}
+        return ((... in schema or set(value) == set(named)) and set(named) <= set(value)
+                and all(conforms(value[k], s) for k, s in named.items()))
+    return bool(schema(value))

@@ -3,10 +3,11 @@
 The truth is the systematic search of the exact loop (:func:`dfwb.engine.cycles.find_cycles`): a setting
 *hunts* when the search reaches a stable cycle; otherwise the loop *diverges* when runs leave every bound,
 has *only unstable* cycles when the search found some but none attracts, and has *no cycle* in the range
-covered when every run came to rest. The DF's verdict comes from its predictions (Loeb's stability): a
-stable one, only unstable ones, or none; where the linear loop is unstable and the DF predicts no stable
-cycle, large motions grow as the linear loop's do (*diverges*). One DF map of the plant serves every
-controller (:func:`dfwb.engine.limit_cycles.balance`), so a map over controller parameters computes it once.
+covered when every run came to rest; it is *not settled* when the work budget ran out or a run failed. The
+DF's verdict comes from its predictions (Loeb's stability): a stable one, only unstable ones, or none; where
+the linear loop is unstable and the DF predicts no stable cycle, large motions grow as the linear loop's do
+(*diverges*). One DF map of the plant serves every controller (:func:`dfwb.engine.limit_cycles.balance`),
+so a map over controller parameters computes it once.
 """
 
 import math
@@ -15,13 +16,24 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dfwb.base.errors import DfwbError
+from dfwb.base.values import conforms, positive
 from dfwb.engine.scales import linear_poles, search_ranges
 
 CLASSES = ("stable", "unstable", "diverges", "none", "incomplete")
-LABELS = {"stable": "hunts (a stable cycle)", "unstable": "only unstable cycles", "diverges": "diverges",
-          "none": "no cycle in the range searched", "incomplete": "not settled (the work budget ran out)"}
+LABELS = {"stable": "hunts (a stable cycle)", "unstable": "only unstable cycles",
+          "diverges": "diverges (from some starts)", "none": "no cycle in the range searched",
+          "incomplete": "not settled (the work budget ran out, or runs failed)"}
 MAP_AMPLITUDES = 5  # start amplitudes per cell (1 per decade over the default span)
 GRID = (24, 64)  # the shared DF map: forces x frequencies
+
+
+_CYCLE = {"omega": positive, "period": positive, "amplitude_x": positive, "F": positive, "stable": bool,
+          "multipliers": [(float, None)], "events": [str]}
+CELL = {"x": float, "y": float, "linear": {"stable": bool, "max_real_pole": (float, None)},
+        "truth": {"class": frozenset(CLASSES), "cycles": [_CYCLE],
+                  "coverage": {"starts": int, "outcomes": {str: int}, "complete": bool}},
+        "df": {"class": frozenset(CLASSES), "predictions": [{"F": positive, "omega": positive,
+                                                             "amplitude_x": positive, "stable": bool}]}}
 
 
 @dataclass
@@ -49,7 +61,7 @@ def truth_class(search):
     outcomes = search.coverage.outcomes
     if search.stable():
         kind = "stable"
-    elif not search.coverage.complete:
+    elif not search.coverage.complete or outcomes.get("failed"):  # a run that ended unsettled settles nothing
         kind = "incomplete"
     elif outcomes.get("diverged"):
         kind = "diverges"
@@ -105,6 +117,12 @@ def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=T
 def _cycle(c):
     return {"omega": c.omega, "period": c.period, "amplitude_x": c.amplitude_x, "F": c.F, "stable": c.stable,
             "multipliers": c.multipliers, "events": c.signature}
+
+
+def valid_cell(cell):
+    """Whether ``cell`` (read back from a file or a cache) has the shape :func:`classify` gives, at a point
+    (x, y): a crafted or damaged cell is recomputed, never drawn or counted."""
+    return conforms(cell, CELL) or conforms(cell, {"error": str, "x": float, "y": float})
 
 
 def hunting(cell, source="truth"):
@@ -270,7 +288,10 @@ def _relocate(column, name, bounds, seed, fmu_dir, engine, F_range):
                 problem = column.problem({name: value}, fmu_dir)
             except DfwbError:
                 continue
-            fixed = problem.converge(problem.on_section(list(y0[:-1])), seed.returns, on_section=True)
+            try:
+                fixed = problem.converge(problem.on_section(list(y0[:-1])), seed.returns, on_section=True)
+            except DfwbError:  # its work budget ran out: not found again here
+                fixed = None
             if fixed is None:
                 continue
             swing = problem._swing(fixed[0], fixed[1])

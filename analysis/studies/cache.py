@@ -29,10 +29,11 @@ import functools
 import hashlib
 import json
 import math
+import os
 import warnings
 from pathlib import Path
 
-from dfwb.base.errors import RunError
+from dfwb.base.errors import InputError, RunError
 from dfwb.base.files import ensure_folder, file_digest, read_bytes, user_cache_dir, write_atomic
 
 FORMAT = 2
@@ -133,7 +134,7 @@ class Cache:
         except FileNotFoundError:
             self.misses += 1
             return None
-        except (OSError, ValueError, TypeError):
+        except (OSError, ValueError, TypeError, RecursionError):
             valid = False
         if not valid:
             self.rejected += 1
@@ -185,6 +186,8 @@ def open_cache(cache):
         return NoCache()
     if isinstance(cache, (Cache, NoCache)):
         return cache
+    if cache is not True and not isinstance(cache, (str, os.PathLike)):
+        raise InputError(f"cache = {cache!r:.60}: give True, False or a folder")
     store = Cache() if cache is True else Cache(cache)
     if store.root.exists() and not store.root.is_dir():
         if cache is not True:  # the user named it: a mistake to say at once

@@ -9,10 +9,12 @@ workers.
 Cells run in worker processes or on Dask (:class:`dfwb.studies.executor.Executor`), are cached like DF
 points (:mod:`dfwb.studies.cache`, keyed by everything a cell depends on) and, with an output folder, are
 appended to ``cells.csv`` as they finish (checksummed rows, :mod:`dfwb.base.runlog`): a killed map resumes
-with what it had. A cell that fails (a parameter value the plant refuses) is reported as such, never the map.
-The linear loop's stability boundary (the plant with its nonlinearity removed) is computed on a fine grid,
-and the bifurcation curves are continued in the two parameters from the folds found on the way
-(:func:`dfwb.engine.hunting.fold_curves`).
+with what it had. A row is resumed only under the key of the same map and code, and a cell read back (from
+the folder or the cache) only with a classified cell's shape; a map under a Python function G is never
+resumed (its key cannot name the function). A cell that fails (a parameter value the plant refuses) is
+reported as such, never the map. The linear loop's stability boundary (the plant with its nonlinearity
+removed) is computed on a fine grid, and the bifurcation curves are continued in the two parameters from
+the folds found on the way (:func:`dfwb.engine.hunting.fold_curves`).
 """
 
 import json
@@ -33,7 +35,8 @@ from dfwb.studies.responses import HuntingMapResponse
 
 MAX_CELLS = 10_000  # a 100 x 100 map: tens of minutes on two cores
 MAX_SIDE = 1_000
-COLUMNS = ["x", "y", "truth", "truth_omega", "truth_amplitude", "df", "df_omega", "df_amplitude", "linear", "cell"]
+COLUMNS = ["x", "y", "truth", "truth_omega", "truth_amplitude", "df", "df_omega", "df_amplitude", "linear", "cell",
+           "key"]  # key: the digest of everything the cell depends on but (x, y): a row of another map is not resumed
 LINEAR_GRID = 80  # the linear loop's stability is drawn from this many points per side
 CHUNK = 4  # cells per task
 
@@ -78,23 +81,37 @@ def compute_cells(chunk, fmu_data=None):
     return code_revision(), cells
 
 
-def _axis(family, axis, label):
+def _axis(family, axis, label, plant):
     """(name, [values]) of an axis given as (name, start, stop, n)."""
     try:
         name, start, stop, count = axis
     except (TypeError, ValueError):
         raise InputError(f"{label} = {axis!r:.60}: give (NAME, START, STOP, N)") from None
-    name, (lo, hi) = check_parameter(family, name, start, stop)
+    name, (lo, hi) = check_parameter(family, name, start, stop, plant)
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 2 <= count <= MAX_SIDE:
         raise InputError(f"{label} {name}: N = {count!r} cells: an integer from 2 to {MAX_SIDE}")
     values = np.linspace(float(start), float(stop), int(count))
     return name, [float(v) for v in values]
 
 
-def _row(cell):
+def _some_corner(family, x_name, xs, y_name, ys):
+    """Refuse a map of two plant parameters none of whose corners the plant accepts (where only some
+    are, the cells it refuses are reported as such)."""
+    errors = []
+    for a in (xs[0], xs[-1]):
+        for b in (ys[0], ys[-1]):
+            try:
+                family.params({x_name: a, y_name: b})
+                return
+            except DfwbError as error:
+                errors.append(f"{x_name} = {a:g}, {y_name} = {b:g}: {error}")
+    raise InputError(f"the plant refuses every corner of the map ({errors[0]})")
+
+
+def _row(cell, key):
     from dfwb.engine.hunting import hunting
 
-    row = {"x": repr(cell["x"]), "y": repr(cell["y"]), "cell": json.dumps(finite(cell), sort_keys=True)}
+    row = {"x": repr(cell["x"]), "y": repr(cell["y"]), "cell": json.dumps(finite(cell), sort_keys=True), "key": key}
     if "error" in cell:
         return dict(row, truth="error", df="error", linear="")
     for source in ("truth", "df"):
@@ -107,23 +124,28 @@ def _row(cell):
 
 
 def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, cache=False, fmu_dir=None,
-            amplitudes=None, curves=True, resume=True, progress=None):
+            amplitudes=None, curves=True, resume=True, progress=None, own_folder=False):
     """The hunting map of ``plant`` under ``G`` over the axes ``x`` and ``y`` (each (NAME, START, STOP, N)).
 
     Returns a :class:`~dfwb.studies.responses.HuntingMapResponse`; see :func:`dfwb.hunting_map`.
+    ``own_folder``: ``out_dir`` belongs to the caller (a scene's), so a different map there starts over
+    instead of being refused.
     """
     from dfwb.engine.hunting import MAP_AMPLITUDES, df_map_for, linear_map
     from dfwb.fmi.location import fmu_path
 
     fixed = dict(values or {})
-    names = [a[0] if isinstance(a, (tuple, list)) and a else None for a in (x, y)]
+    names = [a[0] if isinstance(a, (tuple, list)) and a and isinstance(a[0], str) else None for a in (x, y)]
     for name in names:
         if name in fixed:
             raise InputError(f"{name} is an axis of the map: give its range, not a value for it")
-    if names[0] == names[1]:
+    if names[0] is not None and names[0] == names[1]:
         raise InputError(f"x and y are both {names[0]}: a map needs two different parameters")
     family = LoopFamily(plant, G, fixed, free=tuple(n for n in names if isinstance(n, str)))
-    (x_name, xs), (y_name, ys) = _axis(family, x, "x"), _axis(family, y, "y")
+    both = all(name in family.plant_names for name in names)  # their ranges may depend on each other (Fc <= Fs)
+    (x_name, xs), (y_name, ys) = _axis(family, x, "x", not both), _axis(family, y, "y", not both)
+    if both:
+        _some_corner(family, x_name, xs, y_name, ys)
     if len(xs) * len(ys) > MAX_CELLS:
         raise InputError(f"a map of {len(xs)} x {len(ys)} = {len(xs) * len(ys)} cells: at most {MAX_CELLS} "
                          "(fewer cells, or several maps)")
@@ -136,13 +158,19 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     started = time.perf_counter()
     shared = None
     if x_name not in family.plant_names and y_name not in family.plant_names:  # one DF map serves every cell
-        corners = [family.problem({x_name: a, y_name: b}, fmu_dir) for a in (xs[0], xs[-1]) for b in (ys[0], ys[-1])]
-        grid = df_map_for(corners, engine)
-        shared = (grid.F_grid.tolist(), grid.omega_grid.tolist(), grid.N_grid.real.tolist(), grid.N_grid.imag.tolist())
+        try:
+            corners = [family.problem({x_name: a, y_name: b}, fmu_dir) for a in (xs[0], xs[-1])
+                       for b in (ys[0], ys[-1])]
+        except DfwbError:  # G refuses a corner: each cell computes its own DF (and says what it refuses)
+            corners = None
+        if corners is not None:
+            grid = df_map_for(corners, engine)
+            shared = (grid.F_grid.tolist(), grid.omega_grid.tolist(), grid.N_grid.real.tolist(),
+                      grid.N_grid.imag.tolist())
     if isinstance(G, str):
         G_key = chunk_G = G
-    elif family.built:  # a Python function cannot go to another process, nor name a cache entry: computed here
-        G_key, chunk_G, jobs, dask, cache = None, G, 1, None, False
+    elif family.built:  # a Python function cannot go to another process, nor name a cache entry or a resumed
+        G_key, chunk_G, jobs, dask, cache, resume = None, G, 1, None, False, False  # row: computed here, afresh
     else:
         G_key = [family.G().num[0][0].tolist(), family.G().den[0][0].tolist()]
         chunk_G = (tuple(G_key[0]), tuple(G_key[1]))
@@ -151,27 +179,27 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     base = {"kind": "map-cell", "code": code_revision(), "solvers": solver_revision(), "fmu": fmu_revision(fmu),
             "plant": spec.name, "G": definition["G"], "values": family.merged(), "axes": [x_name, y_name],
             "amplitudes": count, "dfmap": definition["dfmap"]}
+    key = None if G_key is None else digest(base)
     store = open_cache(cache)
     cells = {}
     wanted = [(a, b) for b in ys for a in xs]
-    with _folder(out_dir, definition, len(wanted), resume) as (log, rows):
+    points = set(wanted)
+    with _folder(out_dir, definition, len(wanted), resume, own_folder) as (log, rows):
         for row in rows:
-            try:
-                cell = json.loads(row["cell"])
-                cells[(float(cell["x"]), float(cell["y"]))] = cell
-            except (KeyError, TypeError, ValueError):
-                continue
+            cell = _read_cell(row["cell"]) if key is not None and row["key"] == key else None
+            if cell is not None and (cell["x"], cell["y"]) in points:
+                cells[(cell["x"], cell["y"])] = cell
         resumed = len(cells)
         hits = 0
         for point in wanted:
             if point in cells:
                 continue
             value = store.get(dict(base, x=point[0], y=point[1]))
-            if value is not None:
+            if _checked(value) is not None and (value["x"], value["y"]) == point:
                 cells[point] = value
                 hits += 1
                 if log is not None:
-                    log.append([_row(value)])
+                    log.append([_row(value, key)])
         pending = [point for point in wanted if point not in cells]
         chunks = [MapChunk(spec.name, fmu, chunk_G, tuple(sorted(family.merged().items())), (x_name, y_name),
                            tuple(pending[i:i + CHUNK]), shared, count) for i in range(0, len(pending), CHUNK)]
@@ -186,7 +214,7 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
                     if "error" not in cell:
                         store.put(dict(base, x=point[0], y=point[1]), finite(cell))
                 if log is not None:
-                    log.append([_row(cell) for cell in results])
+                    log.append([_row(cell, key) for cell in results])
                 done += len(results)
                 if progress:
                     progress("cells", done, len(wanted))
@@ -209,14 +237,29 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     return response
 
 
+def _checked(cell):
+    """``cell`` if it has a classified cell's shape, else None."""
+    from dfwb.engine.hunting import valid_cell
+
+    return cell if valid_cell(cell) else None
+
+
+def _read_cell(text):
+    """The checked cell a row's JSON holds, or None."""
+    try:
+        return _checked(json.loads(text))
+    except (ValueError, RecursionError):
+        return None
+
+
 class _folder:
     """The output folder of a map, locked while it runs: map.json (the definition) and the cells' log.
 
+    A folder holding another map is refused unless ``resume`` is False or the folder is the caller's own
+    (then its log starts over)."""
 
-    A folder holding another map's log is refused unless ``resume`` is False (then the log starts over)."""
-
-    def __init__(self, out_dir, definition, cells, resume):
-        self.out_dir, self.definition, self.cells, self.resume = out_dir, definition, cells, resume
+    def __init__(self, out_dir, definition, cells, resume, own):
+        self.out_dir, self.definition, self.cells, self.resume, self.own = out_dir, definition, cells, resume, own
         self._lock = self._log = None
 
     def __enter__(self):
@@ -229,10 +272,11 @@ class _folder:
         stored = out / "map.json"
         log = RunLog(out / "cells.csv", COLUMNS, max_rows=self.cells)
         text = json.dumps(finite(self.definition), sort_keys=True)
-        if self.resume and stored.exists() and _stored(stored) != json.loads(text):
+        other = stored.exists() and _stored(stored) != json.loads(text)
+        if self.resume and other and not self.own:
             self._lock.__exit__(None, None, None)
             raise InputError(f"{out} holds a different map (see {stored}): use another folder, or do not resume")
-        if not self.resume:
+        if not self.resume or other:
             log.path.unlink(missing_ok=True)
         write_atomic(stored, text)
         rows = log.read()  # before it is opened to append to
@@ -253,8 +297,3 @@ def _stored(path):
     except (OSError, ValueError):
         return None
 
-
-def cells_of(path):
-    """The cells a map's cells.csv holds (verified rows), for a reader of the output folder."""
-    log = RunLog(Path(path), COLUMNS, max_rows=MAX_CELLS)
-    return [json.loads(row["cell"]) for row in log.read()]

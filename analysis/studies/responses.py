@@ -328,6 +328,17 @@ class LimitCycleResponse:
                                  self.N_grid, self.predictions, curves, true_cycles=self.cycles)
 
 
+_NUMBER = (float, None)  # None: an infinity written to JSON
+_CONTINUATION = {  # the shape of ContinuationResponse.as_dict()
+    "plant": str, "G": str, "parameter": str, "range": [float], "values": {str: float}, "unit": str,
+    "branches": [{"source": frozenset(("truth", "df")), "returns": int, "ends": [{"parameter": float, "reason": str}],
+                  "points": [{"parameter": float, "omega": _NUMBER, "amplitude_x": _NUMBER, "F": _NUMBER,
+                              "stable": bool, "multipliers": [_NUMBER], "period": _NUMBER, "events": [str]}]}],
+    "bifurcations": [{"kind": str, "parameter": float, "omega": _NUMBER, "amplitude_x": _NUMBER, "source": str,
+                      "detail": str, "accuracy": _NUMBER}],
+    "searches": [{"parameter": float, "cycles": int, "coverage": {"complete": bool, ...: object}}], "notes": [str]}
+
+
 @dataclass(eq=False)
 class ContinuationResponse:
     """Limit cycles followed in one parameter: branches of true cycles and of DF predictions, and bifurcations.
@@ -375,9 +386,15 @@ class ContinuationResponse:
 
     @classmethod
     def from_dict(cls, data):
-        """The response :meth:`as_dict` wrote (a cached continuation; the section states are not kept)."""
+        """The response :meth:`as_dict` wrote (a cached continuation; the section states are not kept).
+
+        ValueError for a document of another shape (a crafted or damaged cache entry)."""
+        from dfwb.base.values import conforms
         from dfwb.engine.continuation import Bifurcation, Branch, Point
 
+        if not (conforms(data, _CONTINUATION) and len(data["range"]) == 2 and all(b["points"] for b in data["branches"])
+                and all(b["returns"] >= 1 for b in data["branches"])):
+            raise ValueError("not a continuation's record")
         branches = [Branch(b["source"], [Point(**{k: v for k, v in p.items() if k != "events"},
                                                signature=tuple(p["events"])) for p in b["points"]],
                            [(e["parameter"], e["reason"]) for e in b["ends"]], b["returns"])

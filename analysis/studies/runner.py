@@ -372,7 +372,6 @@ class SceneRun:
     def continuations(self, display):
         """{name: ContinuationResponse} of the scene's [[continuation]]s, cached whole."""
         from dfwb.studies.continuation import follow
-        from dfwb.studies.responses import ContinuationResponse
 
         results = {}
         for c in self.scene.continuation:
@@ -383,15 +382,14 @@ class SceneRun:
                    "plant": c.plant, "G": G if isinstance(G, str) else [G.num[0][0].tolist(), G.den[0][0].tolist()],
                    "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
                    "sources": c.sources, "max_points": c.max_points}
-            value = self.cache.get(key)
             task = display.add(f"{c.name}: continuation", 1, 0, 0)
-            if value is None:
+            response = _cached_continuation(self.cache.get(key))
+            if response is None:
                 response = follow(c.plant, G, c.parameter, c.start, c.stop, c.params, sources=tuple(c.sources),
                                   max_points=c.max_points, fmu_dir=self.fmu_dir)
                 self.cache.put(key, finite(response.as_dict()))
             else:
                 self.outcome.cache_hits += 1
-                response = ContinuationResponse.from_dict(value)
             display.advance(task, 1)
             results[c.name] = response
         return results
@@ -411,7 +409,7 @@ class SceneRun:
                 tasks[stage][1] = done
 
             folder = self.out / f"map_{m.name}"
-            results[m.name] = run_map(m.plant, m.controller(), *m.axes(), m.params, out_dir=folder,
+            results[m.name] = run_map(m.plant, m.controller(), *m.axes(), m.params, out_dir=folder, own_folder=True,
                                       jobs=self.executor.jobs, dask=self.executor.dask, cache=self.cache,
                                       fmu_dir=self.fmu_dir, amplitudes=m.amplitudes, curves=m.curves,
                                       progress=progress)
@@ -530,6 +528,16 @@ class SceneRun:
             what = "Continuation" if name in {c.name for c in self.scene.continuation} else "Hunting map"
             lines += ["", f"## {what}: {name}", "", "```", r.summary(), "```"]
         self.write("summary.md", "\n".join(lines) + "\n")
+
+
+def _cached_continuation(value):
+    """The continuation a cache entry holds, or None (none, or not a continuation's record: recomputed)."""
+    from dfwb.studies.responses import ContinuationResponse
+
+    try:
+        return None if value is None else ContinuationResponse.from_dict(value)
+    except ValueError:
+        return None
 
 
 class _CachedEngine:
