@@ -260,7 +260,7 @@ def cmd_map(args):
     axes = []
     for option, text in (("--x", args.x), ("--y", args.y)):
         name, parts = _range(text, option)
-        if len(parts) != 3 or parts[2] != int(parts[2]):
+        if len(parts) != 3 or not parts[2].is_integer():
             raise InputError(f"{option} {text!r}: expected NAME=START:STOP:N with N a whole number of cells")
         axes.append((name, parts[0], parts[1], int(parts[2])))
     out = args.out or Path("out/maps") / f"{args.plant}_{axes[0][0]}_{axes[1][0]}"
@@ -607,8 +607,10 @@ def main(argv=None):
         warnings.showwarning = shown
 
 
-def _one_line(error):
-    return " ".join(str(error).split())
+def _one_line(error, width=600):
+    """The error's text on one line, cut to ``width`` characters (a state printed in full can run long)."""
+    text = " ".join(str(error).split())
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 if __name__ == "__main__":

@@ -386,7 +386,7 @@ def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = (1e-2, 1e2), coun
     G : str, callable, (num, den) or python-control system
         The controller at k = 1; an expression's parameters come with ``params``.
     k_range : (float, float), keyword-only
-        Gain factors searched: 0 < low < 1 < high.
+        Gain factors searched: 1e-6 <= low < 1 < high <= 1e6.
     count : int, keyword-only
         Gain factors scanned (3 to 1000).
     df : bool, keyword-only

@@ -21,8 +21,9 @@ import numpy as np
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.hunting import classify, df_map_for
 
-GAIN = "k"  # the gain factor's name (a margin refuses a G or plant that names a parameter so)
+GAIN = "gain factor"  # the gain factor k's name inside: no name of G or of a plant (no identifier has a space)
 K_RANGE = (1e-2, 1e2)
+K_LIMITS = (1e-6, 1e6)  # a gain scaled further is another controller: give it as G
 SCAN = 25  # gain factors scanned, log-spaced
 BISECTIONS = 12  # halvings of a boundary's bracket in log k by the search, at most
 
@@ -120,10 +121,11 @@ def margins(family, k_range=K_RANGE, count=SCAN, fmu_dir=None, engine=None, prog
 def _k_range(k_range):
     try:
         lo, hi = (float(v) for v in k_range)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"k range = {k_range!r:.60}: give (low, high) gain factors") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < 1.0 < hi):
-        raise InputError(f"k range = [{lo:g}, {hi:g}]: expected 0 < low < 1 < high, finite (the gain as given is 1)")
+    if not (K_LIMITS[0] <= lo < 1.0 < hi <= K_LIMITS[1]):
+        raise InputError(f"k range = [{lo:g}, {hi:g}]: expected {K_LIMITS[0]:g} <= low < 1 < high <= "
+                         f"{K_LIMITS[1]:g} (the gain as given is 1)")
     return lo, hi
 
 

@@ -121,7 +121,20 @@ def linear_poles(problem):
 
 
 def loop_scales(problem):
-    """The :class:`LoopScales` of a :class:`~dfwb.engine.periodic.LoopProblem` (its plant, parameters and G)."""
+    """The :class:`LoopScales` of a :class:`~dfwb.engine.periodic.LoopProblem` (its plant, parameters and G).
+
+    InputError where they leave the floats (a gain of 1e300: its crossover's powers overflow)."""
+    with np.errstate(all="ignore"):
+        scales = _loop_scales(problem)
+    numbers = (scales.omega_c, scales.length, scales.slow, scales.f_lo, scales.f_hi)
+    if not all(math.isfinite(v) and v > 0.0 for v in numbers) or not scales.horizon(scales.length) > 0.0:
+        raise InputError(f"the loop's scales (crossover {scales.omega_c:.3g} rad/s, length {scales.length:.3g}) "
+                         "leave the floating-point range at these values: give G's and the plant's parameters "
+                         "within a few hundred orders of magnitude of each other")
+    return scales
+
+
+def _loop_scales(problem):
     from dfwb.engine.describing import F_RANGE
 
     probe = problem.probe
@@ -141,20 +154,19 @@ def loop_scales(problem):
     kind, size = probe.nonlinearity()
     G_c = abs(num_g(1j * omega_c) / den_g(1j * omega_c))
     length = size / G_c if kind == "force" else size
-    if not (length > 0.0 and math.isfinite(length)):
-        length = 1.0  # a linear plant (no nonlinearity): any scale serves, no cycle is expected
+    if size == 0.0 or G_c == 0.0:
+        length = 1.0  # a linear plant (no nonlinearity), or no force: any scale serves, no cycle is expected
     rates = [abs(p.real) for p in poles + tuple(complex(r) for r in np.roots(den_g.coeffs))
              if abs(p.real) > 1e-9 * max(abs(p), 1e-300)]
     slow = 1.0 / min(rates) if rates else 1.0 / omega_c
     ramp = _ramp(problem.b, problem.a)
     omegas = omega_c * GRID[(GRID >= OMEGA_SPAN[0]) & (GRID <= OMEGA_SPAN[1])]
     L = loop(omegas)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        T = np.abs(L / (1.0 + L))
-        if kind == "force":
-            allowed = size * np.nanmax(T)
-        else:
-            allowed = size * np.nanmax(T / np.abs(num_p(1j * omegas) / den_p(1j * omegas)))
+    T = np.abs(L / (1.0 + L))
+    if kind != "force":
+        T = T / np.abs(num_p(1j * omegas) / den_p(1j * omegas))
+    T = T[np.isfinite(T)]
+    allowed = size * T.max() if T.size else math.nan
     f_lo = _moving_force(probe, omega_c * OMEGA_SPAN[0], F_RANGE)
     f_hi = F_SAFETY * allowed if math.isfinite(allowed) and allowed > 0.0 else F_RANGE[1]
     f_hi = float(min(max(f_hi, 100.0 * f_lo), F_RANGE[1]))

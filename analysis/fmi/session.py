@@ -124,7 +124,7 @@ class FMUSession:
                 fmu.setReal([self.variables[n].valueReference for n in inputs], list(inputs.values()))
             _check("fmi2DoStep", fmu.dll.fmi2DoStep(fmu.component, self.time, size, 1))
         except Exception as error:
-            self._fail(f"the step of {size!r} s", error)
+            self._fail(f"the step of {float(size)!r} s", error)
         self.time += size
 
     def reader(self, reals, integers):

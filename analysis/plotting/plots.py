@@ -362,7 +362,9 @@ def hunting_map(response, axes=None):
         ax.set_ylim(extent[2], extent[3])
         image = image or plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     axes[0].set_ylabel(response.y)
-    handles = [Patch(color=CLASS_COLOURS[k], label=LABELS[k]) for k in ("unstable", "diverges", "none")]
+    shown = set(response.classes("truth").ravel()) | set(response.classes("df").ravel())
+    handles = [Patch(color=CLASS_COLOURS[k], label=LABELS.get(k, "the plant or G refuses the values"))
+               for k in ("unstable", "diverges", "none", "incomplete", "error") if k in shown or k == "none"]
     handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))
     for source in sorted({c.source for c in response.curves}):
         kinds = ", ".join(sorted({c.kind for c in response.curves if c.source == source}))
