@@ -341,8 +341,8 @@ class HybridSolver:
     def _chunk_start(self, t, X, first=False):
         for x in X:
             if not abs(x) <= MAX_STATE:
-                raise Diverged(f"the state left [-{MAX_STATE:g}, {MAX_STATE:g}] at t = {t!r} s ({X}): the loop "
-                               "diverges")
+                raise Diverged(f"the state is beyond [-{MAX_STATE:g}, {MAX_STATE:g}] at t = {t!r} s ({X}): the "
+                               "loop diverges (or its initial values are too large)")
         self._a, self._X = t, X
         self._dX = self._mode.derivative(X)
         self._b = t + self._mode.h

@@ -79,7 +79,9 @@ REFUSED = [  # (model, start values, the start of the error they get: the Python
     ("TwoMassBacklashLoop", {"order": 2, "z3_0": 1.0}, "invalid parameter: z3_0 = 1.0 is out of range"),
     ("StaticBacklashLoop", {"b1": math.nan}, "invalid parameter: b1 = nan is out of range"),
     ("StaticBacklashLoop", {"h": -0.1}, "invalid parameter: h = -0.1 is out of range"),
-    ("StaticBacklashLoop", {"order": 1, "b0": 1e300, "x0": 1e300}, "invalid parameter: the initial outputs overflow"),
+    ("StaticBacklashLoop", {"order": 1, "b0": 1e300, "x0": 1e300},
+     "invalid parameter: the state is beyond [-1e+150, 1e+150] at t = 0.0 s"),
+    ("StaticBacklashLoop", {"order": 1, "b0": 1e300, "x0": 1e100}, "invalid parameter: the initial outputs overflow"),
     # positive feedback f = +1e6 y: the motion overflows, doStep is refused
     ("FrictionMassLoop", {"order": 1, "b0": -1e6, "b1": -1e6, "a1": 1.0, "x0": 1.0}, "step from t = "),
     ("TwoMassBacklashLoop", {"order": 1, "b0": -1e6, "b1": -1e6, "a1": 1.0, "x1_0": 1.0}, "step from t = "),

@@ -465,8 +465,8 @@ static int chunk_start(dfwb_hy *hy, double t, const double *X, int first, dfwb_e
             char rt[DFWB_REPR_SIZE], rx[DFWB_HY_DIM * (DFWB_REPR_SIZE + 2) + 4];
             dfwb_repr(t, rt);
             state_repr(X, hy->n, rx, sizeof rx);
-            return dfwb_fail(err, DFWB_E_DIVERGED, "the state left [-1e+150, 1e+150] at t = %s s (%s): the loop "
-                             "diverges", rt, rx);
+            return dfwb_fail(err, DFWB_E_DIVERGED, "the state is beyond [-1e+150, 1e+150] at t = %s s (%s): the "
+                             "loop diverges (or its initial values are too large)", rt, rx);
         }
     hy->a = t;
     if (X != hy->X)
