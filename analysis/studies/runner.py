@@ -352,10 +352,13 @@ class SceneRun:
                 lap("traces")
                 cycles = self.limit_cycles(display)
                 lap("limit cycles")
-                studies = self.continuations(display)
-                lap("continuations")
-                studies.update(self.maps(display))
-                lap("maps")
+                studies = {}  # a scene without them loads neither (nor numpy)
+                if scene.continuation:
+                    studies.update(self.continuations(display))
+                    lap("continuations")
+                if scene.map:
+                    studies.update(self.maps(display))
+                    lap("maps")
             data, csv_rows = self.series_rows(table)
             self.outcome.points = len(self.values)
             self.write_results(data, csv_rows, traces, cycles, studies)

@@ -426,14 +426,15 @@ class Scene:
                 if item.name in seen:
                     raise InputError(f"the name {item.name!r} is used twice: names must be unique in a scene")
                 seen.add(item.name)
-        from dfwb.studies.hunting import MAX_CELLS
-
         if len(self.continuation) + len(self.map) > MAX_STUDIES:
             raise InputError(f"{len(self.continuation) + len(self.map)} continuations and maps: at most {MAX_STUDIES} "
                              "in one scene (split it)")
-        cells = sum(m.x.n * m.y.n for m in self.map)
-        if cells > MAX_CELLS:
-            raise InputError(f"{cells} map cells in all: at most {MAX_CELLS} in one scene (split it)")
+        if self.map:  # (a scene without maps does not load them)
+            from dfwb.studies.hunting import MAX_CELLS
+
+            cells = sum(m.x.n * m.y.n for m in self.map)
+            if cells > MAX_CELLS:
+                raise InputError(f"{cells} map cells in all: at most {MAX_CELLS} in one scene (split it)")
         size = sum(s.size() for s in self.series) + sum(lc.n_F * lc.n_omega for lc in self.limit_cycle)
         if size > MAX_POINTS:
             raise InputError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
