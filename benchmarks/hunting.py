@@ -59,8 +59,8 @@ import numpy as np
 import dfwb
 from dfwb.engine import continuation as engine_continuation
 from dfwb.engine import cycles as engine_cycles
-from dfwb.engine import hunting as engine_hunting
 from dfwb.engine.periodic import LoopProblem
+from dfwb.studies import hunting as studies_hunting
 from dfwb.studies import responses
 
 PLANT = "friction"
@@ -135,8 +135,9 @@ def distribution(values):
 # -- (a) the hunting map -----------------------------------------------------------------------------------------------
 def run_map(size, jobs):
     """One map into a temporary folder: its wall time, phases, workers' CPU, counts, classes and curves."""
-    targets = [(engine_hunting, "df_map_for", "df map"), (engine_hunting, "linear_map", "linear"),
-               (engine_hunting, "fold_curves", "curves"), (responses.HuntingMapResponse, "write", "write")]
+    # wrapped where the map looks them up
+    targets = [(studies_hunting, "df_map_for", "df map"), (studies_hunting, "linear_map", "linear"),
+               (studies_hunting, "fold_curves", "curves"), (responses.HuntingMapResponse, "write", "write")]
     with tempfile.TemporaryDirectory(prefix="dfwb_bench_map_") as out, wrapped(targets) as marks:
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
         cpu = children_cpu()

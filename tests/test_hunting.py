@@ -286,13 +286,12 @@ def test_a_loop_that_grows_without_crossing_the_section_diverges(Kp, Ki):
 
 
 def test_a_search_with_failed_runs_settles_nothing():
-    from types import SimpleNamespace
-
+    from dfwb.engine.cycles import Coverage, CycleSearch
     from dfwb.engine.hunting import truth_class
 
     def search(outcomes, complete=True):
-        return SimpleNamespace(stable=lambda: False, cycles=[],
-                               coverage=SimpleNamespace(outcomes=outcomes, complete=complete))
+        coverage = Coverage([0.1, 10.0], 3, ["x"], outcomes=outcomes, complete=complete)
+        return CycleSearch(cycles=[], links=[], coverage=coverage, fates=[])
 
     assert truth_class(search({"rest": 19, "failed": 1}))[0] == "incomplete"
     assert truth_class(search({"rest": 20}, complete=False))[0] == "incomplete"

@@ -13,7 +13,7 @@ import numpy as np
 
 from dfwb.base.errors import InputError
 
-__all__ = ["short", "leaves", "reals", "integer", "conforms", "positive"]
+__all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive"]
 
 
 def short(value, width=80):
@@ -59,6 +59,13 @@ def integer(name, value):
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise InputError(f"{name} = {short(value)} is not an integer")
     return int(value)
+
+
+def flags(**values):
+    """Refuse an option that must be True or False given as anything else (1, "yes", None)."""
+    for name, value in values.items():
+        if not isinstance(value, bool):
+            raise InputError(f"{name} = {value!r} must be True or False")
 
 
 def positive(value):

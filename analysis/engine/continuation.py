@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dfwb.base.errors import DfwbError, InputError
+from dfwb.engine.periodic import jacobian, same_events
 from dfwb.fmus.exact import PlantError
 
 TOL = 1e-10  # the corrector's residual (scaled)
@@ -163,10 +164,7 @@ class CycleSystem:
             return None, None
         return (np.array(problem.reduced(result[0])) - y[:-1]) / self.swing, result[1:]
 
-    @staticmethod
-    def same_kind(a, b):
-        """Whether two residuals' orbits fire as many events (the map is smooth between them)."""
-        return a[1] == b[1]
+    same_kind = staticmethod(same_events)
 
     def describe(self, y, J, info):
         """The :class:`Point` at y (J: dH/dy scaled; info: the return time and the events)."""
@@ -243,32 +241,12 @@ class PredictionSystem:
 
 # -- pseudo-arclength ------------------------------------------------------------------------------------------------
 def _jacobian(system, y, r, extra=None):
-    """dH/dy (scaled columns: d/d(y_j / scale_j)) by forward differences, or None.
-
-    A side whose solution is not of the base's kind (``system.same_kind``: as many events) is replaced by the
-    other: next to a switching the difference stays where the map is smooth."""
-    D = system.scale()
+    """dH/dy (scaled columns: d/d(y_j / scale_j)) by forward differences (:func:`~dfwb.engine.periodic.jacobian`,
+    a side of another kind, ``system.same_kind``, replaced by the other), or None."""
     if extra is None:
         r, extra = system.residual(y)
-        if r is None:
-            return None
-    columns = []
-    for j in range(len(y)):
-        trial = np.array(y, dtype=float)
-        trial[j] += FD * D[j]
-        ahead, ahead_extra = system.residual(trial)
-        if ahead is not None and system.same_kind(ahead_extra, extra):
-            columns.append((ahead - r) / FD)
-            continue
-        trial[j] = y[j] - FD * D[j]
-        behind, behind_extra = system.residual(trial)
-        if behind is not None and (system.same_kind(behind_extra, extra) or ahead is None):
-            columns.append((r - behind) / FD)
-        elif ahead is not None:
-            columns.append((ahead - r) / FD)
-        else:
-            return None
-    return np.array(columns).T
+    return jacobian(system.residual, np.asarray(y, dtype=float), (r, extra), FD, same_kind=system.same_kind,
+                    scale=system.scale())
 
 
 def _tangent(J, previous):

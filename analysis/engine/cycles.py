@@ -129,6 +129,11 @@ class Coverage:
     def as_dict(self):
         return asdict(self)
 
+    @property
+    def settled(self):
+        """Whether every start came to a verdict: the budget lasted and no run failed (else absence is unproven)."""
+        return self.complete and not self.outcomes.get("failed")
+
     def summary(self, unit="m"):
         """One line: what was searched."""
         lo, hi = self.amplitudes

@@ -94,8 +94,9 @@ class _Scaled:
         return check_transfer_function(values[self.name] * self.inner.transfer_function(values), self.text)
 
     def coefficients(self, values):
-        G = self.transfer_function(values)
-        return [float(c) for c in G.num[0][0]], [float(c) for c in G.den[0][0]]
+        from dfwb.engine.transfer import num_den
+
+        return num_den(self.transfer_function(values))
 
 
 class LoopFamily:
@@ -175,11 +176,11 @@ class LoopFamily:
     def coefficients(self, values=None):
         """(num, den) of G at the values, highest power first: an expression's without building a checked
         system (a DF continuation asks at every step), else the checked G's."""
-        merged = self.merged(values)
+        from dfwb.engine.transfer import num_den
+
         if isinstance(self.controller, _Fixed) or self.built:
-            G = self.G(values)
-            return [float(c) for c in G.num[0][0]], [float(c) for c in G.den[0][0]]
-        return self.controller.coefficients(merged)
+            return num_den(self.G(values))
+        return self.controller.coefficients(self.merged(values))
 
     def params(self, values=None):
         """The plant's parameters at the values (checked, as the plant checks them)."""
@@ -216,20 +217,16 @@ class LoopFamily:
     def linear_growth(self, values=None):
         """The largest real part of the linear loop's poles at the values (< 0: stable): the roots of
         den_G den_P + num_G num_P, without building the exact loop (a map asks it at 10^4 points)."""
-        import numpy as np
+        from dfwb.engine.scales import closed_loop_poles
 
         num_g, den_g = self.coefficients(values)
         params = self.params(values)
         key = tuple(sorted(params.items()))
         if key not in self._linear:
             probe = self.spec.loop([0.0, 0.0], [1.0], **params)  # a trivial controller: only the plant is read
-            self._linear[key] = tuple(np.asarray(c, dtype=float) for c in probe.linear())
-        num_p, den_p = self._linear[key]
-        a, b = np.convolve(den_g, den_p), np.convolve(num_g, num_p)
-        size = max(len(a), len(b))
-        characteristic = np.pad(a, (size - len(a), 0)) + np.pad(b, (size - len(b), 0))
-        poles = np.roots(characteristic)
-        return float(poles.real.max()) if poles.size else math.inf
+            self._linear[key] = probe.linear()
+        poles = closed_loop_poles(num_g, den_g, *self._linear[key])
+        return max(p.real for p in poles) if poles else math.inf
 
     def describe(self, values=None):
         """The values as one short text: ``Kp = 10, Ki = 2, Fs = 8``."""

@@ -61,7 +61,7 @@ def truth_class(search):
     outcomes = search.coverage.outcomes
     if search.stable():
         kind = "stable"
-    elif not search.coverage.complete or outcomes.get("failed"):  # a run that ended unsettled settles nothing
+    elif not search.coverage.settled:
         kind = "incomplete"
     elif outcomes.get("diverged"):
         kind = "diverges"

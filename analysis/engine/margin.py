@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dfwb.base.errors import DfwbError, InputError
-from dfwb.engine.hunting import classify, df_map_for
+from dfwb.engine.hunting import MAP_AMPLITUDES, TRACKED, classify, df_map_for, hunting
 
 GAIN = "gain factor"  # the gain factor k's name inside: no name of G or of a plant (no identifier has a space)
 K_RANGE = (1e-2, 1e2)
@@ -72,8 +72,6 @@ class Margin:
 
 def margins(family, k_range=K_RANGE, count=SCAN, fmu_dir=None, engine=None, progress=None):
     """(truth Margin, DF Margin) of the family's G scaled by k over ``k_range`` (a LoopFamily without k)."""
-    from dfwb.engine.hunting import hunting
-
     lo, hi = _k_range(k_range)
     scaled = family.scaled(GAIN)
     ks = [float(k) for k in np.geomspace(lo, hi, count)]
@@ -161,17 +159,14 @@ def _by_continuation(scaled, hunting_k, other_k, fmu_dir):
     """The bifurcation ending the stable cycle between hunting_k and other_k, or None."""
     from dfwb.engine.continuation import continue_cycles
     from dfwb.engine.cycles import find_cycles
-    from dfwb.engine.hunting import MAP_AMPLITUDES
 
     problem = scaled.problem({GAIN: hunting_k}, fmu_dir)
-    stable = [c for c in find_cycles(problem, amplitudes=problem.scales.amplitudes(MAP_AMPLITUDES),
-                                     boundaries=False).cycles if c.stable]
+    stable = find_cycles(problem, amplitudes=problem.scales.amplitudes(MAP_AMPLITUDES), boundaries=False).stable()
     if not stable:
         return None
     bounds = (min(hunting_k, other_k), max(hunting_k, other_k))
     _branches, found = continue_cycles(scaled, GAIN, bounds, [(hunting_k, stable[-1])], fmu_dir)
-    ends = [b for b in found if b.kind in ("fold", "nonsmooth-fold", "period-doubling", "torus", "infinity")
-            and bounds[0] <= b.parameter <= bounds[1]]
+    ends = [b for b in found if b.kind in TRACKED + ("infinity",) and bounds[0] <= b.parameter <= bounds[1]]
     if not ends:
         return None
     return min(ends, key=lambda b: abs(b.parameter - hunting_k))

@@ -142,27 +142,32 @@ class TrueCycle:
         return {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "trace"}
 
 
-def jacobian(residual, u, base, step, central=False):
+def same_events(a, b):
+    """Whether two returns (time, events fired) fire as many events: the map is smooth between them."""
+    return a[1] == b[1]
+
+
+def jacobian(residual, u, base, step, central=False, same_kind=same_events, scale=None):
     """d(residual)/du by differences of an exact map, or None where a perturbed orbit does not return.
 
-    ``residual(u)`` gives (r, (time, events fired)) or (None, None); ``base`` is its value at u. Forward
-    differences (central with ``central``), each side taken only where its orbit fires as many events as the
-    base's: next to a switching (a stick phase about to vanish, an impact about to graze) the difference
-    stays on the base's side, where the map is smooth. A side that leaves the state space is not used.
+    ``residual(u)`` gives (r, info) or (None, None); ``base`` is its value at u. Forward differences
+    (central with ``central``), each side taken only where ``same_kind(info, base's info)`` (by default: its
+    orbit fires as many events): next to a switching (a stick phase about to vanish, an impact about to
+    graze) the difference stays on the base's side, where the map is smooth. A side that leaves the state
+    space is not used. ``scale``: coordinate j is moved by ``step * scale[j]`` (the columns are then
+    d/d(u_j / scale_j)).
     """
     r0, info0 = base
     if r0 is None:
         return None
-    events = info0[1]
     columns = []
     for j in range(len(u)):
         du = np.zeros(len(u))
-        du[j] = step
+        du[j] = step if scale is None else step * scale[j]
         ahead, ahead_info = residual(u + du)
-        behind, behind_info = residual(u - du) if central or ahead is None or ahead_info[1] != events \
-            else (None, None)
-        good_ahead = ahead is not None and ahead_info[1] == events
-        good_behind = behind is not None and behind_info[1] == events
+        good_ahead = ahead is not None and same_kind(ahead_info, info0)
+        behind, behind_info = residual(u - du) if central or not good_ahead else (None, None)
+        good_behind = behind is not None and same_kind(behind_info, info0)
         if central and good_ahead and good_behind:
             columns.append((ahead - behind) / (2.0 * step))
         elif good_ahead or (ahead is not None and not good_behind):
@@ -207,7 +212,7 @@ class LoopProblem:
     fmu_dir : str or Path, optional
         Where the compiled core is built (the FMU folder's ``native/``): the
         loop runs in C, bit for bit the Python loop's numbers, 15 to 160 times
-        faster per event; with ``DFWB_FMU=python`` (``--fmu python``), or where
+        faster per event; with ``DFWB_FMU=python`` (``--fmu-kind python``), or where
         the core cannot be built, the Python loop (``dfwb.fmus.loops``) runs.
     budget : dfwb.fmus.hybrid.Budget, optional
         A budget shared with other problems (a continuation's), instead of one of ``max_chunks``.

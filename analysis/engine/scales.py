@@ -115,8 +115,12 @@ class LoopScales:
 
 def linear_poles(problem):
     """The poles of the linear loop: the plant with its nonlinearity removed, under G (1 + G P = 0)."""
-    num_p, den_p = (_poly(c) for c in problem.probe.linear())
-    num_g, den_g = _poly(problem.b), _poly([1.0] + list(problem.a))
+    return closed_loop_poles(problem.b, [1.0] + list(problem.a), *problem.probe.linear())
+
+
+def closed_loop_poles(num_g, den_g, num_p, den_p):
+    """The roots of den_G den_P + num_G num_P (coefficients highest power first)."""
+    num_p, den_p, num_g, den_g = (_poly(c) for c in (num_p, den_p, num_g, den_g))
     return tuple(complex(p) for p in np.roots((den_g * den_p + num_g * num_p).coeffs))
 
 

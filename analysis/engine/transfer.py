@@ -319,6 +319,11 @@ def from_coefficients(num, den, names=("--num", "--den")):
     return check_transfer_function(ct.tf(list(num), list(den)), f"({num})/({den})")
 
 
+def num_den(G):
+    """(num, den) of a SISO transfer function as lists of floats, highest power first (JSON, keys, reports)."""
+    return [float(c) for c in G.num[0][0]], [float(c) for c in G.den[0][0]]
+
+
 def to_transfer_function(G):
     """G as a checked TransferFunction: an expression in s, (num, den), or a python-control system (see
     :func:`dfwb.transfer_function`)."""

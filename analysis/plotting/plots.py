@@ -118,6 +118,14 @@ def save(figure, out_dir, name):
     return out_dir / f"{name}.png"
 
 
+def drawn(path, draw, **layout):
+    """A new figure (``plt.subplots(**layout)``), ``draw(axes)`` on it, written to ``path`` (PNG and SVG)."""
+    figure, axes = plt.subplots(**layout)
+    draw(axes)
+    path = Path(path)
+    return save(figure, path.parent, path.stem)
+
+
 def curves_of(data, names):
     """[(label, rows, style)]: one curve per series, force and parameter set (the frequency varies)."""
     curves = []

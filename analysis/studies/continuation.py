@@ -73,7 +73,7 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         if "truth" in sources:
             found = find_cycles(problem)
             searches.append({"parameter": value, "cycles": len(found.cycles), "coverage": found.coverage.as_dict()})
-            if not found.coverage.complete or found.coverage.outcomes.get("failed"):
+            if not found.coverage.settled:
                 notes.append(f"{name} = {value:g}: the search for true cycles is not settled ("
                              + ("the work budget ran out" if not found.coverage.complete else "runs failed")
                              + "): a branch may be missing")
@@ -137,7 +137,8 @@ def _text(G):
     """G as text for reports: the expression, or num/den."""
     if isinstance(G, str):
         return G
-    num = getattr(G, "num", None)
-    if num is not None:
-        return f"({list(map(float, G.num[0][0]))}) / ({list(map(float, G.den[0][0]))})"
+    if getattr(G, "num", None) is not None:
+        from dfwb.engine.transfer import num_den
+
+        return "({}) / ({})".format(*num_den(G))
     return getattr(G, "__name__", "G")

@@ -28,6 +28,16 @@ from dfwb.base.errors import DfwbError, InputError
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
 from dfwb.engine.family import LoopFamily
+from dfwb.engine.hunting import (
+    MAP_AMPLITUDES,
+    DFMap,
+    classify,
+    df_map_for,
+    fold_curves,
+    hunting,
+    linear_map,
+    valid_cell,
+)
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
 from dfwb.studies.continuation import check_parameter
 from dfwb.studies.executor import Executor, engine_for
@@ -58,8 +68,6 @@ class MapChunk:
 
 def compute_cells(chunk, fmu_data=None):
     """(code revision, the classified cells) of a chunk; a cell that cannot be computed says why."""
-    from dfwb.engine.hunting import DFMap, classify
-
     engine = engine_for(chunk.plant, chunk.fmu, (), fmu_data)
     G = chunk.G if not isinstance(chunk.G, tuple) else (list(chunk.G[0]), list(chunk.G[1]))
     family = LoopFamily(chunk.plant, G, dict(chunk.values), free=chunk.axes)
@@ -109,8 +117,6 @@ def _some_corner(family, x_name, xs, y_name, ys):
 
 
 def _row(cell, key):
-    from dfwb.engine.hunting import hunting
-
     row = {"x": repr(cell["x"]), "y": repr(cell["y"]), "cell": json.dumps(finite(cell), sort_keys=True), "key": key}
     if "error" in cell:
         return dict(row, truth="error", df="error", linear="")
@@ -131,7 +137,6 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     ``own_folder``: ``out_dir`` belongs to the caller (a scene's), so a different map there starts over
     instead of being refused.
     """
-    from dfwb.engine.hunting import MAP_AMPLITUDES, df_map_for, linear_map
     from dfwb.fmi.location import fmu_path
 
     fixed = dict(values or {})
@@ -172,13 +177,16 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     elif family.built:  # a Python function cannot go to another process, nor name a cache entry or a resumed
         G_key, chunk_G, jobs, dask, cache, resume = None, G, 1, None, False, False  # row: computed here, afresh
     else:
-        G_key = [family.G().num[0][0].tolist(), family.G().den[0][0].tolist()]
-        chunk_G = (tuple(G_key[0]), tuple(G_key[1]))
-    definition = {"plant": spec.name, "G": G_key, "values": family.merged(), "x": [x_name, xs], "y": [y_name, ys],
-                  "amplitudes": count, "dfmap": None if shared is None else digest([shared[0], shared[1]])}
-    base = {"kind": "map-cell", "code": code_revision(), "solvers": solver_revision(), "fmu": fmu_revision(fmu),
-            "plant": spec.name, "G": definition["G"], "values": family.merged(), "axes": [x_name, y_name],
-            "amplitudes": count, "dfmap": definition["dfmap"]}
+        from dfwb.engine.transfer import num_den
+
+        G_key = num_den(family.G())
+        chunk_G = tuple(map(tuple, G_key))
+    merged = family.merged()
+    common = {"plant": spec.name, "G": G_key, "values": merged, "amplitudes": count,
+              "dfmap": None if shared is None else digest([shared[0], shared[1]])}
+    definition = dict(common, x=[x_name, xs], y=[y_name, ys])
+    base = dict(common, kind="map-cell", code=code_revision(), solvers=solver_revision(), fmu=fmu_revision(fmu),
+                axes=[x_name, y_name])
     key = None if G_key is None else digest(base)
     store = open_cache(cache)
     cells = {}
@@ -195,13 +203,13 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
             if point in cells:
                 continue
             value = store.get(dict(base, x=point[0], y=point[1]))
-            if _checked(value) is not None and (value["x"], value["y"]) == point:
+            if valid_cell(value) and (value["x"], value["y"]) == point:
                 cells[point] = value
                 hits += 1
                 if log is not None:
                     log.append([_row(value, key)])
         pending = [point for point in wanted if point not in cells]
-        chunks = [MapChunk(spec.name, fmu, chunk_G, tuple(sorted(family.merged().items())), (x_name, y_name),
+        chunks = [MapChunk(spec.name, fmu, chunk_G, tuple(sorted(merged.items())), (x_name, y_name),
                            tuple(pending[i:i + CHUNK]), shared, count) for i in range(0, len(pending), CHUNK)]
         done = len(wanted) - len(pending)
         if progress:
@@ -222,12 +230,10 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     linear = linear_map(family, x_name, (xs[0], xs[-1]), y_name, (ys[0], ys[-1]), LINEAR_GRID, fmu_dir)
     found_curves = []
     if curves:
-        from dfwb.engine.hunting import fold_curves
-
         found_curves = fold_curves(family, x_name, xs, y_name, ys, grid, fmu_dir, engine,
                                    progress=None if progress is None else (lambda d, t: progress("curves", d, t)))
     response = HuntingMapResponse(plant=spec.name, G=family.controller.text, x=x_name, xs=xs, y=y_name, ys=ys,
-                                  values={k: v for k, v in family.merged().items() if k not in (x_name, y_name)},
+                                  values={k: v for k, v in merged.items() if k not in (x_name, y_name)},
                                   cells=grid, linear=linear, curves=found_curves, unit=spec.unit,
                                   counts={"cells": len(wanted), "computed": len(pending), "cached": hits,
                                           "resumed": resumed},
@@ -237,19 +243,13 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     return response
 
 
-def _checked(cell):
-    """``cell`` if it has a classified cell's shape, else None."""
-    from dfwb.engine.hunting import valid_cell
-
-    return cell if valid_cell(cell) else None
-
-
 def _read_cell(text):
-    """The checked cell a row's JSON holds, or None."""
+    """The cell a row's JSON holds if it has a classified cell's shape (:func:`valid_cell`), else None."""
     try:
-        return _checked(json.loads(text))
+        cell = json.loads(text)
     except (ValueError, RecursionError):
         return None
+    return cell if valid_cell(cell) else None
 
 
 class _folder:

@@ -23,6 +23,7 @@ from dfwb.base.errors import InputError
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
+from dfwb.engine.transfer import num_den
 from dfwb.studies.cache import code_revision, finite, fmu_revision, solver_revision
 from dfwb.studies.responses import LimitCycleResponse
 
@@ -82,10 +83,6 @@ def _amplitudes(amplitudes):
     return sorted(values)
 
 
-def _coefficients(G):
-    return [G.num[0][0].tolist(), G.den[0][0].tolist()]
-
-
 def _judge(spec, G, params, prediction, samples_per_period, fmu_dir, cache):
     """(outcome, run) of the co-simulation judge of one prediction (its run's last 10 periods), cached."""
     import numpy as np
@@ -95,7 +92,7 @@ def _judge(spec, G, params, prediction, samples_per_period, fmu_dir, cache):
 
     fmus = [fmu_revision(fmu_path(spec, fmu_dir)), fmu_revision(fmu_path(CONTROLLER, fmu_dir))]
     key = {"kind": "verify", "fmu": fmus,
-           "code": code_revision(), "plant": spec.name, "params": params, "G": _coefficients(G),
+           "code": code_revision(), "plant": spec.name, "params": params, "G": num_den(G),
            "cycle": [prediction.F, prediction.omega, prediction.amplitude_x], "samples_per_period": samples_per_period}
     value = cache.get(key) if cache is not None else None
     if value is None:
@@ -119,7 +116,7 @@ def _exact(problem, predictions, amplitudes, cache, progress):
     from dfwb.engine.periodic import TrueCycle
 
     key = {"kind": "exact", "code": code_revision(), "solvers": solver_revision(), "plant": problem.spec.name,
-           "params": problem.params, "G": _coefficients(problem.G), "amplitudes": amplitudes,
+           "params": problem.params, "G": num_den(problem.G), "amplitudes": amplitudes,
            "predictions": [[c.F, c.omega, c.amplitude_x] for c in predictions]}
     value = cache.get(key) if cache is not None else None
     if value is None:

@@ -374,6 +374,7 @@ class SceneRun:
     # -- continuations and maps ----------------------------------------------------------------------
     def continuations(self, display):
         """{name: ContinuationResponse} of the scene's [[continuation]]s, cached whole."""
+        from dfwb.engine.transfer import num_den
         from dfwb.studies.continuation import follow
 
         results = {}
@@ -382,7 +383,7 @@ class SceneRun:
             fmu = fmu_path(spec, self.fmu_dir)
             G = c.controller()
             key = {"kind": "continuation", "code": self.code, "solvers": solver_revision(), "fmu": fmu_revision(fmu),
-                   "plant": c.plant, "G": G if isinstance(G, str) else [G.num[0][0].tolist(), G.den[0][0].tolist()],
+                   "plant": c.plant, "G": G if isinstance(G, str) else num_den(G),
                    "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
                    "sources": c.sources, "max_points": c.max_points}
             task = display.add(f"{c.name}: continuation", 1, 0, 0)
