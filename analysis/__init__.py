@@ -14,6 +14,8 @@ response objects with a ``.plot()``.
 - :func:`run_scene`, :func:`sweep` and :func:`grid` -- studies written to a folder;
 - :func:`plant`, :func:`names`, :class:`Plant`, :func:`register` -- the plant registry
   (:mod:`dfwb.plants`, whose ``PLANTS`` maps each name to its entry);
+- :func:`fmu_plant` -- your own FMU (FMI 2.0/3.0, model exchange or co-simulation) as the
+  plant of :func:`describing_function` and the rest (:class:`FMUPlant`);
 - :class:`DfwbError` -- the base of every error a user can act on.
 
 A DF point has one shape everywhere, its record (a flat dict: ``F`` [N],
@@ -51,6 +53,7 @@ _PUBLIC = {
     "PlantError": "dfwb.base.errors", "RunError": "dfwb.base.errors",
     "Plant": "dfwb.plants", "names": "dfwb.plants", "plant": "dfwb.plants",
     "register": "dfwb.plants", "unregister": "dfwb.plants",
+    "fmu_plant": "dfwb.foreign.plant", "FMUPlant": "dfwb.foreign.plant",
 }
 
 __all__ = [
@@ -59,7 +62,7 @@ __all__ = [
     "limit_cycles", "LimitCycleResponse", "continuation", "ContinuationResponse", "hunting_map",
     "HuntingMapResponse", "limit_cycle_margin", "MarginResponse", "transfer_function",
     "run_scene", "sweep", "grid",
-    "plant", "plants", "names", "Plant", "register", "unregister",
+    "plant", "plants", "names", "Plant", "register", "unregister", "fmu_plant", "FMUPlant",
     "DfwbError", "PlantError", "InputError", "RunError",
 ]
 

@@ -16,7 +16,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import InputError, RunError
 
 FMU_DIR_HELP = "$DFWB_FMU_DIR, else a per-user folder, ~/.cache/dfwb/fmus"
 FIGURE_COMMANDS = {"limit-cycle", "continue", "map", "margin", "examples", "bench", "run", "paper", "demo"}
@@ -133,6 +133,25 @@ def _fmus(out_dir):
     return {path.stem: path for path in build_fmus(out_dir, report=lambda message: None)}
 
 
+def cmd_info(args):
+    from dfwb.foreign.description import describe
+
+    info = describe(args.fmu)
+    print(f"{info.model_name}: FMI {info.fmi_version}, {' and '.join(info.kinds)} (runs here; the first is used)")
+    print(f"  continuous Real inputs (--input): {', '.join(info.real_inputs()) or 'none'}")
+    print(f"  Real outputs (--output): {', '.join(info.real_outputs()) or 'none'}")
+    if info.parameters:
+        print("  parameters (--set NAME=VALUE):")
+        width = max(len(name) for name in info.parameters)
+        for p in info.parameters.values():
+            limits = f"[{p.min:g}, {p.max:g}]" if (p.min, p.max) != (-float("inf"), float("inf")) else ""
+            print(f"    {p.name:<{width}}  {p.type:<7} {p.start:<12g} {p.unit or '-':<8} {limits:<18} "
+                  f"{p.description}".rstrip())
+    else:
+        print("  parameters: none")
+    return 0
+
+
 def cmd_build(args):
     """Build the production FMUs (the registry's plants, LinearSystem and the exact closed loops); ``--naive``: the
     plants' fixed-step twins too."""
@@ -149,31 +168,54 @@ def cmd_build(args):
     return 0
 
 
+def _own_fmu(args):
+    """The user's FMU named as the plant (--input, --output, --kind), or None for a built-in plant."""
+    from dfwb.foreign.plant import fmu_plant, is_fmu_path
+
+    if not is_fmu_path(args.plant):
+        given = [f"--{name}" for name in ("input", "output", "kind", "rtol", "timeout")
+                 if getattr(args, name, None) is not None]
+        if given:
+            raise InputError(f"{', '.join(given)}: only for a plant given as the path of an FMU")
+        return None
+    return fmu_plant(args.plant, input=args.input, output=args.output, kind=args.kind)
+
+
 def cmd_df(args):
-    from dfwb.engine.describing import DFEngine
+    from dfwb.api.functions import df_engine
     from dfwb.plants.registry import plant
 
-    params = plant(args.plant).check(_assignments(args.set, "--set"))
+    own = _own_fmu(args)
+    params = (own or plant(args.plant)).check(_assignments(args.set, "--set"))
     forces, omegas = _points(args)
-    engine = DFEngine(args.plant, args.fmus, args.drive, args.samples_per_period)
+    engine = df_engine(own or args.plant, fmu_dir=args.fmus, drive=args.drive,
+                       samples_per_period=args.samples_per_period, rtol=args.rtol, timeout=args.timeout)
     results = [engine.point(F, omega, params).as_dict() for F in forces for omega in omegas]
+    failed = [r for r in results if r["note"].startswith("failed:")]
     if args.json:
         json.dump(results, sys.stdout, indent=1)
         sys.stdout.write("\n")
     else:
         print(_table(results))
+    if failed:
+        raise RunError(failed[0]["note"].removeprefix("failed: ") +
+                       (f" (and {len(failed) - 1} more points failed)" if len(failed) > 1 else ""))
     return 0
 
 
 def _table(results):
-    header = (f"{'F [N]':>10} {'omega [rad/s]':>13} {'Re N [m/N]':>13} {'Im N [m/N]':>13} {'Re -1/N [N/m]':>13} "
-              f"{'Im -1/N [N/m]':>13} {'periodic':>8} {'periods':>7} {'time [ms]':>9}  note")
+    estimated = any(r.get("N_error") is not None for r in results)
+    header = (f"{'F [N]':>10} {'omega [rad/s]':>13} {'Re N [m/N]':>13} {'Im N [m/N]':>13} "
+              + (f"{'|error| [m/N]':>13} " if estimated else "")
+              + f"{'Re -1/N [N/m]':>13} {'Im -1/N [N/m]':>13} {'periodic':>8} {'periods':>7} {'time [ms]':>9}  note")
     lines = [header]
     for r in results:
         inv = ("", "") if r["minus_inv_N_re"] is None else \
             (f"{r['minus_inv_N_re']:13.6g}", f"{r['minus_inv_N_im']:13.6g}")
-        lines.append(f"{r['F']:10.4g} {r['omega']:13.5g} {r['N_re']:13.6g} {r['N_im']:13.6g} {inv[0]:>13} {inv[1]:>13} "
-                     f"{str(r['periodic']):>8} {r['periods']:7d} {r['seconds'] * 1e3:9.2f}  {r['note']}".rstrip())
+        error = f"{r['N_error']:13.2g} " if estimated else ""
+        lines.append(f"{r['F']:10.4g} {r['omega']:13.5g} {r['N_re']:13.6g} {r['N_im']:13.6g} {error}{inv[0]:>13} "
+                     f"{inv[1]:>13} {str(r['periodic']):>8} {r['periods']:7d} {r['seconds'] * 1e3:9.2f}  "
+                     f"{r['note']}".rstrip())
     return "\n".join(lines)
 
 
@@ -181,6 +223,9 @@ def cmd_sweep(args):
     from dfwb.plants.registry import plant
     from dfwb.studies.sweep import grid, run_sweep
 
+    if _own_fmu(args) is not None:
+        raise InputError("a sweep of your own FMU is not there yet: use dfwb df (one point per F and omega) "
+                         "or dfwb.describing_function")
     spec = plant(args.plant)
     params = spec.check(_assignments(args.set, "--set"))
     grids = _grid_values(args.grid)
@@ -382,11 +427,11 @@ def fmu_folder_option(command):
 
 
 def fmu_options(command):
-    """--fmus DIR and --fmu KIND: where the FMUs are, and which kind of plant FMU runs."""
+    """--fmus DIR and --fmu-kind KIND: where dfwb's own FMUs are, and which kind of them runs."""
     fmu_folder_option(command)
-    command.add_argument("--fmu", action=_Once, choices=("native", "python"), default=None,
-                         help="plant FMUs to run: native (the C core, no Python inside) or python (pythonfmu); "
-                              "the same numbers (default: $DFWB_FMU, else native)")
+    command.add_argument("--fmu-kind", action=_Once, choices=("native", "python"), default=None,
+                         help="which of dfwb's own plant FMUs run: native (the C core, no Python inside) or python "
+                              "(pythonfmu); the same numbers (default: $DFWB_FMU, else native)")
 
 
 def parser():
@@ -407,8 +452,34 @@ def parser():
                             "(default: the FMU folder's native/)")
     build.set_defaults(run=cmd_build)
 
+    info = commands.add_parser("info", help="what your own FMU offers: its inputs, outputs and parameters "
+                                            "(units, start values, ranges)")
+    info.add_argument("fmu", metavar="PATH.fmu", help="an FMI 2.0 or 3.0 FMU")
+    info.set_defaults(run=cmd_info)
+
+    plant_help = f"the plant: {', '.join(plant_names)}, or the path of your own FMU (PATH.fmu)"
+
+    def plant_argument(text):
+        if text in plant_names or text.lower().endswith(".fmu"):
+            return text
+        raise argparse.ArgumentTypeError(f"unknown plant {text!r} (allowed: {', '.join(plant_names)}, "
+                                         "or the path of an FMU, PATH.fmu)")
+
+    def own_fmu_options(command):
+        command.add_argument("--input", action=_Once, metavar="NAME",
+                             help="your FMU's continuous Real input the force enters (default: its only one)")
+        command.add_argument("--output", action=_Once, metavar="NAME",
+                             help="your FMU's Real output whose DF is taken (default: its only one)")
+        command.add_argument("--kind", action=_Once, choices=("model-exchange", "co-simulation"), default=None,
+                             help="which interface of your FMU runs (default: model exchange if it has it)")
+        command.add_argument("--rtol", action=_Once, type=float, default=None,
+                             help="accuracy aimed at with your FMU: the integrator's tolerance for model exchange "
+                                  "(default 1e-10), the extrapolated DF's for co-simulation (default 1e-6)")
+        command.add_argument("--timeout", action=_Once, type=float, default=None,
+                             help="seconds one point of your FMU may take before it is skipped (default 120)")
+
     def point_options(command):
-        command.add_argument("plant", choices=plant_names, help="the plant")
+        command.add_argument("plant", type=plant_argument, metavar="PLANT", help=plant_help)
         command.add_argument("--F", type=float, nargs="+", action="extend", required=True, help="force amplitudes [N]")
         command.add_argument("--omega", type=float, nargs="+", action="extend", help="frequencies [rad/s]")
         command.add_argument("--omega-log", action=_Once, type=float, nargs=3, metavar=("LO", "HI", "N"),
@@ -420,6 +491,7 @@ def parser():
                                   "master into the input f, held over each step (default: %(default)s)")
         command.add_argument("--samples-per-period", action=_Once, type=_integer(4, 100_000), default=64,
                              help="communication steps per period with --drive input (default: %(default)s)")
+        own_fmu_options(command)
         fmu_options(command)
 
     df = commands.add_parser("df", help="describing function N(F, omega) of a plant, one point per (F, omega)")
@@ -437,14 +509,19 @@ def parser():
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
 
+    def controller_options(command):
+        command.add_argument("plant", choices=plant_names, help="the plant")
+        command.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
+                                                       "e.g. 'Kp + Ki/s'")
+        command.add_argument("--num", type=float, nargs="+", action="extend",
+                             help="controller numerator coefficients, highest power first")
+        command.add_argument("--den", type=float, nargs="+", action="extend",
+                             help="controller denominator coefficients")
+        command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
+                             help="parameters of G and of the plant (e.g. Fs=8 Kp=10 for G = 'Kp + Ki/s')")
+
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
-    cycle.add_argument("plant", choices=plant_names, help="the plant")
-    cycle.add_argument("--G", action=_Once, help="controller as an expression in s, e.g. '100*(s+1)/(s+10)'")
-    cycle.add_argument("--num", type=float, nargs="+", action="extend",
-                       help="controller numerator coefficients, highest power first")
-    cycle.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator coefficients")
-    cycle.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
-                       help="plant parameters and G's (e.g. Fs=8 Kp=10 for G = 'Kp + Ki/s')")
+    controller_options(cycle)
     cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
                        help="force amplitudes searched [N] (default: derived from the plant and G)")
     cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
@@ -470,15 +547,6 @@ def parser():
         command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
         fmu_options(command)
         command.add_argument("--quiet", action="store_true", help="no progress display")
-
-    def controller_options(command):
-        command.add_argument("plant", choices=plant_names, help="the plant")
-        command.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
-                                                       "e.g. 'Kp + Ki/s'")
-        command.add_argument("--num", type=float, nargs="+", action="extend", help="controller numerator")
-        command.add_argument("--den", type=float, nargs="+", action="extend", help="controller denominator")
-        command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
-                             help="parameters of G and of the plant")
 
     follow = commands.add_parser("continue", help="follow limit cycles in one parameter of G or of the plant: "
                                                  "branches, bifurcations, the diagram")
@@ -575,8 +643,8 @@ def main(argv=None):
     top = parser()
     args = top.parse_args(argv)
     prog = f"dfwb {args.command}"
-    if getattr(args, "fmu", None):  # the process and its workers run this kind of plant FMU
-        os.environ["DFWB_FMU"] = args.fmu
+    if getattr(args, "fmu_kind", None):  # the process and its workers run this kind of plant FMU
+        os.environ["DFWB_FMU"] = args.fmu_kind
     if args.command in FIGURE_COMMANDS and (args.command not in ("limit-cycle", "continue", "margin") or args.plot):
         from dfwb.plotting.backend import use_batch_backend
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ("fmus", "build_fmus", "base", "plants", "fmi", "engine", "plotting", "studies", "verify", "api", "cli",
+LAYERS = ("fmus", "build_fmus", "base", "plants", "fmi", "engine", "foreign", "plotting", "studies", "verify", "api", "cli",
           "dfwb")
 RANK = {"fmus": 0, "build_fmus": 0, **{layer: rank for rank, layer in enumerate(LAYERS[1:], start=1)}}
 FOLDERS = {"fmus": ROOT / "fmus", "build_fmus": ROOT / "build_fmus"}

@@ -16,10 +16,11 @@ from typing import Any, Optional, Sequence, Union
 import numpy as np
 
 from dfwb.base.errors import InputError
+from dfwb.base.values import flags, reals
 from dfwb.base.values import integer as _integer
-from dfwb.base.values import reals
 from dfwb.base.values import short as _short
 from dfwb.engine.describing import HARMONICS, DFEngine, check_point
+from dfwb.engine.margin import K_RANGE, SCAN
 from dfwb.plants import plant as find_plant
 from dfwb.studies.responses import (
     ContinuationResponse,
@@ -57,9 +58,48 @@ def _grid(F: ArrayLike, omega: ArrayLike) -> tuple:
     return np.array(F), np.array(omega)
 
 
-def describing_function(plant: str, F: ArrayLike, omega: ArrayLike, *, drive: str = "internal",
+def resolve_plant(plant: Any):
+    """A registered plant (by name or entry), or a user's FMU: an FMUPlant, or the path of an .fmu file."""
+    from dfwb.foreign.plant import FMUPlant, fmu_plant, is_fmu_path
+
+    if isinstance(plant, FMUPlant):
+        return plant
+    if is_fmu_path(plant):
+        return fmu_plant(plant)
+    return find_plant(plant)
+
+
+def df_engine(plant: Any, *, fmu_dir=None, drive: str = "internal", samples_per_period: int = 64,
+              max_periods: int = 150, harmonics: int = HARMONICS, rtol: Optional[float] = None,
+              timeout: Optional[float] = None):
+    """The engine of DF points for a plant: the exact built-in engine, or a user's FMU's (in a worker process).
+
+    The one place that chooses; ``rtol`` and ``timeout`` are for a user's FMU only
+    (:class:`dfwb.foreign.engine.FMUEngine`), ``drive`` and ``samples_per_period``
+    for the built-in plants only.
+    """
+    spec = resolve_plant(plant)
+    from dfwb.foreign.plant import FMUPlant
+
+    if isinstance(spec, FMUPlant):
+        if drive != "internal" or samples_per_period != 64:
+            raise InputError("drive and samples_per_period are for dfwb's own plants: a user's FMU is driven as "
+                             "its kind allows (model exchange: the exact sine; co-simulation: held and refined)")
+        from dfwb.foreign.engine import FMUEngine
+        from dfwb.foreign.worker import TIMEOUT
+
+        return FMUEngine(spec, harmonics=harmonics, max_periods=max_periods, rtol=rtol,
+                         timeout=TIMEOUT if timeout is None else timeout)
+    if rtol is not None or timeout is not None:
+        raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
+    return DFEngine(spec.name, fmu_dir=fmu_dir, drive=drive, samples_per_period=samples_per_period,
+                    max_periods=max_periods, harmonics=harmonics)
+
+
+def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: str = "internal",
                         samples_per_period: int = 64, max_periods: int = 150, harmonics: int = HARMONICS,
-                        fmu_dir: Optional[Union[str, Path]] = None, **params: float) -> DescribingFunctionResponse:
+                        fmu_dir: Optional[Union[str, Path]] = None, rtol: Optional[float] = None,
+                        timeout: Optional[float] = None, **params: float) -> DescribingFunctionResponse:
     """The describing function N(F, omega) of a plant, at every point of a broadcast grid.
 
     The plant starts at rest, is driven by ``F cos(omega t)`` and runs to its
@@ -68,8 +108,10 @@ def describing_function(plant: str, F: ArrayLike, omega: ArrayLike, *, drive: st
 
     Parameters
     ----------
-    plant : str
-        A registered plant, e.g. ``"friction"`` (see :func:`dfwb.names`).
+    plant : str or FMUPlant
+        A registered plant, e.g. ``"friction"`` (see :func:`dfwb.names`), or your own
+        FMU: :func:`dfwb.fmu_plant` (``fmu_plant("drive.fmu", input="tau", output="phi")``)
+        or the path of an FMU with one Real input and one Real output.
     F : float or array_like
         Force amplitude(s) [N].
     omega : float or array_like
@@ -85,6 +127,11 @@ def describing_function(plant: str, F: ArrayLike, omega: ArrayLike, *, drive: st
         The harmonics X_0 .. X_harmonics recorded (1 to 10).
     fmu_dir : path, optional, keyword-only
         Where the FMUs are (built there if missing); default ``$DFWB_FMU_DIR`` or the user's cache.
+    rtol : float, optional, keyword-only
+        Your FMU only: the accuracy aimed at (model exchange: the integrator's tolerance,
+        default 1e-10; co-simulation: the extrapolated DF's, default 1e-6).
+    timeout : float, optional, keyword-only
+        Your FMU only: seconds one point may take before it is skipped (default 120).
     **params : float
         Plant parameters, e.g. ``M=2.0``; checked against the plant's ranges.
 
@@ -111,17 +158,18 @@ def describing_function(plant: str, F: ArrayLike, omega: ArrayLike, *, drive: st
     >>> grid.points[0]["F"], grid.points[0]["omega"], grid.points[0]["params"]
     (10.0, 0.5, {'M': 1.0})
     """
-    spec = find_plant(plant)
+    spec = resolve_plant(plant)
     checked = spec.checked(params)
     F_grid, omega_grid = _grid(F, omega)
     for F_value, omega_value in zip(F_grid.flat, omega_grid.flat):  # every point before anything runs
         check_point(float(F_value), float(omega_value))
     options = {name: _integer(name, value) for name, value in
                (("samples_per_period", samples_per_period), ("max_periods", max_periods), ("harmonics", harmonics))}
-    engine = DFEngine(spec.name, fmu_dir=fmu_dir, drive=drive, **options)  # checks the options (an empty grid too)
+    engine = df_engine(spec, fmu_dir=fmu_dir, drive=drive, rtol=rtol, timeout=timeout, **options)
     harmonics = engine.harmonics
     shape = F_grid.shape
     N = np.zeros(shape, dtype=complex)
+    errors = np.full(shape, np.nan)
     amplitudes = np.zeros(shape + (harmonics + 1,))
     periodic = np.zeros(shape, dtype=bool)
     points = []
@@ -129,12 +177,13 @@ def describing_function(plant: str, F: ArrayLike, omega: ArrayLike, *, drive: st
         for index in np.ndindex(shape):
             result = engine.point(float(F_grid[index]), float(omega_grid[index]), checked)
             N[index], periodic[index] = result.N, result.periodic
+            errors[index] = np.nan if result.N_error is None else result.N_error
             amplitudes[index] = result.harmonics
             points.append(result.as_dict())
     if shape == ():
-        N, periodic = N[()], periodic[()]
+        N, periodic, errors = N[()], periodic[()], errors[()]
     return DescribingFunctionResponse(plant=spec.name, params=checked, F=F_grid, omega=omega_grid, N=N,
-                                      harmonics=amplitudes, periodic=periodic, points=points)
+                                      harmonics=amplitudes, periodic=periodic, points=points, N_error=errors)
 
 
 def transfer_function(G: Any):
@@ -236,9 +285,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
 
     n_F, n_omega = _integer("n_F", n_F), _integer("n_omega", n_omega)
     samples_per_period = _integer("samples_per_period", samples_per_period)
-    for name, flag in (("exact", exact), ("verify", verify), ("progress", progress)):
-        if not isinstance(flag, bool):
-            raise InputError(f"{name} = {flag!r} must be True or False")
+    flags(exact=exact, verify=verify, progress=progress)
     with _reporter(f"limit cycles of {plant}", progress) as report:
         return analyse(plant, G, params, F_range=F_range, omega_range=omega_range, n_F=n_F, n_omega=n_omega,
                        exact=exact, verify=verify, samples_per_period=samples_per_period, amplitudes=amplitudes,
@@ -295,9 +342,7 @@ def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, 
     """
     from dfwb.studies.continuation import follow
 
-    for name, flag in (("progress", progress),):
-        if not isinstance(flag, bool):
-            raise InputError(f"{name} = {flag!r} must be True or False")
+    flags(progress=progress)
     with _reporter(f"continuation of {plant} in {parameter}", progress) as report:
         return follow(plant, G, parameter, start, stop, params, sources=sources, max_points=max_points,
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None)
@@ -359,9 +404,7 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     """
     from dfwb.studies.hunting import run_map
 
-    for name, flag in (("curves", curves), ("resume", resume), ("progress", progress)):
-        if not isinstance(flag, bool):
-            raise InputError(f"{name} = {flag!r} must be True or False")
+    flags(curves=curves, resume=resume, progress=progress)
     if out_dir is not None and not isinstance(out_dir, (str, os.PathLike)):
         raise InputError(f"out_dir = {_short(out_dir)} is not a folder: give a path")
     with _reporter(f"hunting map of {plant}", progress) as report:
@@ -369,7 +412,7 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
                        amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None)
 
 
-def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = (1e-2, 1e2), count: int = 25, df: bool = True,
+def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = K_RANGE, count: int = SCAN, df: bool = True,
                        fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                        **params: float) -> MarginResponse:
     """The limit-cycle margin of a controller: the gain factors k for which k G makes the machine hunt.
@@ -411,9 +454,7 @@ def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = (1e-2, 1e2), coun
     """
     from dfwb.studies.margin import gain_margin
 
-    for name, flag in (("df", df), ("progress", progress)):
-        if not isinstance(flag, bool):
-            raise InputError(f"{name} = {flag!r} must be True or False")
+    flags(df=df, progress=progress)
     with _reporter(f"limit-cycle margin of {plant}", progress) as report:
         return gain_margin(plant, G, params, k_range=k_range, count=_integer("count", count), df=df, fmu_dir=fmu_dir,
                            progress=report if progress else None)

@@ -67,6 +67,7 @@ class DFResult:
     note: str = ""
     orbit_periods: int = 1  # the orbit's period in forcing periods (1: harmonic response)
     X: list = field(default_factory=list, repr=False)  # complex X_k, k = 0..10
+    N_error: object = None  # estimated |error| of N [m/N]; None: exact (this engine, to its 1e-11 section)
 
     @property
     def minus_inverse(self):
@@ -84,7 +85,7 @@ class DFResult:
         inverse = self.minus_inverse
         return {
             "plant": self.plant, "F": self.F, "omega": self.omega, "params": dict(self.params),
-            "drive": self.drive, "N_re": self.N.real, "N_im": self.N.imag,
+            "drive": self.drive, "N_re": self.N.real, "N_im": self.N.imag, "N_error": self.N_error,
             "minus_inv_N_re": None if inverse is None else inverse.real,
             "minus_inv_N_im": None if inverse is None else inverse.imag,
             "periodic": self.periodic, "periods": self.periods, "orbit_periods": self.orbit_periods,
@@ -97,7 +98,8 @@ class DFResult:
         return cls(plant=data["plant"], F=data["F"], omega=data["omega"], params=dict(data["params"]),
                    N=complex(data["N_re"], data["N_im"]), harmonics=list(data["harmonics"]),
                    periodic=data["periodic"], periods=data["periods"], seconds=data["seconds"],
-                   drive=data["drive"], note=data["note"], orbit_periods=data["orbit_periods"])
+                   drive=data["drive"], note=data["note"], orbit_periods=data["orbit_periods"],
+                   N_error=data.get("N_error"))
 
 
 # -- the record of a DF point, and its CSV row -------------------------------------------------
@@ -105,7 +107,7 @@ class DFResult:
 #: ``harmonics`` is a list: CSV spreads it over the columns ``X0 [m]`` .. ``X10 [m]``.
 RECORD = {
     "plant": "", "F": "N", "omega": "rad/s", "params": "", "drive": "",
-    "N_re": "m/N", "N_im": "m/N", "minus_inv_N_re": "N/m", "minus_inv_N_im": "N/m",
+    "N_re": "m/N", "N_im": "m/N", "N_error": "m/N", "minus_inv_N_re": "N/m", "minus_inv_N_im": "N/m",
     "periodic": "", "periods": "", "orbit_periods": "", "harmonics": "m", "seconds": "s", "note": "",
 }
 _INTEGERS = {"periods", "orbit_periods"}

@@ -48,7 +48,7 @@ def default_dir():
 # The layers whose code computes or shapes a cached value (the FMUs' own sources are covered
 # by their build hash). The command line and the plots are not among them: editing a plot
 # redraws figures (their keys add :func:`drawing_revision`) but keeps every computed point.
-COMPUTING = ("base", "plants", "fmi", "engine", "studies")
+COMPUTING = ("base", "plants", "fmi", "foreign", "engine", "studies")
 DRAWING = ("plotting",)
 
 

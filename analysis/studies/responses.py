@@ -45,6 +45,10 @@ class DescribingFunctionResponse:
         |X_k| [m], k = 0 .. harmonics, on a trailing axis: shape ``N.shape + (harmonics + 1,)``.
     periodic : ndarray of bool
         Whether the response at the point settled on a periodic orbit.
+    N_error : ndarray of float
+        The estimated absolute error of N [m/N] for a user's FMU (``inf`` where the
+        point failed); NaN for dfwb's own plants, whose engine is exact (to its 1e-11
+        section tolerance) and estimates nothing.
     points : list of dict
         The record of every point (:meth:`dfwb.engine.describing.DFResult.as_dict`), in C
         (row-major) order of the grid: ``points[i]`` belongs to ``N.flat[i]``. The same shape
@@ -59,6 +63,7 @@ class DescribingFunctionResponse:
     harmonics: np.ndarray
     periodic: Any
     points: list = field(repr=False)
+    N_error: Any = None
 
     @property
     def shape(self) -> tuple:
@@ -450,13 +455,9 @@ class ContinuationResponse:
 
     def figure(self, path):
         """The diagram written to ``path`` (PNG and SVG)."""
-        import matplotlib.pyplot as plt
+        from dfwb.plotting.plots import bifurcation_diagram, drawn
 
-        from dfwb.plotting.plots import bifurcation_diagram, save
-
-        figure, ax = plt.subplots(figsize=(8, 5.5))
-        bifurcation_diagram(ax, self)
-        return save(figure, path.parent, path.stem)
+        return drawn(path, lambda ax: bifurcation_diagram(ax, self), figsize=(8, 5.5))
 
 
 def _values(values):
@@ -574,13 +575,9 @@ class HuntingMapResponse:
 
     def figure(self, path):
         """The map written to ``path`` (PNG and SVG)."""
-        import matplotlib.pyplot as plt
+        from dfwb.plotting.plots import drawn
 
-        from dfwb.plotting.plots import save
-
-        figure, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
-        self.plot(axes)
-        return save(figure, Path(path).parent, Path(path).stem)
+        return drawn(path, self.plot, ncols=2, figsize=(13, 6.2), sharey=True, layout="constrained")
 
 
 @dataclass(eq=False)
@@ -653,10 +650,6 @@ class MarginResponse:
 
     def figure(self, path):
         """The plot written to ``path`` (PNG and SVG)."""
-        import matplotlib.pyplot as plt
+        from dfwb.plotting.plots import drawn, margin_plot
 
-        from dfwb.plotting.plots import margin_plot, save
-
-        figure, ax = plt.subplots(figsize=(7.5, 4.8))
-        margin_plot(ax, self)
-        return save(figure, path.parent, path.stem)
+        return drawn(path, lambda ax: margin_plot(ax, self), figsize=(7.5, 4.8))

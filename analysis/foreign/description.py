@@ -1,0 +1,183 @@
+"""What a user's FMU offers, read from its model description once it is unpacked safely.
+
+:func:`describe` returns an :class:`FMUInfo`: FMI version, the interfaces
+(model exchange, co-simulation) with their capabilities, and the variables a
+describing function can use -- continuous Real inputs (the force), Real
+outputs (the position), parameters with their units, start values and
+ranges. Everything a user can get wrong is refused with one line that names
+the FMU, the reason and what the FMU does offer.
+"""
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dfwb.base.errors import PlantError
+from dfwb.foreign.archive import unpack
+
+__all__ = ["FMUInfo", "Parameter", "describe", "KINDS", "REALS"]
+
+KINDS = ("model-exchange", "co-simulation")  # preferred first: the sine enters exactly
+REALS = {"Real", "Float64", "Float32"}
+INTEGERS = {"Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64", "Enumeration"}
+BOOLEANS = {"Boolean"}
+# The platform folder of this machine's binaries, by FMI major version.
+PLATFORM = {"2": "linux64", "3": "x86_64-linux"}
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A parameter of the FMU: ``--set name=value`` sets it before initialisation."""
+
+    name: str
+    type: str
+    start: float
+    unit: str = ""
+    min: float = -math.inf
+    max: float = math.inf
+    description: str = ""
+
+    def check(self, fmu, value):
+        """The value as a float, or PlantError naming it and what is allowed."""
+        if isinstance(value, bool) and self.type not in BOOLEANS:
+            raise PlantError(f"{fmu}: {self.name} = {value!r} is not a number")
+        try:
+            number = float(value)
+        except (TypeError, ValueError, OverflowError):
+            raise PlantError(f"{fmu}: {self.name} = {value!r:.80} is not a number") from None
+        if not math.isfinite(number):
+            raise PlantError(f"{fmu}: {self.name} = {value!r} is not finite")
+        if self.type in BOOLEANS and number not in (0.0, 1.0):
+            raise PlantError(f"{fmu}: {self.name} = {value!r} is a Boolean: 0 or 1")
+        if self.type in INTEGERS and number != int(number):
+            raise PlantError(f"{fmu}: {self.name} = {value!r} is an {self.type}: a whole number")
+        if not self.min <= number <= self.max:
+            raise PlantError(f"{fmu}: {self.name} = {value!r} is out of range: [{self.min:g}, {self.max:g}] "
+                             f"{self.unit}".rstrip())
+        return number
+
+
+@dataclass(frozen=True)
+class FMUInfo:
+    """The facts of one FMU file that dfwb uses (picklable: a worker process gets it whole)."""
+
+    path: str
+    folder: str
+    digest: str
+    fmi_version: str
+    model_name: str
+    kinds: tuple  # of KINDS, offered by the FMU with a binary for this machine
+    identifiers: dict  # kind -> modelIdentifier
+    can_save_state: dict  # kind -> canGetAndSetFMUstate
+    can_interpolate_inputs: bool
+    max_output_derivative_order: int
+    event_indicators: int
+    states: int
+    inputs: dict  # name -> (type, variability) of every input
+    outputs: dict  # name -> (type, unit) of every output
+    parameters: dict = field(default_factory=dict)  # name -> Parameter
+
+    @property
+    def major(self):
+        return self.fmi_version.split(".")[0]
+
+    def real_inputs(self):
+        return [n for n, (kind, variability) in self.inputs.items() if kind in REALS and variability == "continuous"]
+
+    def real_outputs(self):
+        return [n for n, (kind, _unit) in self.outputs.items() if kind in REALS]
+
+    def check_input(self, name):
+        """Refuse a name that is not a continuous Real input, listing the ones there are."""
+        offered = ", ".join(self.real_inputs()) or "none"
+        if name not in self.inputs:
+            raise PlantError(f"{self.path}: no input {name!r} (its continuous Real inputs: {offered})")
+        kind, variability = self.inputs[name]
+        if kind not in REALS or variability != "continuous":
+            raise PlantError(f"{self.path}: the input {name!r} is {variability}, of type {kind}: the force must be a "
+                             f"continuous Real input (its continuous Real inputs: {offered})")
+
+    def check_output(self, name):
+        """Refuse a name that is not a Real output, listing the ones there are."""
+        offered = ", ".join(self.real_outputs()) or "none"
+        if name not in self.outputs:
+            raise PlantError(f"{self.path}: no output {name!r} (its Real outputs: {offered})")
+        if self.outputs[name][0] not in REALS:
+            raise PlantError(f"{self.path}: the output {name!r} is of type {self.outputs[name][0]}: the position "
+                             f"must be a Real output (its Real outputs: {offered})")
+
+    def unit(self, name):
+        return self.outputs.get(name, ("", ""))[1]
+
+
+def _number(text, default):
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return default
+    return value if not math.isnan(value) else default
+
+
+def _unit(variable):
+    unit = variable.unit or (variable.declaredType.unit if variable.declaredType is not None else None)
+    return unit or ""
+
+
+def describe(path):
+    """The :class:`FMUInfo` of an FMU file; PlantError (one line) for anything dfwb cannot run."""
+    from fmpy import read_model_description  # lxml: only once the archive is known to be sane
+
+    folder, key = unpack(path)
+    import xml.etree.ElementTree as ElementTree  # the file passed unpack's checks: small, shallow, no entities
+
+    try:
+        version = str(ElementTree.parse(Path(folder, "modelDescription.xml")).getroot().get("fmiVersion") or "")
+    except ElementTree.ParseError as error:
+        raise PlantError(f"{path}: its modelDescription.xml cannot be read ({error})") from None
+    if version.startswith("1."):
+        raise PlantError(f"{path}: FMI {version} is not supported (an FMI 2.0 or 3.0 FMU is)")
+    if not version.startswith(("2.", "3.")):
+        raise PlantError(f"{path}: FMI version {version!r} is not supported (an FMI 2.0 or 3.0 FMU is)")
+    try:
+        md = read_model_description(str(folder), validate=False)
+    except Exception as error:  # a malformed model description: lxml, fmpy or attrs say why
+        raise PlantError(f"{path}: its modelDescription.xml cannot be read "
+                         f"({' '.join(str(error).split())[:200] or type(error).__name__})") from None
+    major = version.split(".")[0]
+    interfaces = {"model-exchange": md.modelExchange, "co-simulation": md.coSimulation}
+    declared = [kind for kind in KINDS if interfaces[kind] is not None]
+    if not declared:
+        raise PlantError(f"{path}: offers neither model exchange nor co-simulation")
+    binaries = Path(folder, "binaries", PLATFORM[major])
+    kinds = tuple(kind for kind in declared
+                  if Path(binaries, f"{interfaces[kind].modelIdentifier}.so").is_file())
+    if not kinds:
+        found = sorted(p.name for p in Path(folder, "binaries").iterdir()) if Path(folder, "binaries").is_dir() else []
+        sources = " (it has sources: build its binary with fmpy.build.build_platform_binary)" \
+            if Path(folder, "sources").is_dir() else ""
+        raise PlantError(f"{path}: no binary for {PLATFORM[major]} (its binaries: {', '.join(found) or 'none'})"
+                         f"{sources}")
+    cs = md.coSimulation
+    inputs, outputs, parameters = {}, {}, {}
+    for v in md.modelVariables:
+        if v.shape or v.dimensions:  # arrays (FMI 3.0) are not scalars dfwb can set or read
+            continue
+        if v.causality == "input":
+            inputs[v.name] = (v.type, v.variability)
+        elif v.causality == "output":
+            outputs[v.name] = (v.type, _unit(v))
+        elif v.causality == "parameter" and v.variability in ("fixed", "tunable") and \
+                v.type in REALS | INTEGERS | BOOLEANS:
+            start = 1.0 if str(v.start).lower() == "true" else 0.0 if str(v.start).lower() == "false" else \
+                _number(v.start, 0.0)
+            parameters[v.name] = Parameter(v.name, v.type, start, _unit(v), _number(v.min, -math.inf),
+                                           _number(v.max, math.inf), " ".join((v.description or "").split()))
+    states = len(md.derivatives) if md.derivatives else 0
+    return FMUInfo(
+        path=str(path), folder=str(folder), digest=key, fmi_version=version, model_name=str(md.modelName),
+        kinds=kinds, identifiers={kind: interfaces[kind].modelIdentifier for kind in kinds},
+        can_save_state={kind: bool(interfaces[kind].canGetAndSetFMUstate) for kind in kinds},
+        can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
+        max_output_derivative_order=int(cs.maxOutputDerivativeOrder or 0) if cs is not None else 0,
+        event_indicators=int(md.numberOfEventIndicators or 0), states=states,
+        inputs=inputs, outputs=outputs, parameters=parameters)

@@ -1,0 +1,231 @@
+"""One instance of a user's FMU, FMI 2.0 or 3.0, model exchange or co-simulation, behind one small interface.
+
+The drivers (:mod:`dfwb.foreign.model_exchange`, :mod:`dfwb.foreign.held`)
+speak only to :class:`Instance`; the differences between the four FMI
+flavours (fmpy's ``FMU2Model``, ``FMU2Slave``, ``FMU3Model``, ``FMU3Slave``)
+stay here. Every FMI call is checked by fmpy; a refused call becomes
+:class:`~dfwb.fmi.simulation.FMUError` with the FMU's own log lines. Runs
+only inside a worker process (:mod:`dfwb.foreign.worker`): this is where the
+FMU's native code is loaded.
+"""
+
+import ctypes
+import itertools
+
+import numpy as np
+
+from dfwb.fmi.simulation import FMUError
+
+__all__ = ["Instance"]
+
+_COUNTER = itertools.count()
+_DOUBLES = ctypes.POINTER(ctypes.c_double)
+
+
+def _pointer(array):
+    return array.ctypes.data_as(_DOUBLES)
+
+
+class Instance:
+    """A live FMU instance: start it with parameters and an input value, then step or evaluate it.
+
+    Parameters
+    ----------
+    info : FMUInfo
+    kind : {"model-exchange", "co-simulation"}
+    input, output : str
+        The force input and the position output.
+    """
+
+    def __init__(self, info, kind, input, output):
+        from fmpy import read_model_description
+        from fmpy.fmi2 import FMU2Model, FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+        from fmpy.fmi3 import FMU3Model, FMU3Slave
+
+        self.info, self.kind = info, kind
+        self.v3 = info.major == "3"
+        md = read_model_description(info.folder, validate=False)
+        self.variables = {v.name: v for v in md.modelVariables}
+        classes = {("2", "model-exchange"): FMU2Model, ("2", "co-simulation"): FMU2Slave,
+                   ("3", "model-exchange"): FMU3Model, ("3", "co-simulation"): FMU3Slave}
+        self.messages = []
+        token = md.instantiationToken if self.v3 else md.guid
+        self.fmu = classes[info.major, kind](guid=token, unzipDirectory=info.folder,
+                                             modelIdentifier=info.identifiers[kind],
+                                             instanceName=f"dfwb{next(_COUNTER)}")
+        if self.v3:
+            def log(_env, status, _category, message):
+                if status >= 1:
+                    self.messages.append(message.decode(errors="replace").strip())
+
+            self.fmu.instantiate(loggingOn=True, logMessage=log)
+        else:
+            def log(_env, _instance, status, _category, message):
+                if status >= 1:
+                    self.messages.append(message.decode(errors="replace").strip())
+
+            self._callbacks = fmi2CallbackFunctions()
+            self._callbacks.logger = fmi2CallbackLoggerTYPE(log)
+            from fmpy.fmi1 import calloc, free
+            from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
+
+            self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+            self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+            self.fmu.instantiate(loggingOn=True, callbacks=self._callbacks)
+        self._input = self._refs([input])
+        self._output = self._refs([output])
+        self._u = np.zeros(1)
+        self._y = np.zeros(1)
+        self._started = False
+        self.nx = self.nz = 0
+        self.time = 0.0
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _refs(self, names):
+        return (ctypes.c_uint * len(names))(*(self.variables[n].valueReference for n in names))
+
+    def failed(self, what, error):
+        """The FMUError for a refused call, with the FMU's own messages."""
+        reason = "; ".join(m for m in self.messages if m) or str(error)
+        self.messages = []
+        return FMUError(f"{self.info.path}: {what} failed at t = {self.time!r}: {' '.join(reason.split())[:400]}")
+
+    def _set(self, name, value):
+        variable = self.variables[name]
+        kind = variable.type
+        ref = [variable.valueReference]
+        if self.v3:
+            setter = "setFloat64" if kind == "Float64" else "setFloat32" if kind == "Float32" else \
+                "setBoolean" if kind == "Boolean" else "setInt64" if kind == "Enumeration" else f"set{kind}"
+            converted = bool(value) if kind == "Boolean" else value if kind.startswith("Float") else int(value)
+            getattr(self.fmu, setter)(ref, [converted])
+        elif kind == "Real":
+            self.fmu.setReal(ref, [value])
+        elif kind == "Boolean":
+            self.fmu.setBoolean(ref, [bool(value)])
+        else:
+            self.fmu.setInteger(ref, [int(value)])
+
+    # -- life cycle --------------------------------------------------------------------------------
+    def start(self, params, u0):
+        """Reset (after a first run), set the parameters and the input u0, initialise at t = 0."""
+        fmu = self.fmu
+        self.time = 0.0
+        if self._started:
+            fmu.reset()
+        self._started = True
+        for name, value in params.items():
+            self._set(name, value)
+        self.set_input(u0)
+        if self.v3:
+            fmu.enterInitializationMode(startTime=0.0)
+        else:
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+        self.set_input(u0)
+        fmu.exitInitializationMode()
+        if self.kind == "co-simulation":
+            if self.v3:
+                fmu.enterStepMode()
+            return None
+        if self.v3:
+            self.nx, self.nz = fmu.getNumberOfContinuousStates(), fmu.getNumberOfEventIndicators()
+        else:
+            self.nx, self.nz = self.info.states, self.info.event_indicators
+        self._x = np.zeros(self.nx)
+        self._dx = np.zeros(self.nx)
+        self._z = np.zeros(self.nz)
+        next_time = self.update_discrete()
+        fmu.enterContinuousTimeMode()
+        return next_time
+
+    # -- signals ----------------------------------------------------------------------------------
+    def set_input(self, u):
+        self._u[0] = u
+        if self.v3:
+            self.fmu.fmi3SetFloat64(self.fmu.component, self._input, 1, _pointer(self._u), 1)
+        else:
+            self.fmu.fmi2SetReal(self.fmu.component, self._input, 1, _pointer(self._u))
+
+    def output(self):
+        if self.v3:
+            self.fmu.fmi3GetFloat64(self.fmu.component, self._output, 1, _pointer(self._y), 1)
+        else:
+            self.fmu.fmi2GetReal(self.fmu.component, self._output, 1, _pointer(self._y))
+        return float(self._y[0])
+
+    # -- model exchange -------------------------------------------------------------------------------
+    def set_continuous(self, t, x, u):
+        """Time, states and input for the next evaluation."""
+        fmu = self.fmu
+        self.time = t
+        fmu.setTime(t)
+        if self.nx:
+            self._x[:] = x
+            fmu.setContinuousStates(_pointer(self._x), self.nx)
+        self.set_input(u)
+
+    def derivatives(self):
+        if not self.nx:
+            return self._dx
+        if self.v3:
+            self.fmu.getContinuousStateDerivatives(_pointer(self._dx), self.nx)
+        else:
+            self.fmu.getDerivatives(_pointer(self._dx), self.nx)
+        return self._dx
+
+    def indicators(self):
+        if self.nz:
+            self.fmu.getEventIndicators(_pointer(self._z), self.nz)
+        return self._z
+
+    def states(self):
+        if self.nx:
+            self.fmu.getContinuousStates(_pointer(self._x), self.nx)
+        return self._x.copy()
+
+    def completed_step(self):
+        """True if the FMU asks for event mode after an accepted integrator step."""
+        enter, terminate = self.fmu.completedIntegratorStep()
+        if terminate:
+            raise FMUError(f"{self.info.path}: the FMU asked to terminate at t = {self.time!r}")
+        return bool(enter)
+
+    def update_discrete(self):
+        """The event iteration (in event mode); returns the next time event or None. Bounded."""
+        update = self.fmu.updateDiscreteStates if self.v3 else self.fmu.newDiscreteStates
+        for _ in range(1000):
+            needed, terminate, _nominals, _values, time_defined, next_time = update()
+            if terminate:
+                raise FMUError(f"{self.info.path}: the FMU asked to terminate at t = {self.time!r}")
+            if not needed:
+                return float(next_time) if time_defined else None
+        raise FMUError(f"{self.info.path}: the event iteration at t = {self.time!r} did not end in 1000 rounds")
+
+    def event(self):
+        """Handle an event at the current time and state; returns the next time event or None."""
+        self.fmu.enterEventMode()
+        next_time = self.update_discrete()
+        self.fmu.enterContinuousTimeMode()
+        return next_time
+
+    # -- co-simulation ---------------------------------------------------------------------------------
+    def do_step(self, size):
+        fmu = self.fmu
+        if self.v3:
+            _event, terminate, early, reached = fmu.doStep(self.time, size)
+            if terminate or early:
+                raise FMUError(f"{self.info.path}: the step from t = {self.time!r} ended early at {reached!r}")
+        else:
+            fmu.doStep(self.time, size)
+        self.time += size
+
+    def save(self):
+        return self.fmu.getFMUState() if self.v3 else self.fmu.getFMUstate()
+
+    def restore(self, state, time):
+        if self.v3:
+            self.fmu.setFMUState(state)
+        else:
+            self.fmu.setFMUstate(state)
+        self.time = time

@@ -1,0 +1,156 @@
+"""A user's FMU runs in a worker process with a time limit: a crash or a hang costs one point, never the run.
+
+An FMU is native code dfwb did not write. :class:`Worker` keeps one child
+process (``python -m dfwb.foreign.worker``: a fresh interpreter that
+inherits nothing of the caller's threads and never re-imports the caller's
+script) that loads the FMU and computes points on request. Requests go in on
+its stdin and answers come back on a pipe of their own, so whatever the FMU
+prints cannot corrupt them. If the child does not answer within the time
+limit it is killed; if it dies (a segmentation fault in ``doStep``) its exit
+is noticed; either way the point fails with :class:`PointFailed` naming the
+FMU and the reason, and the next point starts a fresh child.
+"""
+
+import os
+import pickle
+import select
+import signal
+import struct
+import subprocess
+import sys
+
+from dfwb.base.errors import DfwbError
+
+__all__ = ["Worker", "PointFailed", "TIMEOUT"]
+
+TIMEOUT = 120.0  # seconds a point may take by default
+_HEADER = struct.Struct("<Q")
+MAX_ANSWER = 1 << 24  # bytes: an answer is a few hundred
+
+
+class PointFailed(DfwbError, RuntimeError):
+    """One point could not be computed: the FMU refused, crashed, hung or gave NaN."""
+
+
+def _describe_exit(code):
+    if code is not None and code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
+
+
+def _send(stream, value):
+    data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(_HEADER.pack(len(data)) + data)
+    stream.flush()
+
+
+def _read_exactly(fd, size):
+    chunks, left = [], size
+    while left:
+        chunk = os.read(fd, left)
+        if not chunk:
+            raise EOFError
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+class Worker:
+    """One child process computing points of user FMUs, restarted after a crash or a time-out."""
+
+    def __init__(self, timeout=TIMEOUT):
+        self.timeout = timeout
+        self._process = None
+        self._answers = None
+
+    def _start(self):
+        read_end, write_end = os.pipe()
+        try:
+            self._process = subprocess.Popen([sys.executable, "-m", "dfwb.foreign.worker", str(write_end)],
+                                             stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                             pass_fds=(write_end,))
+        except OSError:
+            os.close(read_end)
+            raise
+        finally:
+            os.close(write_end)
+        self._answers = read_end
+
+    def call(self, request, what):
+        """The child's answer to ``request`` (see :func:`_serve`), or PointFailed naming ``what`` and why."""
+        if self._process is None or self._process.poll() is not None:
+            self.close()
+            self._start()
+        try:
+            _send(self._process.stdin, request)
+            ready, _, _ = select.select([self._answers], [], [], self.timeout)
+            if not ready:
+                self.close()
+                raise PointFailed(f"{what}: no answer within {self.timeout:g} s (the FMU hangs?); the point is skipped")
+            size = _HEADER.unpack(_read_exactly(self._answers, _HEADER.size))[0]
+            if size > MAX_ANSWER:
+                raise EOFError
+            status, value = pickle.loads(_read_exactly(self._answers, size))
+        except (EOFError, OSError, pickle.UnpicklingError):
+            try:
+                code = self._process.wait(5)
+            except subprocess.TimeoutExpired:
+                code = None
+            self.close()
+            raise PointFailed(f"{what}: the FMU's process died ({_describe_exit(code)}); "
+                              "the point is skipped") from None
+        if status != "ok":
+            raise PointFailed(f"{what}: {value}")
+        return value
+
+    def close(self):
+        """Stop the child (killed if it does not stop at once)."""
+        process, answers = self._process, self._answers
+        self._process = self._answers = None
+        if process is not None:
+            if process.poll() is None:
+                process.kill()
+            try:
+                process.wait(5)
+            except subprocess.TimeoutExpired:
+                pass
+            try:
+                process.stdin.close()
+            except OSError:
+                pass
+        if answers is not None:
+            os.close(answers)
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # interpreter shutdown: nothing left to close with
+            pass
+
+
+def _serve(answer_fd):
+    """The child's loop: requests in on stdin, ("ok", value) or ("error", one line) out, until stdin closes."""
+    from dfwb.foreign import compute
+
+    requests = sys.stdin.buffer
+    answers = os.fdopen(answer_fd, "wb")
+    instances = {}
+    while True:
+        header = requests.read(_HEADER.size)
+        if len(header) < _HEADER.size:
+            return
+        request = pickle.loads(requests.read(_HEADER.unpack(header)[0]))
+        try:
+            answer = ("ok", compute.run(request, instances))
+        except Exception as error:  # reported to the parent as the point's failure
+            instances.clear()  # an instance that failed is not trusted again
+            message = " ".join(str(error).split()) or type(error).__name__
+            answer = ("error", message[:600])
+        _send(answers, answer)
+
+
+if __name__ == "__main__":
+    _serve(int(sys.argv[1]))

@@ -1,0 +1,252 @@
+"""Your own plant: DFs of FMUs dfwb did not make, against closed forms and the exact engine; hostile FMUs refused.
+
+The model-exchange FMUs are compiled here from a few lines of C
+(:mod:`foreign_models`); dfwb's own native FMUs are used as black-box
+co-simulation FMUs (input ``f``, output ``x``, their built-in excitation
+left at F = 0). Each DF point must be within its own reported ``N_error``
+of the truth, and within the issue's targets.
+"""
+
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import dfwb
+from dfwb.base.errors import PlantError
+from dfwb.engine.describing import from_row, to_row
+from dfwb.fmi.location import fmu_path
+
+sys.path.insert(0, str(Path(__file__).parent))
+import foreign_models  # noqa: E402
+
+DFWB = [sys.executable, "-m", "dfwb.cli"]
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("foreign")
+    return {name: foreign_models.build(name, folder) for name in foreign_models.MODELS}
+
+
+# -- model exchange: closed forms to 1e-8, every estimate above the true error ----------------------------------------
+CLOSED_FORMS = [
+    ("MassSpringDamper", 1.0, 1.0, {}, lambda F, w: foreign_models.msd_df(w)),
+    ("MassSpringDamper", 2.0, 2.0, {}, lambda F, w: foreign_models.msd_df(w)),  # resonance, Q = 5: shooting
+    ("MassSpringDamper", 0.5, 7.0, {"c": 0.02}, lambda F, w: foreign_models.msd_df(w, c=0.02)),  # Q = 50
+    ("Saturation", 0.5, 1.0, {}, lambda F, w: foreign_models.saturation_df(F)),
+    ("Saturation", 3.0, 1.0, {}, lambda F, w: foreign_models.saturation_df(F)),
+    ("Saturation", 10.0, 7.0, {"a": 2.0}, lambda F, w: foreign_models.saturation_df(F, a=2.0)),
+    ("Relay", 1.0, 1.0, {}, lambda F, w: foreign_models.relay_df(F)),
+    ("Relay", 3.0, 2.0, {"a": 0.7, "Y": 2.0}, lambda F, w: foreign_models.relay_df(F, Y=2.0, a=0.7)),
+]
+
+
+@pytest.mark.parametrize("name, F, omega, params, exact", CLOSED_FORMS)
+def test_model_exchange_meets_closed_forms_within_its_error(built, name, F, omega, params, exact):
+    response = dfwb.describing_function(dfwb.fmu_plant(built[name]), F, omega, **params)
+    truth = exact(F, omega)
+    error = abs(complex(response.N) - truth)
+    assert bool(response.periodic)
+    assert error <= 1e-8 * abs(truth), (response.N, truth)
+    assert error <= float(response.N_error), (error, response.N_error)
+    assert float(response.N_error) <= 1e-6 * abs(truth)  # an estimate that says something
+    assert response.points[0]["drive"] == "model-exchange"
+
+
+def test_the_relay_has_memory_and_the_saturation_has_none(built):
+    """Phase lag of the hysteresis (Im N = -4 Y a / (pi F^2)) and none for the memoryless kink."""
+    relay = dfwb.describing_function(dfwb.fmu_plant(built["Relay"]), 2.0, 3.0)
+    saturation = dfwb.describing_function(dfwb.fmu_plant(built["Saturation"]), 2.0, 3.0)
+    assert complex(relay.N).imag == pytest.approx(-4 * 0.5 / (math.pi * 4.0), rel=1e-9)
+    assert abs(complex(saturation.N).imag) < 1e-12
+
+
+# -- co-simulation, held input: dfwb's native FMUs as black boxes against the exact engine ----------------------------
+HELD = [("friction", "x", 30.0, 5.0, {}), ("static-backlash", "y", 50.0, 20.0, {})]
+
+
+@pytest.mark.parametrize("plant, output, F, omega, params", HELD)
+def test_held_input_agrees_with_the_exact_engine_within_its_error(plant, output, F, omega, params):
+    path = fmu_path(dfwb.plant(plant)).parent / "native" / f"{dfwb.plant(plant).fmu_name}.fmu"
+    if not path.is_file():
+        path = fmu_path(dfwb.plant(plant))
+    own = dfwb.fmu_plant(path, input="f", output=output)
+    assert own.kind == "co-simulation"
+    generic = dfwb.describing_function(own, F, omega, **params)
+    exact = complex(dfwb.describing_function(plant, F, omega, **params).N)
+    error = abs(complex(generic.N) - exact)
+    assert error <= float(generic.N_error), (generic.N, exact, generic.N_error)
+    assert error <= 1e-4 * abs(exact)
+    assert "held input" in generic.points[0]["note"]
+
+
+# -- a hostile FMU: refused at once, or one point lost ----------------------------------------------------------------
+def _zip(path, entries):
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    return path
+
+
+def _description(version="2.0", body=""):
+    return (f'<?xml version="1.0"?><fmiModelDescription fmiVersion="{version}" modelName="m" guid="g">'
+            f'{body}</fmiModelDescription>')
+
+
+@pytest.mark.parametrize("make, reason", [
+    (lambda p: p.write_bytes(b"not a zip at all"), "not an FMU (not a zip archive)"),
+    (lambda p: _zip(p, {"other.txt": "x"}), "no modelDescription.xml"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description(), "../evil.so": "x"}), "leaves the FMU's folder"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description(), "/etc/evil": "x"}), "leaves the FMU's folder"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description(), "bomb.bin": b"\0" * (40 << 20)}), "zip bomb"),
+    (lambda p: _zip(p, {"modelDescription.xml": "<a>" * 100 + "</a>" * 100}), "nested deeper than 32"),
+    (lambda p: _zip(p, {"modelDescription.xml": '<?xml version="1.0"?><!DOCTYPE a [<!ENTITY x "y">]><a/>'}),
+     "document type declaration"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description("1.0")}), "FMI 1.0 is not supported"),
+    (lambda p: _zip(p, {"modelDescription.xml": "<fmiModelDescription"}), "modelDescription.xml is not accepted"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description(body="<ModelVariables/>")}),
+     "offers neither model exchange nor co-simulation"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description("2.0", '<ModelExchange modelIdentifier="m"/>'
+                                                                     '<ModelVariables><ScalarVariable name="u"/>'
+                                                                     '</ModelVariables>')}), "cannot be read"),
+    (lambda p: _zip(p, {"modelDescription.xml": _description(
+        body='<CoSimulation modelIdentifier="m"/><ModelVariables/>')}), "no binary for linux64"),
+])
+def test_a_hostile_file_is_one_line_naming_it(tmp_path, make, reason):
+    path = tmp_path / "hostile.fmu"
+    make(path)
+    with pytest.raises(PlantError, match=re.escape(reason)) as caught:
+        dfwb.fmu_plant(path)
+    assert str(path) in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_a_symbolic_link_entry_is_refused(tmp_path):
+    path = tmp_path / "link.fmu"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("modelDescription.xml", _description())
+        link = zipfile.ZipInfo("binaries/linux64/m.so")
+        link.external_attr = (0o120777 << 16)
+        archive.writestr(link, "/etc/passwd")
+    with pytest.raises(PlantError, match="symbolic link"):
+        dfwb.fmu_plant(path)
+
+
+def test_inputs_outputs_and_parameters_are_checked_against_what_the_fmu_offers(built):
+    with pytest.raises(PlantError, match=r"no input 'force' \(its continuous Real inputs: u\)"):
+        dfwb.fmu_plant(built["Relay"], input="force")
+    with pytest.raises(PlantError, match=r"no output 'x' \(its Real outputs: y\)"):
+        dfwb.fmu_plant(built["Relay"], output="x")
+    plant = dfwb.fmu_plant(built["Relay"])
+    assert plant.defaults() == {"Y": 1.0, "a": 0.5} and plant.unit == "m"
+    with pytest.raises(PlantError, match=r"no parameter 'b' \(its parameters: Y, a\)"):
+        plant.check({"b": 1})
+    with pytest.raises(PlantError, match="a = 'x' is not a number"):
+        plant.check({"a": "x"})
+    with pytest.raises(PlantError, match="is not finite"):
+        plant.check({"a": math.inf})
+
+
+def test_an_integer_or_boolean_input_is_refused(built, tmp_path):
+    """The Relay's model description rewritten to declare its input u an Integer, then a Boolean."""
+    with zipfile.ZipFile(built["Relay"]) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    text = entries["modelDescription.xml"].decode()
+    for kind in ("Integer", "Boolean"):
+        changed = text.replace('causality="input"><Real start="0" unit="N"/>', f'causality="input"><{kind} start="0"/>')
+        assert changed != text
+        path = _zip(tmp_path / f"{kind}.fmu", dict(entries, **{"modelDescription.xml": changed}))
+        with pytest.raises(PlantError, match=rf"the input 'u' is \w+, of type {kind}: the force must be a "
+                                             r"continuous Real input \(its continuous Real inputs: none\)"):
+            dfwb.fmu_plant(path, input="u")
+
+
+def test_an_integer_output_is_refused_with_what_is_offered():
+    path = fmu_path(dfwb.plant("friction")).parent / "native" / "FrictionMass.fmu"
+    path = path if path.is_file() else fmu_path(dfwb.plant("friction"))
+    with pytest.raises(PlantError, match=r"the output 'mode' is of type Integer.*its Real outputs: x, v, Ff"):
+        dfwb.fmu_plant(path, input="f", output="mode")
+
+
+@pytest.mark.parametrize("name, reason", [("Crash", "died"), ("NotANumber", "not finite")])
+def test_a_crash_or_nan_costs_one_point_not_the_run(built, name, reason):
+    plant = dfwb.fmu_plant(built[name])
+    with pytest.warns(RuntimeWarning, match=reason):
+        response = dfwb.describing_function(plant, [10.0, 1.0], 10.0)  # it fails above 5 N
+    N = response.N
+    assert math.isnan(N[0].real) and response.points[0]["note"].startswith("failed:")
+    assert not response.periodic[0] and response.N_error[0] == math.inf
+    assert N[1] == pytest.approx(-1.0 / 100.0, rel=1e-8)  # the next point runs (a free unit mass: -1 / w^2)
+
+
+def test_a_hang_is_cut_by_the_time_limit(built):
+    plant = dfwb.fmu_plant(built["Hang"])
+    with pytest.warns(RuntimeWarning, match="no answer within 3 s"):
+        response = dfwb.describing_function(plant, [10.0, 1.0], 10.0, timeout=3)
+    assert math.isnan(complex(response.N[0]).real)
+    assert complex(response.N[1]) == pytest.approx(-1.0 / 100.0, rel=1e-8)
+
+
+# -- records and the command line -------------------------------------------------------------------------------------
+def test_n_error_travels_in_the_record_and_the_csv_row(built):
+    record = dfwb.describing_function(dfwb.fmu_plant(built["Relay"]), 1.0, 1.0).points[0]
+    assert record["N_error"] > 0
+    assert from_row(to_row(record))["N_error"] == record["N_error"]
+    builtin = dfwb.describing_function("friction", 10.0, 1.0)
+    assert builtin.points[0]["N_error"] is None and math.isnan(builtin.N_error)
+
+
+def test_cli_df_of_an_fmu_prints_json_points_with_their_error(built, tmp_path):
+    result = subprocess.run(DFWB + ["df", str(built["Saturation"]), "--input", "u", "--output", "y", "--set", "a=2",
+                                    "--F", "1", "10", "--omega", "1", "--json"],
+                            capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert result.returncode == 0, result.stderr
+    points = json.loads(result.stdout)
+    assert len(points) == 2 and {"F", "omega", "N_re", "N_im", "N_error", "periodic", "harmonics"} <= set(points[0])
+    assert points[0]["N_re"] == pytest.approx(1.0, abs=1e-12)  # below the kink: linear
+    assert points[1]["N_re"] == pytest.approx(foreign_models.saturation_df(10.0, a=2.0), rel=1e-8)
+    assert os.listdir(tmp_path) == []  # nothing written
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["df", "missing.fmu", "--F", "1", "--omega", "1"], "missing.fmu: no such FMU file"),
+    (["df", "friction", "--input", "f", "--F", "1", "--omega", "1"], "--input: only for a plant given as the path"),
+    (["df", "frictio", "--F", "1", "--omega", "1"], "unknown plant 'frictio'"),
+])
+def test_cli_refuses_in_one_line(argv, message):
+    result = subprocess.run(DFWB + argv, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1
+
+
+def test_cli_a_crashing_fmu_is_exit_2_naming_it(built):
+    result = subprocess.run(DFWB + ["df", str(built["Crash"]), "--F", "10", "--omega", "1"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and "Crash.fmu" in result.stderr and "died" in result.stderr
+
+
+def test_an_fmi3_cosimulation_fmu_from_pythonfmu3(tmp_path):
+    """Another generator, another FMI version: pythonfmu3's FMU of the mass-spring-damper, its DF to 1e-6."""
+    source = Path(__file__).parent / "foreign_sources" / "PyMassSpringDamper.py"
+    subprocess.run([sys.executable, "-m", "pythonfmu3", "build", "-f", str(source), "-d", str(tmp_path)],
+                   check=True, capture_output=True, timeout=300)
+    plant = dfwb.fmu_plant(tmp_path / "PyMassSpringDamper.fmu", input="u", output="y")
+    assert plant.info.fmi_version.startswith("3") and plant.kind == "co-simulation"
+    response = dfwb.describing_function(plant, 1.0, 1.0, c=0.4)
+    truth = foreign_models.msd_df(1.0, c=0.4)
+    error = abs(complex(response.N) - truth)
+    assert error <= 1e-6 * abs(truth) and error <= float(response.N_error)
+
+
+def test_cli_info_lists_what_the_fmu_offers(built):
+    result = subprocess.run(DFWB + ["info", str(built["Relay"])], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == "Relay: FMI 2.0, model-exchange (runs here; the first is used)"
+    assert "continuous Real inputs (--input): u" in lines[1] and "Real outputs (--output): y" in lines[2]
+    assert [line.split()[:4] for line in lines[4:]] == [["Y", "Real", "1", "m"], ["a", "Real", "0.5", "N"]]
