@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from dfwb.base.errors import PlantError
+from dfwb.engine.family import number as finite_number
 from dfwb.foreign.archive import unpack
 
 __all__ = ["FMUInfo", "Parameter", "describe", "KINDS", "REALS"]
@@ -39,14 +40,8 @@ class Parameter:
 
     def check(self, fmu, value):
         """The value as a float, or PlantError naming it and what is allowed."""
-        if isinstance(value, bool) and self.type not in BOOLEANS:
-            raise PlantError(f"{fmu}: {self.name} = {value!r} is not a number")
-        try:
-            number = float(value)
-        except (TypeError, ValueError, OverflowError):
-            raise PlantError(f"{fmu}: {self.name} = {value!r:.80} is not a number") from None
-        if not math.isfinite(number):
-            raise PlantError(f"{fmu}: {self.name} = {value!r} is not finite")
+        number = float(value) if isinstance(value, bool) and self.type in BOOLEANS else \
+            finite_number(f"{fmu}: {self.name}", value, "is not finite")
         if self.type in BOOLEANS and number not in (0.0, 1.0):
             raise PlantError(f"{fmu}: {self.name} = {value!r} is a Boolean: 0 or 1")
         if self.type in INTEGERS and number != int(number):
