@@ -182,13 +182,13 @@ def _own_fmu(args):
 
 
 def cmd_df(args):
-    from dfwb.api.functions import df_engine
+    from dfwb.foreign.engine import engine_for
     from dfwb.plants.registry import plant
 
     own = _own_fmu(args)
     params = (own or plant(args.plant)).check(_assignments(args.set, "--set"))
     forces, omegas = _points(args)
-    engine = df_engine(own or args.plant, fmu_dir=args.fmus, drive=args.drive,
+    engine = engine_for(own or plant(args.plant), fmu_dir=args.fmus, drive=args.drive,
                        samples_per_period=args.samples_per_period, rtol=args.rtol, timeout=args.timeout)
     results = [engine.point(F, omega, params).as_dict() for F in forces for omega in omegas]
     failed = [r for r in results if r["note"].startswith("failed:")]
@@ -250,15 +250,19 @@ def _controller(args):
 
 
 def cmd_limit_cycle(args):
+    from dfwb.foreign.engine import engine_for
     from dfwb.studies.limit_cycles import analyse
     from dfwb.studies.progress import Reporter
 
     plot = _plot_path(args.plot) if args.plot else None
     G, values = _controller(args), _assignments(args.set, "--set")
+    own = _own_fmu(args)
+    engine = engine_for(own, rtol=args.rtol, timeout=args.timeout) if own is not None else None
     with Reporter(f"limit cycles of {args.plant}", not args.json) as report:
-        response = analyse(args.plant, G, values, F_range=args.F_range, omega_range=args.omega_range,
-                           exact=args.exact, verify=args.verify, samples_per_period=args.samples_per_period,
-                           fmu_dir=args.fmus, progress=report)
+        response = analyse(own or args.plant, G, values, F_range=args.F_range, omega_range=args.omega_range,
+                           n_F=args.map_size[0], n_omega=args.map_size[1], exact=args.exact, verify=args.verify,
+                           samples_per_period=args.samples_per_period,
+                           fmu_dir=args.fmus, engine=engine, progress=report)
     return _answer(args, response, plot)
 
 
@@ -509,8 +513,12 @@ def parser():
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
 
-    def controller_options(command):
-        command.add_argument("plant", choices=plant_names, help="the plant")
+    def controller_options(command, own=False):
+        if own:
+            command.add_argument("plant", type=plant_argument, metavar="PLANT", help=plant_help)
+            own_fmu_options(command)
+        else:
+            command.add_argument("plant", choices=plant_names, help="the plant")
         command.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
                                                        "e.g. 'Kp + Ki/s'")
         command.add_argument("--num", type=float, nargs="+", action="extend",
@@ -521,11 +529,14 @@ def parser():
                              help="parameters of G and of the plant (e.g. Fs=8 Kp=10 for G = 'Kp + Ki/s')")
 
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
-    controller_options(cycle)
+    controller_options(cycle, own=True)
     cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
                        help="force amplitudes searched [N] (default: derived from the plant and G)")
     cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
                        help="frequencies searched [rad/s] (default: derived from the plant and G)")
+    cycle.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=[16, 48],
+                       metavar=("N_F", "N_OMEGA"), help="the DF map's points in F and in omega, where the "
+                                                        "candidates are located (default: 16 48)")
     cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
     cycle.add_argument("--exact", action="store_true",
                        help="find the true cycles of the exact closed loop (shooting, Floquet stability) and the "

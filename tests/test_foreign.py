@@ -250,3 +250,35 @@ def test_cli_info_lists_what_the_fmu_offers(built):
     assert lines[0] == "Relay: FMI 2.0, model-exchange (runs here; the first is used)"
     assert "continuous Real inputs (--input): u" in lines[1] and "Real outputs (--output): y" in lines[2]
     assert [line.split()[:4] for line in lines[4:]] == [["Y", "Real", "1", "m"], ["a", "Real", "0.5", "N"]]
+
+
+# -- limit cycles with your FMU in the loop -----------------------------------------------------------------------------
+def test_the_df_prediction_of_a_saturation_under_a_third_order_loop(built):
+    """The textbook case: G = 10 / (s (s + 1)^2) crosses -180 degrees at w = 1 with |G| = 5, so the cycle has
+    N(F) = 1/5: F from the saturation's closed form, and it is stable (Loeb)."""
+    from scipy.optimize import brentq
+
+    plant = dfwb.fmu_plant(built["Saturation"])
+    response = dfwb.limit_cycles(plant, "10/(s*(s+1)**2)", F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5, n_omega=6)
+    F = brentq(lambda F: foreign_models.saturation_df(F) - 0.2, 1.01, 100, xtol=1e-14)
+    [cycle] = response.predictions
+    assert cycle.omega == pytest.approx(1.0, rel=1e-7) and cycle.F == pytest.approx(F, rel=1e-7)
+    assert cycle.stable and response.plant == str(built["Saturation"]) and response.unit == "m"
+
+
+def test_cli_limit_cycle_of_an_fmu(built):
+    result = subprocess.run(DFWB + ["limit-cycle", str(built["Relay"]), "--G", "K/(s*(s+1)**2)", "--set", "K=2",
+                                    "a=0.1", "--F-range", "0.2", "20", "--omega-range", "0.3", "3", "--map-size", "5", "6",
+                                    "--json"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    [cycle] = json.loads(result.stdout)["predictions"]
+    G = lambda w: 2 / (1j * w * (1j * w + 1) ** 2)  # noqa: E731
+    N = foreign_models.relay_df(cycle["F"], a=0.1)
+    assert abs(1 + G(cycle["omega"]) * N) < 1e-7
+
+
+def test_exact_and_verify_say_plainly_they_are_not_there_for_an_fmu(built):
+    plant = dfwb.fmu_plant(built["Relay"])
+    with pytest.raises(dfwb.DfwbError, match="not yet for your own FMU"):
+        dfwb.limit_cycles(plant, "1/s", F_range=(1, 10), omega_range=(1, 10), exact=True)

@@ -19,8 +19,9 @@ from dfwb.base.errors import InputError
 from dfwb.base.values import flags, reals
 from dfwb.base.values import integer as _integer
 from dfwb.base.values import short as _short
-from dfwb.engine.describing import HARMONICS, DFEngine, check_point
+from dfwb.engine.describing import HARMONICS, check_point
 from dfwb.engine.margin import K_RANGE, SCAN
+from dfwb.foreign.engine import engine_for
 from dfwb.plants import plant as find_plant
 from dfwb.studies.responses import (
     ContinuationResponse,
@@ -67,33 +68,6 @@ def resolve_plant(plant: Any):
     if is_fmu_path(plant):
         return fmu_plant(plant)
     return find_plant(plant)
-
-
-def df_engine(plant: Any, *, fmu_dir=None, drive: str = "internal", samples_per_period: int = 64,
-              max_periods: int = 150, harmonics: int = HARMONICS, rtol: Optional[float] = None,
-              timeout: Optional[float] = None):
-    """The engine of DF points for a plant: the exact built-in engine, or a user's FMU's (in a worker process).
-
-    The one place that chooses; ``rtol`` and ``timeout`` are for a user's FMU only
-    (:class:`dfwb.foreign.engine.FMUEngine`), ``drive`` and ``samples_per_period``
-    for the built-in plants only.
-    """
-    spec = resolve_plant(plant)
-    from dfwb.foreign.plant import FMUPlant
-
-    if isinstance(spec, FMUPlant):
-        if drive != "internal" or samples_per_period != 64:
-            raise InputError("drive and samples_per_period are for dfwb's own plants: a user's FMU is driven as "
-                             "its kind allows (model exchange: the exact sine; co-simulation: held and refined)")
-        from dfwb.foreign.engine import FMUEngine
-        from dfwb.foreign.worker import TIMEOUT
-
-        return FMUEngine(spec, harmonics=harmonics, max_periods=max_periods, rtol=rtol,
-                         timeout=TIMEOUT if timeout is None else timeout)
-    if rtol is not None or timeout is not None:
-        raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
-    return DFEngine(spec.name, fmu_dir=fmu_dir, drive=drive, samples_per_period=samples_per_period,
-                    max_periods=max_periods, harmonics=harmonics)
 
 
 def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: str = "internal",
@@ -165,7 +139,7 @@ def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: st
         check_point(float(F_value), float(omega_value))
     options = {name: _integer(name, value) for name, value in
                (("samples_per_period", samples_per_period), ("max_periods", max_periods), ("harmonics", harmonics))}
-    engine = df_engine(spec, fmu_dir=fmu_dir, drive=drive, rtol=rtol, timeout=timeout, **options)
+    engine = engine_for(spec, fmu_dir=fmu_dir, drive=drive, rtol=rtol, timeout=timeout, **options)
     harmonics = engine.harmonics
     shape = F_grid.shape
     N = np.zeros(shape, dtype=complex)

@@ -82,11 +82,15 @@ class _Balance:
         return 1.0 + complex(self.G(1j * result.omega)) * result.N
 
     def jacobian(self, u, v, R):
-        """d(Re R, Im R)/d(ln F, ln w) by forward differences."""
+        """d(Re R, Im R)/d(ln F, ln w) by forward differences (the two points at once on an engine that can)."""
+        pairs = [(math.exp(u + du), math.exp(v + dv)) for du, dv in ((DIFF_STEP, 0.0), (0.0, DIFF_STEP))]
+        many = getattr(self.engine, "points", None)
+        results = many(pairs, self.params) if many is not None else \
+            [self.engine.point(F, w, self.params) for F, w in pairs]
+        self.evaluations += len(pairs)
         columns = []
-        for du, dv in ((DIFF_STEP, 0.0), (0.0, DIFF_STEP)):
-            shifted = self.residual(self.point(u + du, v + dv))
-            d = (shifted - R) / DIFF_STEP
+        for result in results:
+            d = (self.residual(result) - R) / DIFF_STEP
             columns.append((d.real, d.imag))
         return np.array(columns).T
 
@@ -122,7 +126,13 @@ class _Balance:
 def df_map(engine, params, F_grid, omega_grid, progress=None):
     """N on the grid: an array [len(F_grid), len(omega_grid)] of complex; ``progress(done, total)`` per row."""
     N = np.empty((len(F_grid), len(omega_grid)), dtype=complex)
+    many = getattr(engine, "points", None)  # an engine that spreads a row over workers (a user's FMU's)
     for i in range(len(F_grid)):
+        if many is not None:
+            N[i] = [result.N for result in many([(F_grid[i], w) for w in omega_grid], params)]
+            if progress:
+                progress((i + 1) * len(omega_grid), N.size)
+            continue
         for j in range(len(omega_grid)):
             N[i, j] = engine.point(F_grid[i], omega_grid[j], params).N
         if progress:
@@ -189,7 +199,9 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
     n_F, n_omega : int
         The DF map's size (2 to 1000 each).
     engine : DFEngine, optional
-        The engine to use (default: a new one of ``plant``).
+        The engine to use (default: a new one of ``plant``). One with a ``coarse()`` method (a
+        user's FMU's, :class:`dfwb.foreign.engine.FMUEngine`) computes the map on that looser
+        engine and refines on itself.
     progress : callable, optional
         ``progress(done, total)`` as the map's points are computed.
 
@@ -207,7 +219,8 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
     engine = engine or DFEngine(plant)
     params = engine.plant.check(params or {})
     F_grid, omega_grid = np.geomspace(F_lo, F_hi, n_F), np.geomspace(w_lo, w_hi, n_omega)
-    N_grid = df_map(engine, params, F_grid, omega_grid, progress)
+    coarse = getattr(engine, "coarse", None)  # an engine whose points cost: the map only locates, looser
+    N_grid = df_map(coarse() if coarse is not None else engine, params, F_grid, omega_grid, progress)
     return balance(engine, G, params, F_grid, omega_grid, N_grid)
 
 

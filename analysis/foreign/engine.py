@@ -1,7 +1,10 @@
-"""DF points of a user's FMU: the built-in engine's interface, each point computed in the worker process.
+"""DF points of a user's FMU: the built-in engine's interface, each point computed in a worker process.
 
-:class:`FMUEngine` has :class:`dfwb.engine.describing.DFEngine`'s ``point``
-and ``harmonics``, so every study that takes an engine takes this one. Each
+:func:`engine_for` is the one place that chooses the engine of a plant: the
+exact built-in :class:`dfwb.engine.describing.DFEngine`, or :class:`FMUEngine`
+for a user's FMU. :class:`FMUEngine` has the built-in engine's ``point`` and
+``harmonics``, so every study that takes an engine takes this one, and
+``points`` to spread a row of a map over several workers. Each
 point carries its estimated error ``N_error``; a point the FMU could not
 give (refused, crashed, hung, NaN) comes back with N = NaN, ``periodic``
 False and the reason in its note, and a warning, so a sweep loses one point,
@@ -9,14 +12,17 @@ not the run.
 """
 
 import math
+import os
+import threading
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
-from dfwb.base.errors import PlantError
-from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFResult, check_point
+from dfwb.base.errors import InputError, PlantError
+from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFEngine, DFResult, check_point
 from dfwb.foreign.worker import TIMEOUT, PointFailed, Worker
 
-__all__ = ["FMUEngine", "RTOL"]
+__all__ = ["FMUEngine", "RTOL", "engine_for"]
 
 RTOL = {"model-exchange": 1e-10, "co-simulation": 1e-6}  # the drivers' default tolerances
 
@@ -36,9 +42,11 @@ class FMUEngine:
         or the extrapolated DF's (co-simulation, default 1e-6).
     timeout : float
         Seconds a point may take before its worker is killed and the point skipped.
+    jobs : int, optional
+        Worker processes :meth:`points` may use at once (default: the machine's cores).
     """
 
-    def __init__(self, plant, harmonics=HARMONICS, max_periods=150, rtol=None, timeout=TIMEOUT):
+    def __init__(self, plant, harmonics=HARMONICS, max_periods=150, rtol=None, timeout=TIMEOUT, jobs=None):
         if not (isinstance(harmonics, int) and 1 <= harmonics <= HARMONICS):
             raise PlantError(f"harmonics = {harmonics!r} is out of range: an integer from 1 to {HARMONICS}")
         if not (isinstance(max_periods, int) and 1 <= max_periods <= MAX_PERIODS):
@@ -48,9 +56,21 @@ class FMUEngine:
             raise PlantError(f"rtol = {rtol!r} is out of range: a number from 1e-13 to 0.01")
         if not (isinstance(timeout, (int, float)) and 0.1 <= timeout <= 86400):
             raise PlantError(f"timeout = {timeout!r} is out of range: seconds from 0.1 to 86400")
-        self.plant, self.harmonics, self.max_periods = plant, harmonics, max_periods
+        jobs = os.cpu_count() or 1 if jobs is None else jobs
+        if not (isinstance(jobs, int) and 1 <= jobs <= 256):
+            raise PlantError(f"jobs = {jobs!r} is out of range: an integer from 1 to 256")
+        self.plant, self.harmonics, self.max_periods, self.jobs = plant, harmonics, max_periods, jobs
         self.rtol, self.drive = float(rtol), plant.kind
-        self._worker = Worker(float(timeout))
+        self.timeout = float(timeout)
+        self._workers = {}  # thread -> its Worker (a worker serves one request at a time)
+        self._lock = threading.Lock()
+
+    def _worker(self):
+        with self._lock:
+            worker = self._workers.get(threading.get_ident())
+            if worker is None:
+                worker = self._workers[threading.get_ident()] = Worker(self.timeout)
+            return worker
 
     def point(self, F, omega, params=None):
         """The DFResult at force amplitude F and frequency omega (N NaN and a note if the FMU failed)."""
@@ -61,7 +81,7 @@ class FMUEngine:
                    "output": self.plant.output, "F": float(F), "omega": float(omega), "params": params,
                    "harmonics": self.harmonics, "rtol": self.rtol, "max_periods": self.max_periods}
         try:
-            answer = self._worker.call(request, f"{self.plant.name} at F = {F:g}, omega = {omega:g}")
+            answer = self._worker().call(request, f"{self.plant.name} at F = {F:g}, omega = {omega:g}")
         except PointFailed as failure:
             warnings.warn(str(failure), RuntimeWarning, stacklevel=2)
             nan = complex(math.nan, math.nan)
@@ -75,6 +95,43 @@ class FMUEngine:
                         seconds=time.perf_counter() - started, drive=self.drive, note=answer["note"],
                         orbit_periods=answer["lag"], X=X, N_error=answer["error"] / F)
 
+    def coarse(self):
+        """An engine for a map that only locates (N alone, 1000 times looser; at most 1e-4): the same FMU,
+        limits and workers' count. Newton then refines on this engine."""
+        return FMUEngine(self.plant, harmonics=1, max_periods=self.max_periods, rtol=min(self.rtol * 1e3, 1e-4),
+                         timeout=self.timeout, jobs=self.jobs)
+
+    def points(self, pairs, params=None):
+        """DFResults of several (F, omega) pairs, in order, computed by up to ``jobs`` workers at once."""
+        pairs = list(pairs)
+        if self.jobs == 1 or len(pairs) < 2:
+            return [self.point(F, omega, params) for F, omega in pairs]
+        with ThreadPoolExecutor(min(self.jobs, len(pairs)), thread_name_prefix="dfwb-fmu") as pool:
+            return list(pool.map(lambda pair: self.point(pair[0], pair[1], params), pairs))
+
     def close(self):
-        self._worker.close()
+        """Stop every worker process (they also stop with this process)."""
+        with self._lock:
+            workers, self._workers = list(self._workers.values()), {}
+        for worker in workers:
+            worker.close()
+
+
+def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,
+               harmonics=HARMONICS, rtol=None, timeout=None):
+    """The engine of DF points for a plant: the exact built-in engine, or a user's FMU's (in worker processes).
+
+    ``rtol`` and ``timeout`` are for a user's FMU only, ``drive`` and
+    ``samples_per_period`` for dfwb's own plants only: given to the other, they are refused.
+    """
+    if getattr(plant, "foreign", False):
+        if drive != "internal" or samples_per_period != 64:
+            raise InputError("drive and samples_per_period are for dfwb's own plants: a user's FMU is driven as "
+                             "its kind allows (model exchange: the exact sine; co-simulation: held and refined)")
+        return FMUEngine(plant, harmonics=harmonics, max_periods=max_periods, rtol=rtol,
+                         timeout=TIMEOUT if timeout is None else timeout)
+    if rtol is not None or timeout is not None:
+        raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
+    return DFEngine(plant, fmu_dir=fmu_dir, drive=drive, samples_per_period=samples_per_period,
+                    max_periods=max_periods, harmonics=harmonics)
 

@@ -74,8 +74,8 @@ class Instance:
             self.fmu.instantiate(loggingOn=True, callbacks=self._callbacks)
         self._input = self._refs([input])
         self._output = self._refs([output])
-        self._u = np.zeros(1)
-        self._y = np.zeros(1)
+        self._u, self._y = np.zeros(1), np.zeros(1)
+        self._u_at, self._y_at = _pointer(self._u), _pointer(self._y)  # made once: a right-hand side is hot
         self._started = False
         self.nx = self.nz = 0
         self.time = 0.0
@@ -132,9 +132,8 @@ class Instance:
             self.nx, self.nz = fmu.getNumberOfContinuousStates(), fmu.getNumberOfEventIndicators()
         else:
             self.nx, self.nz = self.info.states, self.info.event_indicators
-        self._x = np.zeros(self.nx)
-        self._dx = np.zeros(self.nx)
-        self._z = np.zeros(self.nz)
+        self._x, self._dx, self._z = np.zeros(self.nx), np.zeros(self.nx), np.zeros(self.nz)
+        self._x_at, self._dx_at, self._z_at = _pointer(self._x), _pointer(self._dx), _pointer(self._z)
         next_time = self.update_discrete()
         fmu.enterContinuousTimeMode()
         return next_time
@@ -143,15 +142,15 @@ class Instance:
     def set_input(self, u):
         self._u[0] = u
         if self.v3:
-            self.fmu.fmi3SetFloat64(self.fmu.component, self._input, 1, _pointer(self._u), 1)
+            self.fmu.fmi3SetFloat64(self.fmu.component, self._input, 1, self._u_at, 1)
         else:
-            self.fmu.fmi2SetReal(self.fmu.component, self._input, 1, _pointer(self._u))
+            self.fmu.fmi2SetReal(self.fmu.component, self._input, 1, self._u_at)
 
     def output(self):
         if self.v3:
-            self.fmu.fmi3GetFloat64(self.fmu.component, self._output, 1, _pointer(self._y), 1)
+            self.fmu.fmi3GetFloat64(self.fmu.component, self._output, 1, self._y_at, 1)
         else:
-            self.fmu.fmi2GetReal(self.fmu.component, self._output, 1, _pointer(self._y))
+            self.fmu.fmi2GetReal(self.fmu.component, self._output, 1, self._y_at)
         return float(self._y[0])
 
     # -- model exchange -------------------------------------------------------------------------------
@@ -162,26 +161,26 @@ class Instance:
         fmu.setTime(t)
         if self.nx:
             self._x[:] = x
-            fmu.setContinuousStates(_pointer(self._x), self.nx)
+            fmu.setContinuousStates(self._x_at, self.nx)
         self.set_input(u)
 
     def derivatives(self):
         if not self.nx:
             return self._dx
         if self.v3:
-            self.fmu.getContinuousStateDerivatives(_pointer(self._dx), self.nx)
+            self.fmu.getContinuousStateDerivatives(self._dx_at, self.nx)
         else:
-            self.fmu.getDerivatives(_pointer(self._dx), self.nx)
+            self.fmu.getDerivatives(self._dx_at, self.nx)
         return self._dx
 
     def indicators(self):
         if self.nz:
-            self.fmu.getEventIndicators(_pointer(self._z), self.nz)
+            self.fmu.getEventIndicators(self._z_at, self.nz)
         return self._z
 
     def states(self):
         if self.nx:
-            self.fmu.getContinuousStates(_pointer(self._x), self.nx)
+            self.fmu.getContinuousStates(self._x_at, self.nx)
         return self._x.copy()
 
     def completed_step(self):

@@ -28,6 +28,8 @@ class FMUPlant:
     input: str
     output: str
     kind: str
+    foreign = True  # what the registry and the engines know it by (dfwb.plants.plant passes it through)
+    loop = None  # no exact closed loop of dfwb's own (its true cycles are the FMU's)
 
     @property
     def name(self):

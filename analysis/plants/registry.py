@@ -322,8 +322,12 @@ def names():
 
 
 def plant(name):
-    """The Plant called ``name``, or PlantError listing the known ones."""
-    if isinstance(name, Plant):
+    """The Plant called ``name``, or PlantError listing the known ones.
+
+    An entry, or a user's FMU plant (:class:`dfwb.foreign.plant.FMUPlant`, marked ``foreign``), is
+    returned as it is.
+    """
+    if isinstance(name, Plant) or getattr(name, "foreign", False) is True:
         return name
     try:
         return PLANTS[name]

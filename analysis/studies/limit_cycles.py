@@ -20,10 +20,10 @@ given (a scene's reads its points from the run and the cache).
 import math
 
 from dfwb.base.errors import InputError
-from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
 from dfwb.engine.transfer import num_den
+from dfwb.foreign.engine import engine_for
 from dfwb.studies.cache import code_revision, finite, fmu_revision, solver_revision
 from dfwb.studies.responses import LimitCycleResponse
 
@@ -43,12 +43,14 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_
         raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
     problem = family.problem(fmu_dir=fmu_dir) if spec.loop is not None else None
     if exact and problem is None:
-        raise InputError(f"plant {spec.name!r} has no exact closed loop: exact is available for "
-                         "friction, backlash and static-backlash")
+        raise InputError(f"plant {spec.name!r} has no exact closed loop of dfwb's: exact is available for "
+                         "friction, backlash and static-backlash (not yet for your own FMU)")
+    if verify and getattr(spec, "foreign", False):
+        raise InputError("verify runs dfwb's own closed-loop FMUs: not yet for your own FMU")
     F, omega = search_ranges(problem, F_range, omega_range)
     if amplitudes is not None:
         amplitudes = _amplitudes(amplitudes)
-    engine = engine or DFEngine(spec.name, fmu_dir=fmu_dir)
+    engine = engine or engine_for(spec, fmu_dir=fmu_dir)
     found = search(spec.name, controller, params, F, omega, n_F, n_omega, engine=engine,
                    progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
     predictions = found.cycles
