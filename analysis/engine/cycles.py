@@ -112,6 +112,9 @@ class Coverage:
         Basin boundaries bisected.
     complete : bool
         False when the work budget ran out before every start was run.
+    starts_text : str
+        What the starts were, when they are not output amplitudes displacing parts of the state
+        (a user's FMU's loop starts from first forces); "" otherwise.
     """
 
     amplitudes: list
@@ -125,6 +128,7 @@ class Coverage:
     outcomes: dict = field(default_factory=dict)
     boundaries: int = 0
     complete: bool = True
+    starts_text: str = ""
 
     def as_dict(self):
         return asdict(self)
@@ -138,8 +142,9 @@ class Coverage:
         """One line: what was searched."""
         lo, hi = self.amplitudes
         outcomes = ", ".join(f"{n} {name}" for name, n in self.outcomes.items())
-        return (f"searched {self.starts} runs: {self.count} output amplitudes {lo:.3g} to {hi:.3g} {unit} "
-                f"displacing {', '.join(self.parts)}" + (f", {self.predictions} DF predictions" if self.predictions
+        starts = self.starts_text or (f"{self.count} output amplitudes {lo:.3g} to {hi:.3g} {unit} "
+                                      f"displacing {', '.join(self.parts)}")
+        return (f"searched {self.starts} runs: {starts}" + (f", {self.predictions} DF predictions" if self.predictions
                                                          else "") +
                 f"; each up to {self.max_returns} section hits, at most {self.horizon:.4g} s apart "
                 f"({outcomes})" + ("" if self.complete else "; INCOMPLETE: the work budget ran out"))

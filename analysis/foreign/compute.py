@@ -8,7 +8,7 @@ refined and extrapolated). Runs in the worker (:mod:`dfwb.foreign.worker`).
 import sys
 
 from dfwb.fmi.simulation import FMUError
-from dfwb.foreign import held, model_exchange
+from dfwb.foreign import held, loop, model_exchange
 from dfwb.foreign.instance import Instance
 
 __all__ = ["run", "DRIVERS"]
@@ -23,6 +23,8 @@ def run(request, instances):
     instance = instances.get(key)
     if instance is None:
         instance = instances[key] = Instance(info, kind, request["input"], request["output"])
+    if request.get("task") == "cycles":
+        return _cycles(instance, request)
     try:
         X, error, periodic, periods, lag, note = DRIVERS[kind](
             instance, request["F"], request["omega"], request["params"], harmonics=request["harmonics"],
@@ -34,3 +36,13 @@ def run(request, instances):
     floor = 64 * sys.float_info.epsilon * abs(X[1])  # rounding: no estimate is below it
     return {"X": [complex(x) for x in X], "error": max(float(error), floor), "periodic": bool(periodic),
             "periods": int(periods), "lag": int(lag), "note": note}
+
+
+def _cycles(instance, request):
+    """The true cycles of the closed loop (model exchange only): ``{"cycles": [...], "outcomes": [...]}``."""
+    if request["kind"] != "model-exchange":
+        raise FMUError(f"{request['info'].path}: the true cycles need model exchange (dfwb integrates the loop); "
+                       "this FMU runs as co-simulation")
+    found, outcomes = loop.cycles(instance, request["num"], request["den"], request["params"], request["starts"],
+                                  request["omega_ref"], rtol=request["rtol"])
+    return {"cycles": found, "outcomes": outcomes}

@@ -95,6 +95,20 @@ class FMUEngine:
                         seconds=time.perf_counter() - started, drive=self.drive, note=answer["note"],
                         orbit_periods=answer["lag"], X=X, N_error=answer["error"] / F)
 
+    def true_cycles(self, num, den, params, starts, omega_ref):
+        """(cycles as dicts, outcome per start) of the closed loop under G = num/den, from each start force.
+
+        Model exchange only (dfwb integrates the loop); one call in the worker, its time limit the
+        engine's per start. PointFailed if the FMU crashes, hangs or refuses.
+        """
+        request = {"task": "cycles", "info": self.plant.info, "kind": self.plant.kind, "input": self.plant.input,
+                   "output": self.plant.output, "params": self.plant.check(params or {}), "num": list(num),
+                   "den": list(den), "starts": [float(F) for F in starts], "omega_ref": float(omega_ref),
+                   "rtol": min(self.rtol, 1e-9)}
+        answer = self._worker().call(request, f"{self.plant.name}: the closed loop's cycles",
+                                     timeout=self.timeout * max(len(starts), 1))
+        return answer["cycles"], answer["outcomes"]
+
     def coarse(self):
         """An engine for a map that only locates (N alone, 1000 times looser; at most 1e-4): the same FMU,
         limits and workers' count. Newton then refines on this engine."""

@@ -79,17 +79,20 @@ class Worker:
             os.close(write_end)
         self._answers = read_end
 
-    def call(self, request, what):
-        """The child's answer to ``request`` (see :func:`_serve`), or PointFailed naming ``what`` and why."""
+    def call(self, request, what, timeout=None):
+        """The child's answer to ``request`` (see :func:`_serve`), or PointFailed naming ``what`` and why.
+
+        ``timeout``: seconds for this call (default: the worker's)."""
+        timeout = self.timeout if timeout is None else timeout
         if self._process is None or self._process.poll() is not None:
             self.close()
             self._start()
         try:
             _send(self._process.stdin, request)
-            ready, _, _ = select.select([self._answers], [], [], self.timeout)
+            ready, _, _ = select.select([self._answers], [], [], timeout)
             if not ready:
                 self.close()
-                raise PointFailed(f"{what}: no answer within {self.timeout:g} s (the FMU hangs?); the point is skipped")
+                raise PointFailed(f"{what}: no answer within {timeout:g} s (the FMU hangs?); the point is skipped")
             size = _HEADER.unpack(_read_exactly(self._answers, _HEADER.size))[0]
             if size > MAX_ANSWER:
                 raise EOFError

@@ -41,11 +41,15 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_
     spec, controller, params = family.spec, family.G(), family.params()
     if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
         raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
+    foreign = getattr(spec, "foreign", False)
     problem = family.problem(fmu_dir=fmu_dir) if spec.loop is not None else None
-    if exact and problem is None:
-        raise InputError(f"plant {spec.name!r} has no exact closed loop of dfwb's: exact is available for "
-                         "friction, backlash and static-backlash (not yet for your own FMU)")
-    if verify and getattr(spec, "foreign", False):
+    if exact and problem is None and not foreign:
+        raise InputError(f"plant {spec.name!r} has no exact closed loop: exact is available for "
+                         "friction, backlash and static-backlash, and for your own model-exchange FMU")
+    if exact and foreign and spec.kind != "model-exchange":
+        raise InputError(f"{spec.name}: the true cycles need model exchange (dfwb integrates the closed loop); "
+                         "this FMU runs as co-simulation (not yet for co-simulation)")
+    if verify and foreign:
         raise InputError("verify runs dfwb's own closed-loop FMUs: not yet for your own FMU")
     F, omega = search_ranges(problem, F_range, omega_range)
     if amplitudes is not None:
@@ -63,7 +67,9 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_
             if progress:
                 progress("judge", i + 1, len(predictions))
     search_result = None
-    if exact:
+    if exact and foreign:
+        search_result = _exact_fmu(engine, controller, params, predictions, amplitudes, F, omega)
+    elif exact:
         search_result = _exact(problem, predictions, amplitudes, cache, progress)
     return LimitCycleResponse(plant=spec.name, params=params, G=controller, predictions=predictions,
                               F_grid=found.F_grid, omega_grid=found.omega_grid, N_grid=found.N_grid,
@@ -141,3 +147,45 @@ def _exact(problem, predictions, amplitudes, cache, progress):
                                    "events": [tuple(e) for e in trace["events"]]})
         cycles.append(TrueCycle(**entry))
     return search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), [])
+
+
+def _exact_fmu(engine, G, params, predictions, amplitudes, F_range, omega_range):
+    """The true cycles of a user's model-exchange FMU under G (:mod:`dfwb.foreign.loop`), with coverage.
+
+    Starts: the first force +-F0 for F0 the predictions' forces and three across the F range (or the
+    ``amplitudes`` given, read as forces); the time scale: the predictions' median frequency, else the
+    middle of the omega range.
+    """
+    from dfwb.engine import cycles as search
+    from dfwb.engine.periodic import TrueCycle
+
+    forces = sorted(set(amplitudes or [p.F for p in predictions] +
+                        [math.exp(math.log(F_range[0]) + i * (math.log(F_range[1]) - math.log(F_range[0])) / 2)
+                         for i in range(3)]))
+    starts = [sign * F for F in forces for sign in (1.0, -1.0)]
+    omegas = sorted(p.omega for p in predictions)
+    omega_ref = omegas[len(omegas) // 2] if omegas else math.sqrt(omega_range[0] * omega_range[1])
+    num, den = num_den(G)
+    found, outcomes = engine.true_cycles(num, den, params, starts, omega_ref)
+    cycles = [TrueCycle(**dict(entry, trace=None)) for entry in found]
+    links = []
+    for prediction in predictions:  # the nearest true cycle in frequency and amplitude, within a factor 1.5
+        near = [(abs(math.log(c.omega / prediction.omega)) + abs(math.log(c.amplitude_x / prediction.amplitude_x)), j)
+                for j, c in enumerate(cycles) if c.amplitude_x > 0 and prediction.amplitude_x > 0]
+        near = [(d, j) for d, j in near if d < 2 * math.log(1.5)]
+        links.append(min(near)[1] if near else None)
+    for j, cycle in enumerate(cycles):
+        cycle.prediction = next((i for i, link in enumerate(links) if link == j), None)
+    counts = {}
+    for outcome in outcomes:
+        key = outcome.split(":")[0]
+        counts[key] = counts.get(key, 0) + 1
+    from dfwb.foreign.loop import MAX_RETURNS, SETTLE
+
+    text = (f"first forces +-{forces[0]:.3g} to {forces[-1]:.3g} N ({len(forces)} values) from the plant's "
+            f"start values, each run {SETTLE} periods of {2 * math.pi / omega_ref:.4g} s before its swing is read")
+    coverage = search.Coverage(amplitudes=[forces[0], forces[-1]], count=len(forces), parts=["force"],
+                               starts=len(starts), predictions=len(predictions), outcomes=counts,
+                               horizon=20 * 2 * math.pi / omega_ref, max_returns=MAX_RETURNS,
+                               complete=not any(o.startswith("failed") for o in outcomes), starts_text=text)
+    return search.CycleSearch(cycles, links, coverage, [])

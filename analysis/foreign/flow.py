@@ -1,0 +1,176 @@
+"""A model-exchange FMU integrated by dfwb, with an input law and states of dfwb's own riding along.
+
+The state is ``z = [x, w]``: x the FMU's continuous states, w dfwb's (the
+Fourier integrals of a DF point, or a controller's states in a closed loop).
+The input is a law ``u = law(t, w, y)``, evaluated exactly at every
+right-hand side: a sine, or ``-G`` of the output. When the output depends on
+the input directly (feedthrough) and the law on the output, the algebraic
+loop is solved by fixed-point iteration (bounded). The integrator is
+scipy's DOP853, stepped by hand: after each accepted step the event
+indicators are compared with the step's start; a change of domain is
+located on the dense output (brentq) and the FMU, put just past it, handles
+the event; time events and ``completedIntegratorStep`` requests likewise.
+A run can also stop where a section function of (t, w, y) crosses zero
+upwards (a closed loop's Poincare section). Every loop is bounded.
+"""
+
+import math
+
+import numpy as np
+from scipy.integrate import DOP853
+from scipy.optimize import brentq
+
+from dfwb.fmi.simulation import FMUError
+
+__all__ = ["Flow", "MAX_STEPS", "MAX_EVENTS"]
+
+MAX_STEPS = 200_000  # integrator steps per run
+MAX_EVENTS = 10_000  # events per run
+MAX_ALGEBRAIC = 50  # fixed-point rounds of an algebraic loop through a feedthrough
+RTOL_ROOT = 4 * np.finfo(float).eps  # brentq's finest
+
+
+class Flow:
+    """Integrate an FMU instance (started, in continuous-time mode) with an input law and extra states.
+
+    Parameters
+    ----------
+    instance : Instance
+    law : callable
+        ``law(t, w, y) -> u``, the input.
+    rate : callable
+        ``rate(t, w, y, u) -> dw/dt`` (an array of the extra states' length).
+    extra : int
+        The number of extra states w.
+    """
+
+    def __init__(self, instance, law, rate, extra):
+        self.inst, self.law, self.rate, self.extra = instance, law, rate, extra
+        self.next_event = None
+        self.scale = np.zeros(instance.nx + extra)  # the largest |z_i| seen
+        self.y_max = 0.0  # the largest |y| seen
+        self._y = 0.0  # the last output: the first guess of the next evaluation's
+
+    # -- evaluation ------------------------------------------------------------------------------
+    def evaluate(self, t, z):
+        """Put the FMU at (t, z) with its input; returns (y, u)."""
+        inst, nx = self.inst, self.inst.nx
+        w = z[nx:]
+        u = self.law(t, w, self._y)
+        inst.set_continuous(t, z[:nx], u)
+        y = inst.output()
+        for _ in range(MAX_ALGEBRAIC):
+            following = self.law(t, w, y)
+            if following == u:
+                break
+            u = following
+            inst.set_input(u)
+            y = inst.output()
+        else:
+            raise FMUError(f"{inst.info.path}: the algebraic loop through the output at t = {float(t)!r} does not "
+                           f"converge in {MAX_ALGEBRAIC} rounds (the output depends on the input directly)")
+        self._y = y
+        return y, u
+
+    def rhs(self, t, z):
+        y, u = self.evaluate(t, z)
+        dx = self.inst.derivatives()
+        if not (math.isfinite(y) and math.isfinite(u) and np.all(np.isfinite(dx))):
+            raise FloatingPointError(f"{self.inst.info.path}: the output, the input or a derivative is not finite "
+                                     f"(NaN or overflow) at t = {float(t)!r}")
+        return np.concatenate((dx, self.rate(t, z[self.inst.nx:], y, u)))
+
+    def _domains(self, t, z):
+        self.evaluate(t, z)
+        return self.inst.indicators() > 0.0
+
+    def _first_crossing(self, dense, t0, t1, before):
+        """The first time in (t0, t1] where an indicator leaves its domain, and a point just past it there."""
+        def indicator(i):
+            def f(t):
+                self.evaluate(t, dense(t))
+                value = self.inst.indicators()[i]
+                return value if before[i] else -value  # > 0 in the old domain
+            return f
+
+        after = self._domains(t1, dense(t1))
+        roots = []
+        for i in np.flatnonzero(after != before):
+            f = indicator(i)
+            roots.append(t0 if f(t0) <= 0 else brentq(f, t0, t1, xtol=1e-15 * max(1.0, abs(t1)), rtol=RTOL_ROOT))
+        root = min(roots)
+        t = root
+        for _ in range(64):  # just past the root: a domain has changed there
+            if t >= t1 or np.any(self._domains(t, dense(t)) != before):
+                break
+            t = t + max(t - root, abs(t) * 2.2e-16, 1e-300)
+        return root, min(t, t1)
+
+    # -- a run -------------------------------------------------------------------------------------
+    def run(self, t0, z, end, rtol, atol, section=None):
+        """(t, z, events, crossed): from z at t0 to ``end``, or to the first upward zero of
+        ``section(t, w, y)`` after t0 when one is given (``crossed`` True); a run that starts on the
+        section, or below it, counts the first upward crossing after the section function has been
+        negative during the run."""
+        inst = self.inst
+        nx = inst.nx
+        t, z = t0, np.array(z, dtype=float)
+        events = 0
+        level = max(self._section(section, t, z), 0.0)  # started on the section: the next crossing, not this one
+        while t < end:
+            bound = end if self.next_event is None or self.next_event >= end else max(self.next_event, t)
+            solver = DOP853(self.rhs, t, z, bound, rtol=rtol, atol=atol,
+                            first_step=min(bound - t, (end - t0) / 64) or None)
+            before = self._domains(t, z)
+            handled = False
+            for _ in range(MAX_STEPS):
+                if solver.status != "running":
+                    break
+                t_prev = solver.t
+                message = solver.step()
+                if solver.status == "failed":
+                    raise FMUError(f"{inst.info.path}: the integrator failed at t = {float(solver.t)!r}: {message}")
+                now = self._domains(solver.t, solver.y)
+                changed = bool(np.any(now != before))
+                dense = solver.dense_output() if changed or section is not None else None
+                root, past = self._first_crossing(dense, t_prev, solver.t, before) if changed else (None, None)
+                if section is not None:
+                    after = self._section(section, solver.t, solver.y)
+                    if level < 0.0 <= after:  # the section, upwards: stop there if before any event
+                        crossing = brentq(lambda s: self._section(section, s, dense(s)), t_prev, solver.t,
+                                          xtol=1e-15 * max(1.0, abs(solver.t)), rtol=RTOL_ROOT)
+                        if root is None or crossing <= root:
+                            z = dense(crossing)
+                            self.evaluate(crossing, z)
+                            return crossing, z, events, True
+                    level = after
+                if changed:
+                    t, z, handled = past, dense(past), True
+                    break
+                self.evaluate(solver.t, solver.y)
+                if inst.completed_step():
+                    t, z, handled = solver.t, solver.y.copy(), True
+                    break
+                before = now
+                self.scale = np.maximum(self.scale, np.abs(solver.y))
+                self.y_max = max(self.y_max, abs(self._y))
+            else:
+                raise FMUError(f"{inst.info.path}: more than {MAX_STEPS} integrator steps in one run")
+            if not handled:
+                t, z = solver.t, solver.y.copy()
+                if self.next_event is None or t < self.next_event:
+                    continue  # the run's end
+            self.evaluate(t, z)
+            self.next_event = inst.event()
+            z = np.concatenate((inst.states(), z[nx:]))
+            level = self._section(section, t, z)
+            events += 1
+            if events > MAX_EVENTS:
+                raise FMUError(f"{inst.info.path}: more than {MAX_EVENTS} events in one run (chattering?)")
+        return t, z, events, False
+
+    def _section(self, section, t, z):
+        if section is None:
+            return 0.0
+        y, _u = self.evaluate(t, z)
+        return section(t, z[self.inst.nx:], y)

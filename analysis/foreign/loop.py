@@ -1,0 +1,206 @@
+"""The true limit cycles of a user's model-exchange FMU under G(s): the closed loop integrated and shot.
+
+The loop is the FMU's continuous states with the controller's, ``force =
+-G(s) output``, integrated as one :class:`~dfwb.foreign.flow.Flow` (the
+controller's states ride along; a feedthrough D is solved with the output).
+Each start sets the controller's state so that the first force is +-F0 (the
+plant at its start values) and runs until the motion settles: to rest (no
+cycle from there), or to a cycle, read on the section where the output
+crosses the middle of its swing upwards. The cycle is then shot: Newton on
+``P(z) - z`` for the section map P, its Jacobian by differences from the
+FMU state saved on the section (so the FMU's discrete states are the
+orbit's); the eigenvalues of that Jacobian, the one near 0 along the flow
+removed, are the Floquet multipliers. Runs in the worker process.
+"""
+
+import math
+
+import numpy as np
+
+from dfwb.fmi.simulation import FMUError
+from dfwb.foreign.flow import Flow
+
+__all__ = ["cycles", "realization"]
+
+SETTLE = 40  # reference periods a start runs before its swing is read
+MAX_RETURNS = 200  # section returns before a start counts as not settled
+NEWTON = 12  # shooting iterations
+HARMONICS = 10
+
+
+def realization(num, den):
+    """(A, B, C, D) of G = num/den (controllable canonical form), so that force = -(C w + D y), w' = A w + B y."""
+    num, den = np.atleast_1d(np.asarray(num, float)), np.atleast_1d(np.asarray(den, float))
+    num = np.concatenate((np.zeros(len(den) - len(num)), num)) / den[0]
+    den = den / den[0]
+    n = len(den) - 1
+    D = num[0]
+    A = np.zeros((n, n))
+    if n:
+        A[0, :] = -den[1:]
+        A[1:, :-1] = np.eye(n - 1)
+    B = np.zeros(n)
+    if n:
+        B[0] = 1.0
+    C = num[1:] - D * den[1:]
+    return A, B, C, D
+
+
+class _Loop:
+    """The closed loop of one instance under (A, B, C, D), with optional Fourier integrals at omega."""
+
+    def __init__(self, instance, A, B, C, D, omega=None):
+        self.inst, self.n = instance, len(B)
+        k = np.arange(HARMONICS + 1)
+        n = self.n
+
+        def law(t, w, y):
+            return -(float(C @ w[:n]) + D * y)
+
+        def rate(t, w, y, u):
+            dw = A @ w[:n] + B * y
+            if omega is None:
+                return dw
+            c, s = np.cos(k * omega * t), np.sin(k * omega * t)
+            return np.concatenate((dw, y * c, y * s, [u * c[1], u * s[1]]))
+
+        self.flow = Flow(instance, law, rate, n + (0 if omega is None else 2 * (HARMONICS + 1) + 2))
+
+    def atol(self, rtol):
+        scale = self.flow.scale
+        return np.maximum(rtol * np.maximum(scale, 1e-6 * max(float(np.max(scale, initial=0.0)), 1e-300)), 1e-300)
+
+
+def _swing(loop, t, z, duration, rtol):
+    """Run ``duration``; returns (t, z, lowest y, highest y) of its last third."""
+    flow = loop.flow
+    t, z, _, _ = flow.run(t, z, t + 2 * duration / 3, rtol, loop.atol(rtol))
+    low = high = None
+    for _ in range(32):  # the last third in pieces, the output read at each end and step
+        t, z, _, _ = flow.run(t, z, t + duration / 96, rtol, loop.atol(rtol))
+        y, _u = flow.evaluate(t, z)
+        low, high = (y, y) if low is None else (min(low, y), max(high, y))
+    return t, z, low, high
+
+
+def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9):
+    """(cycles found as dicts, outcomes per start) of the loop from each start force in ``starts``.
+
+    ``omega_ref``: a frequency that sets the time scales (a DF prediction's, or G's crossover).
+    """
+    A, B, C, D = realization(num, den)
+    if len(B) == 0:
+        raise FMUError("the true cycles need a controller with a state (a dynamic G): G is a pure gain here")
+    can_save = instance.info.can_save_state.get("model-exchange", False)
+    if not can_save:
+        raise FMUError(f"{instance.info.path}: cannot save and restore its state (canGetAndSetFMUstate): the "
+                       "cycles cannot be shot from it")
+    T_ref = 2 * math.pi / omega_ref
+    found, outcomes = [], []
+    for F0 in starts:
+        instance.start(params, F0)
+        loop = _Loop(instance, A, B, C, D)
+        w0 = -F0 * C / float(C @ C) if float(C @ C) > 0 else np.zeros(len(B))
+        z = np.concatenate((instance.states(), w0))
+        try:
+            outcome, cycle = _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D)
+        except (FMUError, FloatingPointError) as error:
+            outcome, cycle = f"failed: {error}", None
+        outcomes.append(outcome)
+        if cycle is None:
+            continue
+        same = [c for c in found if abs(c["period"] - cycle["period"]) <= 1e-5 * cycle["period"]
+                and abs(c["amplitude_x"] - cycle["amplitude_x"]) <= 1e-5 * cycle["amplitude_x"]]
+        if same:
+            same[0]["started_from"].append(f"F0={F0:g}")
+        else:
+            cycle["started_from"] = [f"F0={F0:g}"]
+            found.append(cycle)
+    return found, outcomes
+
+
+def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
+    flow = loop.flow
+    flow.scale = np.maximum(flow.scale, np.abs(z))
+    t, z, low, high = _swing(loop, 0.0, z, SETTLE * T_ref, rtol)
+    if not high - low > 1e-9 * max(abs(high), abs(low), 1e-300):
+        return "rest", None
+    middle = 0.5 * (low + high)
+
+    def section(t, w, y):
+        return y - middle
+
+    # to the section, then returns until the orbit repeats
+    t, z, _, crossed = flow.run(t, z, t + 20 * T_ref, rtol, loop.atol(rtol), section)
+    if not crossed:
+        return "rest", None
+    previous, period = z, None
+    for _ in range(MAX_RETURNS):
+        t0 = t
+        t, z, _, crossed = flow.run(t, z, t + 20 * T_ref, rtol, loop.atol(rtol), section)
+        if not crossed:
+            return "rest", None
+        close = np.all(np.abs(z - previous) <= 1e-6 * np.maximum(flow.scale, 1e-300))
+        if close and period is not None and abs((t - t0) - period) <= 1e-6 * period:
+            break
+        previous, period = z, t - t0
+    else:
+        return "not settled", None
+    # shooting from the section state, the FMU's state saved there
+    saved = instance.save()
+    t_section = t
+
+    def section_map(u):
+        instance.restore(saved, t_section)
+        flow.next_event = None
+        t1, z1, events, crossed = flow.run(t_section, u, t_section + 3 * period, rtol / 10, loop.atol(rtol / 10),
+                                           section)
+        return (z1, t1 - t_section, events) if crossed else (None, None, None)
+
+    u = z.copy()
+    scale = np.maximum(flow.scale, 1e-6 * float(np.max(flow.scale)))
+    iterations, residual = 0, math.inf
+    for iterations in range(1, NEWTON + 1):
+        z1, T, events = section_map(u)
+        if z1 is None:
+            return "not settled", None
+        r = z1 - u
+        columns = []
+        for j in range(len(u)):
+            du = np.zeros(len(u))
+            du[j] = 1e-6 * scale[j]
+            zj, _, _ = section_map(u + du)
+            if zj is None:
+                return "not settled", None
+            columns.append((zj - z1) / du[j])
+        DP = np.array(columns).T
+        residual = float(np.max(np.abs(r) / scale))
+        if residual < 1e-10:
+            break
+        try:
+            u = u - np.linalg.solve(DP - np.eye(len(u)), r)
+        except np.linalg.LinAlgError:
+            return "not settled", None
+    multipliers = sorted(np.linalg.eigvals(DP), key=abs, reverse=True)[:-1]  # the flow's (near 0) removed
+    # one period measured: the harmonics of the output and the force
+    omega = 2 * math.pi / T
+    instance.restore(saved, t_section)
+    measure = _Loop(instance, A, B, C, D, omega)
+    n = len(B)
+    measure.flow.scale = np.concatenate((flow.scale, np.full(2 * (HARMONICS + 1) + 2, T * max(flow.y_max, 1e-300))))
+    extra = np.zeros(2 * (HARMONICS + 1) + 2)
+    start = np.concatenate((u, extra))
+    _t, z_end, events, _ = measure.flow.run(t_section, start, t_section + T, rtol / 10, measure.atol(rtol / 10))
+    I = z_end[instance.nx + n:]
+    Y = (I[:HARMONICS + 1] - 1j * I[HARMONICS + 1:2 * HARMONICS + 2]) * (2 / T)
+    Y[0] = I[0] / T
+    force = complex(I[-2], -I[-1]) * (2 / T)
+    return "cycle", {
+        "omega": omega, "period": T, "amplitude_x": abs(Y[1]), "F": abs(force),
+        "stable": bool(max(abs(m) for m in multipliers) < 1.0) if multipliers else True,
+        "multipliers": [abs(m) for m in multipliers], "residual": residual, "iterations": iterations,
+        "state": [float(v) for v in u], "returns": 1, "harmonics": [abs(y) for y in Y],
+        "counts": {"events": int(events)}, "signature": [],
+        "spectrum": [[float(m.real), float(m.imag)] for m in multipliers], "sections": [[float(v) for v in u]],
+        "swing": [float(v) for v in flow.scale], "trace": None,
+    }
