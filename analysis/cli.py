@@ -223,10 +223,7 @@ def cmd_sweep(args):
     from dfwb.plants.registry import plant
     from dfwb.studies.sweep import grid, run_sweep
 
-    if _own_fmu(args) is not None:
-        raise InputError("a sweep of your own FMU is not there yet: use dfwb df (one point per F and omega) "
-                         "or dfwb.describing_function")
-    spec = plant(args.plant)
+    spec = _own_fmu(args) or plant(args.plant)
     params = spec.check(_assignments(args.set, "--set"))
     grids = _grid_values(args.grid)
     both = sorted(set(params) & set(grids))
@@ -234,9 +231,12 @@ def cmd_sweep(args):
         raise InputError(f"{both[0]} is given both by --set and by --grid: give it in one of them")
     forces, omegas = _points(args)
     points = grid(forces, omegas, params, grids)  # counted before it is built; each set checked by run_sweep
-    rows = run_sweep(args.plant, points, args.out, args.jobs, args.drive, args.samples_per_period, args.fmus,
-                     progress=not args.quiet, resume=not args.no_resume)
-    print(f"{len(rows)} points in {args.out}/results.csv and results.json")
+    rows = run_sweep(spec, points, args.out, args.jobs, args.drive, args.samples_per_period, args.fmus,
+                     progress=not args.quiet, resume=not args.no_resume, rtol=args.rtol, timeout=args.timeout)
+    failed = [r for r in rows if r["note"].startswith("failed:")]
+    print(f"{len(rows)} points in {args.out}/results.csv and results.json"
+          + (f"; {len(failed)} failed (kept out of results.csv: a resumed sweep computes them again)"
+             if failed else ""))
     return 0
 
 

@@ -253,19 +253,6 @@ def test_cli_info_lists_what_the_fmu_offers(built):
 
 
 # -- limit cycles with your FMU in the loop -----------------------------------------------------------------------------
-def test_the_df_prediction_of_a_saturation_under_a_third_order_loop(built):
-    """The textbook case: G = 10 / (s (s + 1)^2) crosses -180 degrees at w = 1 with |G| = 5, so the cycle has
-    N(F) = 1/5: F from the saturation's closed form, and it is stable (Loeb)."""
-    from scipy.optimize import brentq
-
-    plant = dfwb.fmu_plant(built["Saturation"])
-    response = dfwb.limit_cycles(plant, "10/(s*(s+1)**2)", F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5, n_omega=6)
-    F = brentq(lambda F: foreign_models.saturation_df(F) - 0.2, 1.01, 100, xtol=1e-14)
-    [cycle] = response.predictions
-    assert cycle.omega == pytest.approx(1.0, rel=1e-7) and cycle.F == pytest.approx(F, rel=1e-7)
-    assert cycle.stable and response.plant == str(built["Saturation"]) and response.unit == "m"
-
-
 def test_cli_limit_cycle_of_an_fmu(built):
     result = subprocess.run(DFWB + ["limit-cycle", str(built["Relay"]), "--G", "K/(s*(s+1)**2)", "--set", "K=2",
                                     "a=0.1", "--F-range", "0.2", "20", "--omega-range", "0.3", "3", "--map-size", "5", "6",
@@ -289,9 +276,12 @@ def test_what_is_not_there_for_an_fmu_is_said_plainly(built):
         dfwb.limit_cycles(dfwb.fmu_plant(built["Relay"]), "1/s", F_range=(1, 10), omega_range=(1, 10), verify=True)
 
 
-def test_the_true_cycle_of_a_saturating_loop_matches_an_independent_long_simulation(built):
-    """The FMU's closed loop shot by dfwb against the same loop written here for scipy (tf2ss, solve_ivp over
-    600 s, no FMU): period and first harmonic of the output to 1e-6; stable, as the long run shows."""
+def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built):
+    """The textbook case, a saturation under G = 10 / (s (s + 1)^2): G crosses -180 degrees at w = 1 with
+    |G| = 5, so the DF predicts N(F) = 1/5 there (F from the saturation's closed form), stable by Loeb.
+    The true cycle, the FMU's closed loop shot by dfwb, against the same loop written here for scipy
+    (tf2ss, solve_ivp over 600 s, no FMU): period and first harmonic of the output to 1e-6; stable, as the
+    long run shows."""
     import numpy as np
     from scipy.integrate import solve_ivp
     from scipy.optimize import brentq
@@ -300,6 +290,10 @@ def test_the_true_cycle_of_a_saturating_loop_matches_an_independent_long_simulat
     plant = dfwb.fmu_plant(built["Saturation"])
     response = dfwb.limit_cycles(plant, "10/(s*(s+1)**2)", F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5,
                                  n_omega=6, exact=True, amplitudes=[1.0])
+    F = brentq(lambda F: foreign_models.saturation_df(F) - 0.2, 1.01, 100, xtol=1e-14)
+    [prediction] = response.predictions
+    assert prediction.omega == pytest.approx(1.0, rel=1e-7) and prediction.F == pytest.approx(F, rel=1e-7)
+    assert prediction.stable and response.plant == str(built["Saturation"]) and response.unit == "m"
     [cycle] = response.cycles
     assert cycle.stable and max(cycle.multipliers) < 0.2 and response.links == [0]
 
@@ -319,3 +313,34 @@ def test_the_true_cycle_of_a_saturating_loop_matches_an_independent_long_simulat
     assert cycle.period == pytest.approx(period, rel=1e-6)
     assert cycle.amplitude_x == pytest.approx(abs(first), rel=1e-6)
     assert abs(ups[-1] - ups[-2] - (ups[-2] - ups[-3])) < 1e-8 * period  # the long run has settled on it
+
+
+# -- sweeps --------------------------------------------------------------------------------------------------------------
+def test_a_sweep_of_an_fmu_resumes_and_keeps_a_failed_point_out_of_the_csv(built, tmp_path):
+    relay = dfwb.fmu_plant(built["Relay"])
+    points = dfwb.grid([1.0, 3.0], [1.0, 2.0], grid_params={"a": [0.5, 0.7]})
+    records = dfwb.sweep(relay, points, tmp_path / "relay", jobs=2)
+    for r in records:
+        truth = foreign_models.relay_df(r["F"], a=r["params"]["a"])
+        assert abs(complex(r["N_re"], r["N_im"]) - truth) <= r["N_error"] <= 1e-8 * abs(truth)
+    again = dfwb.sweep(relay, points, tmp_path / "relay", jobs=2)
+    assert [r["seconds"] for r in again] == [r["seconds"] for r in records]  # read back, not computed again
+    definition = json.loads((tmp_path / "relay" / "sweep.json").read_text())
+    assert definition["fmu"]["sha256"] == relay.info.digest and definition["drive"] == "model-exchange"
+
+    crash = dfwb.fmu_plant(built["Crash"])
+    with pytest.warns(RuntimeWarning, match="died"):
+        records = dfwb.sweep(crash, dfwb.grid([10.0, 1.0], [10.0]), tmp_path / "crash", jobs=1)
+    assert records[0]["note"].startswith("failed:") and records[1]["N_re"] == pytest.approx(-0.01, rel=1e-8)
+    rows = (tmp_path / "crash" / "results.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].split(",")[1] == "1.0"  # the header and the point that ran
+
+
+def test_cli_sweep_of_an_fmu(built, tmp_path):
+    result = subprocess.run(DFWB + ["sweep", str(built["Saturation"]), "--F", "0.5", "3", "--omega", "1",
+                                    "--out", str(tmp_path / "out"), "--quiet", "--jobs", "2"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "2 points in" in result.stdout
+    records = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert records[1]["N_re"] == pytest.approx(foreign_models.saturation_df(3.0), rel=1e-8)

@@ -513,15 +513,16 @@ def grid(F: Sequence[float], omega: Sequence[float], params: Optional[dict] = No
     return make(F, omega, params, grid_params)
 
 
-def sweep(plant: str, points: Sequence, out_dir: Union[str, Path], *, jobs: Optional[int] = None,
+def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Optional[int] = None,
           drive: str = "internal", samples_per_period: int = 64, fmu_dir: Optional[Union[str, Path]] = None,
-          progress: bool = False, resume: bool = True) -> list:
+          progress: bool = False, resume: bool = True, rtol: Optional[float] = None,
+          timeout: Optional[float] = None) -> list:
     """A resumable, parallel sweep of DF points into ``out_dir``; returns the record of every point.
 
     Parameters
     ----------
-    plant : str
-        A registered plant.
+    plant : str or FMUPlant
+        A registered plant, or your own FMU (:func:`fmu_plant`, or the path of an FMU).
     points : list of (F, omega, params)
         Usually from :func:`grid`.
     out_dir : path
@@ -529,7 +530,7 @@ def sweep(plant: str, points: Sequence, out_dir: Union[str, Path], *, jobs: Opti
         ``results.json`` (the records) and ``sweep.json`` (the definition, for resuming).
     jobs : int, optional, keyword-only
         Worker processes (default: all cores); 1 computes in this process.
-    drive, samples_per_period, fmu_dir : keyword-only
+    drive, samples_per_period, fmu_dir, rtol, timeout : keyword-only
         As for :func:`describing_function`.
     progress : bool, keyword-only
         Show a progress bar.
@@ -551,5 +552,5 @@ def sweep(plant: str, points: Sequence, out_dir: Union[str, Path], *, jobs: Opti
     """
     from dfwb.studies.sweep import run_sweep
 
-    return run_sweep(plant, points, out_dir, jobs, drive, samples_per_period, fmu_dir, progress=progress,
-                     resume=resume)
+    return run_sweep(resolve_plant(plant), points, out_dir, jobs, drive, samples_per_period, fmu_dir,
+                     progress=progress, resume=resume, rtol=rtol, timeout=timeout)

@@ -116,12 +116,16 @@ class FMUEngine:
                          timeout=self.timeout, jobs=self.jobs)
 
     def points(self, pairs, params=None):
-        """DFResults of several (F, omega) pairs, in order, computed by up to ``jobs`` workers at once."""
-        pairs = list(pairs)
-        if self.jobs == 1 or len(pairs) < 2:
-            return [self.point(F, omega, params) for F, omega in pairs]
-        with ThreadPoolExecutor(min(self.jobs, len(pairs)), thread_name_prefix="dfwb-fmu") as pool:
-            return list(pool.map(lambda pair: self.point(pair[0], pair[1], params), pairs))
+        """DFResults of several (F, omega) pairs at the same parameters, in order (see :meth:`batch`)."""
+        return self.batch([(F, omega, params) for F, omega in pairs])
+
+    def batch(self, points):
+        """DFResults of several (F, omega, params) points, in order, computed by up to ``jobs`` workers at once."""
+        points = list(points)
+        if self.jobs == 1 or len(points) < 2:
+            return [self.point(*point) for point in points]
+        with ThreadPoolExecutor(min(self.jobs, len(points)), thread_name_prefix="dfwb-fmu") as pool:
+            return list(pool.map(lambda point: self.point(*point), points))
 
     def close(self):
         """Stop every worker process (they also stop with this process)."""

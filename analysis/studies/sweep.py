@@ -16,6 +16,7 @@ record per row (:func:`dfwb.engine.describing.to_row`, units in the column
 names) and :func:`run_sweep` returns the records.
 """
 
+import contextlib
 import itertools
 import json
 import math
@@ -87,7 +88,7 @@ def _key_of(record):
 
 
 def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=64,
-              fmu_dir=None, progress=True, resume=True):
+              fmu_dir=None, progress=True, resume=True, rtol=None, timeout=None):
     """Compute every point not yet in ``out_dir``; return the records of all points in grid order.
 
     Parameters
@@ -107,6 +108,7 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
     """
     spec = find_plant(plant)
     plant = spec.name
+    foreign = getattr(spec, "foreign", False)
     check_size(len(_values("points", points)))
     checked = []
     for point in points:  # everything is checked before anything runs or is written
@@ -127,9 +129,20 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
             or samples_per_period < 4:
         raise PlantError(f"samples_per_period = {samples_per_period!r:.80} is out of range: an integer >= 4")
     out_dir = Path(out_dir)
+    engine = None
+    if foreign:  # checked before anything is written: the options, and the FMU's engine
+        from dfwb.foreign.engine import engine_for
+
+        engine = engine_for(spec, drive=drive, samples_per_period=samples_per_period, rtol=rtol, timeout=timeout)
+        engine.jobs = jobs or engine.jobs
+    elif rtol is not None or timeout is not None:
+        raise PlantError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
     definition = {"plant": plant, "drive": drive,
                   "samples_per_period": samples_per_period if drive == "input" else None,
                   "points": [[F, omega, params] for F, omega, params in points]}
+    if foreign:  # the FMU's content, not its path, and how it is run
+        definition.update(drive=spec.kind, fmu={"sha256": spec.info.digest, "input": spec.input,
+                                                "output": spec.output, "rtol": engine.rtol})
     with folder_lock(out_dir):
         stored = out_dir / "sweep.json"
         log = RunLog(out_dir / "results.csv", COLUMNS, max_rows=len(points))
@@ -157,17 +170,36 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
                        desc=f"{plant} DF") as bar:
             last_json = time.monotonic()
             settings = (("drive", drive), ("samples_per_period", samples_per_period))
-            fmu = str(fmu_path(spec, fmu_dir))
-            with Executor(jobs) as executor:
-                for _chunk, results in executor.run(Chunk(plant, fmu, settings, c) for c in chunked(pending, jobs)):
-                    log.append([to_row(r) for r in results])
-                    for r in results:
+            with _computing(spec, engine, pending, jobs, settings, fmu_dir) as batches:
+                for results in batches:
+                    log.append([to_row(r) for r in results if not r["note"].startswith("failed:")])
+                    for r in results:  # a failed point is reported in results.json, and computed again on resume
                         done[_key_of(r)] = r
                     bar.update(len(results))
                     if time.monotonic() - last_json > 5.0:
                         _write_json(out_dir, points, done)
                         last_json = time.monotonic()
         return _write_json(out_dir, points, done)
+
+
+@contextlib.contextmanager
+def _computing(spec, engine, pending, jobs, settings, fmu_dir):
+    """An iterator of lists of records of the pending points: dfwb's own plants on the executor's
+    processes, a user's FMU on its engine's worker processes (``jobs`` points at once)."""
+    if engine is not None:
+        def batches():
+            for start in range(0, len(pending), engine.jobs):
+                batch = pending[start:start + engine.jobs]
+                yield [r.as_dict() for r in engine.batch(batch)]
+        try:
+            yield batches()
+        finally:
+            engine.close()
+        return
+    fmu = str(fmu_path(spec, fmu_dir))
+    with Executor(jobs) as executor:
+        yield (results for _chunk, results in
+               executor.run(Chunk(spec.name, fmu, settings, c) for c in chunked(pending, jobs)))
 
 
 def _definition(path):
