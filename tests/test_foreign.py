@@ -344,3 +344,20 @@ def test_cli_sweep_of_an_fmu(built, tmp_path):
     assert "2 points in" in result.stdout
     records = json.loads((tmp_path / "out" / "results.json").read_text())
     assert records[1]["N_re"] == pytest.approx(foreign_models.saturation_df(3.0), rel=1e-8)
+
+
+def test_an_fmi3_model_exchange_fmu_from_pythonfmu3(tmp_path):
+    """FMI 3.0 model exchange (pythonfmu3): integrated by dfwb to 1e-8; it cannot save its state, so its
+    true cycles are refused with the reason."""
+    source = Path(__file__).parent / "foreign_sources" / "PyMassSpringDamperME.py"
+    subprocess.run([sys.executable, "-m", "pythonfmu3", "build", "-f", str(source), "-d", str(tmp_path)],
+                   check=True, capture_output=True, timeout=300)
+    plant = dfwb.fmu_plant(tmp_path / "PyMassSpringDamperME.fmu")
+    assert plant.info.fmi_version.startswith("3") and plant.kind == "model-exchange" and plant.input == "u"
+    response = dfwb.describing_function(plant, 1.0, [1.0, 2.0])
+    for N, error, omega in zip(response.N, response.N_error, [1.0, 2.0]):
+        truth = foreign_models.msd_df(omega)
+        assert abs(N - truth) <= min(error, 1e-8 * abs(truth))
+    with pytest.raises(dfwb.DfwbError, match="cannot save and restore its state"):
+        dfwb.limit_cycles(plant, "1/(s+1)", F_range=(0.1, 10), omega_range=(0.5, 5), n_F=2, n_omega=2, exact=True,
+                          amplitudes=[1.0])

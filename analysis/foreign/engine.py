@@ -13,14 +13,13 @@ not the run.
 
 import math
 import os
-import threading
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 from dfwb.base.errors import InputError, PlantError
 from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFEngine, DFResult, check_point
-from dfwb.foreign.worker import TIMEOUT, PointFailed, Worker
+from dfwb.foreign.worker import TIMEOUT, PointFailed, borrowed
 
 __all__ = ["FMUEngine", "RTOL", "engine_for"]
 
@@ -62,15 +61,6 @@ class FMUEngine:
         self.plant, self.harmonics, self.max_periods, self.jobs = plant, harmonics, max_periods, jobs
         self.rtol, self.drive = float(rtol), plant.kind
         self.timeout = float(timeout)
-        self._workers = {}  # thread -> its Worker (a worker serves one request at a time)
-        self._lock = threading.Lock()
-
-    def _worker(self):
-        with self._lock:
-            worker = self._workers.get(threading.get_ident())
-            if worker is None:
-                worker = self._workers[threading.get_ident()] = Worker(self.timeout)
-            return worker
 
     def point(self, F, omega, params=None):
         """The DFResult at force amplitude F and frequency omega (N NaN and a note if the FMU failed)."""
@@ -81,7 +71,8 @@ class FMUEngine:
                    "output": self.plant.output, "F": float(F), "omega": float(omega), "params": params,
                    "harmonics": self.harmonics, "rtol": self.rtol, "max_periods": self.max_periods}
         try:
-            answer = self._worker().call(request, f"{self.plant.name} at F = {F:g}, omega = {omega:g}")
+            with borrowed() as worker:
+                answer = worker.call(request, f"{self.plant.name} at F = {F:g}, omega = {omega:g}", self.timeout)
         except PointFailed as failure:
             warnings.warn(str(failure), RuntimeWarning, stacklevel=2)
             nan = complex(math.nan, math.nan)
@@ -105,8 +96,9 @@ class FMUEngine:
                    "output": self.plant.output, "params": self.plant.check(params or {}), "num": list(num),
                    "den": list(den), "starts": [float(F) for F in starts], "omega_ref": float(omega_ref),
                    "rtol": min(self.rtol, 1e-9)}
-        answer = self._worker().call(request, f"{self.plant.name}: the closed loop's cycles",
-                                     timeout=self.timeout * max(len(starts), 1))
+        with borrowed() as worker:
+            answer = worker.call(request, f"{self.plant.name}: the closed loop's cycles",
+                                 timeout=self.timeout * max(len(starts), 1))
         return answer["cycles"], answer["outcomes"]
 
     def coarse(self):
@@ -128,11 +120,8 @@ class FMUEngine:
             return list(pool.map(lambda point: self.point(*point), points))
 
     def close(self):
-        """Stop every worker process (they also stop with this process)."""
-        with self._lock:
-            workers, self._workers = list(self._workers.values()), {}
-        for worker in workers:
-            worker.close()
+        """Nothing to stop: the workers are the process's (:func:`dfwb.foreign.worker.borrowed`), kept for
+        the next engine; they stop with this process."""
 
 
 def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,

@@ -11,6 +11,8 @@ is noticed; either way the point fails with :class:`PointFailed` naming the
 FMU and the reason, and the next point starts a fresh child.
 """
 
+import atexit
+import contextlib
 import os
 import pickle
 import select
@@ -18,10 +20,12 @@ import signal
 import struct
 import subprocess
 import sys
+import threading
+import weakref
 
 from dfwb.base.errors import DfwbError
 
-__all__ = ["Worker", "PointFailed", "TIMEOUT"]
+__all__ = ["Worker", "PointFailed", "TIMEOUT", "borrowed"]
 
 TIMEOUT = 120.0  # seconds a point may take by default
 _HEADER = struct.Struct("<Q")
@@ -65,6 +69,7 @@ class Worker:
         self.timeout = timeout
         self._process = None
         self._answers = None
+        _EVERY.add(self)
 
     def _start(self):
         read_end, write_end = os.pipe()
@@ -134,18 +139,55 @@ class Worker:
             pass
 
 
+_EVERY = weakref.WeakSet()  # every worker of this process: stopped when it exits (a hung FMU's too)
+
+
+@atexit.register
+def _stop_every_worker():
+    for worker in list(_EVERY):
+        worker.close()
+
+
+_IDLE = []  # workers not in use, kept for the next call: a worker's start costs about 0.8 s
+_IDLE_LOCK = threading.Lock()
+MAX_IDLE = 8
+
+
+@contextlib.contextmanager
+def borrowed():
+    """A worker for one call, taken from those this process keeps (or started), given back after.
+
+    Every describing function, sweep or map of a user's FMU shares them, so
+    that calls in a loop do not start a process each; a worker serves one
+    call at a time, and one that was killed starts again on its next call.
+    """
+    with _IDLE_LOCK:
+        worker = _IDLE.pop() if _IDLE else Worker()
+    try:
+        yield worker
+    finally:
+        with _IDLE_LOCK:
+            keep = len(_IDLE) < MAX_IDLE
+            if keep:
+                _IDLE.append(worker)
+        if not keep:
+            worker.close()
+
+
 def _serve(answer_fd):
     """The child's loop: requests in on stdin, ("ok", value) or ("error", one line) out, until stdin closes."""
     from dfwb.foreign import compute
 
     requests = sys.stdin.buffer
     answers = os.fdopen(answer_fd, "wb")
-    instances = {}
+    instances = {}  # the instances of the FMUs this worker has run, the last few
     while True:
         header = requests.read(_HEADER.size)
         if len(header) < _HEADER.size:
             return
         request = pickle.loads(requests.read(_HEADER.unpack(header)[0]))
+        if len(instances) > 8:  # a long-lived worker sees many FMUs: keep the recent ones
+            instances.pop(next(iter(instances)))
         try:
             answer = ("ok", compute.run(request, instances))
         except Exception as error:  # reported to the parent as the point's failure
