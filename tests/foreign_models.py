@@ -8,6 +8,8 @@ nothing of them but their model description. The models:
 - ``MassSpringDamper``: M x'' + c x' + k x = u, y = x; N = 1 / (k - M w^2 + j c w).
 - ``Saturation``: y = clamp(u, -a, a), no state (a static nonlinearity with kinks);
   N(F) = (2/pi) (asin(a/F) + (a/F) sqrt(1 - (a/F)^2)) for F > a, else 1.
+- ``DriftingMass``: a free mass launched at v0, M x'' = u: its position drifts by v0 T per period,
+  and without that ramp N = -1 / (M w^2).
 - ``Relay``: a relay with hysteresis, y = +-Y, switching up at u > a, down at u <= -a
   (memory); N(F) = 4 Y / (pi F) exp(-j asin(a/F)) for F > a.
 """
@@ -148,6 +150,10 @@ MODELS = {
         indicators="z[0] = U - P(1); z[1] = U + P(1);",
         update="if (U - P(1) > 0) D = 1; else if (U + P(1) <= 0) D = -1;",
         start="D = U > 0 ? 1 : -1;"),
+    "DriftingMass": dict(  # a free mass launched at v0: its position creeps by v0 T each period
+        params=[("M", 1.0, "kg"), ("v0", 0.3, "m/s")], nx=2, nz=0,
+        derivatives="dx[0] = X(1); dx[1] = U / P(0);", output="X(0)", indicators="", update="",
+        start="X(1) = P(1);"),
     # hostile binaries: a crash, a hang and NaN, each once the force exceeds 5 N
     "Crash": dict(
         params=[("M", 1.0, "kg")], nx=2, nz=0,

@@ -361,3 +361,11 @@ def test_an_fmi3_model_exchange_fmu_from_pythonfmu3(tmp_path):
     with pytest.raises(dfwb.DfwbError, match="cannot save and restore its state"):
         dfwb.limit_cycles(plant, "1/(s+1)", F_range=(0.1, 10), omega_range=(0.5, 5), n_F=2, n_omega=2, exact=True,
                           amplitudes=[1.0])
+
+
+def test_a_drifting_position_is_periodic_once_its_ramp_is_removed(built):
+    """A free mass launched at v0 creeps v0 T per period; the section sees the drift and X_k loses its ramp."""
+    response = dfwb.describing_function(dfwb.fmu_plant(built["DriftingMass"]), 2.0, [1.0, 3.0], v0=0.3)
+    for N, error, omega in zip(response.N, response.N_error, [1.0, 3.0]):
+        assert abs(N - (-1.0 / omega ** 2)) <= min(error, 1e-8 / omega ** 2)
+    assert response.periodic.all()

@@ -148,8 +148,11 @@ def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: st
     periodic = np.zeros(shape, dtype=bool)
     points = []
     if F_grid.size:
-        for index in np.ndindex(shape):
-            result = engine.point(float(F_grid[index]), float(omega_grid[index]), checked)
+        indices = list(np.ndindex(shape))
+        wanted = [(float(F_grid[index]), float(omega_grid[index]), checked) for index in indices]
+        many = getattr(engine, "batch", None)  # a user's FMU: its points on several worker processes at once
+        results = many(wanted) if many is not None else (engine.point(*point) for point in wanted)
+        for index, result in zip(indices, results):
             N[index], periodic[index] = result.N, result.periodic
             errors[index] = np.nan if result.N_error is None else result.N_error
             amplitudes[index] = result.harmonics

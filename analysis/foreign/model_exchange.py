@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from dfwb.foreign.flow import Flow
-from dfwb.foreign.steady import Sections
+from dfwb.foreign.steady import Sections, ramp
 
 __all__ = ["point"]
 
@@ -65,7 +65,8 @@ class _Period:
         return z[:nx], X, events
 
     def shoot(self, t, x, rtol, atol, saved):
-        """Newton's step on the section map from x at t (finite-difference Jacobian), or None if singular.
+        """Newton's step on the section map from x at t (finite-difference Jacobian), or None if singular
+        or no closer to a periodic orbit than x.
 
         ``saved``: the FMU state to restore before each trial run (None: the
         FMU has no discrete state that could change, so setting x is enough).
@@ -91,6 +92,10 @@ class _Period:
             s = x - np.linalg.solve(J - np.eye(len(x)), p0 - x)
         except np.linalg.LinAlgError:
             s = None
+        if s is not None and np.all(np.isfinite(s)):  # kept only if it is closer to a periodic orbit
+            scale = np.maximum(np.abs(x), 1e-12 * float(np.max(np.abs(x), initial=0.0)) + 1e-300)
+            if not np.max(np.abs(section(s) - s) / scale) < np.max(np.abs(p0 - x) / scale):
+                s = None  # e.g. a drifting state, whose multiplier 1 makes the step meaningless
         if saved is not None:
             inst.restore(saved, t)
         self.next_event = next_event
@@ -111,7 +116,8 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150)
     instance.set_continuous(0.0, x, F)
     period.flow.scale[:len(x)] = np.maximum(np.abs(x), np.abs(instance.derivatives()) * T)  # one period's travel
     period.flow.y_max = abs(instance.output())
-    sections = Sections(tol=10 * rtol)
+    nx = len(x)
+    sections = Sections(tol=10 * rtol, output=nx)  # the section: the states, and the output (its drift)
     can_save = instance.info.can_save_state.get("model-exchange", False)
     shots, found, t, periods = 0, None, 0.0, 0
     while periods < max_periods:
@@ -122,12 +128,13 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150)
             shot = period.shoot(t, x, rtol, atol, instance.save() if can_save else None)
             periods += len(x) + 1
             if shot is not None:
-                x, sections = shot, Sections(tol=10 * rtol)
+                x, sections = shot, Sections(tol=10 * rtol, output=nx)
                 continue
         x, X, _events = period.run(t, x, rtol, atol)
         t += T
         periods += 1
-        found = sections.add(x, X, period.flow.scale[:len(x)])
+        y, _u = period.flow.evaluate(t, np.concatenate((x, np.zeros(2 * (harmonics + 1)))))
+        found = sections.add(np.append(x, y), X, np.append(period.flow.scale[:nx], period.flow.y_max))
         if found is not None:
             break
     steady = found if found is not None else sections.average()
@@ -138,6 +145,8 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150)
         t += T
         tight.append(X)
     X = np.mean(tight, axis=0)
+    if steady.drift:  # the output creeps by the same amount each period: its ramp is not part of the orbit
+        X[1:] -= ramp(steady.drift, harmonics)[1:]
     error = abs(X[1] - steady.X[1]) + steady.residual
     note = "" if steady.periodic else f"no periodic response within {max_periods} periods: averaged"
     return X, error, steady.periodic, periods + steady.lag, steady.lag, note
