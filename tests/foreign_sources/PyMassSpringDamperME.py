@@ -1,6 +1,6 @@
 """A foreign plant written with pythonfmu3 as FMI 3.0 model exchange: M x'' + c x' + k x = u, y = x."""
 
-from pythonfmu3 import Fmi3Causality, Fmi3Initial, Fmi3SlaveBase, Fmi3Variability, Float64, ModelExchange
+from pythonfmu3 import Float64, Fmi3Causality, Fmi3Initial, Fmi3SlaveBase, Fmi3Variability, ModelExchange
 
 
 class PyMassSpringDamperME(Fmi3SlaveBase, ModelExchange):
