@@ -1,4 +1,4 @@
-"""Small FMI 2.0 model-exchange FMUs written in C and compiled by the tests: foreign plants with known DFs.
+"""Small FMI 2.0 FMUs written in C and compiled by the tests: foreign plants with known DFs.
 
 :func:`build` writes one FMU from a few lines of C (the derivatives, the
 output, the event indicators, the event update), compiled with gcc against
@@ -33,7 +33,7 @@ TEMPLATE = r"""
 #define NZ %(nz)d
 #define NP %(np)d
 typedef struct {
-    double time, u, p[NP + 1], x[NX + 1];
+    double time, u, p[NP + 1], x[NX + 1], u0, du[3];
     int d;
     fmi2CallbackFunctions cb;
     fmi2ComponentEnvironment env;
@@ -123,10 +123,44 @@ fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x[], size
     for (size_t i = 0; i < n; i++) x[i] = 1.0; return fmi2OK; }
 /* co-simulation functions: not offered (the model description declares model exchange only) */
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference v[], size_t n,
-    const fmi2Integer o[], const fmi2Real d[]) { return fmi2Error; }
+    const fmi2Integer o[], const fmi2Real d[]) {
+    Model* m = c;
+    for (size_t i = 0; i < n; i++) {
+        if (v[i] != NP || o[i] < 1 || o[i] > 3) return fmi2Error;
+        m->du[o[i] - 1] = d[i];
+    }
+    return fmi2OK; }
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference v[], size_t n,
     const fmi2Integer o[], fmi2Real d[]) { return fmi2Error; }
-fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean n) { return fmi2Error; }
+static double input_at(Model* m, double s) {  /* the input s after the step's start: its Taylor polynomial */
+    double value = m->u0, factor = 1.0;
+    for (int k = 0; k < 3; k++) { factor *= s / (k + 1); value += m->du[k] * factor; }
+    return value;
+}
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean n) {
+    /* RK4 in substeps of at most 1 ms, the input interpolated from the derivatives given (held if none) */
+    Model* m = c;
+    int steps = (int)ceil(h / 1e-3 - 1e-9);
+    if (steps < 1) steps = 1;
+    double dt = h / steps, x0[NX + 1], k1[NX + 1], k2[NX + 1], k3[NX + 1], k4[NX + 1];
+    m->u0 = m->u;
+    for (int i = 0; i < steps; i++) {
+        double s = i * dt;
+        memcpy(x0, m->x, sizeof(x0));
+        m->u = input_at(m, s); derivatives(m, k1);
+        for (int j = 0; j < NX; j++) m->x[j] = x0[j] + dt / 2 * k1[j];
+        m->u = input_at(m, s + dt / 2); derivatives(m, k2);
+        for (int j = 0; j < NX; j++) m->x[j] = x0[j] + dt / 2 * k2[j];
+        derivatives(m, k3);
+        for (int j = 0; j < NX; j++) m->x[j] = x0[j] + dt * k3[j];
+        m->u = input_at(m, s + dt); derivatives(m, k4);
+        for (int j = 0; j < NX; j++) m->x[j] = x0[j] + dt / 6 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
+    }
+    m->u = input_at(m, h);
+    memset(m->du, 0, sizeof(m->du));
+    m->time = t + h;
+    return fmi2OK;
+}
 fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status* v) { return fmi2Error; }
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real* v) { return fmi2Error; }
@@ -170,7 +204,7 @@ MODELS = {
 }
 
 
-def _description(name, model):
+def _description(name, model, interpolate):
     rows = []
     for vr, (param, start, unit) in enumerate(model["params"]):
         rows.append(f'<ScalarVariable name="{param}" valueReference="{vr}" causality="parameter" '
@@ -191,6 +225,8 @@ def _description(name, model):
 <fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{{dfwb-test-{name}}}"
   numberOfEventIndicators="{model['nz']}">
 <ModelExchange modelIdentifier="{name}" canGetAndSetFMUstate="true"/>
+<CoSimulation modelIdentifier="{name}" canGetAndSetFMUstate="true" canHandleVariableCommunicationStepSize="true"
+  canInterpolateInputs="{'true' if interpolate else 'false'}"/>
 <UnitDefinitions>{unit_defs}</UnitDefinitions>
 <ModelVariables>{''.join(rows)}{states}{derivs}</ModelVariables>
 <ModelStructure><Outputs><Unknown index="{n + 2}"/></Outputs>
@@ -199,13 +235,15 @@ def _description(name, model):
 """
 
 
-def build(name, folder):
-    """Write ``folder/<name>.fmu`` (FMI 2.0 model exchange, linux64) and return its path."""
+def build(name, folder, interpolate=False):
+    """Write ``folder/<name>.fmu`` and return its path: FMI 2.0, linux64, model exchange and co-simulation
+    (RK4 in substeps of at most 1 ms), that co-simulation declaring ``canInterpolateInputs`` if
+    ``interpolate`` (it takes input derivatives up to order 3 either way)."""
     import fmpy
 
     model = MODELS[name]
     folder = Path(folder)
-    work = folder / f"{name}_build"
+    work = folder / f"{name}_{int(interpolate)}_build"
     binaries = work / "binaries" / "linux64"
     binaries.mkdir(parents=True, exist_ok=True)
     source = work / f"{name}.c"
@@ -214,8 +252,8 @@ def build(name, folder):
     headers = Path(fmpy.__file__).parent / "c-code"
     subprocess.run(["gcc", "-shared", "-fPIC", "-O2", "-w", f"-I{headers}", "-o", str(binaries / f"{name}.so"),
                     str(source), "-lm"], check=True)
-    (work / "modelDescription.xml").write_text(_description(name, model))
-    fmu = folder / f"{name}.fmu"
+    (work / "modelDescription.xml").write_text(_description(name, model, interpolate))
+    fmu = folder / (f"{name}.fmu" if not interpolate else f"{name}Interpolating.fmu")
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
         for path in sorted(work.rglob("*")):
             if path.is_file() and path.suffix != ".c":

@@ -369,3 +369,20 @@ def test_a_drifting_position_is_periodic_once_its_ramp_is_removed(built):
     for N, error, omega in zip(response.N, response.N_error, [1.0, 3.0]):
         assert abs(N - (-1.0 / omega ** 2)) <= min(error, 1e-8 / omega ** 2)
     assert response.periodic.all()
+
+
+def test_a_cosimulation_fmu_that_interpolates_inputs_gets_the_sine_as_lines(tmp_path):
+    """canInterpolateInputs: each step's input is the line closest to the sine (value and slope), so the DF
+    converges at far fewer steps per period than under a held input; both within their N_error and 1e-6."""
+    steps = {}
+    for interpolate in (False, True):
+        plant = dfwb.fmu_plant(foreign_models.build("MassSpringDamper", tmp_path, interpolate=interpolate),
+                               kind="co-simulation")
+        assert plant.info.can_interpolate_inputs is interpolate
+        response = dfwb.describing_function(plant, 1.0, 2.0)
+        truth = foreign_models.msd_df(2.0)
+        assert abs(complex(response.N) - truth) <= min(float(response.N_error), 1e-6 * abs(truth))
+        note = response.points[0]["note"]
+        assert note.startswith("interpolated input" if interpolate else "held input")
+        steps[interpolate] = int(note.split(", ")[1].split()[0])
+    assert steps[True] * 4 <= steps[False], steps

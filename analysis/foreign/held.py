@@ -54,12 +54,18 @@ def richardson(values):
 
 
 class _Held:
-    """Periods of a co-simulation FMU under a held sine with n steps per period."""
+    """Periods of a co-simulation FMU under a held (or interpolated) sine with n steps per period.
 
-    def __init__(self, instance, F, omega, harmonics):
+    ``interpolate``: the FMU takes input derivatives (FMI 2.0 ``canInterpolateInputs``): each step's
+    input is the straight line closest to the sine over the step (its mean and its first moment exact),
+    given as the value at the step's start and a slope.
+    """
+
+    def __init__(self, instance, F, omega, harmonics, interpolate=False):
         self.inst, self.F, self.omega, self.K = instance, F, omega, harmonics
         self.k = np.arange(harmonics + 1)
         self.y = None
+        self.interpolate = interpolate
 
     def run(self, n):
         """One period of n steps from the current time: (section, X_k, the output's largest size)."""
@@ -67,11 +73,19 @@ class _Held:
         T = 2 * math.pi / omega
         h = T / n
         t0 = inst.time
-        mean = math.sin(omega * h / 2) / (omega * h / 2)  # the step's mean of cos over its midpoint value
+        a = omega * h / 2
+        mean = math.sin(a) / a  # the step's mean of cos over its midpoint value
+        moment = 24.0 * (math.sin(a) - a * math.cos(a)) / (omega ** 2 * h ** 3)  # the least-squares slope's factor
         samples = np.empty(n + 1)
         samples[0] = self.y if self.y is not None else inst.output()
         for i in range(n):
-            inst.set_input(self.F * mean * math.cos(omega * (t0 + (i + 0.5) * h)))
+            middle = omega * (t0 + (i + 0.5) * h)
+            if self.interpolate:
+                slope = -self.F * moment * math.sin(middle)
+                inst.set_input(self.F * mean * math.cos(middle) - slope * h / 2)
+                inst.set_input_slope(slope)
+            else:
+                inst.set_input(self.F * mean * math.cos(middle))
             inst.do_step(h)
             samples[i + 1] = inst.output()
         if not np.all(np.isfinite(samples)):
@@ -89,7 +103,8 @@ class _Held:
 
 def point(instance, F, omega, params, harmonics=10, rtol=1e-6, max_periods=150):
     """(X_k, N error, periodic, periods, orbit periods, note) of one DF point of a co-simulation FMU."""
-    held = _Held(instance, F, omega, harmonics)
+    interpolate = instance.info.can_interpolate_inputs and instance.info.major == "2"
+    held = _Held(instance, F, omega, harmonics, interpolate)
     n = FIRST_STEPS
     mean = math.sin(math.pi / n) / (math.pi / n)
     instance.start(params, F * mean * math.cos(math.pi / n))
@@ -115,7 +130,8 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-6, max_periods=150):
         n *= 2
     X = levels[-1].copy()
     X[1] = N  # the extrapolated first harmonic; the others at the finest step
-    note = f"held input, {n} steps per period, Richardson over {len(levels)} levels"
+    note = (f"{'interpolated' if interpolate else 'held'} input, {n} steps per period, Richardson over "
+            f"{len(levels)} levels")
     if not periodic:
         note = f"no periodic response within {max_periods} periods at some step: averaged; " + note
     return X, error + residual, periodic, periods, lag, note

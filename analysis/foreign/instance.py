@@ -146,6 +146,10 @@ class Instance:
         else:
             self.fmu.fmi2SetReal(self.fmu.component, self._input, 1, self._u_at)
 
+    def set_input_slope(self, slope):
+        """The input's first derivative over the next step (FMI 2.0 co-simulation that can interpolate inputs)."""
+        self.fmu.setRealInputDerivatives(list(self._input), [1], [slope])
+
     def output(self):
         if self.v3:
             self.fmu.fmi3GetFloat64(self.fmu.component, self._output, 1, self._y_at, 1)
