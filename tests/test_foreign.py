@@ -386,3 +386,18 @@ def test_a_cosimulation_fmu_that_interpolates_inputs_gets_the_sine_as_lines(tmp_
         assert note.startswith("interpolated input" if interpolate else "held input")
         steps[interpolate] = int(note.split(", ")[1].split()[0])
     assert steps[True] * 4 <= steps[False], steps
+
+
+def test_the_engine_options_are_checked(built):
+    from dfwb.foreign.engine import FMUEngine
+
+    plant = dfwb.fmu_plant(built["Relay"])
+    assert FMUEngine(plant, jobs=1).jobs == 1 and FMUEngine(plant).jobs == (os.cpu_count() or 1)
+    for options, message in (({"jobs": 0}, "jobs = 0"), ({"rtol": 1.0}, "rtol = 1.0"),
+                             ({"timeout": 0.0}, "timeout = 0.0"), ({"harmonics": 11}, "harmonics = 11")):
+        with pytest.raises(PlantError, match=re.escape(message)):
+            FMUEngine(plant, **options)
+    with pytest.raises(dfwb.DfwbError, match="rtol and timeout are for a user's FMU"):
+        dfwb.describing_function("friction", 10.0, 1.0, rtol=1e-8)
+    with pytest.raises(dfwb.DfwbError, match="drive and samples_per_period are for dfwb's own plants"):
+        dfwb.describing_function(plant, 1.0, 1.0, drive="input")

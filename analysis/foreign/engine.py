@@ -55,7 +55,7 @@ class FMUEngine:
             raise PlantError(f"rtol = {rtol!r} is out of range: a number from 1e-13 to 0.01")
         if not (isinstance(timeout, (int, float)) and 0.1 <= timeout <= 86400):
             raise PlantError(f"timeout = {timeout!r} is out of range: seconds from 0.1 to 86400")
-        jobs = os.cpu_count() or 1 if jobs is None else jobs
+        jobs = (os.cpu_count() or 1) if jobs is None else jobs
         if not (isinstance(jobs, int) and 1 <= jobs <= 256):
             raise PlantError(f"jobs = {jobs!r} is out of range: an integer from 1 to 256")
         self.plant, self.harmonics, self.max_periods, self.jobs = plant, harmonics, max_periods, jobs
