@@ -247,7 +247,7 @@ def test_cli_info_lists_what_the_fmu_offers(built):
     result = subprocess.run(DFWB + ["info", str(built["Relay"])], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
-    assert lines[0] == "Relay: FMI 2.0, model-exchange (runs here; the first is used)"
+    assert lines[0] == "Relay: FMI 2.0, model-exchange and co-simulation (runs here; the first is used)"
     assert "continuous Real inputs (--input): u" in lines[1] and "Real outputs (--output): y" in lines[2]
     assert [line.split()[:4] for line in lines[4:]] == [["Y", "Real", "1", "m"], ["a", "Real", "0.5", "N"]]
 
