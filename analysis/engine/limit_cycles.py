@@ -226,14 +226,21 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
 
 def balance(engine, G, params, F_grid, omega_grid, N_grid):
     """The limit cycles of G on a DF map already computed (one map serves every controller of a plant):
-    candidates where both parts of 1 + G N change sign, refined by Newton on the exact DF."""
+    candidates where both parts of 1 + G N change sign, refined by Newton on the exact DF (first on the
+    engine's looser twin, when it has one: a user's FMU's points cost, and Newton's early steps need
+    no precision)."""
     R = 1.0 + np.array([complex(G(1j * w)) for w in omega_grid]) * N_grid
     balance = _Balance(engine, G, params)
+    coarse = getattr(engine, "coarse", None)
+    rough = _Balance(coarse(), G, params) if coarse is not None else None
     bounds = (math.log(F_grid[0]), math.log(F_grid[-1]), math.log(omega_grid[0]), math.log(omega_grid[-1]))
     cycles = []
     for i, j in candidates(R):
         u = 0.5 * (math.log(F_grid[i]) + math.log(F_grid[i + 1]))
         v = 0.5 * (math.log(omega_grid[j]) + math.log(omega_grid[j + 1]))
+        first = rough.newton(u, v, bounds) if rough is not None else None
+        if first is not None:
+            u, v = first[0], first[1]
         refined = balance.newton(u, v, bounds)
         if refined is None:
             continue
