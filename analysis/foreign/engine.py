@@ -102,8 +102,8 @@ class FMUEngine:
         return answer["cycles"], answer["outcomes"]
 
     def coarse(self):
-        """An engine for a map that only locates (N alone, 1000 times looser; at most 1e-4): the same FMU,
-        limits and workers' count. Newton then refines on this engine."""
+        """A looser twin for the work that only locates (a map, Newton's first steps): N alone, rtol 1000
+        times looser (at most 1e-4), the same FMU, limits and workers' count."""
         return FMUEngine(self.plant, harmonics=1, max_periods=self.max_periods, rtol=min(self.rtol * 1e3, 1e-4),
                          timeout=self.timeout, jobs=self.jobs)
 
@@ -118,10 +118,6 @@ class FMUEngine:
             return [self.point(*point) for point in points]
         with ThreadPoolExecutor(min(self.jobs, len(points)), thread_name_prefix="dfwb-fmu") as pool:
             return list(pool.map(lambda point: self.point(*point), points))
-
-    def close(self):
-        """Nothing to stop: the workers are the process's (:func:`dfwb.foreign.worker.borrowed`), kept for
-        the next engine; they stop with this process."""
 
 
 def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,

@@ -186,15 +186,9 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
 def _computing(spec, engine, pending, jobs, settings, fmu_dir):
     """An iterator of lists of records of the pending points: dfwb's own plants on the executor's
     processes, a user's FMU on its engine's worker processes (``jobs`` points at once)."""
-    if engine is not None:
-        def batches():
-            for start in range(0, len(pending), engine.jobs):
-                batch = pending[start:start + engine.jobs]
-                yield [r.as_dict() for r in engine.batch(batch)]
-        try:
-            yield batches()
-        finally:
-            engine.close()
+    if engine is not None:  # its workers are the process's, kept for the next call: nothing to close
+        yield ([r.as_dict() for r in engine.batch(pending[start:start + engine.jobs])]
+               for start in range(0, len(pending), engine.jobs))
         return
     fmu = str(fmu_path(spec, fmu_dir))
     with Executor(jobs) as executor:
