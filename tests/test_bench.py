@@ -6,7 +6,7 @@ import pytest
 
 from dfwb.engine import describing
 from dfwb.plants import PLANTS, builtin
-from dfwb.verify import bench
+from dfwb.verify import bench, foreign_bench
 
 SCIPY = {f"scipy-{method}" for method in bench.SCIPY_METHODS}
 EXACT = {"fmu-native", "fmu-python-core", "fmu-pure-python"}  # native FMU; pythonfmu on its C core; pure Python
@@ -28,7 +28,7 @@ def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monke
     for name in BENCHED:  # one point per plant: its first quick one
         monkeypatch.setitem(PLANTS[name].bench, "quick", PLANTS[name].bench["quick"][:1])
     folders = []  # the FMU folder of every FMU the benchmark runs (its exact kinds and its other engines)
-    for module in (bench, describing):
+    for module in (bench, describing, foreign_bench):
         def recorded(model, fmu_dir=None, kind=None, found=module.fmu_path):
             folders.append(fmu_dir)
             return found(model, fmu_dir, kind=kind)
@@ -59,6 +59,18 @@ def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monke
         for method in EXACT:  # every plant has its cost per event for each exact kind
             assert f"| {plant} | {method} |" in text, (plant, method)
     assert "How the cost grows" in text and "ms per period" in text
+    # a user's FMU: small C model-exchange FMUs at 1e-8, the native FMUs as black-box co-simulation at 1e-6
+    with open(tmp_path / "foreign.csv") as handle:
+        foreign = list(csv.DictReader(handle))
+    kinds = {(r["kind"], r["plant"]) for r in foreign}
+    assert kinds == {("model-exchange", m) for m in ("MassSpringDamper", "Saturation", "Relay")} | {
+        ("co-simulation", plant) for plant in BENCHED}
+    for row in foreign:
+        error, estimate = float(row["error"]), float(row["N_error"])
+        assert error <= estimate, row  # the reported error is honest
+        assert error < (1e-7 if row["kind"] == "model-exchange" else 1e-4), row
+    assert "## A user's FMU through the generic driver" in text
+    assert f"below `N_error` at {len(foreign)} of {len(foreign)} points" in text
 
 
 @pytest.mark.parametrize("plant", [name for name in BENCHED if PLANTS[name].scipy is not None])

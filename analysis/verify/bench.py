@@ -28,9 +28,10 @@ A plant without a naive twin or a scipy rival gets fewer methods. The
 reference (``Plant.reference``): scipy DOP853 at rtol 1e-12 (friction,
 backlash), the closed form (static backlash). Outputs: ``bench.csv`` (plant, method, setting, F,
 omega, eps, error, seconds), ``pareto_<plant>.png`` and ``bench.md``, plus
-the cost per event of each exact FMU kind (:func:`event_cost`), and how the
+the cost per event of each exact FMU kind (:func:`event_cost`), how the
 cost grows with the periods to steady state and with a sweep's size and
-processes.
+processes, and the cost and error of a DF point of a user's FMU through the
+generic driver (:mod:`dfwb.verify.foreign_bench`; rows in ``foreign.csv``).
 """
 
 import contextlib
@@ -51,6 +52,8 @@ from dfwb.fmus.facade import SOLVER_VARIABLE  # read by a pythonfmu plant FMU at
 from dfwb.plants import PLANTS
 from dfwb.plotting import plots
 from dfwb.studies.sweep import grid, run_sweep
+from dfwb.verify.foreign_bench import FIELDS as FOREIGN_FIELDS
+from dfwb.verify.foreign_bench import foreign_markdown, foreign_rows
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
 FIELDS = ["plant", "method", "setting", "F", "omega", "eps", "error", "seconds"]  # bench.csv's columns
@@ -282,7 +285,13 @@ def run_bench(out_dir="out/bench", quick=False, repeats=None, report=print, fmu_
     for plant in measured:
         pareto(out_dir, plant, [r for r in rows if r["plant"] == plant])
     growth = cost_growth(quick, fmu_dir)
-    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started, failures, costs))
+    foreign = foreign_rows(quick, repeats, fmu_dir, report)
+    with open(out_dir / "foreign.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=FOREIGN_FIELDS + ["why"])
+        writer.writeheader()
+        writer.writerows(foreign)
+    (out_dir / "bench.md").write_text(summary(rows, growth, quick, time.perf_counter() - started, failures, costs,
+                                              foreign))
     return out_dir / "bench.md"
 
 
@@ -381,7 +390,7 @@ def cost_growth(quick, fmu_dir=None):
     return {"per_period": slope, "fixed": intercept, "points": by_periods, "sweeps": sweeps}
 
 
-def summary(rows, growth, quick, seconds, failures=(), costs=None):
+def summary(rows, growth, quick, seconds, failures=(), costs=None, foreign=()):
     text = ["# Run time against error", "",
             f"{'Quick' if quick else 'Full'} set, measured in {seconds:.0f} s on this machine (2 shared cores): every "
             "method timed interleaved with the others, medians of repeats (a run under 10 ms is repeated at once "
@@ -412,6 +421,8 @@ def summary(rows, growth, quick, seconds, failures=(), costs=None):
              f"(periods: {sorted(int(p) for p, _ in growth['points'])}).", "",
              "| sweep points | processes | seconds |", "|---|---|---|"]
     text += [f"| {size} | {jobs} | {t:.2f} |" for size, jobs, t in growth["sweeps"]]
+    if foreign:
+        text += [""] + foreign_markdown(foreign)
     if failures:
         text += ["", "## Methods that gave up", "", "Recorded with an infinite error:", ""]
         text += [f"- {f}" for f in failures]
