@@ -313,6 +313,11 @@ def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built):
     assert cycle.period == pytest.approx(period, rel=1e-6)
     assert cycle.amplitude_x == pytest.approx(abs(first), rel=1e-6)
     assert abs(ups[-1] - ups[-2] - (ups[-2] - ups[-3])) < 1e-8 * period  # the long run has settled on it
+    # its trace over one period from the section (the output's upward mid-swing, here y = 0): the long run's
+    trace = cycle.trace
+    assert trace["t"][0] == 0.0 and trace["t"][-1] == pytest.approx(cycle.period, rel=1e-12)
+    assert np.max(np.abs(trace["y"] - outputs(ups[-2] + trace["t"]))) < 1e-5
+    assert np.max(np.abs(trace["y"])) == pytest.approx(1.0, abs=1e-9)  # the saturation's level
 
 
 # -- sweeps --------------------------------------------------------------------------------------------------------------

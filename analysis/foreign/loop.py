@@ -10,7 +10,8 @@ crosses the middle of its swing upwards. The cycle is then shot: Newton on
 ``P(z) - z`` for the section map P, its Jacobian by differences from the
 FMU state saved on the section (so the FMU's discrete states are the
 orbit's); the eigenvalues of that Jacobian, the one near 0 along the flow
-removed, are the Floquet multipliers. Runs in the worker process.
+removed, are the Floquet multipliers; one more period, in pieces, gives the
+harmonics of the output and the force and their trace. Runs in the worker process.
 """
 
 import math
@@ -26,6 +27,7 @@ SETTLE = 40  # reference periods a start runs before its swing is read
 MAX_RETURNS = 200  # section returns before a start counts as not settled
 NEWTON = 12  # shooting iterations
 HARMONICS = 10
+TRACE = 200  # samples of a cycle's period in its trace
 
 
 def realization(num, den):
@@ -190,7 +192,14 @@ def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
     measure.flow.scale = np.concatenate((flow.scale, np.full(2 * (HARMONICS + 1) + 2, T * max(flow.y_max, 1e-300))))
     extra = np.zeros(2 * (HARMONICS + 1) + 2)
     start = np.concatenate((u, extra))
-    _t, z_end, events, _ = measure.flow.run(t_section, start, t_section + T, rtol / 10, measure.atol(rtol / 10))
+    z_end, events = start, 0
+    times = t_section + T * np.arange(TRACE + 1) / TRACE
+    y, f = np.empty(TRACE + 1), np.empty(TRACE + 1)
+    y[0], f[0] = measure.flow.evaluate(times[0], z_end)
+    for i in range(TRACE):  # in pieces, the output and the force read at each end (the trace drawn)
+        _t, z_end, more, _ = measure.flow.run(times[i], z_end, times[i + 1], rtol / 10, measure.atol(rtol / 10))
+        events += more
+        y[i + 1], f[i + 1] = measure.flow.evaluate(times[i + 1], z_end)
     I = z_end[instance.nx + n:]
     Y = (I[:HARMONICS + 1] - 1j * I[HARMONICS + 1:2 * HARMONICS + 2]) * (2 / T)
     Y[0] = I[0] / T
@@ -202,5 +211,6 @@ def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
         "state": [float(v) for v in u], "returns": 1, "harmonics": [abs(y) for y in Y],
         "counts": {"events": int(events)}, "signature": [],
         "spectrum": [[float(m.real), float(m.imag)] for m in multipliers], "sections": [[float(v) for v in u]],
-        "swing": [float(v) for v in flow.scale], "trace": None,
+        "swing": [float(v) for v in flow.scale],
+        "trace": {"t": (times - t_section).tolist(), "y": y.tolist(), "f": f.tolist(), "events": []},
     }

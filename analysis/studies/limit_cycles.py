@@ -118,7 +118,6 @@ def _judge(spec, G, params, prediction, samples_per_period, fmu_dir, cache):
 
 def _exact(problem, predictions, amplitudes, cache, progress):
     """The exact search around the predictions (:func:`dfwb.engine.cycles.find_cycles`), cached."""
-    import numpy as np
 
     from dfwb.engine import cycles as search
     from dfwb.engine.periodic import TrueCycle
@@ -142,11 +141,16 @@ def _exact(problem, predictions, amplitudes, cache, progress):
         return found
     cycles = []
     for entry in value["cycles"]:
-        trace = entry["trace"]
-        entry = dict(entry, trace={"t": np.array(trace["t"]), "y": np.array(trace["y"]), "f": np.array(trace["f"]),
-                                   "events": [tuple(e) for e in trace["events"]]})
-        cycles.append(TrueCycle(**entry))
+        cycles.append(TrueCycle(**dict(entry, trace=_trace(entry["trace"]))))
     return search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), [])
+
+
+def _trace(trace):
+    """A true cycle's trace from its JSON form: arrays of t, y and f, and (time, kind) events."""
+    import numpy as np
+
+    return {"t": np.array(trace["t"]), "y": np.array(trace["y"]), "f": np.array(trace["f"]),
+            "events": [tuple(e) for e in trace["events"]]}
 
 
 def _exact_fmu(engine, G, params, predictions, amplitudes, F_range, omega_range):
@@ -167,7 +171,7 @@ def _exact_fmu(engine, G, params, predictions, amplitudes, F_range, omega_range)
     omega_ref = omegas[len(omegas) // 2] if omegas else math.sqrt(omega_range[0] * omega_range[1])
     num, den = num_den(G)
     found, outcomes = engine.true_cycles(num, den, params, starts, omega_ref)
-    cycles = [TrueCycle(**dict(entry, trace=None)) for entry in found]
+    cycles = [TrueCycle(**dict(entry, trace=_trace(entry["trace"]))) for entry in found]
     links = []
     for prediction in predictions:  # the nearest true cycle in frequency and amplitude, within a factor 1.5
         near = [(abs(math.log(c.omega / prediction.omega)) + abs(math.log(c.amplitude_x / prediction.amplitude_x)), j)
