@@ -41,7 +41,7 @@ def test_points_expand_F_outer_grid_then_omega_and_merge_log_and_values():
 
 
 @pytest.mark.parametrize("change, message", [
-    (("omega = [20.0]", "omega = [20.0]\nomgea = 3"), "series[0]: unknown key 'omgea' (allowed: name, plant, params"),
+    (("omega = [20.0]", "omega = [20.0]\nomgea = 3"), "series[0]: unknown key 'omgea' (allowed: name, plant, input, output, params"),
     (("title = \"t\"", "title = \"t\"\nresults = 1"), "unknown key 'results' (allowed: title, description"),
     (("F = [50.0]", "F = \"50\""), "series[0].F: Input should be a valid list (got '50')"),
     (("F = [50.0]", "F = [\"50\"]"), "series[0].F[0]: Input should be a valid number (got '50')"),

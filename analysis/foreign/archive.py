@@ -12,7 +12,6 @@ is read anew.
 """
 
 import atexit
-import hashlib
 import shutil
 import stat
 import tempfile
@@ -21,8 +20,9 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 from dfwb.base.errors import PlantError
+from dfwb.base.files import file_digest
 
-__all__ = ["unpack", "digest", "MAX_UNPACKED", "MAX_RATIO", "MAX_DESCRIPTION", "MAX_DEPTH"]
+__all__ = ["unpack", "MAX_UNPACKED", "MAX_RATIO", "MAX_DESCRIPTION", "MAX_DEPTH"]
 
 MAX_FILE = 2 << 30  # bytes of the FMU file itself
 MAX_UNPACKED = 4 << 30  # bytes of all its entries, decompressed
@@ -35,15 +35,6 @@ _UNPACKED = {}  # content digest -> the folder it is unpacked in (this process)
 
 def _refuse(path, reason):
     raise PlantError(f"{path}: {reason}")
-
-
-def digest(path):
-    """The SHA-256 of a file's content, read in chunks (an FMU may be large)."""
-    sha = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for chunk in iter(lambda: handle.read(1 << 20), b""):
-            sha.update(chunk)
-    return sha.hexdigest()
 
 
 def _entries(path, archive):
@@ -110,7 +101,7 @@ def unpack(path):
         size = path.stat().st_size
         if size > MAX_FILE:
             _refuse(path, f"not accepted: {size} bytes (at most {MAX_FILE})")
-        key = digest(path)
+        key = file_digest(path)
         if key in _UNPACKED and _UNPACKED[key].is_dir():
             return _UNPACKED[key], key
         if not zipfile.is_zipfile(path):

@@ -71,6 +71,7 @@ class Outcome:
     phases: dict = field(default_factory=dict)  # where the time went: seconds per phase of the run
     figures: list = field(default_factory=list)
     sections: list = field(default_factory=list)  # (title, png path, markdown) of paper figures
+    failed: list = field(default_factory=list)  # why each point of a user's FMU that failed did (left out)
 
 
 def phase_times(phases):
@@ -95,7 +96,13 @@ class _Points:
         return self._named[point]
 
     def key(self, plant, F, omega, params, harmonics=None):
-        spec = find_plant(plant)
+        spec = self.run.specs[plant]
+        if getattr(spec, "foreign", False):  # a user's FMU: its file, variables and the driver's settings
+            e = self.run.scene.engine
+            settings = {"harmonics": harmonics or self.harmonics, "max_periods": e.max_periods, "rtol": e.rtol,
+                        "input": spec.input, "output": spec.output, "drive": spec.kind}
+            return {"kind": "df", "model": "foreign", "fmu": self.run.revisions[plant], "code": self.run.code,
+                    "settings": settings, "params": spec.complete(params), "F": float(F), "omega": float(omega)}
         engine = dict(self.settings, harmonics=harmonics or self.harmonics)
         if engine["drive"] == "internal":
             engine.pop("samples_per_period")
@@ -120,8 +127,11 @@ class SceneRun:
         self.fmu_dir, self.progress = fmu_dir, progress
         self.code = code_revision()
         plants = {item.plant for group in (scene.series, scene.trace, scene.limit_cycle) for item in group}
-        self.fmus = {plant: fmu_path(find_plant(plant), fmu_dir) for plant in sorted(plants)}
+        self.specs = {plant: scene.plant(plant) for plant in sorted(plants)}
+        self.fmus = {plant: fmu_path(spec, fmu_dir) for plant, spec in self.specs.items()
+                     if not getattr(spec, "foreign", False)}
         self.revisions = {plant: fmu_revision(path) for plant, path in self.fmus.items()}
+        self.revisions.update({plant: spec.info.digest for plant, spec in self.specs.items() if plant not in self.fmus})
         self.values = {}  # digest -> as_dict() of every DF point known in this run
         self.outcome = Outcome(self.out)
         self.map_rows = []  # CSV rows of the limit cycles' DF maps
@@ -158,6 +168,8 @@ class SceneRun:
         self.outcome.cache_hits += hits
         self.outcome.resumed += old
         task = display.add(label, len(keys), len(keys) - len(pending), hits)
+        foreign = [p for p in pending if p[2] not in self.fmus]
+        pending = [p for p in pending if p[2] in self.fmus]
         by_chunk = {}
         chunks = []
         for plant in sorted({p[2] for p in pending}):
@@ -179,7 +191,34 @@ class SceneRun:
                     self.values[p[0]] = value
                 self.outcome.computed += len(results)
                 display.advance(task, len(results))
+            self._compute_foreign(foreign, table, display, task)
         return {name: entry[0] for name, entry in keys.items()}
+
+    def fmu_engine(self, plant, harmonics):
+        """The engine of a user's FMU (its worker processes are the process's, shared)."""
+        from dfwb.foreign.engine import engine_for
+
+        e = self.scene.engine
+        return engine_for(self.specs[plant], harmonics=harmonics, max_periods=e.max_periods, rtol=e.rtol)
+
+    def _compute_foreign(self, pending, table, display, task):
+        """The points of users' FMUs, a batch on its engine's workers at a time (inside the log's ``with``).
+
+        A point the FMU fails (a crash, a hang, NaN) is reported in ``outcome.failed`` and left out of the
+        results, the log and the cache: the next run tries it again."""
+        for plant in sorted({p[2] for p in pending}):
+            mine = [p for p in pending if p[2] == plant]
+            engine = self.fmu_engine(plant, table.harmonics)
+            for part in chunked(mine, engine.jobs):
+                values = [r.as_dict() for r in engine.batch([(p[3], p[4], p[5]) for p in part])]
+                kept = [(p, v) for p, v in zip(part, values) if not v["note"].startswith("failed:")]
+                self.outcome.failed += [v["note"][len("failed: "):] for v in values if v["note"].startswith("failed:")]
+                self.log.append([dict(to_row(v), series="", key=p[0]) for p, v in kept])
+                for p, value in kept:
+                    self.cache.put(p[1], value)
+                    self.values[p[0]] = value
+                self.outcome.computed += len(kept)
+                display.advance(task, len(part))
 
     @functools.cached_property
     def resumable(self):
@@ -198,8 +237,10 @@ class SceneRun:
         data = {s.name: [] for s in self.scene.series}
         csv_rows = []
         for p in self.scene.points():
-            params = find_plant(p.plant).checked(p.params)
+            params = self.specs[p.plant].checked(p.params)
             name = table.named(p.plant, p.F, p.omega, params)[0]
+            if name not in self.values:  # a point a user's FMU failed (outcome.failed says why)
+                continue
             value = dict(self.values[name], params=params)
             csv_rows.append(dict(to_row(value), series=p.series, key=name))
             data[p.series].append(value)
@@ -256,6 +297,12 @@ class SceneRun:
         results = {}
         table = _Points(self, self.settings(HARMONICS))
         for lc in self.scene.limit_cycle:
+            if lc.plant not in self.fmus:  # a user's FMU: its map on its engine's workers, not cached yet
+                results[lc.name] = analyse(self.specs[lc.plant], lc.controller(), lc.params, F_range=lc.F_range,
+                                           omega_range=lc.omega_range, n_F=lc.n_F, n_omega=lc.n_omega,
+                                           exact=lc.exact, engine=self.fmu_engine(lc.plant, HARMONICS),
+                                           progress=_staged(display, lc.name))
+                continue
             family = lc.family()
             problem = family.problem(fmu_dir=self.fmu_dir)
             F_range, omega_range = search_ranges(problem, lc.F_range, lc.omega_range)
@@ -265,16 +312,7 @@ class SceneRun:
             keys = self.compute_points(grid, table, display, f"{lc.name}: DF map")
             self.map_rows += [dict(to_row(self.values[name]), series=lc.name, key=name) for name in keys]
             engine = _CachedEngine(self, table, lc.plant)
-            tasks = {}
-
-            def progress(stage, done, total, name=lc.name):
-                if stage == "DF map":  # its points were computed above: shown there
-                    return
-                if stage not in tasks:
-                    tasks[stage] = [display.add(f"{name}: {stage}", total, 0, 0), 0]
-                display.advance(tasks[stage][0], done - tasks[stage][1])
-                tasks[stage][1] = done
-
+            progress = _staged(display, lc.name, skip="DF map")  # the map's points are shown above
             hits = self.cache.hits
             results[lc.name] = analyse(lc.plant, lc.controller(), lc.params, F_range=F_range,
                                        omega_range=omega_range, n_F=lc.n_F, n_omega=lc.n_omega, exact=lc.exact,
@@ -327,7 +365,7 @@ class SceneRun:
         started = time.perf_counter()
         scene = self.scene
         table = _Points(self, self.settings(HARMONICS if scene.needs_harmonics else 1))
-        points = [(p.plant, p.F, p.omega, find_plant(p.plant).checked(p.params)) for p in scene.points()]
+        points = [(p.plant, p.F, p.omega, self.specs[p.plant].checked(p.params)) for p in scene.points()]
         fingerprint = self.fingerprint(table, points)
         done = self.up_to_date(fingerprint)
         if done is not None:
@@ -368,7 +406,8 @@ class SceneRun:
             self.outcome.rejected = self.cache.rejected + self.log.rejected
             self.outcome.seconds = time.perf_counter() - started
             self.write_summary(data, cycles, studies)
-            self.write_manifest(fingerprint)
+            if not self.outcome.failed:  # with points missing, the next run is not up to date: it tries them again
+                self.write_manifest(fingerprint)
         return self.outcome
 
     # -- continuations and maps ----------------------------------------------------------------------
@@ -404,14 +443,7 @@ class SceneRun:
 
         results = {}
         for m in self.scene.map:
-            tasks = {}
-
-            def progress(stage, done, total, name=m.name):
-                if stage not in tasks:
-                    tasks[stage] = [display.add(f"{name}: {stage}", total, done, 0), done]
-                display.advance(tasks[stage][0], done - tasks[stage][1])
-                tasks[stage][1] = done
-
+            progress = _staged(display, m.name)
             folder = self.out / f"map_{m.name}"
             results[m.name] = run_map(m.plant, m.controller(), *m.axes(), m.params, out_dir=folder, own_folder=True,
                                       jobs=self.executor.jobs, dask=self.executor.dask, cache=self.cache,
@@ -534,6 +566,21 @@ class SceneRun:
         self.write("summary.md", "\n".join(lines) + "\n")
 
 
+def _staged(display, name, skip=None):
+    """``progress(stage, done, total)`` of a study: a bar per stage (but ``skip``) on the run's display."""
+    tasks = {}
+
+    def progress(stage, done, total):
+        if stage == skip:
+            return
+        if stage not in tasks:
+            tasks[stage] = [display.add(f"{name}: {stage}", total, done, 0), done]  # done: resumed
+        display.advance(tasks[stage][0], done - tasks[stage][1])
+        tasks[stage][1] = done
+
+    return progress
+
+
 def _cached_continuation(value):
     """The continuation a cache entry holds, or None (none, or not a continuation's record: recomputed)."""
     from dfwb.studies.responses import ContinuationResponse
@@ -548,7 +595,7 @@ class _CachedEngine:
     """The DFEngine interface over the run's known points, the cache, then a local engine."""
 
     def __init__(self, run, table, plant):
-        self.run, self.table, self.plant = run, table, find_plant(plant)
+        self.run, self.table, self.plant = run, table, run.specs[plant]
         self._engine = None
         self.computed = self.hits = 0
 

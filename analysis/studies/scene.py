@@ -31,6 +31,7 @@ Examples
 bad.toml: series[0]: unknown parameter 'eps' for plant friction (allowed: B, Dv, Fc, Fs, M, v0, x0)
 """
 
+import functools
 import itertools
 import math
 import sys
@@ -58,6 +59,7 @@ from dfwb.base.schema import (
 )
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE
 from dfwb.fmus.piecewise import PlantError
+from dfwb.foreign.plant import is_fmu_path
 from dfwb.plants import names
 from dfwb.plants import plant as find_plant
 from dfwb.studies.sweep import MAX_POINTS, grid_size
@@ -73,8 +75,43 @@ def _registered(name):
     known = names()
     if name not in known:
         listed = ", ".join(repr(n) for n in known)
+        if is_fmu_path(name):
+            raise InputError(f"a user's FMU ({shown(name)}) is a plant of [[series]] and [[limit_cycle]] (not yet "
+                             f"of this section): here give one of {listed}")
         raise InputError(f"Input should be one of {listed} (got {shown(name)})")
     return name
+
+
+def _plant_or_fmu(name):
+    """A registered plant's name, or the path of a user's FMU (opened with the section's input and output)."""
+    return name if is_fmu_path(name) else _registered(name)
+
+
+def section_plant(section):
+    """The plant a [[series]] or [[limit_cycle]] names: a registry entry, or the user's FMU with the section's
+    ``input`` and ``output`` (checked: :func:`dfwb.foreign.plant.fmu_plant`)."""
+    if not is_fmu_path(section.plant):
+        if section.input is not None or section.output is not None:
+            raise InputError(f"input and output name the variables of a plant given as an FMU: plant "
+                             f"{section.plant!r} is dfwb's own")
+        return find_plant(section.plant)
+    path = Path(section.plant)
+    try:
+        stat = path.stat()
+    except OSError as error:
+        raise InputError(f"plant = {shown(section.plant)}: cannot read the FMU ({error.strerror})") from None
+    return _fmu_plant(str(path), stat.st_mtime_ns, stat.st_size, section.input, section.output)
+
+
+@functools.lru_cache(maxsize=32)
+def _fmu_plant(path, mtime, size, input, output):
+    """The checked FMU plant, once per file version (its name, time and size) and variables."""
+    from dfwb.foreign.plant import fmu_plant
+
+    try:
+        return fmu_plant(path, input=input, output=output)
+    except PlantError as error:
+        raise InputError(str(error)) from None
 
 
 def _has_title(title):
@@ -84,6 +121,8 @@ def _has_title(title):
 
 
 PlantName = Checked(Text(), _registered)
+PlantOrFMU = Checked(Text(), _plant_or_fmu)  # [[series]] and [[limit_cycle]] take a user's FMU too
+Variable = Text(max_length=200)  # an FMU's input or output
 Positive = Number(gt=0)
 Force = Number(ge=F_RANGE[0], le=F_RANGE[1])  # [N]: what the engine accepts
 Frequency = Number(ge=OMEGA_RANGE[0], le=OMEGA_RANGE[1])  # [rad/s]
@@ -171,7 +210,9 @@ class Series:
     """DF points of one plant over F x omega x the gridded parameters."""
 
     name: str = rule(Name)
-    plant: str = rule(PlantName)
+    plant: str = rule(PlantOrFMU)
+    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
+    output: Optional[str] = rule(Variable, None)
     params: dict = rule(Params, {})
     grid: dict = rule(TableOf(ListOf(Finite, min_length=1)), {})
     F: list = rule(ListOf(Force, min_length=1))
@@ -244,7 +285,8 @@ def _family(section, free=()):
     from dfwb.engine.family import LoopFamily
 
     try:
-        return LoopFamily(section.plant, _controller(section), section.params, free=free)
+        plant = section_plant(section) if hasattr(section, "input") else section.plant
+        return LoopFamily(plant, _controller(section), section.params, free=free)
     except PlantError as error:
         raise InputError(str(error)) from None
 
@@ -255,7 +297,9 @@ class LimitCycle:
     (``verify``) and against the exact closed loop's true cycles (``exact``)."""
 
     name: str = rule(Name)
-    plant: str = rule(PlantName)
+    plant: str = rule(PlantOrFMU)
+    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
+    output: Optional[str] = rule(Variable, None)
     params: dict = rule(Params, {})  # the plant's parameters and G's
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
@@ -269,8 +313,14 @@ class LimitCycle:
     samples_per_period: int = rule(Integer(ge=16, le=100_000), 512)
 
     def __post_init__(self):
-        if self.exact and find_plant(self.plant).loop is None:
-            raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop")
+        spec = section_plant(self)
+        if self.exact and spec.loop is None and getattr(spec, "kind", None) != "model-exchange":
+            raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop"
+                             + (" (a user's FMU needs model exchange)" if is_fmu_path(self.plant) else ""))
+        if getattr(spec, "foreign", False) and self.verify:
+            raise InputError("verify runs dfwb's own closed-loop FMUs: not for a user's FMU (use exact = true)")
+        if getattr(spec, "foreign", False) and (self.F_range is None or self.omega_range is None):
+            raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
         for key in ("F_range", "omega_range"):
             if getattr(self, key) is not None:
                 lo, hi = getattr(self, key)
@@ -387,6 +437,7 @@ class Engine:
     drive: str = rule(OneOf("internal", "input"), "internal")
     samples_per_period: int = rule(Integer(ge=4, le=100_000), 64)
     max_periods: int = rule(Integer(ge=25, le=100_000), 150)
+    rtol: Optional[float] = rule(Number(ge=1e-13, le=1e-2), None)  # a user's FMU's tolerance (None: its kind's)
 
 
 @dataclass(frozen=True)
@@ -439,15 +490,40 @@ class Scene:
         if size > MAX_POINTS:
             raise InputError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
                              "(split it)")
+        self._one_fmu_plant_each()
+        if self.engine.rtol is not None and not any(is_fmu_path(section.plant)
+                                                     for section in itertools.chain(self.series, self.limit_cycle)):
+            raise Invalid("rtol is the tolerance of a user's FMU: this scene names none (dfwb's own plants are "
+                          "computed exactly)", ["engine"])
         for i, series in enumerate(self.series):  # at most MAX_POINTS parameter sets in all: bounded work
             for combo in series.combos():
                 try:
-                    _check_plant(series.plant, combo)
+                    _check_plant(section_plant(series), combo)
                 except InputError as error:
                     raise Invalid(str(error), ["series", i]) from None
         computed = Computed(self)
         for i, figure in enumerate(self.figure):
             _check_figure(computed, i, figure)
+
+    def _one_fmu_plant_each(self):
+        """A user's FMU named in several sections is named with the same input and output in each (results
+        and the cache know the plant by its file)."""
+        chosen = {}
+        for group, sections in (("series", self.series), ("limit_cycle", self.limit_cycle)):
+            for i, section in enumerate(sections):
+                if is_fmu_path(section.plant):
+                    variables = (section.input, section.output)
+                    if chosen.setdefault(section.plant, variables) != variables:
+                        raise Invalid(f"plant {shown(section.plant)} is named with input, output = {variables} "
+                                      f"here and {chosen[section.plant]} before: one input and output per FMU in "
+                                      "a scene", [group, i])
+
+    def plant(self, name):
+        """The plant a section of this scene names by ``name`` (a user's FMU with its input and output)."""
+        for section in itertools.chain(self.series, self.limit_cycle):
+            if section.plant == name:
+                return section_plant(section)
+        return find_plant(name)
 
     def points(self):
         """Every DF point of every series, F the outer loop (duplicates kept: they cost nothing twice)."""
@@ -507,8 +583,11 @@ def _one_line(message):
     return message if len(message) <= MAX_MESSAGE else f"{message[:200]} ... {message[-90:]}"
 
 
-def parse_scene(text, source="<scene>"):
-    """A validated :class:`Scene` from TOML text; SceneError names ``source``, the key and what is allowed."""
+def parse_scene(text, source="<scene>", folder=None):
+    """A validated :class:`Scene` from TOML text; SceneError names ``source``, the key and what is allowed.
+
+    ``folder``: where a relative FMU path (``plant = "drive.fmu"``) starts from (the scene file's folder;
+    default the current one)."""
     try:
         data = tomllib.loads(text)
     except RecursionError:
@@ -517,10 +596,21 @@ def parse_scene(text, source="<scene>"):
         raise SceneError(_one_line(f"{source}: not valid TOML: {error}")) from None
     except ValueError:  # an integer beyond Python's digit limit for text (4300 digits)
         raise SceneError(f"{source}: not valid TOML for dfwb: an integer of more than 4300 digits") from None
+    _anchor_fmus(data, Path(folder) if folder is not None else None)
     try:
         return record(Scene, data)
     except Invalid as error:
         raise SceneError(_one_line(f"{source}: {error.where + ': ' if error.where else ''}{error}")) from None
+
+
+def _anchor_fmus(data, folder):
+    """Make each FMU path of the sections that take one start from ``folder`` (the checks come later)."""
+    for group in ("series", "limit_cycle"):
+        sections = data.get(group)
+        for section in sections if isinstance(sections, list) else ():
+            plant = section.get("plant") if isinstance(section, dict) else None
+            if folder is not None and isinstance(plant, str) and is_fmu_path(plant) and not Path(plant).is_absolute():
+                section["plant"] = str(folder / plant)
 
 
 def shipped_scenes(prefix):
@@ -541,5 +631,5 @@ def load_scene(path):
     if text.startswith("\ufeff"):
         raise SceneError(f"{path}: starts with a byte-order mark (BOM), which TOML does not allow: save it as UTF-8 "
                          "without BOM")
-    return parse_scene(text, str(path))
+    return parse_scene(text, str(path), path.parent)
 

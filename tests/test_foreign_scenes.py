@@ -1,0 +1,167 @@
+"""A user's FMU as the plant of a scene: [[series]] and [[limit_cycle]] with ``plant = "path.fmu"``.
+
+The FMUs are the small C model-exchange FMUs of :mod:`foreign_models`, with closed forms. A relative
+FMU path starts from the scene file's folder; points are cached and resumed as dfwb's own plants' are,
+keyed by the FMU's content; a point the FMU fails costs that point, reported, and is tried again by the
+next run; what a scene cannot take yet from a user's FMU is refused in one line.
+"""
+
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dfwb
+from dfwb.studies.runner import run_scene
+from dfwb.studies.scene import SceneError, load_scene
+
+sys.path.insert(0, str(Path(__file__).parent))
+import foreign_models  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """A scene folder holding the FMUs (scenes name them by relative paths)."""
+    here = tmp_path_factory.mktemp("scene_fmus")
+    for name in ("MassSpringDamper", "Saturation", "Crash"):
+        foreign_models.build(name, here)
+    return here
+
+
+SERIES = """
+title = "a user's FMU"
+[engine]
+rtol = 1e-9
+[[series]]
+name = "msd"
+plant = "MassSpringDamper.fmu"
+F = [1.0, 2.0]
+omega = [0.5, 2.0, 3.0]
+grid = {c = [0.2, 0.5]}
+[[figure]]
+name = "nyquist"
+kind = "nyquist"
+series = ["msd"]
+"""
+
+
+def write(folder, text, name="scene.toml"):
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+def test_a_series_of_an_fmu_meets_its_closed_form_and_is_cached_and_up_to_date(folder, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the FMU's path starts from the scene's folder, not from here
+    scene = write(folder, SERIES)
+    cache = tmp_path / "cache"
+    outcome = run_scene(scene, tmp_path / "out", jobs=2, cache=cache, progress=False)
+    assert outcome.points == 12 and outcome.computed == 12 and not outcome.failed
+    records = __import__("json").loads((tmp_path / "out" / "results.json").read_text())["series"]["msd"]
+    assert len(records) == 12
+    for r in records:
+        truth = foreign_models.msd_df(r["omega"], c=r["params"]["c"])
+        error = abs(complex(r["N_re"], r["N_im"]) - truth)
+        assert error <= r["N_error"] <= 1e-7 * abs(truth), r
+    assert (tmp_path / "out" / "nyquist.png").stat().st_size > 10_000
+    assert run_scene(scene, tmp_path / "out", jobs=2, cache=cache, progress=False).up_to_date
+    again = run_scene(scene, tmp_path / "again", jobs=2, cache=cache, progress=False)
+    assert again.computed == 0 and again.cache_hits == 12  # keyed by the FMU's content and the driver's settings
+    write(folder, SERIES.replace("rtol = 1e-9", "rtol = 1e-8"))  # another tolerance: other points
+    assert run_scene(scene, tmp_path / "third", jobs=2, cache=cache, progress=False).computed == 12
+
+
+def test_a_limit_cycle_section_of_an_fmu_gives_the_prediction_and_the_true_cycle(folder, tmp_path):
+    scene = write(folder, """
+title = "a saturating loop"
+[[limit_cycle]]
+name = "loop"
+plant = "Saturation.fmu"
+input = "u"
+output = "y"
+G = "10/(s*(s+1)**2)"
+F_range = [0.5, 50]
+omega_range = [0.3, 3]
+n_F = 5
+n_omega = 6
+exact = true
+[[figure]]
+name = "cycles"
+kind = "limit_cycle"
+series = ["loop"]
+""", "loop.toml")
+    outcome = run_scene(scene, tmp_path / "out", jobs=2, cache=False, progress=False)
+    assert (tmp_path / "out" / "cycles_loop.png").stat().st_size > 10_000  # <figure>_<section>.png
+    direct = dfwb.limit_cycles(dfwb.fmu_plant(folder / "Saturation.fmu"), "10/(s*(s+1)**2)", F_range=(0.5, 50),
+                               omega_range=(0.3, 3), n_F=5, n_omega=6, exact=True)
+    summary = (tmp_path / "out" / "summary.md").read_text()
+    [prediction] = direct.predictions
+    assert prediction.omega == pytest.approx(1.0, rel=1e-7)  # the textbook answer (see test_foreign)
+    assert f"{prediction.F:.5g}" in summary and outcome.points == 0
+    [cycle] = direct.cycles
+    assert np.max(np.abs(cycle.trace["y"])) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_a_point_the_fmu_fails_costs_that_point_and_is_tried_again(folder, tmp_path):
+    scene = write(folder, """
+title = "a crashing FMU"
+[[series]]
+name = "crash"
+plant = "Crash.fmu"
+F = [1.0, 9.0]
+omega = [1.0]
+""", "crash.toml")
+    with pytest.warns(RuntimeWarning, match="Crash"):
+        outcome = run_scene(scene, tmp_path / "out", jobs=1, cache=False, progress=False)
+    assert outcome.computed == 1 and len(outcome.failed) == 1 and "F = 9" in outcome.failed[0]
+    records = __import__("json").loads((tmp_path / "out" / "results.json").read_text())["series"]["crash"]
+    assert [r["F"] for r in records] == [1.0]
+    assert not (tmp_path / "out" / "manifest.json").exists()  # not up to date: the next run tries F = 9 again
+    with pytest.warns(RuntimeWarning, match="Crash"):
+        again = run_scene(scene, tmp_path / "out", jobs=1, cache=False, progress=False)
+    assert again.resumed == 1 and again.computed == 0 and len(again.failed) == 1
+
+
+@pytest.mark.parametrize("text, message", [
+    ('[[trace]]\nname = "t"\nplant = "MassSpringDamper.fmu"\nF = 1\nomega = 1\nstop = 1\nstep = 0.1\n'
+     'outputs = ["y"]', "trace[0].plant: a user's FMU ('MassSpringDamper.fmu') is a plant of [[series]] and "
+     "[[limit_cycle]] (not yet of this section): here give one of 'friction'"),
+    ('[[series]]\nname = "s"\nplant = "friction"\ninput = "f"\nF = [1]\nomega = [1]',
+     "series[0]: input and output name the variables of a plant given as an FMU: plant 'friction' is dfwb's own"),
+    ('[[series]]\nname = "s"\nplant = "Missing.fmu"\nF = [1]\nomega = [1]',
+     "Missing.fmu': cannot read the FMU (No such file or directory)"),
+    ('[[series]]\nname = "s"\nplant = "MassSpringDamper.fmu"\noutput = "nope"\nF = [1]\nomega = [1]',
+     "MassSpringDamper.fmu: no output 'nope' (its Real outputs: y)"),
+    ('[[series]]\nname = "s"\nplant = "MassSpringDamper.fmu"\nparams = {k = "x"}\nF = [1]\nomega = [1]',
+     "series[0].params.k: Input should be a valid number"),
+    ('[[series]]\nname = "s"\nplant = "MassSpringDamper.fmu"\nparams = {q = 1}\nF = [1]\nomega = [1]',
+     "no parameter 'q' (its parameters: M, c, k)"),
+    ('[[series]]\nname = "s"\nplant = "Saturation.fmu"\noutput = "y"\nF = [1]\nomega = [1]\n'
+     '[[series]]\nname = "t"\nplant = "Saturation.fmu"\nF = [1]\nomega = [1]',
+     "here and (None, 'y') before: one input and output per FMU in a scene"),
+    ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"', "give F_range and omega_range"),
+    ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"\nF_range = [1, 2]\nomega_range = [1, 2]\n'
+     'verify = true', "verify runs dfwb's own closed-loop FMUs"),
+    ('[engine]\nrtol = 1e-6\n[[series]]\nname = "s"\nplant = "friction"\nF = [1]\nomega = [1]',
+     "engine: rtol is the tolerance of a user's FMU: this scene names none"),
+    ('[engine]\nrtol = 1\n[[series]]\nname = "s"\nplant = "friction"\nF = [1]\nomega = [1]', "engine.rtol: Input should be less than or equal to 0.01 (got 1)"),
+])
+def test_a_scene_refuses_what_it_cannot_do_with_an_fmu_in_one_line(folder, text, message):
+    path = write(folder, 'title = "bad"\n' + text, "bad.toml")
+    with pytest.raises(SceneError) as error:
+        load_scene(path)
+    assert message in str(error.value) and "\n" not in str(error.value) and str(path) in str(error.value)
+
+
+def test_an_fmu_path_outside_the_scene_folder_is_taken_as_written(folder, tmp_path):
+    """An absolute path is used as it is; a scene copied elsewhere keeps naming its own folder's FMUs."""
+    copy = tmp_path / "elsewhere"
+    copy.mkdir()
+    shutil.copy(folder / "MassSpringDamper.fmu", copy / "MassSpringDamper.fmu")
+    text = 'title = "t"\n[[series]]\nname = "s"\nplant = "{}"\nF = [1]\nomega = [1]\n'
+    scene = load_scene(write(tmp_path, text.format(copy / "MassSpringDamper.fmu")))
+    assert scene.series[0].plant == str(copy / "MassSpringDamper.fmu")
+    scene = load_scene(write(copy, text.format("MassSpringDamper.fmu")))
+    assert scene.plant(scene.series[0].plant).info.digest == dfwb.fmu_plant(folder / "MassSpringDamper.fmu").info.digest
