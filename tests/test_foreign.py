@@ -22,6 +22,7 @@ import dfwb
 from dfwb.base.errors import PlantError
 from dfwb.engine.describing import from_row, to_row
 from dfwb.fmi.location import fmu_path
+from dfwb.foreign.engine import FMUEngine
 
 sys.path.insert(0, str(Path(__file__).parent))
 import foreign_models  # noqa: E402
@@ -266,14 +267,42 @@ def test_cli_limit_cycle_of_an_fmu(built):
 
 
 def test_what_is_not_there_for_an_fmu_is_said_plainly(built):
-    """The true cycles need model exchange; the co-simulation judge (verify) runs dfwb's own loop FMUs."""
-    native = fmu_path(dfwb.plant("friction")).parent / "native" / "FrictionMass.fmu"
-    cosimulation = dfwb.fmu_plant(native if native.is_file() else fmu_path(dfwb.plant("friction")), input="f",
-                                  output="x")
-    with pytest.raises(dfwb.DfwbError, match="the true cycles need model exchange"):
-        dfwb.limit_cycles(cosimulation, "1/s", F_range=(1, 10), omega_range=(1, 10), exact=True)
+    """The co-simulation judge (verify) runs dfwb's own loop FMUs."""
     with pytest.raises(dfwb.DfwbError, match="verify runs dfwb's own closed-loop FMUs: not yet for your own FMU"):
         dfwb.limit_cycles(dfwb.fmu_plant(built["Relay"]), "1/s", F_range=(1, 10), omega_range=(1, 10), verify=True)
+
+
+def test_a_cosimulated_loop_finds_the_true_cycle_within_its_estimated_error(built):
+    """The saturating loop below, its FMU run as co-simulation: the master holds the output over each step
+    and solves G exactly, refines the step and extrapolates. The cycle agrees with the model-exchange
+    one (shot, exact to 1e-9) within 1e-4 and within its own error estimates; it is stable (reached)."""
+    G = "10/(s*(s+1)**2)"
+    ranges = dict(F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5, n_omega=6, exact=True, amplitudes=[1.0])
+    [exact] = dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"]), G, **ranges).cycles
+    response = dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"], kind="co-simulation"), G, **ranges)
+    [cycle] = response.cycles
+    assert cycle.stable and cycle.multipliers == [] and not exact.errors
+    for name in ("period", "amplitude_x", "F"):
+        truth, value, error = getattr(exact, name), getattr(cycle, name), cycle.errors[name]
+        assert abs(value - truth) <= min(error, 1e-4 * truth), (name, value, truth, error)
+    assert cycle.errors["steps_per_period"] >= 1024
+    assert "unstable ones are out of reach" in response.coverage.starts_text
+
+
+def test_dfwbs_backlash_fmu_as_a_black_box_cosimulation_has_the_exact_true_cycle():
+    """The two-mass backlash under a lead controller (the API's example): its native FMU run as a foreign
+    co-simulation FMU (input f, output x1), the loop co-simulated by dfwb, against the exact engine's
+    true cycle of the same loop (shot on the exact closed-loop FMU): within 1e-5 and its error estimates."""
+    G = "200*(s+2)/(s+20)"
+    [exact] = dfwb.limit_cycles("backlash", G, F_range=(0.01, 100), omega_range=(0.1, 60), exact=True).cycles
+    native = fmu_path(dfwb.plant("backlash"), kind="native")
+    engine = FMUEngine(dfwb.fmu_plant(native, input="f", output="x1"))
+    found, outcomes = engine.true_cycles([200.0, 400.0], [1.0, 20.0], {}, [exact.F, -exact.F], exact.omega)
+    assert outcomes == ["cycle", "cycle"]
+    [cycle] = found  # both starts reach it: one cycle
+    for name in ("period", "amplitude_x", "F"):
+        truth, value, error = getattr(exact, name), cycle[name], cycle["errors"][name]
+        assert abs(value - truth) <= min(error, 1e-5 * truth), (name, value, truth, error)
 
 
 def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built):
@@ -394,7 +423,7 @@ def test_a_cosimulation_fmu_that_interpolates_inputs_gets_the_sine_as_lines(tmp_
 
 
 def test_the_engine_options_are_checked(built):
-    from dfwb.foreign.engine import FMUEngine
+
 
     plant = dfwb.fmu_plant(built["Relay"])
     assert FMUEngine(plant, jobs=1).jobs == 1 and FMUEngine(plant).jobs == (os.cpu_count() or 1)

@@ -221,7 +221,10 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     exact : bool, keyword-only
         Also find the true cycles of the exact closed loop (a systematic search of
         starts and section hits, Floquet stability; :mod:`dfwb.engine.cycles`), link
-        each prediction to its true cycle and say what the search covered.
+        each prediction to its true cycle and say what the search covered. For your own
+        FMU: model exchange is integrated and shot (Floquet stability); co-simulation is
+        co-simulated with G solved exactly, refined and extrapolated, each cycle with its
+        estimated ``errors`` (stable cycles only).
     verify : bool, keyword-only
         Also judge each prediction by closed-loop co-simulation of the FMUs.
     samples_per_period : int, keyword-only

@@ -112,6 +112,10 @@ class TrueCycle:
     df : str
         Why no describing function can represent it ("" when one can): its first-harmonic
         force lies where a sine leaves the plant still (N = 0).
+    errors : dict
+        Where the cycle comes from a co-simulated loop refined and extrapolated (a user's co-simulation
+        FMU): the estimated absolute errors of ``period``, ``amplitude_x`` and ``F``, and the finest
+        ``steps_per_period``; empty for an exact cycle.
     trace : dict
         One period sampled at the quadrature nodes: ``t``, ``y``, ``f`` and the ``events``.
     """
@@ -135,6 +139,7 @@ class TrueCycle:
     prediction: object = None
     started_from: list = field(default_factory=list)
     df: str = ""
+    errors: dict = field(default_factory=dict)  # estimated errors where the cycle is extrapolated (co-simulation)
     trace: dict = field(default=None, repr=False)  # one period: times, outputs, forces, events (plots)
 
     def as_dict(self):

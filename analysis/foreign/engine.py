@@ -95,7 +95,7 @@ class FMUEngine:
         request = {"task": "cycles", "info": self.plant.info, "kind": self.plant.kind, "input": self.plant.input,
                    "output": self.plant.output, "params": self.plant.check(params or {}), "num": list(num),
                    "den": list(den), "starts": [float(F) for F in starts], "omega_ref": float(omega_ref),
-                   "rtol": min(self.rtol, 1e-9)}
+                   "rtol": min(self.rtol, 1e-9) if self.plant.kind == "model-exchange" else self.rtol}
         with borrowed() as worker:
             answer = worker.call(request, f"{self.plant.name}: the closed loop's cycles",
                                  timeout=self.timeout * max(len(starts), 1))

@@ -1,4 +1,7 @@
-"""The true limit cycles of a user's model-exchange FMU under G(s): the closed loop integrated and shot.
+"""The true limit cycles of a user's FMU under G(s): for model exchange, the closed loop integrated and shot.
+
+(A co-simulation FMU's loop is co-simulated instead: :mod:`dfwb.foreign.held_loop`; the starts and
+what counts as one cycle are shared.)
 
 The loop is the FMU's continuous states with the controller's, ``force =
 -G(s) output``, integrated as one :class:`~dfwb.foreign.flow.Flow` (the
@@ -19,6 +22,7 @@ import math
 import numpy as np
 
 from dfwb.fmi.simulation import FMUError
+from dfwb.foreign import held_loop
 from dfwb.foreign.flow import Flow
 
 __all__ = ["cycles", "realization"]
@@ -93,26 +97,30 @@ def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9):
     A, B, C, D = realization(num, den)
     if len(B) == 0:
         raise FMUError("the true cycles need a controller with a state (a dynamic G): G is a pure gain here")
-    can_save = instance.info.can_save_state.get("model-exchange", False)
-    if not can_save:
+    cosimulation = instance.kind == "co-simulation"
+    if not cosimulation and not instance.info.can_save_state.get("model-exchange", False):
         raise FMUError(f"{instance.info.path}: cannot save and restore its state (canGetAndSetFMUstate): the "
                        "cycles cannot be shot from it")
     T_ref = 2 * math.pi / omega_ref
     found, outcomes = [], []
     for F0 in starts:
         instance.start(params, F0)
-        loop = _Loop(instance, A, B, C, D)
         w0 = -F0 * C / float(C @ C) if float(C @ C) > 0 else np.zeros(len(B))
-        z = np.concatenate((instance.states(), w0))
         try:
-            outcome, cycle = _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D)
+            if cosimulation:
+                outcome, cycle = held_loop.settle_and_refine(instance, A, B, C, D, w0, T_ref, rtol, SETTLE)
+            else:
+                loop = _Loop(instance, A, B, C, D)
+                z = np.concatenate((instance.states(), w0))
+                outcome, cycle = _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D)
         except (FMUError, FloatingPointError) as error:
             outcome, cycle = f"failed: {error}", None
         outcomes.append(outcome)
         if cycle is None:
             continue
-        same = [c for c in found if abs(c["period"] - cycle["period"]) <= 1e-5 * cycle["period"]
-                and abs(c["amplitude_x"] - cycle["amplitude_x"]) <= 1e-5 * cycle["amplitude_x"]]
+        errors = cycle.get("errors", {})  # a co-simulated cycle is known to its estimated errors
+        same = [c for c in found if all(abs(c[name] - cycle[name]) <= max(1e-5 * cycle[name], errors.get(name, 0.0))
+                                        for name in ("period", "amplitude_x"))]
         if same:
             same[0]["started_from"].append(f"F0={F0:g}")
         else:

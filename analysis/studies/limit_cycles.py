@@ -46,9 +46,6 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_
     if exact and problem is None and not foreign:
         raise InputError(f"plant {spec.name!r} has no exact closed loop: exact is available for "
                          "friction, backlash and static-backlash, and for your own model-exchange FMU")
-    if exact and foreign and spec.kind != "model-exchange":
-        raise InputError(f"{spec.name}: the true cycles need model exchange (dfwb integrates the closed loop); "
-                         "this FMU runs as co-simulation (not yet for co-simulation)")
     if verify and foreign:
         raise InputError("verify runs dfwb's own closed-loop FMUs: not yet for your own FMU")
     F, omega = search_ranges(problem, F_range, omega_range)
@@ -154,7 +151,7 @@ def _trace(trace):
 
 
 def _exact_fmu(engine, G, params, predictions, amplitudes, F_range, omega_range):
-    """The true cycles of a user's model-exchange FMU under G (:mod:`dfwb.foreign.loop`), with coverage.
+    """The true cycles of a user's FMU under G (:mod:`dfwb.foreign.loop`), with coverage.
 
     Starts: the first force +-F0 for F0 the predictions' forces and three across the F range (or the
     ``amplitudes`` given, read as forces); the time scale: the predictions' median frequency, else the
@@ -188,6 +185,10 @@ def _exact_fmu(engine, G, params, predictions, amplitudes, F_range, omega_range)
 
     text = (f"first forces +-{forces[0]:.3g} to {forces[-1]:.3g} N ({len(forces)} values) from the plant's "
             f"start values, each run {SETTLE} periods of {2 * math.pi / omega_ref:.4g} s before its swing is read")
+    if engine.plant.kind == "co-simulation":
+        text += ("; the loop co-simulated (the output held over each step, the controller exact) and refined "
+                 "from 32 steps per period, extrapolated: stable cycles only (unstable ones are out of reach of "
+                 "a stepped FMU)")
     coverage = search.Coverage(amplitudes=[forces[0], forces[-1]], count=len(forces), parts=["force"],
                                starts=len(starts), predictions=len(predictions), outcomes=counts,
                                horizon=20 * 2 * math.pi / omega_ref, max_returns=MAX_RETURNS,

@@ -11,6 +11,7 @@ with units on the axes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -242,15 +243,21 @@ class LimitCycleResponse:
                          .format(j, **relative_errors(c, self.cycles[j])))
             lines.append(line)
         if self.exact:
-            lines.append(f"{len(self.cycles)} true cycle(s) of the exact closed loop (shooting, Floquet multipliers); "
+            how = ("co-simulated, refined and extrapolated" if any(c.errors for c in self.cycles) else
+                   "shooting, Floquet multipliers")
+            lines.append(f"{len(self.cycles)} true cycle(s) of the exact closed loop ({how}); "
                          + self.coverage.summary(u))
             for j, c in enumerate(self.cycles):
                 which = "not predicted by the DF" if c.prediction is None else f"prediction [{c.prediction}]"
                 per_period = ", ".join(f"{value} {name}" for name, value in c.counts.items())
+                how = (f"(|multipliers| {', '.join(f'{m:.3g}' for m in c.multipliers)}), {per_period} per "
+                       f"period, residual {c.residual:.1e}" if not c.errors else
+                       f"(reached by the co-simulated loop; estimated errors: period {c.errors['period']:.2g} s, "
+                       f"amplitude {c.errors['amplitude_x']:.2g} {u}, F {c.errors['F']:.2g} N, at "
+                       f"{c.errors['steps_per_period']} steps per period)")
                 lines.append(f"  [{j}] omega = {c.omega:.10g} rad/s, period {c.period:.10g} s, amplitude "
                              f"{c.amplitude_x:.10g} {u}, F = {c.F:.10g} N, {'stable' if c.stable else 'unstable'} "
-                             f"(|multipliers| {', '.join(f'{m:.3g}' for m in c.multipliers)}), {per_period} per "
-                             f"period, residual {c.residual:.1e}; {which}" + (f"\n      {c.df}" if c.df else ""))
+                             f"{how}; {which}" + (f"\n      {c.df}" if c.df else ""))
         return "\n".join(lines)
 
     def __str__(self):
@@ -289,7 +296,7 @@ class LimitCycleResponse:
                     errors += (f"{j['omega']:+.2%} | {j['amplitude_x']:+.2%} |" if j else "- | - |")
                 counts = ", ".join(f"{v} {k}" for k, v in c.counts.items())
                 lines.append(f"| {c.omega:.8g} | {c.amplitude_x:.6g} | {c.F:.6g} | {c.stable} | "
-                             f"{max(c.multipliers):.3g} | {counts} | {errors}")
+                             f"{max(c.multipliers, default=math.nan):.3g} | {counts} | {errors}")
             missed = [i for i, j in enumerate(self.links) if j is None]
             if missed:
                 lines.append(f"\nPrediction(s) {missed}: no true cycle near them (false alarms).")
