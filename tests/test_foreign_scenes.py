@@ -129,7 +129,7 @@ omega = [1.0]
      'outputs = ["y"]', "trace[0].plant: a user's FMU ('MassSpringDamper.fmu') is a plant of [[series]] and "
      "[[limit_cycle]] (not yet of this section): here give one of 'friction'"),
     ('[[series]]\nname = "s"\nplant = "friction"\ninput = "f"\nF = [1]\nomega = [1]',
-     "series[0]: input and output name the variables of a plant given as an FMU: plant 'friction' is dfwb's own"),
+     "series[0]: input, output and kind are for a plant given as an FMU: plant 'friction' is dfwb's own"),
     ('[[series]]\nname = "s"\nplant = "Missing.fmu"\nF = [1]\nomega = [1]',
      "Missing.fmu': cannot read the FMU (No such file or directory)"),
     ('[[series]]\nname = "s"\nplant = "MassSpringDamper.fmu"\noutput = "nope"\nF = [1]\nomega = [1]',
@@ -140,7 +140,7 @@ omega = [1.0]
      "no parameter 'q' (its parameters: M, c, k)"),
     ('[[series]]\nname = "s"\nplant = "Saturation.fmu"\noutput = "y"\nF = [1]\nomega = [1]\n'
      '[[series]]\nname = "t"\nplant = "Saturation.fmu"\nF = [1]\nomega = [1]',
-     "here and (None, 'y') before: one input and output per FMU in a scene"),
+     "here and (None, 'y', None) before: one input, output and kind per FMU in a scene"),
     ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"', "give F_range and omega_range"),
     ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"\nF_range = [1, 2]\nomega_range = [1, 2]\n'
      'verify = true', "verify runs dfwb's own closed-loop FMUs"),
@@ -165,3 +165,11 @@ def test_an_fmu_path_outside_the_scene_folder_is_taken_as_written(folder, tmp_pa
     assert scene.series[0].plant == str(copy / "MassSpringDamper.fmu")
     scene = load_scene(write(copy, text.format("MassSpringDamper.fmu")))
     assert scene.plant(scene.series[0].plant).info.digest == dfwb.fmu_plant(folder / "MassSpringDamper.fmu").info.digest
+
+
+def test_a_scene_chooses_how_an_fmu_runs(folder):
+    text = 'title = "t"\n[[series]]\nname = "s"\nplant = "Saturation.fmu"\n{}F = [3]\nomega = [1]\n'
+    default = load_scene(write(folder, text.format(""), "kind.toml"))
+    assert default.plant(default.series[0].plant).kind == "model-exchange"  # the best it offers
+    chosen = load_scene(write(folder, text.format('kind = "co-simulation"\n'), "kind.toml"))
+    assert chosen.plant(chosen.series[0].plant).kind == "co-simulation"

@@ -41,7 +41,7 @@ def test_points_expand_F_outer_grid_then_omega_and_merge_log_and_values():
 
 
 @pytest.mark.parametrize("change, message", [
-    (("omega = [20.0]", "omega = [20.0]\nomgea = 3"), "series[0]: unknown key 'omgea' (allowed: name, plant, input, output, params"),
+    (("omega = [20.0]", "omega = [20.0]\nomgea = 3"), "series[0]: unknown key 'omgea' (allowed: name, plant, input, output, kind, params"),
     (("title = \"t\"", "title = \"t\"\nresults = 1"), "unknown key 'results' (allowed: title, description"),
     (("F = [50.0]", "F = \"50\""), "series[0].F: Input should be a valid list (got '50')"),
     (("F = [50.0]", "F = [\"50\"]"), "series[0].F[0]: Input should be a valid number (got '50')"),
@@ -149,7 +149,7 @@ def test_dfwb_run_reports_a_bad_scene_in_one_line_and_exit_code_2(tmp_path, caps
 
 def test_the_readme_scene_is_valid():
     readme = (ROOT / "README.md").read_text()
-    block = readme.split("```toml\n", 1)[1].split("```", 1)[0]
+    block = readme.split("## Scenes", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]  # the scenes section's
     scene = parse_scene(block, "README.md")
     assert [s.name for s in scene.series] == ["backlash"] and scene.limit_cycle[0].verify
     assert len(scene.points()) == 2 * 2 * 43 and not scene.needs_harmonics

@@ -91,8 +91,8 @@ def section_plant(section):
     """The plant a [[series]] or [[limit_cycle]] names: a registry entry, or the user's FMU with the section's
     ``input`` and ``output`` (checked: :func:`dfwb.foreign.plant.fmu_plant`)."""
     if not is_fmu_path(section.plant):
-        if section.input is not None or section.output is not None:
-            raise InputError(f"input and output name the variables of a plant given as an FMU: plant "
+        if (section.input, section.output, section.kind) != (None, None, None):
+            raise InputError(f"input, output and kind are for a plant given as an FMU: plant "
                              f"{section.plant!r} is dfwb's own")
         return find_plant(section.plant)
     path = Path(section.plant)
@@ -100,16 +100,16 @@ def section_plant(section):
         stat = path.stat()
     except OSError as error:
         raise InputError(f"plant = {shown(section.plant)}: cannot read the FMU ({error.strerror})") from None
-    return _fmu_plant(str(path), stat.st_mtime_ns, stat.st_size, section.input, section.output)
+    return _fmu_plant(str(path), stat.st_mtime_ns, stat.st_size, section.input, section.output, section.kind)
 
 
 @functools.lru_cache(maxsize=32)
-def _fmu_plant(path, mtime, size, input, output):
-    """The checked FMU plant, once per file version (its name, time and size) and variables."""
+def _fmu_plant(path, mtime, size, input, output, kind):
+    """The checked FMU plant, once per file version (its name, time and size), variables and kind."""
     from dfwb.foreign.plant import fmu_plant
 
     try:
-        return fmu_plant(path, input=input, output=output)
+        return fmu_plant(path, input=input, output=output, kind=kind)
     except PlantError as error:
         raise InputError(str(error)) from None
 
@@ -213,6 +213,7 @@ class Series:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
+    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
     params: dict = rule(Params, {})
     grid: dict = rule(TableOf(ListOf(Finite, min_length=1)), {})
     F: list = rule(ListOf(Force, min_length=1))
@@ -300,6 +301,7 @@ class LimitCycle:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
+    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
     params: dict = rule(Params, {})  # the plant's parameters and G's
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
@@ -314,9 +316,8 @@ class LimitCycle:
 
     def __post_init__(self):
         spec = section_plant(self)
-        if self.exact and spec.loop is None and getattr(spec, "kind", None) != "model-exchange":
-            raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop"
-                             + (" (a user's FMU needs model exchange)" if is_fmu_path(self.plant) else ""))
+        if self.exact and spec.loop is None and not getattr(spec, "foreign", False):
+            raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop")
         if getattr(spec, "foreign", False) and self.verify:
             raise InputError("verify runs dfwb's own closed-loop FMUs: not for a user's FMU (use exact = true)")
         if getattr(spec, "foreign", False) and (self.F_range is None or self.omega_range is None):
@@ -506,17 +507,17 @@ class Scene:
             _check_figure(computed, i, figure)
 
     def _one_fmu_plant_each(self):
-        """A user's FMU named in several sections is named with the same input and output in each (results
-        and the cache know the plant by its file)."""
+        """A user's FMU named in several sections is named with the same input, output and kind in each
+        (results and the cache know the plant by its file)."""
         chosen = {}
         for group, sections in (("series", self.series), ("limit_cycle", self.limit_cycle)):
             for i, section in enumerate(sections):
                 if is_fmu_path(section.plant):
-                    variables = (section.input, section.output)
+                    variables = (section.input, section.output, section.kind)
                     if chosen.setdefault(section.plant, variables) != variables:
-                        raise Invalid(f"plant {shown(section.plant)} is named with input, output = {variables} "
-                                      f"here and {chosen[section.plant]} before: one input and output per FMU in "
-                                      "a scene", [group, i])
+                        raise Invalid(f"plant {shown(section.plant)} is named with input, output, kind = "
+                                      f"{variables} here and {chosen[section.plant]} before: one input, output and "
+                                      "kind per FMU in a scene", [group, i])
 
     def plant(self, name):
         """The plant a section of this scene names by ``name`` (a user's FMU with its input and output)."""
