@@ -22,7 +22,7 @@ SCRIPTS = sorted(EXAMPLES.glob("*.py"))
 
 
 def test_the_examples_exist():
-    assert {p.name for p in SCRIPTS} >= {"df_sweep.py", "limit_cycle_study.py"}
+    assert {p.name for p in SCRIPTS} >= {"df_sweep.py", "limit_cycle_study.py", "drive_train.py"}
     assert (EXAMPLES / "df_sweep.ipynb").exists()
     assert (EXAMPLES / "hunting.ipynb").exists()
 
