@@ -31,6 +31,8 @@ from dfwb.engine.transfer import check_transfer_function
 from dfwb.fmus.piecewise import PlantError
 
 NEWTON_TOL = 1e-10  # on the steps in ln F and ln w
+NOISE_MAX = 1e-4  # |R| (1 + G N, of order 1) below which an engine's error estimate may end Newton
+ROUGH_TOL = 1e-4  # ... of the first Newton on an engine's looser twin: the precise one then needs a step or two
 DIFF_STEP = 1e-6  # relative step of the finite-difference Jacobian
 
 
@@ -70,9 +72,20 @@ def check_range(name, values, limits):
 class _Balance:
     """R(ln F, ln w) = 1 + G(jw) N(F, w) through the plant's exact DF."""
 
-    def __init__(self, engine, G, params):
-        self.engine, self.G, self.params = engine, G, params
+    def __init__(self, engine, G, params, tol=NEWTON_TOL):
+        self.engine, self.G, self.params, self.tol = engine, G, params, tol
         self.evaluations = 0
+        rtol = getattr(engine, "rtol", None)  # an engine with an accuracy (a user's FMU's): differences above it
+        self.step = DIFF_STEP if rtol is None else max(DIFF_STEP, math.sqrt(rtol))
+
+    def noise(self, result):
+        """How much of |R| the DF's own error estimate may explain: 0 for the exact engine, and for a point
+        that is not periodic or whose estimate is too large to say that R is near 0 at all."""
+        error = getattr(result, "N_error", None)
+        if error is None or not math.isfinite(error) or not result.periodic:
+            return 0.0
+        noise = 2.0 * abs(complex(self.G(1j * result.omega))) * error
+        return noise if noise < NOISE_MAX else 0.0
 
     def point(self, u, v):
         self.evaluations += 1
@@ -83,23 +96,26 @@ class _Balance:
 
     def jacobian(self, u, v, R):
         """d(Re R, Im R)/d(ln F, ln w) by forward differences (the two points at once on an engine that can)."""
-        pairs = [(math.exp(u + du), math.exp(v + dv)) for du, dv in ((DIFF_STEP, 0.0), (0.0, DIFF_STEP))]
+        pairs = [(math.exp(u + du), math.exp(v + dv)) for du, dv in ((self.step, 0.0), (0.0, self.step))]
         many = getattr(self.engine, "points", None)
         results = many(pairs, self.params) if many is not None else \
             [self.engine.point(F, w, self.params) for F, w in pairs]
         self.evaluations += len(pairs)
         columns = []
         for result in results:
-            d = (self.residual(result) - R) / DIFF_STEP
+            d = (self.residual(result) - R) / self.step
             columns.append((d.real, d.imag))
         return np.array(columns).T
 
     def newton(self, u, v, bounds, max_iterations=40):
-        """Refined (u, v, result, R, J) or None when it leaves the range or does not converge."""
+        """Refined (u, v, result, R, J) or None when it leaves the range or does not converge: steps below
+        ``tol``, or |R| within what the DF's error estimate explains (an engine that is not exact)."""
         result = self.point(u, v)
         R = self.residual(result)
         for _ in range(max_iterations):
             J = self.jacobian(u, v, R)
+            if abs(R) <= self.noise(result):  # as close as the DF's accuracy can tell
+                return u, v, result, R, J
             try:
                 step = np.linalg.solve(J, [-R.real, -R.imag])
             except np.linalg.LinAlgError:
@@ -118,7 +134,7 @@ class _Balance:
                 if scale < 1e-3:
                     return None
             u, v, result, R = nu, nv, trial, trial_R
-            if max(abs(scale * step[0]), abs(scale * step[1])) < NEWTON_TOL:
+            if max(abs(scale * step[0]), abs(scale * step[1])) < self.tol:
                 return u, v, result, R, self.jacobian(u, v, R)
         return None
 
@@ -232,7 +248,7 @@ def balance(engine, G, params, F_grid, omega_grid, N_grid):
     R = 1.0 + np.array([complex(G(1j * w)) for w in omega_grid]) * N_grid
     balance = _Balance(engine, G, params)
     coarse = getattr(engine, "coarse", None)
-    rough = _Balance(coarse(), G, params) if coarse is not None else None
+    rough = _Balance(coarse(), G, params, tol=ROUGH_TOL) if coarse is not None else None
     bounds = (math.log(F_grid[0]), math.log(F_grid[-1]), math.log(omega_grid[0]), math.log(omega_grid[-1]))
     cycles = []
     for i, j in candidates(R):
@@ -241,6 +257,9 @@ def balance(engine, G, params, F_grid, omega_grid, N_grid):
         first = rough.newton(u, v, bounds) if rough is not None else None
         if first is not None:
             u, v = first[0], first[1]
+            if any(abs(u - math.log(c.F)) < ROUGH_TOL * 10 and abs(v - math.log(c.omega)) < ROUGH_TOL * 10
+                   for c in cycles):
+                continue  # another cell's cycle, refined already
         refined = balance.newton(u, v, bounds)
         if refined is None:
             continue
