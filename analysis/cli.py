@@ -325,9 +325,17 @@ def cmd_margin(args):
     from dfwb.studies.progress import Reporter
 
     plot = _plot_path(args.plot) if args.plot else None
+    own = _own_fmu(args)
+    ranges = {"F_range": args.F_range, "omega_range": args.omega_range, "rtol": args.rtol, "timeout": args.timeout}
+    if args.map_size:
+        ranges.update(n_F=args.map_size[0], n_omega=args.map_size[1])
+    if own is None and (args.F_range, args.omega_range, args.map_size) != (None, None, None):
+        raise InputError("--F-range, --omega-range, --map-size: only for a plant given as the path of an FMU "
+                         "(dfwb's own plants derive their ranges)")
     with Reporter(f"limit-cycle margin of {args.plant}", not args.json) as report:
-        response = gain_margin(args.plant, _controller(args), _assignments(args.set, "--set"),
-                               k_range=tuple(args.k_range), count=args.count, fmu_dir=args.fmus, progress=report)
+        response = gain_margin(own or args.plant, _controller(args), _assignments(args.set, "--set"),
+                               k_range=tuple(args.k_range), count=args.count, fmu_dir=args.fmus, progress=report,
+                               **({} if own is None else ranges))
     return _answer(args, response, plot)
 
 
@@ -590,7 +598,14 @@ def parser():
 
     margin = commands.add_parser("margin", help="the gain factors k for which k G hunts, truth and DF: how much "
                                                 "more gain before it hunts")
-    controller_options(margin)
+    controller_options(margin, own=True)
+    margin.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                        help="your FMU only: the force amplitudes of its DF map [N]")
+    margin.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                        help="your FMU only: the frequencies of its DF map [rad/s]")
+    margin.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
+                        metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
+                                                         "(default: 16 48)")
     margin.add_argument("--k-range", action=_Once, type=float, nargs=2, default=(0.01, 100.0), metavar=("LO", "HI"),
                         help="gain factors searched, LO < 1 < HI (default: 0.01 100)")
     margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=25,

@@ -349,6 +349,34 @@ def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built):
     assert np.max(np.abs(trace["y"])) == pytest.approx(1.0, abs=1e-9)  # the saturation's level
 
 
+def test_the_limit_cycle_margin_of_an_fmu_loop(built, monkeypatch):
+    """The saturating loop under k 10/(s (s + 1)^2): its linear part loses stability at k = 0.2 (Routh on
+    s^3 + 2 s^2 + s + 10 k), where the saturation's cycle is born, and the DF says the same (N <= 1, and
+    G(j) = -5). The truth (the FMU's loop searched at each k) and the DF both hunt above k = 0.2, their
+    boundaries bisected (fewer halvings here: a test's time)."""
+    from dfwb.engine import margin
+
+    monkeypatch.setattr(margin, "BISECTIONS", 5)
+    m = dfwb.limit_cycle_margin(dfwb.fmu_plant(built["Saturation"]), "10/(s*(s+1)**2)", k_range=(0.1, 2), count=3,
+                                F_range=(0.2, 50), omega_range=(0.3, 3), n_F=6, n_omega=12)
+    for source in (m.truth, m.df):
+        assert source.hunts_at(1.0) and not source.hunts_at(0.1)
+        [boundary] = source.boundaries
+        assert boundary.starts and abs(boundary.k - 0.2) <= boundary.accuracy, boundary
+    assert m.truth.scan[0][1] == "none" and m.truth.scan[-1][1] == "stable"
+
+
+def test_an_fmu_margin_needs_its_ranges(built):
+    for argv, message in [
+        (["margin", str(built["Saturation"]), "--G", "10/(s*(s+1)**2)"],
+         "give F_range and omega_range: dfwb cannot derive them from a user's FMU"),
+        (["margin", "friction", "--G", "10/s", "--F-range", "1", "2"],
+         "--F-range, --omega-range, --map-size: only for a plant given as the path of an FMU"),
+    ]:
+        result = subprocess.run(DFWB + argv, capture_output=True, text=True, timeout=60)
+        assert result.returncode == 2 and message in result.stderr and result.stderr.count("\n") == 1, result.stderr
+
+
 # -- sweeps --------------------------------------------------------------------------------------------------------------
 def test_a_sweep_of_an_fmu_resumes_and_keeps_a_failed_point_out_of_the_csv(built, tmp_path):
     relay = dfwb.fmu_plant(built["Relay"])

@@ -193,6 +193,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
                  n_F: int = 16, n_omega: int = 48, exact: bool = False, verify: bool = False,
                  samples_per_period: int = 512, amplitudes: Optional[Sequence[float]] = None,
                  fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
+                 rtol: Optional[float] = None, timeout: Optional[float] = None,
                  **params: float) -> LimitCycleResponse:
     """The limit cycles of a plant under negative feedback through a controller G(s).
 
@@ -235,6 +236,8 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
         Where the FMUs are.
     progress : bool, keyword-only
         Show progress while the map and the search run.
+    rtol, timeout : float, optional, keyword-only
+        Your FMU only: as for :func:`describing_function` (the map runs 1000 times looser).
     **params : float
         Plant parameters (``eps=0.2``) and G's parameters (``Kp=10``).
 
@@ -261,15 +264,20 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     >>> hunting.predictions, [(round(c.period, 4), round(c.amplitude_x, 5)) for c in hunting.cycles]
     ([], [(57.2628, 0.23665)])
     """
+    from dfwb.foreign.engine import engine_for
     from dfwb.studies.limit_cycles import analyse
 
     n_F, n_omega = _integer("n_F", n_F), _integer("n_omega", n_omega)
     samples_per_period = _integer("samples_per_period", samples_per_period)
     flags(exact=exact, verify=verify, progress=progress)
-    with _reporter(f"limit cycles of {plant}", progress) as report:
-        return analyse(plant, G, params, F_range=F_range, omega_range=omega_range, n_F=n_F, n_omega=n_omega,
+    spec = resolve_plant(plant)
+    engine = engine_for(spec, rtol=rtol, timeout=timeout) if getattr(spec, "foreign", False) else None
+    if engine is None and (rtol, timeout) != (None, None):
+        raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
+    with _reporter(f"limit cycles of {spec.name}", progress) as report:
+        return analyse(spec, G, params, F_range=F_range, omega_range=omega_range, n_F=n_F, n_omega=n_omega,
                        exact=exact, verify=verify, samples_per_period=samples_per_period, amplitudes=amplitudes,
-                       fmu_dir=fmu_dir, progress=report if progress else None)
+                       fmu_dir=fmu_dir, engine=engine, progress=report if progress else None)
 
 
 def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, *,
@@ -392,9 +400,11 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
                        amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None)
 
 
-def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = K_RANGE, count: int = SCAN, df: bool = True,
+def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: int = SCAN, df: bool = True,
                        fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
-                       **params: float) -> MarginResponse:
+                       F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
+                       n_F: int = 16, n_omega: int = 48, rtol: Optional[float] = None,
+                       timeout: Optional[float] = None, **params: float) -> MarginResponse:
     """The limit-cycle margin of a controller: the gain factors k for which k G makes the machine hunt.
 
     "How much more gain can I use before it hunts?": ``count`` gain factors log-spaced over ``k_range`` are
@@ -403,9 +413,14 @@ def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = K_RANGE, count: i
     bifurcation that ends it (a fold, a nonsmooth fold, a loss of stability, infinity at the linear loop's
     stability boundary), the DF's by bisection (:mod:`dfwb.engine.margin`).
 
+    With your own FMU the truth is its loop's search at each k (:mod:`dfwb.foreign.hunting`), the DF's
+    verdict comes from one map of its DF over ``F_range`` x ``omega_range``, and every boundary is
+    bisected.
+
     Parameters
     ----------
-    plant : str
+    plant : str or FMUPlant
+        A registered plant, or your own FMU (:func:`dfwb.fmu_plant`, or the path of an .fmu).
     G : str, callable, (num, den) or python-control system
         The controller at k = 1; an expression's parameters come with ``params``.
     k_range : (float, float), keyword-only
@@ -416,6 +431,12 @@ def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = K_RANGE, count: i
         Also the DF's margin.
     fmu_dir : path, optional, keyword-only
     progress : bool, keyword-only
+    F_range, omega_range : (float, float), keyword-only
+        Your FMU only (required): the forces [N] and frequencies [rad/s] of its DF map.
+    n_F, n_omega : int, keyword-only
+        Your FMU only: the DF map's size (as for :func:`limit_cycles`).
+    rtol, timeout : float, optional, keyword-only
+        Your FMU only: as for :func:`describing_function`.
     **params : float
         G's and the plant's parameters.
 
@@ -436,8 +457,10 @@ def limit_cycle_margin(plant: str, G: Any, *, k_range: tuple = K_RANGE, count: i
 
     flags(df=df, progress=progress)
     with _reporter(f"limit-cycle margin of {plant}", progress) as report:
-        return gain_margin(plant, G, params, k_range=k_range, count=_integer("count", count), df=df, fmu_dir=fmu_dir,
-                           progress=report if progress else None)
+        return gain_margin(resolve_plant(plant), G, params, k_range=k_range, count=_integer("count", count), df=df,
+                           fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
+                           omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
+                           rtol=rtol, timeout=timeout)
 
 
 def _reporter(title, enabled):

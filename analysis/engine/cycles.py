@@ -115,6 +115,9 @@ class Coverage:
     starts_text : str
         What the starts were, when they are not output amplitudes displacing parts of the state
         (a user's FMU's loop starts from first forces); "" otherwise.
+    stable_only : bool
+        The runs can only settle on cycles, never converge to an unstable one (a user's FMU's search):
+        an unstable prediction without a true cycle near it is then no false alarm.
     """
 
     amplitudes: list
@@ -129,6 +132,7 @@ class Coverage:
     boundaries: int = 0
     complete: bool = True
     starts_text: str = ""
+    stable_only: bool = False
 
     def as_dict(self):
         return asdict(self)

@@ -97,10 +97,7 @@ def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=T
     if truth:
         found = find_cycles(problem, amplitudes=amplitudes or problem.scales.amplitudes(MAP_AMPLITUDES),
                             boundaries="unless-stable")
-        kind, cycles = truth_class(found)
-        cell["truth"] = {"class": kind, "cycles": [_cycle(c) for c in cycles],
-                         "coverage": {"starts": found.coverage.starts, "outcomes": found.coverage.outcomes,
-                                      "complete": found.coverage.complete}}
+        cell["truth"] = truth_cell(found)
     if df:
         if dfmap is None:
             F, omega = search_ranges(problem)
@@ -108,10 +105,23 @@ def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=T
         else:
             predictions = balance(engine, problem.G, problem.params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid)
             predictions = predictions.cycles
-        cell["df"] = {"class": df_class(predictions, stable),
-                      "predictions": [{"F": p.F, "omega": p.omega, "amplitude_x": p.amplitude_x, "stable": p.stable}
-                                      for p in predictions]}
+        cell["df"] = df_cell(predictions, stable)
     return cell
+
+
+def truth_cell(found):
+    """A cell's ``truth``: the class of a :class:`~dfwb.engine.cycles.CycleSearch`, its cycles, its coverage."""
+    kind, cycles = truth_class(found)
+    return {"class": kind, "cycles": [_cycle(c) for c in cycles],
+            "coverage": {"starts": found.coverage.starts, "outcomes": found.coverage.outcomes,
+                         "complete": found.coverage.complete}}
+
+
+def df_cell(predictions, linear_stable):
+    """A cell's ``df``: the DF's class and its predictions."""
+    return {"class": df_class(predictions, linear_stable),
+            "predictions": [{"F": p.F, "omega": p.omega, "amplitude_x": p.amplitude_x, "stable": p.stable}
+                            for p in predictions]}
 
 
 def _cycle(c):

@@ -70,26 +70,25 @@ class Margin:
                 "scan": [{"k": k, "class": kind, "amplitude_x": a, "omega": w} for k, kind, a, w in self.scan]}
 
 
-def margins(family, k_range=K_RANGE, count=SCAN, fmu_dir=None, engine=None, progress=None):
-    """(truth Margin, DF Margin) of the family's G scaled by k over ``k_range`` (a LoopFamily without k)."""
+def margins(family, k_range=K_RANGE, count=SCAN, fmu_dir=None, engine=None, progress=None, classifier=None):
+    """(truth Margin, DF Margin) of the family's G scaled by k over ``k_range`` (a LoopFamily without k).
+
+    ``classifier(scaled, ks)``: makes ``classify_at(k, truth, df)``, a setting's cell as
+    :func:`~dfwb.engine.hunting.classify` gives it (or None where the loop cannot be set up); default: the
+    exact loop's (a user's FMU brings its own, :mod:`dfwb.foreign.hunting`). Only the exact loop's truth
+    boundaries are located by continuation; the others are bisected.
+    """
     lo, hi = _k_range(k_range)
     scaled = family.scaled(GAIN)
     ks = [float(k) for k in np.geomspace(lo, hi, count)]
     if 1.0 not in ks and lo < 1.0 < hi:
         ks = sorted(ks + [1.0])
-    problems = {}
-    for k in ks:
-        try:
-            problems[k] = scaled.problem({GAIN: k}, fmu_dir)
-        except InputError:
-            problems[k] = None
-    shared = df_map_for([p for p in (problems[ks[0]], problems[ks[-1]]) if p is not None], engine) \
-        if engine is not None and any(problems.values()) else None
+    exact = classifier is None
+    classify_at = (classifier or _exact_classifier(fmu_dir, engine))(scaled, ks)
     cells = {}
     for i, k in enumerate(ks):
-        problem = problems[k]
         try:
-            cells[k] = classify(problem, engine, shared, df=engine is not None) if problem is not None else None
+            cells[k] = classify_at(k, True, engine is not None)
         except DfwbError as error:
             cells[k] = {"error": str(error)}
         if progress:
@@ -109,8 +108,8 @@ def margins(family, k_range=K_RANGE, count=SCAN, fmu_dir=None, engine=None, prog
         margin = Margin(source, scan, [])
         for (k_a, class_a, *_), (k_b, class_b, *_) in zip(scan, scan[1:]):
             if (class_a == "stable") != (class_b == "stable") and "error" not in (class_a, class_b):
-                margin.boundaries.append(_boundary(scaled, source, k_a, k_b, class_a == "stable", fmu_dir, engine,
-                                                   shared))
+                margin.boundaries.append(_boundary(scaled, source, k_a, k_b, class_a == "stable", fmu_dir,
+                                                   classify_at, exact))
         margin.intervals = _intervals(scan, margin.boundaries)
         results.append(margin)
     return results
@@ -145,14 +144,36 @@ def _intervals(scan, boundaries):
     return intervals
 
 
-def _boundary(scaled, source, k_a, k_b, hunts_a, fmu_dir, engine, shared):
-    """The boundary between k_a and k_b (one hunts, the other not): by continuation, else bisection."""
-    if source == "truth":
+def _exact_classifier(fmu_dir, engine):
+    """The exact loop's ``classifier`` (see :func:`margins`): one DF map, shared, on the range's ends' ranges."""
+    def make(scaled, ks):
+        problems = {}
+        for k in ks:
+            try:
+                problems[k] = scaled.problem({GAIN: k}, fmu_dir)
+            except InputError:
+                problems[k] = None
+        ends = [p for p in (problems[ks[0]], problems[ks[-1]]) if p is not None]
+        shared = df_map_for(ends, engine) if engine is not None and ends else None
+
+        def classify_at(k, truth=True, df=True):
+            problem = problems[k] if k in problems else scaled.problem({GAIN: k}, fmu_dir)
+            return None if problem is None else classify(problem, engine, shared, truth=truth, df=df)
+
+        return classify_at
+
+    return make
+
+
+def _boundary(scaled, source, k_a, k_b, hunts_a, fmu_dir, classify_at, exact):
+    """The boundary between k_a and k_b (one hunts, the other not): by continuation (the exact loop's
+    truth), else bisection."""
+    if source == "truth" and exact:
         located = _by_continuation(scaled, k_a if hunts_a else k_b, k_b if hunts_a else k_a, fmu_dir)
         if located is not None:
             return Boundary(located.parameter, located.kind, starts=not hunts_a, accuracy=located.accuracy,
                             detail=located.detail)
-    return _bisect(scaled, source, k_a, k_b, hunts_a, fmu_dir, engine, shared)
+    return _bisect(source, k_a, k_b, hunts_a, classify_at)
 
 
 def _by_continuation(scaled, hunting_k, other_k, fmu_dir):
@@ -172,17 +193,18 @@ def _by_continuation(scaled, hunting_k, other_k, fmu_dir):
     return min(ends, key=lambda b: abs(b.parameter - hunting_k))
 
 
-def _bisect(scaled, source, k_a, k_b, hunts_a, fmu_dir, engine, shared):
+def _bisect(source, k_a, k_b, hunts_a, classify_at):
     """The boundary between k_a and k_b by bisection in log k on the verdict of ``source``."""
     lo, hi = math.log(k_a), math.log(k_b)
     for _ in range(BISECTIONS):
         mid = 0.5 * (lo + hi)
         try:
-            problem = scaled.problem({GAIN: math.exp(mid)}, fmu_dir)
-            cell = classify(problem, engine, shared, truth=source == "truth", df=source == "df")
-            hunts = cell[source]["class"] == "stable"
+            cell = classify_at(math.exp(mid), source == "truth", source == "df")
         except DfwbError:
             break
+        if cell is None:
+            break
+        hunts = cell[source]["class"] == "stable"
         if hunts == hunts_a:
             lo = mid
         else:

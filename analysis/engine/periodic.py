@@ -147,6 +147,12 @@ class TrueCycle:
         return {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "trace"}
 
 
+def trace_arrays(trace):
+    """A true cycle's trace from its JSON form (lists): arrays of t, y and f, and (time, kind) events."""
+    return {"t": np.array(trace["t"]), "y": np.array(trace["y"]), "f": np.array(trace["f"]),
+            "events": [tuple(e) for e in trace["events"]]}
+
+
 def same_events(a, b):
     """Whether two returns (time, events fired) fire as many events: the map is smooth between them."""
     return a[1] == b[1]

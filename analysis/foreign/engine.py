@@ -89,17 +89,35 @@ class FMUEngine:
     def true_cycles(self, num, den, params, starts, omega_ref):
         """(cycles as dicts, outcome per start) of the closed loop under G = num/den, from each start force.
 
-        Model exchange only (dfwb integrates the loop); one call in the worker, its time limit the
-        engine's per start. PointFailed if the FMU crashes, hangs or refuses.
+        The starts are shared out among up to ``jobs`` workers, each a call with the engine's time limit per
+        start; the cycles they find are merged. PointFailed if the FMU crashes, hangs or refuses.
         """
+        from dfwb.foreign.loop import merge
+
         request = {"task": "cycles", "info": self.plant.info, "kind": self.plant.kind, "input": self.plant.input,
                    "output": self.plant.output, "params": self.plant.check(params or {}), "num": list(num),
-                   "den": list(den), "starts": [float(F) for F in starts], "omega_ref": float(omega_ref),
+                   "den": list(den), "omega_ref": float(omega_ref),
                    "rtol": min(self.rtol, 1e-9) if self.plant.kind == "model-exchange" else self.rtol}
-        with borrowed() as worker:
-            answer = worker.call(request, f"{self.plant.name}: the closed loop's cycles",
-                                 timeout=self.timeout * max(len(starts), 1))
-        return answer["cycles"], answer["outcomes"]
+        starts = [float(F) for F in starts]
+        shares = max(1, min(self.jobs, len(starts)))
+        groups = [starts[i::shares] for i in range(shares)]
+
+        def call(group):
+            with borrowed() as worker:
+                return worker.call(dict(request, starts=group), f"{self.plant.name}: the closed loop's cycles",
+                                   timeout=self.timeout * max(len(group), 1))
+
+        if shares == 1:
+            answers = [call(groups[0])]
+        else:
+            with ThreadPoolExecutor(shares, thread_name_prefix="dfwb-fmu") as pool:
+                answers = list(pool.map(call, groups))
+        found, outcomes = [], [None] * len(starts)
+        for i, answer in enumerate(answers):
+            for cycle in answer["cycles"]:
+                merge(found, cycle)
+            outcomes[i::shares] = answer["outcomes"]
+        return found, outcomes
 
     def coarse(self):
         """A looser twin for the work that only locates (a map, Newton's first steps): N alone, rtol 1000

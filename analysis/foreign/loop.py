@@ -25,7 +25,7 @@ from dfwb.fmi.simulation import FMUError
 from dfwb.foreign import held_loop
 from dfwb.foreign.flow import Flow
 
-__all__ = ["cycles", "realization"]
+__all__ = ["cycles", "realization", "merge"]
 
 SETTLE = 40  # reference periods a start runs before its swing is read
 MAX_RETURNS = 200  # section returns before a start counts as not settled
@@ -116,17 +116,21 @@ def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9):
         except (FMUError, FloatingPointError) as error:
             outcome, cycle = f"failed: {error}", None
         outcomes.append(outcome)
-        if cycle is None:
-            continue
-        errors = cycle.get("errors", {})  # a co-simulated cycle is known to its estimated errors
-        same = [c for c in found if all(abs(c[name] - cycle[name]) <= max(1e-5 * cycle[name], errors.get(name, 0.0))
-                                        for name in ("period", "amplitude_x"))]
-        if same:
-            same[0]["started_from"].append(f"F0={F0:g}")
-        else:
-            cycle["started_from"] = [f"F0={F0:g}"]
-            found.append(cycle)
+        if cycle is not None:
+            merge(found, dict(cycle, started_from=[f"F0={F0:g}"]))
     return found, outcomes
+
+
+def merge(found, cycle):
+    """Add ``cycle`` to the list ``found``, or its starts to the same cycle there (period and amplitude
+    within 1e-5, or within a co-simulated cycle's estimated errors)."""
+    errors = cycle.get("errors", {})
+    same = [c for c in found if all(abs(c[name] - cycle[name]) <= max(1e-5 * cycle[name], errors.get(name, 0.0))
+                                    for name in ("period", "amplitude_x"))]
+    if same:
+        same[0]["started_from"] += cycle["started_from"]
+    else:
+        found.append(cycle)
 
 
 def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):

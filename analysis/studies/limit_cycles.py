@@ -24,6 +24,7 @@ from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
 from dfwb.engine.transfer import num_den
 from dfwb.foreign.engine import engine_for
+from dfwb.foreign.hunting import true_search
 from dfwb.studies.cache import code_revision, finite, fmu_revision, solver_revision
 from dfwb.studies.responses import LimitCycleResponse
 
@@ -65,7 +66,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_
                 progress("judge", i + 1, len(predictions))
     search_result = None
     if exact and foreign:
-        search_result = _exact_fmu(engine, controller, params, predictions, amplitudes, F, omega)
+        search_result = true_search(engine, controller, params, predictions, amplitudes, F, omega)
     elif exact:
         search_result = _exact(problem, predictions, amplitudes, cache, progress)
     return LimitCycleResponse(plant=spec.name, params=params, G=controller, predictions=predictions,
@@ -117,7 +118,7 @@ def _exact(problem, predictions, amplitudes, cache, progress):
     """The exact search around the predictions (:func:`dfwb.engine.cycles.find_cycles`), cached."""
 
     from dfwb.engine import cycles as search
-    from dfwb.engine.periodic import TrueCycle
+    from dfwb.engine.periodic import TrueCycle, trace_arrays
 
     key = {"kind": "exact", "code": code_revision(), "solvers": solver_revision(), "plant": problem.spec.name,
            "params": problem.params, "G": num_den(problem.G), "amplitudes": amplitudes,
@@ -138,59 +139,5 @@ def _exact(problem, predictions, amplitudes, cache, progress):
         return found
     cycles = []
     for entry in value["cycles"]:
-        cycles.append(TrueCycle(**dict(entry, trace=_trace(entry["trace"]))))
+        cycles.append(TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"]))))
     return search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), [])
-
-
-def _trace(trace):
-    """A true cycle's trace from its JSON form: arrays of t, y and f, and (time, kind) events."""
-    import numpy as np
-
-    return {"t": np.array(trace["t"]), "y": np.array(trace["y"]), "f": np.array(trace["f"]),
-            "events": [tuple(e) for e in trace["events"]]}
-
-
-def _exact_fmu(engine, G, params, predictions, amplitudes, F_range, omega_range):
-    """The true cycles of a user's FMU under G (:mod:`dfwb.foreign.loop`), with coverage.
-
-    Starts: the first force +-F0 for F0 the predictions' forces and three across the F range (or the
-    ``amplitudes`` given, read as forces); the time scale: the predictions' median frequency, else the
-    middle of the omega range.
-    """
-    from dfwb.engine import cycles as search
-    from dfwb.engine.periodic import TrueCycle
-
-    forces = sorted(set(amplitudes or [p.F for p in predictions] +
-                        [math.exp(math.log(F_range[0]) + i * (math.log(F_range[1]) - math.log(F_range[0])) / 2)
-                         for i in range(3)]))
-    starts = [sign * F for F in forces for sign in (1.0, -1.0)]
-    omegas = sorted(p.omega for p in predictions)
-    omega_ref = omegas[len(omegas) // 2] if omegas else math.sqrt(omega_range[0] * omega_range[1])
-    num, den = num_den(G)
-    found, outcomes = engine.true_cycles(num, den, params, starts, omega_ref)
-    cycles = [TrueCycle(**dict(entry, trace=_trace(entry["trace"]))) for entry in found]
-    links = []
-    for prediction in predictions:  # the nearest true cycle in frequency and amplitude, within a factor 1.5
-        near = [(abs(math.log(c.omega / prediction.omega)) + abs(math.log(c.amplitude_x / prediction.amplitude_x)), j)
-                for j, c in enumerate(cycles) if c.amplitude_x > 0 and prediction.amplitude_x > 0]
-        near = [(d, j) for d, j in near if d < 2 * math.log(1.5)]
-        links.append(min(near)[1] if near else None)
-    for j, cycle in enumerate(cycles):
-        cycle.prediction = next((i for i, link in enumerate(links) if link == j), None)
-    counts = {}
-    for outcome in outcomes:
-        key = outcome.split(":")[0]
-        counts[key] = counts.get(key, 0) + 1
-    from dfwb.foreign.loop import MAX_RETURNS, SETTLE
-
-    text = (f"first forces +-{forces[0]:.3g} to {forces[-1]:.3g} N ({len(forces)} values) from the plant's "
-            f"start values, each run {SETTLE} periods of {2 * math.pi / omega_ref:.4g} s before its swing is read")
-    if engine.plant.kind == "co-simulation":
-        text += ("; the loop co-simulated (the output held over each step, the controller exact) and refined "
-                 "from 32 steps per period, extrapolated: stable cycles only (unstable ones are out of reach of "
-                 "a stepped FMU)")
-    coverage = search.Coverage(amplitudes=[forces[0], forces[-1]], count=len(forces), parts=["force"],
-                               starts=len(starts), predictions=len(predictions), outcomes=counts,
-                               horizon=20 * 2 * math.pi / omega_ref, max_returns=MAX_RETURNS,
-                               complete=not any(o.startswith("failed") for o in outcomes), starts_text=text)
-    return search.CycleSearch(cycles, links, coverage, [])

@@ -1,23 +1,47 @@
 """The limit-cycle margin of a controller, the one way dfwb computes it (the API and ``dfwb margin`` call
 :func:`gain_margin`): the gain factors k for which k G hunts, by the truth and by the DF
-(:mod:`dfwb.engine.margin`)."""
+(:mod:`dfwb.engine.margin`), for dfwb's own plants and for a user's FMU (:mod:`dfwb.foreign.hunting`)."""
 
 from dfwb.base.errors import InputError
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.margin import K_RANGE, SCAN, margins
+from dfwb.engine.scales import search_ranges
+from dfwb.foreign.engine import engine_for
+from dfwb.foreign.hunting import MAP, classifier
+from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.continuation import _text
 from dfwb.studies.responses import MarginResponse
 
 
-def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, fmu_dir=None, progress=None):
-    """The :class:`~dfwb.studies.responses.MarginResponse` of ``plant`` under k ``G`` for k in ``k_range``."""
+def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, fmu_dir=None, progress=None,
+                F_range=None, omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None, timeout=None):
+    """The :class:`~dfwb.studies.responses.MarginResponse` of ``plant`` under k ``G`` for k in ``k_range``.
+
+    ``plant``: a registered plant, or a user's FMU (an FMUPlant or an .fmu path), which needs ``F_range``
+    and ``omega_range`` (its DF map's, ``n_F`` x ``n_omega``, shared by every k) and takes ``rtol`` and
+    ``timeout``."""
     if isinstance(count, bool) or not isinstance(count, int) or not 3 <= count <= 1000:
         raise InputError(f"count = {count!r}: the gain factors scanned, an integer from 3 to 1000")
+    if is_fmu_path(plant):
+        plant = fmu_plant(plant)
     family = LoopFamily(plant, G, values)
-    engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if df else None
     report = None if progress is None else (lambda done, total: progress("gain factors", done, total))
-    found = margins(family, k_range, count, fmu_dir, engine, report)
+    if getattr(family.spec, "foreign", False):
+        if F_range is None or omega_range is None:
+            raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
+        F, omega = search_ranges(None, F_range, omega_range)
+        if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in (n_F, n_omega)):
+            raise InputError(f"n_F, n_omega = {n_F!r}, {n_omega!r}: the DF map's sides, integers from 2 to 1000")
+        engine = engine_for(family.spec, rtol=rtol, timeout=timeout)
+        found = margins(family, k_range, count, None, engine if df else None, report,
+                        classifier=classifier(engine, F, omega, (n_F, n_omega)))
+    else:
+        if (F_range, omega_range, rtol, timeout, n_F, n_omega) != (None, None, None, None, *MAP):
+            raise InputError("F_range, omega_range, n_F, n_omega, rtol and timeout are for a user's FMU: dfwb's "
+                             "own plants derive their ranges and are computed exactly")
+        engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if df else None
+        found = margins(family, k_range, count, fmu_dir, engine, report)
     return MarginResponse(plant=family.spec.name, G=_text(G), values=family.merged(),
                           k_range=[float(k) for k in k_range], truth=found[0],
                           df=found[1] if len(found) > 1 else None, unit=family.spec.unit)

@@ -238,7 +238,9 @@ class LimitCycleResponse:
                          f"\n    judge: not settled: {v['reason']}")
             if self.exact:
                 j = self.links[i]
-                line += ("\n    no true cycle near it: a false alarm" if j is None else
+                line += (("\n    no true cycle found near it (the search reaches stable cycles only)"
+                          if self.coverage.stable_only and not c.stable else
+                          "\n    no true cycle near it: a false alarm") if j is None else
                          "\n    true cycle [{}]: DF error omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
                          .format(j, **relative_errors(c, self.cycles[j])))
             lines.append(line)
@@ -299,7 +301,9 @@ class LimitCycleResponse:
                              f"{max(c.multipliers, default=math.nan):.3g} | {counts} | {errors}")
             missed = [i for i, j in enumerate(self.links) if j is None]
             if missed:
-                lines.append(f"\nPrediction(s) {missed}: no true cycle near them (false alarms).")
+                lines.append(f"\nPrediction(s) {missed}: no true cycle near them ("
+                             + ("the search reaches stable cycles only)." if self.coverage.stable_only
+                                else "false alarms)."))
         return "\n".join(lines)
 
     def figure(self, path):

@@ -1,0 +1,96 @@
+"""Loops with a user's FMU: their true cycles searched, and a setting classified as dfwb's own loops' are.
+
+The truth is :mod:`dfwb.foreign.loop`'s (model exchange: integrated and shot,
+Floquet multipliers; co-simulation: co-simulated, refined and extrapolated,
+stable cycles only), run from first forces +-F0 at the DF's predictions'
+forces and across the F range. A setting's cell (:func:`classifier`, for
+:func:`dfwb.engine.margin.margins`) has the shape
+:func:`dfwb.engine.hunting.classify` gives: the truth's class and cycles, and
+the DF's, from one map of the FMU's DF shared by every gain (the plant does
+not change with G). An FMU has no linear part dfwb knows, so the DF's verdict
+here is never "diverges".
+"""
+
+import math
+
+import numpy as np
+
+from dfwb.engine import cycles as search
+from dfwb.engine.hunting import DFMap, df_cell, truth_cell
+from dfwb.engine.limit_cycles import balance, df_map
+from dfwb.engine.margin import GAIN
+from dfwb.engine.periodic import TrueCycle, trace_arrays
+from dfwb.engine.transfer import num_den
+from dfwb.foreign.loop import MAX_RETURNS, SETTLE
+
+__all__ = ["true_search", "classifier", "MAP"]
+
+MAP = (16, 48)  # the shared DF map's forces x frequencies: dfwb.limit_cycles' default
+
+
+def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range):
+    """The true cycles of a user's FMU under G (:mod:`dfwb.foreign.loop`), with coverage.
+
+    Starts: the first force +-F0 for F0 the predictions' forces and three across the F range (or the
+    ``amplitudes`` given, read as forces); the time scale: the predictions' median frequency, else the
+    middle of the omega range.
+    """
+    forces = sorted(set(amplitudes or [p.F for p in predictions] +
+                        [math.exp(math.log(F_range[0]) + i * (math.log(F_range[1]) - math.log(F_range[0])) / 2)
+                         for i in range(3)]))
+    starts = [sign * F for F in forces for sign in (1.0, -1.0)]
+    omegas = sorted(p.omega for p in predictions)
+    omega_ref = omegas[len(omegas) // 2] if omegas else math.sqrt(omega_range[0] * omega_range[1])
+    num, den = num_den(G)
+    found, outcomes = engine.true_cycles(num, den, params, starts, omega_ref)
+    cycles = [TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"]))) for entry in found]
+    links = []
+    for prediction in predictions:  # the nearest true cycle in frequency and amplitude, within a factor 1.5
+        near = [(abs(math.log(c.omega / prediction.omega)) + abs(math.log(c.amplitude_x / prediction.amplitude_x)), j)
+                for j, c in enumerate(cycles) if c.amplitude_x > 0 and prediction.amplitude_x > 0]
+        near = [(d, j) for d, j in near if d < 2 * math.log(1.5)]
+        links.append(min(near)[1] if near else None)
+    for j, cycle in enumerate(cycles):
+        cycle.prediction = next((i for i, link in enumerate(links) if link == j), None)
+    counts = {}
+    for outcome in outcomes:
+        key = outcome.split(":")[0]
+        counts[key] = counts.get(key, 0) + 1
+    text = (f"first forces +-{forces[0]:.3g} to {forces[-1]:.3g} N ({len(forces)} values) from the plant's "
+            f"start values, each run {SETTLE} periods of {2 * math.pi / omega_ref:.4g} s before its swing is read")
+    if engine.plant.kind == "co-simulation":
+        text += ("; the loop co-simulated (the output held over each step, the controller exact) and refined "
+                 "from 32 steps per period, extrapolated: stable cycles only (unstable ones are out of reach of "
+                 "a stepped FMU)")
+    coverage = search.Coverage(amplitudes=[forces[0], forces[-1]], count=len(forces), parts=["force"],
+                               starts=len(starts), predictions=len(predictions), outcomes=counts,
+                               horizon=20 * 2 * math.pi / omega_ref, max_returns=MAX_RETURNS,
+                               complete=not any(o.startswith("failed") for o in outcomes), starts_text=text,
+                               stable_only=True)
+    return search.CycleSearch(cycles, links, coverage, [])
+
+
+def classifier(engine, F_range, omega_range, size=MAP):
+    """A ``classifier(scaled, ks)`` for :func:`~dfwb.engine.margin.margins` with a user's FMU: its DF map over
+    ``F_range`` x ``omega_range`` (``size`` points, on the engine's looser twin) computed once, at the first
+    cell that needs it; the truth searched at each gain."""
+    shared = []
+
+    def make(scaled, ks):
+        def classify_at(k, truth=True, df=True):
+            G, params = scaled.G({GAIN: k}), scaled.params({GAIN: k})
+            if not shared:
+                F_grid, omega_grid = np.geomspace(*F_range, size[0]), np.geomspace(*omega_range, size[1])
+                shared.append(DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid)))
+            dfmap = shared[0]
+            predictions = balance(engine, G, params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid).cycles
+            cell = {}
+            if truth:
+                cell["truth"] = truth_cell(true_search(engine, G, params, predictions, None, F_range, omega_range))
+            if df:
+                cell["df"] = df_cell(predictions, True)
+            return cell
+
+        return classify_at
+
+    return make
