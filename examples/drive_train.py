@@ -201,9 +201,9 @@ def main(out_dir="."):
               f"|X_3|/|X_1| = {cycle.harmonics[3] / cycle.harmonics[1]:.2%}, Newton residual {cycle.residual:.1e}, "
               f"reached from {len(cycle.started_from)} starts")
     for i, j in enumerate(truth.links):
-        if j is None:  # the search of a user's FMU finds the stable cycles its starts settle on, not unstable ones
-            print(f"prediction {i}: no true cycle near it, as expected of an unstable one (the starts ended: "
-                  f"{truth.coverage.outcomes})")
+        if j is None:  # the runs settle on stable cycles; Newton from an unstable prediction may find its cycle
+            print(f"prediction {i}: no true cycle near it: neither the runs nor Newton from its harmonic balance "
+                  f"found one (the starts ended: {truth.coverage.outcomes})")
             continue
         predicted, true = truth.predictions[i], truth.cycles[j]
         print(f"prediction {i} against true cycle {j}: DF error in omega {predicted.omega / true.omega - 1:+.2%}, "

@@ -272,6 +272,38 @@ def test_what_is_not_there_for_an_fmu_is_said_plainly(built):
         dfwb.limit_cycles(dfwb.fmu_plant(built["Relay"]), "1/s", F_range=(1, 10), omega_range=(1, 10), verify=True)
 
 
+def test_an_unstable_cycle_is_shot_from_the_harmonic_balance(built):
+    """A conditionally stable loop: a saturation under G = (s + 1)^2 / s^3 is stable for small amplitudes
+    (gain 1 > 1/2, Routh) and loses stability as the saturation lowers the gain, so the one cycle between,
+    near N = 1/2 at w = 1, is unstable: forward runs go to rest or diverge, never to it. dfwb shoots it
+    from the DF's unstable prediction. Checked with scipy on the same loop written here (no FMU): from the
+    cycle's section state the loop returns to it after one period (1e-7), with the same first harmonic,
+    and a small push grows, by the largest multiplier per period."""
+    import numpy as np
+    from scipy.integrate import solve_ivp
+    from scipy.signal import tf2ss
+
+    response = dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"]), "(s+1)**2/s**3", F_range=(0.5, 50),
+                                 omega_range=(0.2, 5), n_F=8, n_omega=12, exact=True)
+    [prediction] = response.predictions
+    assert not prediction.stable and prediction.omega == pytest.approx(1.0, rel=1e-6)
+    [cycle] = response.cycles
+    assert not cycle.stable and max(cycle.multipliers) > 2 and cycle.residual < 1e-8 and response.links == [0]
+    assert response.coverage.outcomes.get("seed cycle") == 1 and not response.coverage.stable_only
+
+    A, B, C, _D = tf2ss([1.0, 2.0, 1.0], [1.0, 0.0, 0.0, 0.0])
+    rhs = lambda t, w: A @ w + B[:, 0] * np.clip(-(C @ w)[0], -1.0, 1.0)  # noqa: E731  (y = sat(u), u = -G y)
+    w0 = np.array(cycle.state)
+    run = solve_ivp(rhs, (0.0, cycle.period), w0, method="DOP853", rtol=1e-12, atol=1e-12, dense_output=True)
+    assert np.max(np.abs(run.y[:, -1] - w0)) < 1e-7 * np.max(np.abs(w0))
+    grid = np.linspace(0.0, cycle.period, 100001)
+    y = np.clip(-(C @ run.sol(grid))[0], -1.0, 1.0)
+    first = 2.0 / cycle.period * np.trapezoid(y * np.exp(-2j * np.pi * grid / cycle.period), grid)
+    assert cycle.amplitude_x == pytest.approx(abs(first), rel=1e-6)
+    pushed = solve_ivp(rhs, (0.0, 3 * cycle.period), w0 * (1 + 1e-6), method="DOP853", rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(pushed.y[:, -1] - w0)) > 10 * 1e-6 * np.max(np.abs(w0))  # it leaves the cycle
+
+
 def test_a_cosimulated_loop_finds_the_true_cycle_within_its_estimated_error(built):
     """The saturating loop below, its FMU run as co-simulation: the master holds the output over each step
     and solves G exactly, refines the step and extrapolates. The cycle agrees with the model-exchange

@@ -41,5 +41,6 @@ def run(request, instances):
 def _cycles(instance, request):
     """The true cycles of the closed loop: ``{"cycles": [...], "outcomes": [...]}``."""
     found, outcomes = loop.cycles(instance, request["num"], request["den"], request["params"], request["starts"],
-                                  request["omega_ref"], rtol=request["rtol"])
+                                  request["omega_ref"], rtol=request["rtol"],
+                                  seeds=request.get("seeds", ()))
     return {"cycles": found, "outcomes": outcomes}

@@ -86,11 +86,12 @@ class FMUEngine:
                         seconds=time.perf_counter() - started, drive=self.drive, note=answer["note"],
                         orbit_periods=answer["lag"], X=X, N_error=answer["error"] / F)
 
-    def true_cycles(self, num, den, params, starts, omega_ref):
-        """(cycles as dicts, outcome per start) of the closed loop under G = num/den, from each start force.
+    def true_cycles(self, num, den, params, starts, omega_ref, seeds=()):
+        """(cycles as dicts, outcome per start, then per seed) of the closed loop under G = num/den, from each
+        start force, and by Newton from each DF prediction (F, omega) in ``seeds`` (model exchange).
 
-        The starts are shared out among up to ``jobs`` workers, each a call with the engine's time limit per
-        start; the cycles they find are merged. PointFailed if the FMU crashes, hangs or refuses.
+        The starts and seeds are shared out among up to ``jobs`` workers, each a call with the engine's time
+        limit per start; the cycles they find are merged. PointFailed if the FMU crashes, hangs or refuses.
         """
         from dfwb.foreign.loop import merge
 
@@ -99,25 +100,28 @@ class FMUEngine:
                    "den": list(den), "omega_ref": float(omega_ref),
                    "rtol": min(self.rtol, 1e-9) if self.plant.kind == "model-exchange" else self.rtol}
         starts = [float(F) for F in starts]
-        shares = max(1, min(self.jobs, len(starts)))
-        groups = [starts[i::shares] for i in range(shares)]
+        seeds = [(float(F), float(omega)) for F, omega in seeds]
+        shares = max(1, min(self.jobs, len(starts) + len(seeds)))
+        groups = [(starts[i::shares], seeds[i::shares]) for i in range(shares)]
 
         def call(group):
             with borrowed() as worker:
-                return worker.call(dict(request, starts=group), f"{self.plant.name}: the closed loop's cycles",
-                                   timeout=self.timeout * max(len(group), 1))
+                return worker.call(dict(request, starts=group[0], seeds=group[1]),
+                                   f"{self.plant.name}: the closed loop's cycles",
+                                   timeout=self.timeout * max(len(group[0]) + len(group[1]), 1))
 
         if shares == 1:
             answers = [call(groups[0])]
         else:
             with ThreadPoolExecutor(shares, thread_name_prefix="dfwb-fmu") as pool:
                 answers = list(pool.map(call, groups))
-        found, outcomes = [], [None] * len(starts)
-        for i, answer in enumerate(answers):
+        found, by_start, by_seed = [], [None] * len(starts), [None] * len(seeds)
+        for i, ((group_starts, _), answer) in enumerate(zip(groups, answers)):
             for cycle in answer["cycles"]:
                 merge(found, cycle)
-            outcomes[i::shares] = answer["outcomes"]
-        return found, outcomes
+            by_start[i::shares] = answer["outcomes"][:len(group_starts)]
+            by_seed[i::shares] = answer["outcomes"][len(group_starts):]
+        return found, by_start + by_seed
 
     def coarse(self):
         """A looser twin for the work that only locates (a map, Newton's first steps): N alone, rtol 1000

@@ -33,7 +33,8 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
 
     Starts: the first force +-F0 for F0 the predictions' forces and three across the F range (or the
     ``amplitudes`` given, read as forces); the time scale: the predictions' median frequency, else the
-    middle of the omega range.
+    middle of the omega range. A model-exchange FMU's loop is also shot from each unstable prediction's
+    harmonic balance (the runs only ever settle on stable cycles).
     """
     forces = sorted(set(amplitudes or [p.F for p in predictions] +
                         [math.exp(math.log(F_range[0]) + i * (math.log(F_range[1]) - math.log(F_range[0])) / 2)
@@ -42,7 +43,9 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
     omegas = sorted(p.omega for p in predictions)
     omega_ref = omegas[len(omegas) // 2] if omegas else math.sqrt(omega_range[0] * omega_range[1])
     num, den = num_den(G)
-    found, outcomes = engine.true_cycles(num, den, params, starts, omega_ref)
+    cosimulation = engine.plant.kind == "co-simulation"
+    seeds = [] if cosimulation else [(p.F, p.omega) for p in predictions if not p.stable]
+    found, outcomes = engine.true_cycles(num, den, params, starts, omega_ref, seeds)
     cycles = [TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"]))) for entry in found]
     links = []
     for prediction in predictions:  # the nearest true cycle in frequency and amplitude, within a factor 1.5
@@ -58,15 +61,18 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
         counts[key] = counts.get(key, 0) + 1
     text = (f"first forces +-{forces[0]:.3g} to {forces[-1]:.3g} N ({len(forces)} values) from the plant's "
             f"start values, each run {SETTLE} periods of {2 * math.pi / omega_ref:.4g} s before its swing is read")
-    if engine.plant.kind == "co-simulation":
+    if cosimulation:
         text += ("; the loop co-simulated (the output held over each step, the controller exact) and refined "
                  "from 32 steps per period, extrapolated: stable cycles only (unstable ones are out of reach of "
                  "a stepped FMU)")
+    elif seeds:
+        text += (f"; Newton from the harmonic balance at the DF's {len(seeds)} unstable prediction(s), where an "
+                 "unstable cycle may be")
     coverage = search.Coverage(amplitudes=[forces[0], forces[-1]], count=len(forces), parts=["force"],
                                starts=len(starts), predictions=len(predictions), outcomes=counts,
                                horizon=20 * 2 * math.pi / omega_ref, max_returns=MAX_RETURNS,
                                complete=not any(o.startswith("failed") for o in outcomes), starts_text=text,
-                               stable_only=True)
+                               stable_only=cosimulation)
     return search.CycleSearch(cycles, links, coverage, [])
 
 

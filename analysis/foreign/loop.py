@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from dfwb.fmi.simulation import FMUError
-from dfwb.foreign import held_loop
+from dfwb.foreign import held_loop, model_exchange
 from dfwb.foreign.flow import Flow
 
 __all__ = ["cycles", "realization", "merge"]
@@ -32,6 +32,7 @@ MAX_RETURNS = 200  # section returns before a start counts as not settled
 NEWTON = 12  # shooting iterations
 HARMONICS = 10
 TRACE = 200  # samples of a cycle's period in its trace
+SEED_RESIDUAL = 1e-8  # a cycle shot from a DF prediction counts only if Newton got this close
 
 
 def realization(num, den):
@@ -89,8 +90,9 @@ def _swing(loop, t, z, duration, rtol):
     return t, z, low, high
 
 
-def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9):
-    """(cycles found as dicts, outcomes per start) of the loop from each start force in ``starts``.
+def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9, seeds=()):
+    """(cycles found as dicts, outcomes per start, then per seed) of the loop from each start force in
+    ``starts``, and by Newton from each DF prediction (F, omega) in ``seeds`` (model exchange).
 
     ``omega_ref``: a frequency that sets the time scales (a DF prediction's, or G's crossover).
     """
@@ -118,6 +120,14 @@ def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9):
         outcomes.append(outcome)
         if cycle is not None:
             merge(found, dict(cycle, started_from=[f"F0={F0:g}"]))
+    for F, omega in seeds if not cosimulation else ():
+        try:
+            outcome, cycle = _seeded(instance, params, F, omega, rtol, A, B, C, D)
+        except (FMUError, FloatingPointError) as error:
+            outcome, cycle = f"failed: {error}", None
+        outcomes.append(outcome)
+        if cycle is not None:
+            merge(found, dict(cycle, started_from=[f"DF F={F:.6g}, omega={omega:.6g}"]))
     return found, outcomes
 
 
@@ -160,7 +170,47 @@ def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
         previous, period = z, t - t0
     else:
         return "not settled", None
-    # shooting from the section state, the FMU's state saved there
+    return _shoot(instance, loop, t, z, period, section, rtol, A, B, C, D)
+
+
+def _seeded(instance, params, F, omega, rtol, A, B, C, D):
+    """(outcome, cycle or None): Newton from the harmonic balance at a DF prediction (F, omega), which may
+    be unstable. The FMU is driven by F cos(omega t) to its periodic response; the controller's state is
+    set to its response to that output's mean and first harmonic; the loop, closed there, is run to the
+    output's next upward crossing of its mean and shot from it."""
+    T = 2 * math.pi / omega
+    X, _error, periodic, *_rest, t, x = model_exchange.periodic_response(instance, F, omega, params, harmonics=1,
+                                                                          rtol=rtol)
+    if not periodic:
+        return "seed not periodic", None
+    n = len(B)
+    w = np.real(np.linalg.solve(1j * omega * np.eye(n) - A, B * X[1]))  # at t = kT, e^{j omega t} = 1
+    try:
+        w = w - np.linalg.solve(A, B * X[0].real)  # the mean's part, where G has no pole at 0
+    except np.linalg.LinAlgError:
+        pass
+    loop = _Loop(instance, A, B, C, D)
+    z = np.concatenate((x, w))
+    loop.flow.scale = np.maximum(loop.flow.scale, np.abs(z))
+    loop.flow.y_max = abs(X[0]) + abs(X[1])
+    middle = X[0].real
+
+    def section(t, w, y):
+        return y - middle
+
+    t, z, _, crossed = loop.flow.run(t, z, t + 3 * T, rtol, loop.atol(rtol), section)
+    if not crossed:
+        return "seed lost", None
+    outcome, cycle = _shoot(instance, loop, t, z, T, section, rtol, A, B, C, D)
+    if cycle is None or cycle["residual"] > SEED_RESIDUAL:
+        return "seed not converged", None
+    return "seed cycle", cycle
+
+
+def _shoot(instance, loop, t, z, period, section, rtol, A, B, C, D):
+    """Newton on the section map from z at t (on the section), the FMU's state saved there; then one period
+    measured: (outcome, cycle dict)."""
+    flow = loop.flow
     saved = instance.save()
     t_section = t
 

@@ -109,6 +109,12 @@ class _Period:
 
 def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150):
     """(X_k, N error, periodic, periods, orbit periods, note) of one DF point of a model-exchange FMU."""
+    return periodic_response(instance, F, omega, params, harmonics, rtol, max_periods)[:6]
+
+
+def periodic_response(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150):
+    """:func:`point`'s answer, then the time (a whole number of periods) and the FMU's continuous states
+    where its runs ended: on the periodic response, the force at its crest."""
     T = 2 * math.pi / omega
     next_event = instance.start(params, F)
     period = _Period(instance, F, omega, harmonics)  # after start: the FMU's number of states is known
@@ -138,26 +144,26 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150)
         found = sections.add(np.append(x, y), X, np.append(period.flow.scale[:nx], period.flow.y_max))
         if found is not None:
             break
-    steady = found if found is not None else sections.average()
+    orbit = found if found is not None else sections.average()
     # the last orbit twice more, 100 times tighter, from the same section: the answer and its error. The
     # section state sits on the looser runs' orbit; how far it is from the tight one shows in how the two
     # tight orbits differ, and what is left of that transient after the second is its geometric tail.
     orbits, ends = [], [x]
     for _ in range(2):
         tight = []
-        for _ in range(steady.lag):
+        for _ in range(orbit.lag):
             x, X, _events = period.run(t, x, rtol / 100, period.atol(rtol / 100))
             t += T
             tight.append(X)
         orbits.append(np.mean(tight, axis=0))
         ends.append(x)
     X = orbits[1]
-    if steady.drift:  # the output creeps by the same amount each period: its ramp is not part of the orbit
-        X[1:] -= ramp(steady.drift, harmonics)[1:]
+    if orbit.drift:  # the output creeps by the same amount each period: its ramp is not part of the orbit
+        X[1:] -= ramp(orbit.drift, harmonics)[1:]
     scale = np.maximum(period.flow.scale[:nx], 1e-300)
     steps = [float(np.max(np.abs(b - a) / scale, initial=0.0)) for a, b in zip(ends, ends[1:])]
-    contraction = 0.0 if steady.drift or not steps[0] > 0 else min(steps[1] / steps[0], CONTRACTION)
+    contraction = 0.0 if orbit.drift or not steps[0] > 0 else min(steps[1] / steps[0], CONTRACTION)
     tail = abs(orbits[1][1] - orbits[0][1]) * contraction / (1.0 - contraction)
-    error = abs(X[1] - steady.X[1]) + tail + steady.residual
-    note = "" if steady.periodic else f"no periodic response within {max_periods} periods: averaged"
-    return X, error, steady.periodic, periods + steady.lag, steady.lag, note
+    error = abs(X[1] - orbit.X[1]) + tail + orbit.residual
+    note = "" if orbit.periodic else f"no periodic response within {max_periods} periods: averaged"
+    return X, error, orbit.periodic, periods + orbit.lag, orbit.lag, note, t, x
