@@ -312,11 +312,13 @@ def cmd_map(args):
         if len(parts) != 3 or not parts[2].is_integer():
             raise InputError(f"{option} {text!r}: expected NAME=START:STOP:N with N a whole number of cells")
         axes.append((name, parts[0], parts[1], int(parts[2])))
-    out = args.out or Path("out/maps") / f"{args.plant}_{axes[0][0]}_{axes[1][0]}"
+    own, ranges = _own_fmu_ranges(args)
+    name = Path(args.plant).stem if own is not None else args.plant
+    out = args.out or Path("out/maps") / f"{name}_{axes[0][0]}_{axes[1][0]}"
     with Reporter(f"hunting map of {args.plant}", not args.json) as report:
-        response = run_map(args.plant, _controller(args), axes[0], axes[1], _assignments(args.set, "--set"),
+        response = run_map(own or args.plant, _controller(args), axes[0], axes[1], _assignments(args.set, "--set"),
                            out_dir=out, jobs=args.jobs, dask=args.dask, cache=_cache(args), fmu_dir=args.fmus,
-                           curves=not args.no_curves, resume=not args.no_resume, progress=report)
+                           curves=not args.no_curves, resume=not args.no_resume, progress=report, **ranges)
     return _answer(args, response)
 
 
@@ -325,18 +327,26 @@ def cmd_margin(args):
     from dfwb.studies.progress import Reporter
 
     plot = _plot_path(args.plot) if args.plot else None
-    own = _own_fmu(args)
-    ranges = {"F_range": args.F_range, "omega_range": args.omega_range, "rtol": args.rtol, "timeout": args.timeout}
-    if args.map_size:
-        ranges.update(n_F=args.map_size[0], n_omega=args.map_size[1])
-    if own is None and (args.F_range, args.omega_range, args.map_size) != (None, None, None):
-        raise InputError("--F-range, --omega-range, --map-size: only for a plant given as the path of an FMU "
-                         "(dfwb's own plants derive their ranges)")
+    own, ranges = _own_fmu_ranges(args)
     with Reporter(f"limit-cycle margin of {args.plant}", not args.json) as report:
         response = gain_margin(own or args.plant, _controller(args), _assignments(args.set, "--set"),
                                k_range=tuple(args.k_range), count=args.count, fmu_dir=args.fmus, progress=report,
-                               **({} if own is None else ranges))
+                               **ranges)
     return _answer(args, response, plot)
+
+
+def _own_fmu_ranges(args):
+    """(the user's FMU or None, the keywords of its DF map and driver) of ``map`` and ``margin``."""
+    own = _own_fmu(args)
+    if own is None:
+        if (args.F_range, args.omega_range, args.map_size) != (None, None, None):
+            raise InputError("--F-range, --omega-range, --map-size: only for a plant given as the path of an FMU "
+                             "(dfwb's own plants derive their ranges)")
+        return None, {}
+    ranges = {"F_range": args.F_range, "omega_range": args.omega_range, "rtol": args.rtol, "timeout": args.timeout}
+    if args.map_size:
+        ranges.update(n_F=args.map_size[0], n_omega=args.map_size[1])
+    return own, ranges
 
 
 def _plot_path(text):
@@ -581,9 +591,19 @@ def parser():
     fmu_options(follow)
     follow.set_defaults(run=cmd_continue)
 
+    def own_map_options(command):
+        command.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                             help="your FMU only: the force amplitudes of its DF map [N]")
+        command.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                             help="your FMU only: the frequencies of its DF map [rad/s]")
+        command.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
+                             metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
+                                                              "(default: 16 48)")
+
     hunting = commands.add_parser("map", help="which settings of two parameters make the machine hunt: truth and "
                                               "DF side by side, cached and resumable")
-    controller_options(hunting)
+    controller_options(hunting, own=True)
+    own_map_options(hunting)
     hunting.add_argument("--x", action=_Once, required=True, metavar="NAME=START:STOP:N",
                          help="the horizontal axis: a parameter of G or of the plant, e.g. Kp=1:50:30")
     hunting.add_argument("--y", action=_Once, required=True, metavar="NAME=START:STOP:N",
@@ -599,13 +619,7 @@ def parser():
     margin = commands.add_parser("margin", help="the gain factors k for which k G hunts, truth and DF: how much "
                                                 "more gain before it hunts")
     controller_options(margin, own=True)
-    margin.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
-                        help="your FMU only: the force amplitudes of its DF map [N]")
-    margin.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
-                        help="your FMU only: the frequencies of its DF map [rad/s]")
-    margin.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
-                        metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
-                                                         "(default: 16 48)")
+    own_map_options(margin)
     margin.add_argument("--k-range", action=_Once, type=float, nargs=2, default=(0.01, 100.0), metavar=("LO", "HI"),
                         help="gain factors searched, LO < 1 < HI (default: 0.01 100)")
     margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=25,

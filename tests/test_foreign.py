@@ -398,9 +398,29 @@ def test_the_limit_cycle_margin_of_an_fmu_loop(built, monkeypatch):
     assert m.truth.scan[0][1] == "none" and m.truth.scan[-1][1] == "stable"
 
 
-def test_an_fmu_margin_needs_its_ranges(built):
+def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
+    """A saturation under K (s + z) / (s (s + 1)^2): the loop's characteristic polynomial with the
+    saturation's gain N is s^3 + 2 s^2 + (1 + K N) s + K N z, so the linear loop (N = 1) is unstable, and
+    the saturation's cycle hunts, where K (z - 2) > 2 (Routh); elsewhere every run comes to rest. Truth and
+    DF agree with that on a 2 x 2 map; a second run resumes every cell from the folder."""
+    plant = dfwb.fmu_plant(built["Saturation"])
+    options = dict(out_dir=tmp_path / "map", F_range=(0.2, 50), omega_range=(0.1, 5), n_F=8, n_omega=16)
+    m = dfwb.hunting_map(plant, "K*(s+z)/(s*(s+1)**2)", ("K", 1, 10, 2), ("z", 1, 3, 2), **options)
+    expected = [["stable" if K * (z - 2) > 2 else "none" for K in (1, 10)] for z in (1, 3)]
+    assert m.classes("truth").tolist() == expected and m.classes("df").tolist() == expected
+    assert (tmp_path / "map" / "hunting_map.png").stat().st_size > 10_000 and m.linear["growth"] == []
+    again = dfwb.hunting_map(plant, "K*(s+z)/(s*(s+1)**2)", ("K", 1, 10, 2), ("z", 1, 3, 2), **options)
+    assert again.counts["resumed"] == 4 and again.counts["computed"] == 0
+    assert again.classes("truth").tolist() == expected
+    with pytest.raises(dfwb.DfwbError, match="a is a parameter of the FMU: a hunting map of a user's FMU runs over"):
+        dfwb.hunting_map(plant, "K/(s*(s+1)**2)", ("K", 1, 10, 2), ("a", 0.5, 2, 2), **options)
+
+
+def test_an_fmu_margin_or_map_needs_its_ranges(built):
     for argv, message in [
         (["margin", str(built["Saturation"]), "--G", "10/(s*(s+1)**2)"],
+         "give F_range and omega_range: dfwb cannot derive them from a user's FMU"),
+        (["map", str(built["Saturation"]), "--G", "K*(s+z)/(s*(s+1)**2)", "--x", "K=1:2:2", "--y", "z=1:2:2"],
          "give F_range and omega_range: dfwb cannot derive them from a user's FMU"),
         (["margin", "friction", "--G", "10/s", "--F-range", "1", "2"],
          "--F-range, --omega-range, --map-size: only for a plant given as the path of an FMU"),

@@ -336,10 +336,12 @@ def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, 
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None)
 
 
-def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Union[str, Path]] = None,
+def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Union[str, Path]] = None,
                 jobs: Optional[int] = None, dask: Optional[str] = None, cache: Union[bool, str, Path] = False,
                 amplitudes: Optional[int] = None, curves: bool = True, resume: bool = True,
                 fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
+                F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None, n_F: int = 16,
+                n_omega: int = 48, rtol: Optional[float] = None, timeout: Optional[float] = None,
                 **params: float) -> HuntingMapResponse:
     """Which settings of two parameters make the machine hunt: a map, by the truth and by the DF.
 
@@ -349,10 +351,14 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     linear loop's stability boundary and the bifurcation curves continued across the map
     (:mod:`dfwb.engine.hunting`, :mod:`dfwb.studies.hunting`).
 
+    With your own FMU the axes are G's parameters: each cell's truth is its loop's search
+    (:mod:`dfwb.foreign.hunting`), its DF verdict comes from one map of the FMU's DF, computed here
+    with the FMU's own workers; there is no linear loop nor bifurcation curve to draw.
+
     Parameters
     ----------
-    plant : str
-        A plant with an exact loop.
+    plant : str or FMUPlant
+        A plant with an exact loop, or your own FMU (:func:`dfwb.fmu_plant`, or the path of an .fmu).
     G : str, callable, (num, den) or python-control system
         The controller; an expression may name parameters (``"Kp + Ki/s"``).
     x, y : (str, float, float, int)
@@ -375,6 +381,8 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
         Keep the cells ``out_dir`` already holds.
     fmu_dir : path, optional, keyword-only
     progress : bool, keyword-only
+    F_range, omega_range, n_F, n_omega, rtol, timeout : keyword-only
+        Your FMU only: as for :func:`limit_cycle_margin` (the ranges are required).
     **params : float
         The other parameters of G and of the plant.
 
@@ -395,9 +403,12 @@ def hunting_map(plant: str, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     flags(curves=curves, resume=resume, progress=progress)
     if out_dir is not None and not isinstance(out_dir, (str, os.PathLike)):
         raise InputError(f"out_dir = {_short(out_dir)} is not a folder: give a path")
-    with _reporter(f"hunting map of {plant}", progress) as report:
-        return run_map(plant, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
-                       amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None)
+    spec = resolve_plant(plant)
+    with _reporter(f"hunting map of {spec.name}", progress) as report:
+        return run_map(spec, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
+                       amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None,
+                       F_range=F_range, omega_range=omega_range, n_F=_integer("n_F", n_F),
+                       n_omega=_integer("n_omega", n_omega), rtol=rtol, timeout=timeout)
 
 
 def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: int = SCAN, df: bool = True,

@@ -111,7 +111,8 @@ class Coverage:
     boundaries : int
         Basin boundaries bisected.
     complete : bool
-        False when the work budget ran out before every start was run.
+        False when the work budget ran out before every start came to a verdict (or, for a user's FMU, a run
+        did not settle within its returns).
     starts_text : str
         What the starts were, when they are not output amplitudes displacing parts of the state
         (a user's FMU's loop starts from first forces); "" otherwise.

@@ -29,7 +29,7 @@ GRID = (24, 64)  # the shared DF map: forces x frequencies
 
 _CYCLE = {"omega": positive, "period": positive, "amplitude_x": positive, "F": positive, "stable": bool,
           "multipliers": [(float, None)], "events": [str]}
-CELL = {"x": float, "y": float, "linear": {"stable": bool, "max_real_pole": (float, None)},
+CELL = {"x": float, "y": float, "linear": {"stable": (bool, None), "max_real_pole": (float, None)},
         "truth": {"class": frozenset(CLASSES), "cycles": [_CYCLE],
                   "coverage": {"starts": int, "outcomes": {str: int}, "complete": bool}},
         "df": {"class": frozenset(CLASSES), "predictions": [{"F": positive, "omega": positive,

@@ -23,7 +23,7 @@ from dfwb.engine.periodic import TrueCycle, trace_arrays
 from dfwb.engine.transfer import num_den
 from dfwb.foreign.loop import MAX_RETURNS, SETTLE
 
-__all__ = ["true_search", "classifier", "MAP"]
+__all__ = ["true_search", "cells", "classifier", "MAP"]
 
 MAP = (16, 48)  # the shared DF map's forces x frequencies: dfwb.limit_cycles' default
 
@@ -71,32 +71,42 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
     coverage = search.Coverage(amplitudes=[forces[0], forces[-1]], count=len(forces), parts=["force"],
                                starts=len(starts), predictions=len(predictions), outcomes=counts,
                                horizon=20 * 2 * math.pi / omega_ref, max_returns=MAX_RETURNS,
-                               complete=not any(o.startswith("failed") for o in outcomes), starts_text=text,
+                               complete=not any(o.startswith("failed") or o == "not settled" for o in outcomes),
+                               starts_text=text,
                                stable_only=cosimulation)
     return search.CycleSearch(cycles, links, coverage, [])
 
 
-def classifier(engine, F_range, omega_range, size=MAP):
-    """A ``classifier(scaled, ks)`` for :func:`~dfwb.engine.margin.margins` with a user's FMU: its DF map over
-    ``F_range`` x ``omega_range`` (``size`` points, on the engine's looser twin) computed once, at the first
-    cell that needs it; the truth searched at each gain."""
+def cells(engine, family, F_range, omega_range, size=MAP):
+    """``classify_at(values, truth=True, df=True)``: the cell of ``family`` (a LoopFamily of a user's FMU) at
+    ``values`` of G's free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
+    verdict unknown: None). The FMU's DF map over ``F_range`` x ``omega_range`` (``size`` points, on the
+    engine's looser twin) is computed once, at the first cell, and serves every cell: the plant's
+    parameters do not change from cell to cell."""
     shared = []
 
-    def make(scaled, ks):
-        def classify_at(k, truth=True, df=True):
-            G, params = scaled.G({GAIN: k}), scaled.params({GAIN: k})
-            if not shared:
-                F_grid, omega_grid = np.geomspace(*F_range, size[0]), np.geomspace(*omega_range, size[1])
-                shared.append(DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid)))
-            dfmap = shared[0]
-            predictions = balance(engine, G, params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid).cycles
-            cell = {}
-            if truth:
-                cell["truth"] = truth_cell(true_search(engine, G, params, predictions, None, F_range, omega_range))
-            if df:
-                cell["df"] = df_cell(predictions, True)
-            return cell
+    def classify_at(values, truth=True, df=True):
+        G, params = family.G(values), family.params(values)
+        if not shared:
+            F_grid, omega_grid = np.geomspace(*F_range, size[0]), np.geomspace(*omega_range, size[1])
+            shared.append(DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid)))
+        dfmap = shared[0]
+        predictions = balance(engine, G, params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid).cycles
+        cell = {"linear": {"stable": None, "max_real_pole": None}}
+        if truth:
+            cell["truth"] = truth_cell(true_search(engine, G, params, predictions, None, F_range, omega_range))
+        if df:
+            cell["df"] = df_cell(predictions, True)
+        return cell
 
-        return classify_at
+    return classify_at
+
+
+def classifier(engine, F_range, omega_range, size=MAP):
+    """A ``classifier(scaled, ks)`` for :func:`~dfwb.engine.margin.margins` with a user's FMU (see :func:`cells`):
+    the gain factor k is the scaled family's one value."""
+    def make(scaled, ks):
+        classify_at = cells(engine, scaled, F_range, omega_range, size)
+        return lambda k, truth=True, df=True: classify_at({GAIN: k}, truth, df)
 
     return make

@@ -32,6 +32,7 @@ MAX_RETURNS = 200  # section returns before a start counts as not settled
 NEWTON = 12  # shooting iterations
 HARMONICS = 10
 TRACE = 200  # samples of a cycle's period in its trace
+REST = 1e-6  # a swing below this fraction of the largest output seen is rest (a decay, not a cycle)
 SEED_RESIDUAL = 1e-8  # a cycle shot from a DF prediction counts only if Newton got this close
 
 
@@ -147,7 +148,7 @@ def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
     flow = loop.flow
     flow.scale = np.maximum(flow.scale, np.abs(z))
     t, z, low, high = _swing(loop, 0.0, z, SETTLE * T_ref, rtol)
-    if not high - low > 1e-9 * max(abs(high), abs(low), 1e-300):
+    if not high - low > REST * max(abs(high), abs(low), flow.y_max, 1e-300):
         return "rest", None
     middle = 0.5 * (low + high)
 
@@ -266,6 +267,8 @@ def _shoot(instance, loop, t, z, period, section, rtol, A, B, C, D):
     Y = (I[:HARMONICS + 1] - 1j * I[HARMONICS + 1:2 * HARMONICS + 2]) * (2 / T)
     Y[0] = I[0] / T
     force = complex(I[-2], -I[-1]) * (2 / T)
+    if not abs(Y[1]) > REST * flow.y_max:  # Newton found the equilibrium the motion decays to, not a cycle
+        return "rest", None
     return "cycle", {
         "omega": omega, "period": T, "amplitude_x": abs(Y[1]), "F": abs(force),
         "stable": bool(max(abs(m) for m in multipliers) < 1.0) if multipliers else True,

@@ -357,8 +357,8 @@ def hunting_map(response, axes=None):
                     CLASS_COLOURS.get(kind, "w"))
         ax.imshow(rgba, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
         linear = response.linear
-        growth = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["growth"]])
-        if np.nanmin(growth) < 0.0 < np.nanmax(growth):
+        growth = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["growth"]], dtype=float)
+        if np.isfinite(growth).any() and np.nanmin(growth) < 0.0 < np.nanmax(growth):
             ax.contour(linear["x"], linear["y"], growth, levels=[0.0], colors="crimson", linewidths=1.6)
         for curve in response.curves:
             points = np.array(curve.points)
@@ -373,7 +373,8 @@ def hunting_map(response, axes=None):
     shown = set(response.classes("truth").ravel()) | set(response.classes("df").ravel())
     handles = [Patch(color=CLASS_COLOURS[k], label=LABELS.get(k, "the plant or G refuses the values"))
                for k in ("unstable", "diverges", "none", "incomplete", "error") if k in shown or k == "none"]
-    handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))
+    if response.linear["growth"]:  # (a user's FMU has no linear loop dfwb knows)
+        handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))
     for source in sorted({c.source for c in response.curves}):
         kinds = ", ".join(sorted({c.kind for c in response.curves if c.source == source}))
         handles.append(plt.Line2D([], [], color="k", ls=CURVE_STYLES.get(source, "-"),

@@ -17,6 +17,7 @@ removed) is computed on a fine grid, and the bifurcation curves are continued in
 the folds found on the way (:func:`dfwb.engine.hunting.fold_curves`).
 """
 
+import contextlib
 import json
 import time
 from dataclasses import dataclass
@@ -38,6 +39,9 @@ from dfwb.engine.hunting import (
     linear_map,
     valid_cell,
 )
+from dfwb.engine.scales import search_ranges
+from dfwb.foreign.hunting import MAP
+from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
 from dfwb.studies.continuation import check_parameter
 from dfwb.studies.executor import Executor, engine_for
@@ -125,20 +129,27 @@ def _row(cell, key):
         best = hunting(cell, source)
         row[f"{source}_omega"] = "" if best is None else repr(best["omega"])
         row[f"{source}_amplitude"] = "" if best is None else repr(best["amplitude_x"])
-    row["linear"] = "stable" if cell["linear"]["stable"] else "unstable"
+    stable = cell["linear"]["stable"]
+    row["linear"] = "unknown" if stable is None else "stable" if stable else "unstable"
     return row
 
 
 def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, cache=False, fmu_dir=None,
-            amplitudes=None, curves=True, resume=True, progress=None, own_folder=False):
+            amplitudes=None, curves=True, resume=True, progress=None, own_folder=False, F_range=None,
+            omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None, timeout=None):
     """The hunting map of ``plant`` under ``G`` over the axes ``x`` and ``y`` (each (NAME, START, STOP, N)).
 
     Returns a :class:`~dfwb.studies.responses.HuntingMapResponse`; see :func:`dfwb.hunting_map`.
     ``own_folder``: ``out_dir`` belongs to the caller (a scene's), so a different map there starts over
-    instead of being refused.
+    instead of being refused. A user's FMU (an FMUPlant or an .fmu path) maps G's parameters, its cells
+    classified here (:func:`dfwb.foreign.hunting.cells`, the FMU's own workers), with ``F_range`` and
+    ``omega_range`` (required) and ``n_F`` x ``n_omega`` for its DF map, ``rtol`` and ``timeout``; it has no
+    linear loop nor bifurcation curves dfwb could draw.
     """
     from dfwb.fmi.location import fmu_path
 
+    if is_fmu_path(plant):
+        plant = fmu_plant(plant)
     fixed = dict(values or {})
     names = [a[0] if isinstance(a, (tuple, list)) and a and isinstance(a[0], str) else None for a in (x, y)]
     for name in names:
@@ -158,11 +169,21 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 100:
         raise InputError(f"amplitudes = {count!r}: the number of start amplitudes per cell, 1 to 100")
     spec = family.spec
-    fmu = str(fmu_path(spec, fmu_dir))
-    engine = engine_for(spec.name, fmu, ())
+    foreign = getattr(spec, "foreign", False)
     started = time.perf_counter()
     shared = None
-    if x_name not in family.plant_names and y_name not in family.plant_names:  # one DF map serves every cell
+    if foreign:
+        classify_at, own = _foreign_cells(family, (x_name, y_name), F_range, omega_range, (n_F, n_omega), rtol,
+                                          timeout)
+        fmu, revision, engine, curves = spec.name, spec.info.digest, None, False
+    elif (F_range, omega_range, rtol, timeout, n_F, n_omega) != (None, None, None, None, *MAP):
+        raise InputError("F_range, omega_range, n_F, n_omega, rtol and timeout are for a user's FMU: dfwb's own "
+                         "plants derive their ranges and are computed exactly")
+    else:
+        fmu = str(fmu_path(spec, fmu_dir))
+        engine, revision, own = engine_for(spec.name, fmu, ()), fmu_revision(fmu), None
+    if not foreign and x_name not in family.plant_names and y_name not in family.plant_names:
+        # one DF map serves every cell
         try:
             corners = [family.problem({x_name: a, y_name: b}, fmu_dir) for a in (xs[0], xs[-1])
                        for b in (ys[0], ys[-1])]
@@ -184,8 +205,10 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     merged = family.merged()
     common = {"plant": spec.name, "G": G_key, "values": merged, "amplitudes": count,
               "dfmap": None if shared is None else digest([shared[0], shared[1]])}
+    if own is not None:  # a user's FMU: what its cells depend on besides
+        common["fmu"] = own
     definition = dict(common, x=[x_name, xs], y=[y_name, ys])
-    base = dict(common, kind="map-cell", code=code_revision(), solvers=solver_revision(), fmu=fmu_revision(fmu),
+    base = dict(common, kind="map-cell", code=code_revision(), solvers=solver_revision(), fmu=revision,
                 axes=[x_name, y_name])
     key = None if G_key is None else digest(base)
     store = open_cache(cache)
@@ -214,8 +237,13 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
         done = len(wanted) - len(pending)
         if progress:
             progress("cells", done, len(wanted))
-        with Executor(jobs, dask) as executor:
-            for _chunk, results in executor.run(chunks, compute_cells):
+        with contextlib.ExitStack() as stack:
+            if foreign:  # here: the FMU's own worker processes share each cell's runs
+                batches = ([_foreign_cell(classify_at, (x_name, y_name), point)] for point in pending)
+            else:
+                executor = stack.enter_context(Executor(jobs, dask))
+                batches = (results for _chunk, results in executor.run(chunks, compute_cells))
+            for results in batches:
                 for cell in results:
                     point = (cell["x"], cell["y"])
                     cells[point] = cell
@@ -227,7 +255,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
                 if progress:
                     progress("cells", done, len(wanted))
     grid = [[cells[(a, b)] for a in xs] for b in ys]
-    linear = linear_map(family, x_name, (xs[0], xs[-1]), y_name, (ys[0], ys[-1]), LINEAR_GRID, fmu_dir)
+    linear = {"x": [], "y": [], "growth": []} if foreign else \
+        linear_map(family, x_name, (xs[0], xs[-1]), y_name, (ys[0], ys[-1]), LINEAR_GRID, fmu_dir)
     found_curves = []
     if curves:
         found_curves = fold_curves(family, x_name, xs, y_name, ys, grid, fmu_dir, engine,
@@ -241,6 +270,36 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     if out_dir is not None:
         response.write(Path(out_dir))
     return response
+
+
+def _foreign_cells(family, axes, F_range, omega_range, size, rtol, timeout):
+    """(classify_at, what the cells depend on) of a map of a user's FMU over G's parameters."""
+    from dfwb.foreign.engine import engine_for as fmu_engine
+    from dfwb.foreign.hunting import cells
+
+    for name in axes:
+        if name in family.plant_names:
+            raise InputError(f"{name} is a parameter of the FMU: a hunting map of a user's FMU runs over G's "
+                             "parameters (one DF map of the FMU serves every cell)")
+    if F_range is None or omega_range is None:
+        raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
+    F, omega = search_ranges(None, F_range, omega_range)
+    if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in size):
+        raise InputError(f"n_F, n_omega = {size[0]!r}, {size[1]!r}: the DF map's sides, integers from 2 to 1000")
+    spec = family.spec
+    engine = fmu_engine(spec, rtol=rtol, timeout=timeout)
+    own = {"sha256": spec.info.digest, "input": spec.input, "output": spec.output, "kind": spec.kind,
+           "rtol": engine.rtol, "F_range": list(F), "omega_range": list(omega), "map": list(size)}
+    return cells(engine, family, F, omega, size), own
+
+
+def _foreign_cell(classify_at, axes, point):
+    """The classified cell at ``point`` (x, y), or why it could not be (one failed cell, not the map)."""
+    try:
+        cell = classify_at(dict(zip(axes, point)))
+    except DfwbError as error:
+        cell = {"error": " ".join(str(error).split())}
+    return dict(cell, x=point[0], y=point[1])
 
 
 def _read_cell(text):
