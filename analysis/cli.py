@@ -296,9 +296,11 @@ def cmd_continue(args):
     if len(bounds) != 2:
         raise InputError(f"--parameter {args.parameter!r}: expected NAME=START:STOP")
     sources = ("truth", "df") if args.source == "both" else (args.source,)
+    own, ranges = _own_fmu_ranges(args)
     with Reporter(f"continuation of {args.plant} in {name}", not args.json) as report:
-        response = follow(args.plant, _controller(args), name, *bounds, _assignments(args.set, "--set"),
-                          sources=sources, max_points=args.max_points, fmu_dir=args.fmus, progress=report)
+        response = follow(own or args.plant, _controller(args), name, *bounds, _assignments(args.set, "--set"),
+                          sources=sources, max_points=args.max_points, fmu_dir=args.fmus, progress=report,
+                          **ranges)
     return _answer(args, response, plot)
 
 
@@ -577,9 +579,19 @@ def parser():
         fmu_options(command)
         command.add_argument("--quiet", action="store_true", help="no progress display")
 
+    def own_map_options(command):
+        command.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                             help="your FMU only: the force amplitudes of its DF map [N]")
+        command.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                             help="your FMU only: the frequencies of its DF map [rad/s]")
+        command.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
+                             metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
+                                                              "(default: 16 48)")
+
     follow = commands.add_parser("continue", help="follow limit cycles in one parameter of G or of the plant: "
                                                  "branches, bifurcations, the diagram")
-    controller_options(follow)
+    controller_options(follow, own=True)
+    own_map_options(follow)
     follow.add_argument("--parameter", action=_Once, required=True, metavar="NAME=START:STOP",
                         help="the parameter followed and its range, e.g. Ki=1:30")
     follow.add_argument("--source", action=_Once, choices=("both", "truth", "df"), default="both",
@@ -590,15 +602,6 @@ def parser():
     follow.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(follow)
     follow.set_defaults(run=cmd_continue)
-
-    def own_map_options(command):
-        command.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
-                             help="your FMU only: the force amplitudes of its DF map [N]")
-        command.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
-                             help="your FMU only: the frequencies of its DF map [rad/s]")
-        command.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
-                             metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
-                                                              "(default: 16 48)")
 
     hunting = commands.add_parser("map", help="which settings of two parameters make the machine hunt: truth and "
                                               "DF side by side, cached and resumable")

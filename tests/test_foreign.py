@@ -416,6 +416,26 @@ def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
         dfwb.hunting_map(plant, "K/(s*(s+1)**2)", ("K", 1, 10, 2), ("a", 0.5, 2, 2), **options)
 
 
+def test_the_df_predictions_of_an_fmu_loop_are_followed_in_a_parameter(built):
+    """The saturating loop under K 10/(s (s + 1)^2) for K from 0.5 to 1: G crosses -180 degrees at w = 1
+    with |G| = 5 K, so the predicted cycle stays at w = 1 with N(F) = 1/(5 K): every point of the branch
+    against the saturation's closed form. The true cycles are not continued: said in one line."""
+    from scipy.optimize import brentq
+
+    plant = dfwb.fmu_plant(built["Saturation"])
+    response = dfwb.continuation(plant, "K*10/(s*(s+1)**2)", "K", 0.5, 1, sources="df", F_range=(0.5, 50),
+                                 omega_range=(0.3, 3), n_F=6, n_omega=8, max_points=20)
+    [branch] = response.branches
+    assert len(branch.points) >= 5 and all(p.stable for p in branch.points)
+    assert min(p.parameter for p in branch.points) == 0.5 and max(p.parameter for p in branch.points) == 1.0
+    for point in branch.points:
+        F = brentq(lambda F: foreign_models.saturation_df(F) - 1 / (5 * point.parameter), 1.0 + 1e-12, 1e3,
+                   xtol=1e-14)
+        assert point.omega == pytest.approx(1.0, rel=1e-6) and point.F == pytest.approx(F, rel=1e-6), point
+    with pytest.raises(dfwb.DfwbError, match="its true cycles are not continued yet"):
+        dfwb.continuation(plant, "K*10/(s*(s+1)**2)", "K", 0.5, 2, F_range=(0.5, 50), omega_range=(0.3, 3))
+
+
 def test_an_fmu_margin_or_map_needs_its_ranges(built):
     for argv, message in [
         (["margin", str(built["Saturation"]), "--G", "10/(s*(s+1)**2)"],

@@ -280,10 +280,12 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
                        fmu_dir=fmu_dir, engine=engine, progress=report if progress else None)
 
 
-def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, *,
+def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, *,
                  sources: Union[str, Sequence[str]] = ("truth", "df"), max_points: int = 200,
                  starts: Optional[Sequence[float]] = None, fmu_dir: Optional[Union[str, Path]] = None,
-                 progress: bool = False, **params: float) -> ContinuationResponse:
+                 progress: bool = False, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
+                 n_F: int = 16, n_omega: int = 48, rtol: Optional[float] = None, timeout: Optional[float] = None,
+                 **params: float) -> ContinuationResponse:
     """Limit cycles followed in one parameter, with their bifurcations: which values make the loop hunt.
 
     The true cycles the systematic search finds at the range's ends (and at ``starts``), and the DF's
@@ -293,10 +295,14 @@ def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, 
     or vanishing; two branches meeting where the stick phase shrinks to nothing, a nonsmooth fold), and
     branches going to infinity at the linear loop's stability boundary (:mod:`dfwb.engine.continuation`).
 
+    Your own model-exchange FMU has its DF's predictions followed (``sources="df"``), found on its DF map
+    at the start values; its true cycles are not continued (:func:`limit_cycles` finds them at a value).
+
     Parameters
     ----------
-    plant : str
-        A plant with an exact loop: ``friction``, ``backlash``, ``static-backlash``.
+    plant : str or FMUPlant
+        A plant with an exact loop: ``friction``, ``backlash``, ``static-backlash``; or your own FMU
+        (:func:`dfwb.fmu_plant`, or the path of an .fmu).
     G : str, callable, (num, den) or python-control system
         The controller; an expression may name parameters (``"Kp + Ki/s"``).
     parameter : str
@@ -313,6 +319,8 @@ def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, 
         Where the FMUs are.
     progress : bool, keyword-only
         Show progress.
+    F_range, omega_range, n_F, n_omega, rtol, timeout : keyword-only
+        Your FMU only: as for :func:`limit_cycle_margin` (the ranges are required).
     **params : float
         The other parameters of G and of the plant.
 
@@ -331,9 +339,12 @@ def continuation(plant: str, G: Any, parameter: str, start: float, stop: float, 
     from dfwb.studies.continuation import follow
 
     flags(progress=progress)
-    with _reporter(f"continuation of {plant} in {parameter}", progress) as report:
-        return follow(plant, G, parameter, start, stop, params, sources=sources, max_points=max_points,
-                      starts=starts, fmu_dir=fmu_dir, progress=report if progress else None)
+    spec = resolve_plant(plant)
+    with _reporter(f"continuation of {spec.name} in {parameter}", progress) as report:
+        return follow(spec, G, parameter, start, stop, params, sources=sources, max_points=max_points,
+                      starts=starts, fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
+                      omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
+                      rtol=rtol, timeout=timeout)
 
 
 def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Union[str, Path]] = None,

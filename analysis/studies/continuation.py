@@ -13,6 +13,7 @@ import math
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily, number
+from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.responses import ContinuationResponse
 
 SOURCES = ("truth", "df")
@@ -42,18 +43,24 @@ def check_parameter(family, name, start, stop, plant=True):
 
 
 def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
-           fmu_dir=None, progress=None):
+           fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=16, n_omega=48, rtol=None,
+           timeout=None):
     """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.
 
     ``values``: G's and the plant's other parameters; ``starts``: parameter values where cycles and
     predictions are searched to start branches from (default: the range's two ends); ``progress``:
     ``progress(stage, done, total)``. Returns a :class:`~dfwb.studies.responses.ContinuationResponse`.
+    A user's model-exchange FMU (an FMUPlant or an .fmu path) has its DF predictions followed
+    (``sources="df"``), found on its DF map over ``F_range`` x ``omega_range`` (``n_F`` x ``n_omega``)
+    at the start values; its true cycles are not continued.
     """
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.describing import F_RANGE, DFEngine
     from dfwb.engine.limit_cycles import search
     from dfwb.engine.scales import search_ranges
 
+    if is_fmu_path(plant):
+        plant = fmu_plant(plant)
     if parameter in (values or {}):
         raise InputError(f"{parameter} is the parameter followed: give its range, not a value for it")
     family = LoopFamily(plant, G, values, free=(parameter,) if isinstance(parameter, str) else ())
@@ -63,8 +70,27 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         raise InputError(f"max_points = {max_points!r}: an integer from 2 to 10000 (points per branch)")
     at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
     searches, notes, cycle_starts, prediction_starts, ranges = [], [], [], [], []
-    engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
+    foreign = getattr(family.spec, "foreign", False)
+    if foreign:
+        engine, fixed = _foreign_engine(family.spec, sources, F_range, omega_range, n_F, n_omega, rtol, timeout)
+    elif (F_range, omega_range, rtol, timeout, n_F, n_omega) != (None, None, None, None, 16, 48):
+        raise InputError("F_range, omega_range, n_F, n_omega, rtol and timeout are for a user's FMU: dfwb's own "
+                         "plants derive their ranges and are computed exactly")
+    else:
+        engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
     for k, value in enumerate(at):
+        if foreign:  # its predictions only, on its own DF map at this value
+            try:
+                predictions = search(family.spec.name, family.G({name: value}), family.params({name: value}),
+                                     *fixed, engine=engine).cycles
+            except DfwbError as error:
+                notes.append(f"{name} = {value:g}: no DF search: {error}")
+                predictions = []
+            ranges.append(fixed[0])
+            prediction_starts += [(value, prediction) for prediction in predictions]
+            if progress:
+                progress("starts", k + 1, len(at))
+            continue
         try:
             problem = family.problem({name: value}, fmu_dir)
         except InputError as error:
@@ -95,7 +121,8 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         branches += more
         bifurcations += found
     if prediction_starts:
-        F_range = (min(F[0] for F in ranges), min(max(F[1] for F in ranges) * 10.0, F_RANGE[1]))
+        F_range = fixed[0] if foreign else (min(F[0] for F in ranges), min(max(F[1] for F in ranges) * 10.0,
+                                                                            F_RANGE[1]))
         more, found = continue_predictions(family, name, bounds, prediction_starts, engine, F_range, max_points)
         branches += more
         bifurcations += found
@@ -103,6 +130,26 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                                 values=family.merged(), branches=branches,
                                 bifurcations=sorted(bifurcations, key=lambda b: (b.source, b.parameter)),
                                 searches=searches, notes=notes, unit=family.spec.unit)
+
+
+def _foreign_engine(spec, sources, F_range, omega_range, n_F, n_omega, rtol, timeout):
+    """(engine, (F_range, omega_range, n_F, n_omega)) of a continuation of a user's FMU, refused in one line
+    where it cannot go."""
+    from dfwb.engine.scales import search_ranges
+    from dfwb.foreign.engine import engine_for
+
+    if "truth" in sources:
+        raise InputError("the continuation of a user's FMU follows the DF's predictions (sources = df): its true "
+                         "cycles are not continued yet (limit_cycles with exact = True finds them at a value)")
+    if spec.kind != "model-exchange":
+        raise InputError(f"{spec.name}: the DF of a co-simulation FMU is too rough to follow by differences (give "
+                         "a model-exchange FMU)")
+    if F_range is None or omega_range is None:
+        raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
+    F, omega = search_ranges(None, F_range, omega_range)
+    if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in (n_F, n_omega)):
+        raise InputError(f"n_F, n_omega = {n_F!r}, {n_omega!r}: the DF map's sides, integers from 2 to 1000")
+    return engine_for(spec, rtol=rtol, timeout=timeout), (F, omega, n_F, n_omega)
 
 
 def _sources(sources):
