@@ -124,10 +124,62 @@ omega = [1.0]
     assert again.resumed == 1 and again.computed == 0 and len(again.failed) == 1
 
 
+STUDIES = """
+title = "studies of a user's FMU"
+[[map]]
+name = "hunting"
+plant = "Saturation.fmu"
+G = "K*(s+z)/(s*(s+1)**2)"
+F_range = [0.2, 50]
+omega_range = [0.1, 5]
+n_F = 8
+n_omega = 16
+x = {name = "K", start = 1, stop = 10, n = 2}
+y = {name = "z", start = 1, stop = 3, n = 2}
+[[continuation]]
+name = "branch"
+plant = "Saturation.fmu"
+G = "K*10/(s*(s+1)**2)"
+parameter = "K"
+start = 0.5
+stop = 1
+sources = ["df"]
+F_range = [0.5, 50]
+omega_range = [0.3, 3]
+n_F = 6
+n_omega = 8
+max_points = 20
+[[figure]]
+name = "maps"
+kind = "map"
+series = ["hunting"]
+[[figure]]
+name = "diagram"
+kind = "continuation"
+series = ["branch"]
+"""
+
+
+def test_a_scene_maps_and_follows_an_fmu_loop(folder, tmp_path):
+    """A hunting map (against Routh: the saturating loop hunts where K (z - 2) > 2, see test_foreign) and a
+    continuation of the DF's predictions of a user's FMU, declared in a scene, drawn, and up to date after."""
+    import json
+
+    scene = write(folder, STUDIES, "studies.toml")
+    outcome = run_scene(scene, tmp_path / "out", jobs=2, cache=tmp_path / "cache", progress=False)
+    cells = json.loads((tmp_path / "out" / "map_hunting" / "cells.json").read_text())["cells"]
+    for source in ("truth", "df"):  # (K, z) = (1, 1), (10, 1), (1, 3), (10, 3)
+        assert [c[source]["class"] for c in cells] == ["none", "none", "none", "stable"]
+    for name in ("maps_hunting.png", "diagram_branch.png"):
+        assert (tmp_path / "out" / name).stat().st_size > 10_000
+    assert "branch" in (tmp_path / "out" / "summary.md").read_text() and len(outcome.figures) == 2
+    assert run_scene(scene, tmp_path / "out", jobs=2, cache=tmp_path / "cache", progress=False).up_to_date
+
+
 @pytest.mark.parametrize("text, message", [
     ('[[trace]]\nname = "t"\nplant = "MassSpringDamper.fmu"\nF = 1\nomega = 1\nstop = 1\nstep = 0.1\n'
-     'outputs = ["y"]', "trace[0].plant: a user's FMU ('MassSpringDamper.fmu') is a plant of [[series]] and "
-     "[[limit_cycle]] (not yet of this section): here give one of 'friction'"),
+     'outputs = ["y"]', "trace[0].plant: a user's FMU ('MassSpringDamper.fmu') is a plant of [[series]], "
+     "[[limit_cycle]], [[continuation]] and [[map]] (not yet of this section): here give one of 'friction'"),
     ('[[series]]\nname = "s"\nplant = "friction"\ninput = "f"\nF = [1]\nomega = [1]',
      "series[0]: input, output and kind are for a plant given as an FMU: plant 'friction' is dfwb's own"),
     ('[[series]]\nname = "s"\nplant = "Missing.fmu"\nF = [1]\nomega = [1]',
@@ -144,6 +196,16 @@ omega = [1.0]
     ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"', "give F_range and omega_range"),
     ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"\nF_range = [1, 2]\nomega_range = [1, 2]\n'
      'verify = true', "verify runs dfwb's own closed-loop FMUs"),
+    ('[[map]]\nname = "m"\nplant = "Saturation.fmu"\nG = "K/(s*(s+1)**2)"\nF_range = [1, 2]\n'
+     'omega_range = [1, 2]\nx = {name = "K", start = 1, stop = 2, n = 2}\ny = {name = "a", start = 1, stop = 2, n = 2}',
+     "map[0]: a is a parameter of the FMU: a hunting map of a user's FMU runs over G's parameters"),
+    ('[[map]]\nname = "m"\nplant = "Saturation.fmu"\nG = "K*(s+z)/(s*(s+1)**2)"\n'
+     'x = {name = "K", start = 1, stop = 2, n = 2}\ny = {name = "z", start = 1, stop = 2, n = 2}',
+     "map[0]: give F_range and omega_range"),
+    ('[[continuation]]\nname = "c"\nplant = "Saturation.fmu"\nG = "K/(s*(s+1)**2)"\nparameter = "K"\nstart = 1\n'
+     'stop = 2\nF_range = [1, 2]\nomega_range = [1, 2]', "continuation[0]: sources: a user's FMU has its DF predictions"),
+    ('[[continuation]]\nname = "c"\nplant = "friction"\nG = "K/s"\nparameter = "K"\nstart = 1\nstop = 2\n'
+     'F_range = [1, 2]', "continuation[0]: F_range: for a user's FMU only"),
     ('[engine]\nrtol = 1e-6\n[[series]]\nname = "s"\nplant = "friction"\nF = [1]\nomega = [1]',
      "engine: rtol is the tolerance of a user's FMU: this scene names none"),
     ('[engine]\nrtol = 1\n[[series]]\nname = "s"\nplant = "friction"\nF = [1]\nomega = [1]', "engine.rtol: Input should be less than or equal to 0.01 (got 1)"),

@@ -45,7 +45,7 @@ from dfwb.studies.cache import (
 )
 from dfwb.studies.executor import Chunk, Executor, chunked
 from dfwb.studies.progress import Display
-from dfwb.studies.scene import PAPER_FIGURES, Point, Scene, load_scene
+from dfwb.studies.scene import PAPER_FIGURES, Point, Scene, load_scene, section_plant
 from dfwb.studies.sweep import MAX_POINTS
 
 MANIFEST = "manifest.json"
@@ -418,18 +418,18 @@ class SceneRun:
 
         results = {}
         for c in self.scene.continuation:
-            spec = find_plant(c.plant)
-            fmu = fmu_path(spec, self.fmu_dir)
+            spec, own = self._study_plant(c)
             G = c.controller()
-            key = {"kind": "continuation", "code": self.code, "solvers": solver_revision(), "fmu": fmu_revision(fmu),
+            key = {"kind": "continuation", "code": self.code, "solvers": solver_revision(),
+                   "fmu": fmu_revision(fmu_path(spec, self.fmu_dir)) if not own else dict(own, sha256=spec.info.digest),
                    "plant": c.plant, "G": G if isinstance(G, str) else num_den(G),
                    "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
                    "sources": c.sources, "max_points": c.max_points}
             task = display.add(f"{c.name}: continuation", 1, 0, 0)
             response = _cached_continuation(self.cache.get(key))
             if response is None:
-                response = follow(c.plant, G, c.parameter, c.start, c.stop, c.params, sources=tuple(c.sources),
-                                  max_points=c.max_points, fmu_dir=self.fmu_dir)
+                response = follow(spec, G, c.parameter, c.start, c.stop, c.params, sources=tuple(c.sources),
+                                  max_points=c.max_points, fmu_dir=self.fmu_dir, **own)
                 self.cache.put(key, finite(response.as_dict()))
             else:
                 self.outcome.cache_hits += 1
@@ -445,12 +445,22 @@ class SceneRun:
         for m in self.scene.map:
             progress = _staged(display, m.name)
             folder = self.out / f"map_{m.name}"
-            results[m.name] = run_map(m.plant, m.controller(), *m.axes(), m.params, out_dir=folder, own_folder=True,
+            spec, own = self._study_plant(m)
+            results[m.name] = run_map(spec, m.controller(), *m.axes(), m.params, out_dir=folder, own_folder=True,
                                       jobs=self.executor.jobs, dask=self.executor.dask, cache=self.cache,
                                       fmu_dir=self.fmu_dir, amplitudes=m.amplitudes, curves=m.curves,
-                                      progress=progress)
-            self.written += [path for path in folder.iterdir() if path.is_file()]
+                                      progress=progress, **own)
+            self.written += [path for path in folder.iterdir()  # (its lock file is no output)
+                             if path.is_file() and not path.name.startswith(".")]
         return results
+
+    def _study_plant(self, section):
+        """(the plant of a [[continuation]] or [[map]], the keywords of a user's FMU's DF map and driver)."""
+        spec = section_plant(section)
+        if not getattr(spec, "foreign", False):
+            return spec, {}
+        return spec, {"F_range": tuple(section.F_range), "omega_range": tuple(section.omega_range),
+                      "n_F": section.n_F, "n_omega": section.n_omega, "rtol": self.scene.engine.rtol}
 
     def write_results(self, data, csv_rows, traces, cycles, studies=None):
         self.write("results.csv", self.log.text(csv_rows + self.map_rows))

@@ -76,8 +76,8 @@ def _registered(name):
     if name not in known:
         listed = ", ".join(repr(n) for n in known)
         if is_fmu_path(name):
-            raise InputError(f"a user's FMU ({shown(name)}) is a plant of [[series]] and [[limit_cycle]] (not yet "
-                             f"of this section): here give one of {listed}")
+            raise InputError(f"a user's FMU ({shown(name)}) is a plant of [[series]], [[limit_cycle]], "
+                             f"[[continuation]] and [[map]] (not yet of this section): here give one of {listed}")
         raise InputError(f"Input should be one of {listed} (got {shown(name)})")
     return name
 
@@ -88,8 +88,8 @@ def _plant_or_fmu(name):
 
 
 def section_plant(section):
-    """The plant a [[series]] or [[limit_cycle]] names: a registry entry, or the user's FMU with the section's
-    ``input`` and ``output`` (checked: :func:`dfwb.foreign.plant.fmu_plant`)."""
+    """The plant a section names: a registry entry, or the user's FMU with the section's ``input``,
+    ``output`` and ``kind`` (checked: :func:`dfwb.foreign.plant.fmu_plant`)."""
     if not is_fmu_path(section.plant):
         if (section.input, section.output, section.kind) != (None, None, None):
             raise InputError(f"input, output and kind are for a plant given as an FMU: plant "
@@ -270,6 +270,24 @@ class Trace:
                                  f"(allowed: {', '.join(known)})")
 
 
+def _fmu_study(section, spec):
+    """A continuation's or a map's user's FMU: its DF map's ranges are given, and each with lo < hi."""
+    if section.F_range is None or section.omega_range is None:
+        raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
+    for key in ("F_range", "omega_range"):
+        lo, hi = getattr(section, key)
+        if not lo < hi:
+            raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
+
+
+def _no_fmu_keys(section):
+    """A section of dfwb's own plant given a user's FMU's keys: refused, never ignored."""
+    given = [key for key in ("F_range", "omega_range") if getattr(section, key) is not None]
+    given += [key for key, default in (("n_F", 16), ("n_omega", 48)) if getattr(section, key) != default]
+    if given:
+        raise InputError(f"{', '.join(given)}: for a user's FMU only (dfwb's own plants derive their ranges)")
+
+
 def _controller(section):
     """G as a section gives it: the expression (with parameters), or a TransferFunction of num and den."""
     from dfwb.engine.transfer import from_coefficients
@@ -343,7 +361,14 @@ class Continuation:
     """Limit cycles (true and predicted) followed in one parameter of G or of the plant, with bifurcations."""
 
     name: str = rule(Name)
-    plant: str = rule(PlantName)
+    plant: str = rule(PlantOrFMU)
+    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
+    output: Optional[str] = rule(Variable, None)
+    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
+    F_range: Optional[list] = rule(ListOf(Force, min_length=2, max_length=2), None)  # a user's FMU's DF map
+    omega_range: Optional[list] = rule(ListOf(Frequency, min_length=2, max_length=2), None)
+    n_F: int = rule(Integer(ge=2, le=1000), 16)
+    n_omega: int = rule(Integer(ge=2, le=1000), 48)
     params: dict = rule(Params, {})  # the other parameters of the plant and of G
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
@@ -357,8 +382,19 @@ class Continuation:
     def __post_init__(self):
         from dfwb.studies.continuation import check_parameter
 
-        if find_plant(self.plant).loop is None:
+        spec = section_plant(self)
+        if getattr(spec, "foreign", False):
+            _fmu_study(self, spec)
+            if self.sources != ["df"]:
+                raise InputError("sources: a user's FMU has its DF predictions followed (sources = [\"df\"]); "
+                                 "its true cycles are not continued yet")
+            if spec.kind != "model-exchange":
+                raise InputError("the DF of a co-simulation FMU is too rough to follow by differences: give "
+                                 "kind = \"model-exchange\" where the FMU offers it")
+        elif spec.loop is None:
             raise InputError(f"plant {self.plant!r} has no exact closed loop to follow cycles of")
+        else:
+            _no_fmu_keys(self)
         if self.parameter in self.params:
             raise InputError(f"{self.parameter} is the parameter followed: give its range, not a value in params")
         check_parameter(_family(self, free=(self.parameter,)), self.parameter, self.start, self.stop)
@@ -382,7 +418,14 @@ class Map:
     """A hunting map: every cell of two parameters classified by the truth and by the DF."""
 
     name: str = rule(Name)
-    plant: str = rule(PlantName)
+    plant: str = rule(PlantOrFMU)
+    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
+    output: Optional[str] = rule(Variable, None)
+    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
+    F_range: Optional[list] = rule(ListOf(Force, min_length=2, max_length=2), None)  # a user's FMU's DF map
+    omega_range: Optional[list] = rule(ListOf(Frequency, min_length=2, max_length=2), None)
+    n_F: int = rule(Integer(ge=2, le=1000), 16)
+    n_omega: int = rule(Integer(ge=2, le=1000), 48)
     params: dict = rule(Params, {})
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
@@ -396,8 +439,17 @@ class Map:
         from dfwb.studies.continuation import check_parameter
         from dfwb.studies.hunting import MAX_CELLS
 
-        if find_plant(self.plant).loop is None:
+        spec = section_plant(self)
+        if getattr(spec, "foreign", False):
+            _fmu_study(self, spec)
+            for axis in (self.x, self.y):
+                if axis.name in spec.info.parameters:
+                    raise InputError(f"{axis.name} is a parameter of the FMU: a hunting map of a user's FMU runs "
+                                     "over G's parameters")
+        elif spec.loop is None:
             raise InputError(f"plant {self.plant!r} has no exact closed loop to classify")
+        else:
+            _no_fmu_keys(self)
         if self.x.name == self.y.name:
             raise InputError(f"x and y are both {self.x.name}: a map needs two different parameters")
         for axis in (self.x, self.y):
@@ -492,8 +544,9 @@ class Scene:
             raise InputError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
                              "(split it)")
         self._one_fmu_plant_each()
-        if self.engine.rtol is not None and not any(is_fmu_path(section.plant)
-                                                     for section in itertools.chain(self.series, self.limit_cycle)):
+        if self.engine.rtol is not None and not any(
+                is_fmu_path(section.plant)
+                for section in itertools.chain(self.series, self.limit_cycle, self.continuation, self.map)):
             raise Invalid("rtol is the tolerance of a user's FMU: this scene names none (dfwb's own plants are "
                           "computed exactly)", ["engine"])
         for i, series in enumerate(self.series):  # at most MAX_POINTS parameter sets in all: bounded work
@@ -510,7 +563,8 @@ class Scene:
         """A user's FMU named in several sections is named with the same input, output and kind in each
         (results and the cache know the plant by its file)."""
         chosen = {}
-        for group, sections in (("series", self.series), ("limit_cycle", self.limit_cycle)):
+        for group, sections in (("series", self.series), ("limit_cycle", self.limit_cycle),
+                                ("continuation", self.continuation), ("map", self.map)):
             for i, section in enumerate(sections):
                 if is_fmu_path(section.plant):
                     variables = (section.input, section.output, section.kind)
@@ -521,7 +575,7 @@ class Scene:
 
     def plant(self, name):
         """The plant a section of this scene names by ``name`` (a user's FMU with its input and output)."""
-        for section in itertools.chain(self.series, self.limit_cycle):
+        for section in itertools.chain(self.series, self.limit_cycle, self.continuation, self.map):
             if section.plant == name:
                 return section_plant(section)
         return find_plant(name)
@@ -606,7 +660,7 @@ def parse_scene(text, source="<scene>", folder=None):
 
 def _anchor_fmus(data, folder):
     """Make each FMU path of the sections that take one start from ``folder`` (the checks come later)."""
-    for group in ("series", "limit_cycle"):
+    for group in ("series", "limit_cycle", "continuation", "map"):
         sections = data.get(group)
         for section in sections if isinstance(sections, list) else ():
             plant = section.get("plant") if isinstance(section, dict) else None
