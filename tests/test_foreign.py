@@ -522,6 +522,27 @@ def test_a_cosimulation_fmu_that_interpolates_inputs_gets_the_sine_as_lines(tmp_
     assert steps[True] * 4 <= steps[False], steps
 
 
+def test_an_fmi3_cosimulation_fmu_with_intermediate_update_gets_the_sine_inside_its_steps(tmp_path):
+    """FMI 3.0: an FMU whose force input has intermediateUpdate asks for it at each of its RK4 stages, and
+    dfwb answers with the sine there; only the output's sampling is left to refine, so the DF converges at
+    a sixteenth of the steps per period the same FMU needs under a held input. Both within their N_error
+    and 1e-6 (C FMUs compiled here, :mod:`foreign_fmi3`)."""
+    import foreign_fmi3
+
+    steps = {}
+    for intermediate in (False, True):
+        plant = dfwb.fmu_plant(foreign_fmi3.build(tmp_path, intermediate))
+        assert plant.info.fmi_version == "3.0" and plant.kind == "co-simulation"
+        assert plant.info.intermediate_inputs == (("u",) if intermediate else ())
+        response = dfwb.describing_function(plant, 2.0, 2.0)
+        truth = foreign_models.msd_df(2.0)
+        assert abs(complex(response.N) - truth) <= min(float(response.N_error), 1e-6 * abs(truth))
+        note = response.points[0]["note"]
+        assert note.startswith("the sine inside each step" if intermediate else "held input"), note
+        steps[intermediate] = int(note.split(", ")[1].split()[0])
+    assert steps[True] * 16 <= steps[False], steps
+
+
 def test_the_engine_options_are_checked(built):
 
 

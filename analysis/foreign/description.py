@@ -71,6 +71,7 @@ class FMUInfo:
     inputs: dict  # name -> (type, variability) of every input
     outputs: dict  # name -> (type, unit) of every output
     parameters: dict = field(default_factory=dict)  # name -> Parameter
+    intermediate_inputs: tuple = ()  # FMI 3.0 co-simulation: inputs it asks for inside a step (intermediate update)
 
     @property
     def major(self):
@@ -126,7 +127,8 @@ def describe(path):
     import xml.etree.ElementTree as ElementTree  # the file passed unpack's checks: small, shallow, no entities
 
     try:
-        version = str(ElementTree.parse(Path(folder, "modelDescription.xml")).getroot().get("fmiVersion") or "")
+        root = ElementTree.parse(Path(folder, "modelDescription.xml")).getroot()
+        version = str(root.get("fmiVersion") or "")
     except ElementTree.ParseError as error:
         raise PlantError(f"{path}: its modelDescription.xml cannot be read ({error})") from None
     if version.startswith("1."):
@@ -168,6 +170,11 @@ def describe(path):
             parameters[v.name] = Parameter(v.name, v.type, start, _unit(v), _number(v.min, -math.inf),
                                            _number(v.max, math.inf), " ".join((v.description or "").split()))
     states = len(md.derivatives) if md.derivatives else 0
+    intermediate = ()  # (fmpy does not read a variable's intermediateUpdate: the XML says it)
+    if major == "3" and cs is not None and cs.providesIntermediateUpdate:
+        intermediate = tuple(v.get("name") for v in root.iter("Float64")
+                             if v.get("causality") == "input" and v.get("intermediateUpdate") == "true"
+                             and v.get("name") in inputs)
     return FMUInfo(
         path=str(path), folder=str(folder), digest=key, fmi_version=version, model_name=str(md.modelName),
         kinds=kinds, identifiers={kind: interfaces[kind].modelIdentifier for kind in kinds},
@@ -175,4 +182,4 @@ def describe(path):
         can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
         max_output_derivative_order=int(cs.maxOutputDerivativeOrder or 0) if cs is not None else 0,
         event_indicators=int(md.numberOfEventIndicators or 0), states=states,
-        inputs=inputs, outputs=outputs, parameters=parameters)
+        inputs=inputs, outputs=outputs, parameters=parameters, intermediate_inputs=intermediate)

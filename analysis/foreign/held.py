@@ -10,6 +10,12 @@ the finer run's steady state), and Richardson's extrapolation at the
 observed order gives N; its error estimate is :func:`richardson`'s, with the
 transient that remains. It stops when that estimate is below ``rtol |N|`` or
 at :data:`MAX_STEPS` steps per period.
+
+Better inputs where the FMU takes them: an FMI 2.0 FMU that can interpolate
+inputs gets each step's line closest to the sine (its value and slope), and
+an FMI 3.0 FMU whose force input has ``intermediateUpdate`` gets the sine
+itself whenever it asks inside a step (its intermediate-update callback), so
+only the output's sampling is left to refine.
 """
 
 import math
@@ -80,7 +86,9 @@ class _Held:
         samples[0] = self.y if self.y is not None else inst.output()
         for i in range(n):
             middle = omega * (t0 + (i + 0.5) * h)
-            if self.interpolate:
+            if inst.intermediate:  # it asks for the force inside the step (input_law): the sine at the start
+                inst.set_input(self.F * math.cos(omega * (t0 + i * h)))
+            elif self.interpolate:
                 slope = -self.F * moment * math.sin(middle)
                 inst.set_input(self.F * mean * math.cos(middle) - slope * h / 2)
                 inst.set_input_slope(slope)
@@ -105,9 +113,10 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-6, max_periods=150):
     """(X_k, N error, periodic, periods, orbit periods, note) of one DF point of a co-simulation FMU."""
     interpolate = instance.info.can_interpolate_inputs and instance.info.major == "2"
     held = _Held(instance, F, omega, harmonics, interpolate)
+    instance.input_law = (lambda t: F * math.cos(omega * t)) if instance.intermediate else None
     n = FIRST_STEPS
     mean = math.sin(math.pi / n) / (math.pi / n)
-    instance.start(params, F * mean * math.cos(math.pi / n))
+    instance.start(params, F if instance.intermediate else F * mean * math.cos(math.pi / n))
     levels, periods, periodic, residual, lag = [], 0, True, 0.0, 1
     while True:
         sections = Sections(tol=min(1e-3 * rtol, 1e-9), output=0)
@@ -130,8 +139,9 @@ def point(instance, F, omega, params, harmonics=10, rtol=1e-6, max_periods=150):
         n *= 2
     X = levels[-1].copy()
     X[1] = N  # the extrapolated first harmonic; the others at the finest step
-    note = (f"{'interpolated' if interpolate else 'held'} input, {n} steps per period, Richardson over "
-            f"{len(levels)} levels")
+    how = "the sine inside each step (intermediate update)" if instance.intermediate else \
+        "interpolated input" if interpolate else "held input"
+    note = f"{how}, {n} steps per period, Richardson over {len(levels)} levels"
     if not periodic:
         note = f"no periodic response within {max_periods} periods at some step: averaged; " + note
     return X, error + residual, periodic, periods, lag, note
