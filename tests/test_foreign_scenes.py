@@ -124,6 +124,47 @@ omega = [1.0]
     assert again.resumed == 1 and again.computed == 0 and len(again.failed) == 1
 
 
+def test_a_scene_traces_an_fmu(folder, tmp_path):
+    """A [[trace]] of a user's FMU: model exchange against the same mass-spring-damper solved by scipy from
+    rest (1e-9), co-simulation (one step per sample) within the saturation's level."""
+    from scipy.integrate import solve_ivp
+
+    scene = write(folder, """
+title = "traces of a user's FMU"
+[[trace]]
+name = "me"
+plant = "MassSpringDamper.fmu"
+F = 1.0
+omega = 2.0
+start = 5.0
+stop = 20.0
+step = 0.05
+outputs = ["y"]
+[[trace]]
+name = "cs"
+plant = "Saturation.fmu"
+kind = "co-simulation"
+F = 3.0
+omega = 1.0
+stop = 10.0
+step = 0.01
+outputs = ["y"]
+[[figure]]
+name = "time"
+kind = "trace"
+series = ["me", "cs"]
+""", "traces.toml")
+    run_scene(scene, tmp_path / "out", jobs=1, cache=False, progress=False)
+    me = np.genfromtxt(tmp_path / "out" / "traces" / "me.csv", delimiter=",", names=True)
+    assert me["time"][0] == pytest.approx(5.0) and me["time"][-1] == pytest.approx(20.0)
+    exact = solve_ivp(lambda t, z: [z[1], np.cos(2 * t) - 0.2 * z[1] - 4 * z[0]], (0, 20), [0, 0], rtol=1e-12,
+                      atol=1e-12, dense_output=True)
+    assert np.max(np.abs(exact.sol(me["time"])[0] - me["y"])) < 1e-9
+    cs = np.genfromtxt(tmp_path / "out" / "traces" / "cs.csv", delimiter=",", names=True)
+    assert len(cs) == 1001 and np.max(np.abs(cs["y"])) == pytest.approx(1.0)
+    assert (tmp_path / "out" / "time.png").stat().st_size > 10_000
+
+
 STUDIES = """
 title = "studies of a user's FMU"
 [[map]]
@@ -178,8 +219,7 @@ def test_a_scene_maps_and_follows_an_fmu_loop(folder, tmp_path):
 
 @pytest.mark.parametrize("text, message", [
     ('[[trace]]\nname = "t"\nplant = "MassSpringDamper.fmu"\nF = 1\nomega = 1\nstop = 1\nstep = 0.1\n'
-     'outputs = ["y"]', "trace[0].plant: a user's FMU ('MassSpringDamper.fmu') is a plant of [[series]], "
-     "[[limit_cycle]], [[continuation]] and [[map]] (not yet of this section): here give one of 'friction'"),
+     'outputs = ["x"]', "trace[0]: output 'x' is not an output of plant"),
     ('[[series]]\nname = "s"\nplant = "friction"\ninput = "f"\nF = [1]\nomega = [1]',
      "series[0]: input, output and kind are for a plant given as an FMU: plant 'friction' is dfwb's own"),
     ('[[series]]\nname = "s"\nplant = "Missing.fmu"\nF = [1]\nomega = [1]',

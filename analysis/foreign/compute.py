@@ -8,7 +8,7 @@ refined and extrapolated). Runs in the worker (:mod:`dfwb.foreign.worker`).
 import sys
 
 from dfwb.fmi.simulation import FMUError
-from dfwb.foreign import held, loop, model_exchange
+from dfwb.foreign import held, loop, model_exchange, trace
 from dfwb.foreign.instance import Instance
 
 __all__ = ["run", "DRIVERS"]
@@ -25,6 +25,9 @@ def run(request, instances):
         instance = instances[key] = Instance(info, kind, request["input"], request["output"])
     if request.get("task") == "cycles":
         return _cycles(instance, request)
+    if request.get("task") == "trace":
+        return trace.response(instance, request["F"], request["omega"], request["params"], request["stop"],
+                              request["step"], request["outputs"])
     try:
         X, error, periodic, periods, lag, note = DRIVERS[kind](
             instance, request["F"], request["omega"], request["params"], harmonics=request["harmonics"],

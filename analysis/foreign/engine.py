@@ -123,6 +123,16 @@ class FMUEngine:
             by_seed[i::shares] = answer["outcomes"][len(group_starts):]
         return found, by_start + by_seed
 
+    def trace(self, F, omega, params, stop, step, outputs):
+        """{"time": [...], output: [...]}: the response to F cos(omega t) from rest, sampled every ``step`` up
+        to ``stop`` (:mod:`dfwb.foreign.trace`); one worker call under the engine's time limit."""
+        check_point(F, omega)
+        request = {"task": "trace", "info": self.plant.info, "kind": self.plant.kind, "input": self.plant.input,
+                   "output": self.plant.output, "params": self.plant.check(params or {}), "F": float(F),
+                   "omega": float(omega), "stop": float(stop), "step": float(step), "outputs": list(outputs)}
+        with borrowed() as worker:
+            return worker.call(request, f"{self.plant.name}: a trace at F = {F:g}, omega = {omega:g}", self.timeout)
+
     def coarse(self):
         """A looser twin for the work that only locates (a map, Newton's first steps): N alone, rtol 1000
         times looser (at most 1e-4), the same FMU, limits and workers' count."""

@@ -171,6 +171,11 @@ class Instance:
             self.fmu.fmi2GetReal(self.fmu.component, self._output, 1, self._y_at)
         return float(self._y[0])
 
+    def read(self, names):
+        """The Real outputs ``names`` now (a trace's)."""
+        refs = [self.variables[n].valueReference for n in names]
+        return self.fmu.getFloat64(refs) if self.v3 else self.fmu.getReal(refs)
+
     # -- model exchange -------------------------------------------------------------------------------
     def set_continuous(self, t, x, u):
         """Time, states and input for the next evaluation."""

@@ -75,9 +75,6 @@ def _registered(name):
     known = names()
     if name not in known:
         listed = ", ".join(repr(n) for n in known)
-        if is_fmu_path(name):
-            raise InputError(f"a user's FMU ({shown(name)}) is a plant of [[series]], [[limit_cycle]], "
-                             f"[[continuation]] and [[map]] (not yet of this section): here give one of {listed}")
         raise InputError(f"Input should be one of {listed} (got {shown(name)})")
     return name
 
@@ -120,8 +117,7 @@ def _has_title(title):
     return title
 
 
-PlantName = Checked(Text(), _registered)
-PlantOrFMU = Checked(Text(), _plant_or_fmu)  # [[series]] and [[limit_cycle]] take a user's FMU too
+PlantOrFMU = Checked(Text(), _plant_or_fmu)  # a registered plant, or a user's FMU
 Variable = Text(max_length=200)  # an FMU's input or output
 Positive = Number(gt=0)
 Force = Number(ge=F_RANGE[0], le=F_RANGE[1])  # [N]: what the engine accepts
@@ -244,7 +240,10 @@ class Trace:
     """A time response to F cos(omega t) from rest, sampled every ``step`` on [start, stop]."""
 
     name: str = rule(Name)
-    plant: str = rule(PlantName)
+    plant: str = rule(PlantOrFMU)
+    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
+    output: Optional[str] = rule(Variable, None)
+    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
     params: dict = rule(Params, {})
     F: float = rule(Force)
     omega: float = rule(Frequency)
@@ -254,7 +253,8 @@ class Trace:
     outputs: list = rule(ListOf(Text(), min_length=1))
 
     def __post_init__(self):
-        _check_plant(self.plant, self.params)
+        spec = section_plant(self)
+        _check_plant(spec, self.params)
         if not self.start < self.stop:
             raise InputError(f"start = {self.start:g} must be < stop = {self.stop:g}")
         if self.stop / self.step > MAX_SAMPLES:
@@ -263,7 +263,8 @@ class Trace:
         if periods > MAX_TRACE_PERIODS:
             raise InputError(f"stop = {self.stop:g} s is {periods:.3g} forcing periods at omega = "
                              f"{self.omega:g} rad/s: at most {MAX_TRACE_PERIODS:g}")
-        known = [name for name, *_ in find_plant(self.plant).model.all_outputs()]
+        known = spec.info.real_outputs() if getattr(spec, "foreign", False) else \
+            [name for name, *_ in spec.model.all_outputs()]
         for name in self.outputs:
             if name not in known:
                 raise InputError(f"output {shown(name)} is not an output of plant {self.plant} "
@@ -546,7 +547,8 @@ class Scene:
         self._one_fmu_plant_each()
         if self.engine.rtol is not None and not any(
                 is_fmu_path(section.plant)
-                for section in itertools.chain(self.series, self.limit_cycle, self.continuation, self.map)):
+                for section in itertools.chain(self.series, self.trace, self.limit_cycle, self.continuation,
+                                               self.map)):
             raise Invalid("rtol is the tolerance of a user's FMU: this scene names none (dfwb's own plants are "
                           "computed exactly)", ["engine"])
         for i, series in enumerate(self.series):  # at most MAX_POINTS parameter sets in all: bounded work
@@ -563,7 +565,7 @@ class Scene:
         """A user's FMU named in several sections is named with the same input, output and kind in each
         (results and the cache know the plant by its file)."""
         chosen = {}
-        for group, sections in (("series", self.series), ("limit_cycle", self.limit_cycle),
+        for group, sections in (("series", self.series), ("trace", self.trace), ("limit_cycle", self.limit_cycle),
                                 ("continuation", self.continuation), ("map", self.map)):
             for i, section in enumerate(sections):
                 if is_fmu_path(section.plant):
@@ -575,7 +577,7 @@ class Scene:
 
     def plant(self, name):
         """The plant a section of this scene names by ``name`` (a user's FMU with its input and output)."""
-        for section in itertools.chain(self.series, self.limit_cycle, self.continuation, self.map):
+        for section in itertools.chain(self.series, self.trace, self.limit_cycle, self.continuation, self.map):
             if section.plant == name:
                 return section_plant(section)
         return find_plant(name)
@@ -660,7 +662,7 @@ def parse_scene(text, source="<scene>", folder=None):
 
 def _anchor_fmus(data, folder):
     """Make each FMU path of the sections that take one start from ``folder`` (the checks come later)."""
-    for group in ("series", "limit_cycle", "continuation", "map"):
+    for group in ("series", "trace", "limit_cycle", "continuation", "map"):
         sections = data.get(group)
         for section in sections if isinstance(sections, list) else ():
             plant = section.get("plant") if isinstance(section, dict) else None
