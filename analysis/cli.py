@@ -297,6 +297,11 @@ def cmd_continue(args):
         raise InputError(f"--parameter {args.parameter!r}: expected NAME=START:STOP")
     sources = ("truth", "df") if args.source == "both" else (args.source,)
     own, ranges = _own_fmu_ranges(args)
+    if args.samples is not None:
+        if own is None:
+            raise InputError("--samples: only for a plant given as the path of an FMU (dfwb's own plants' cycles "
+                             "are continued, not sampled)")
+        ranges["samples"] = args.samples
     with Reporter(f"continuation of {args.plant} in {name}", not args.json) as report:
         response = follow(own or args.plant, _controller(args), name, *bounds, _assignments(args.set, "--set"),
                           sources=sources, max_points=args.max_points, fmu_dir=args.fmus, progress=report,
@@ -598,6 +603,8 @@ def parser():
                         help="follow the true cycles, the DF's predictions, or both (default: %(default)s)")
     follow.add_argument("--max-points", action=_Once, type=_integer(2, 10_000), default=200,
                         help="points per branch, at most (default: %(default)s)")
+    follow.add_argument("--samples", action=_Once, type=_integer(2, 1000), default=None,
+                        help="your FMU only: the values where its true cycles are searched (default: 11)")
     follow.add_argument("--plot", action=_Once, help="write the bifurcation diagram to this PNG")
     follow.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(follow)

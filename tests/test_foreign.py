@@ -402,7 +402,8 @@ def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
     """A saturation under K (s + z) / (s (s + 1)^2): the loop's characteristic polynomial with the
     saturation's gain N is s^3 + 2 s^2 + (1 + K N) s + K N z, so the linear loop (N = 1) is unstable, and
     the saturation's cycle hunts, where K (z - 2) > 2 (Routh); elsewhere every run comes to rest. Truth and
-    DF agree with that on a 2 x 2 map; a second run resumes every cell from the folder."""
+    DF agree with that on a 2 x 2 map; a second run resumes every cell from the folder. A map over the FMU's
+    own parameter computes a DF map for each cell."""
     plant = dfwb.fmu_plant(built["Saturation"])
     options = dict(out_dir=tmp_path / "map", F_range=(0.2, 50), omega_range=(0.1, 5), n_F=8, n_omega=16)
     m = dfwb.hunting_map(plant, "K*(s+z)/(s*(s+1)**2)", ("K", 1, 10, 2), ("z", 1, 3, 2), **options)
@@ -412,14 +413,20 @@ def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
     again = dfwb.hunting_map(plant, "K*(s+z)/(s*(s+1)**2)", ("K", 1, 10, 2), ("z", 1, 3, 2), **options)
     assert again.counts["resumed"] == 4 and again.counts["computed"] == 0
     assert again.classes("truth").tolist() == expected
-    with pytest.raises(dfwb.DfwbError, match="a is a parameter of the FMU: a hunting map of a user's FMU runs over"):
-        dfwb.hunting_map(plant, "K/(s*(s+1)**2)", ("K", 1, 10, 2), ("a", 0.5, 2, 2), **options)
+    # over a parameter of the FMU (the saturation's level a): each cell its own DF map. The loop hunts where
+    # 10 K > 2, whatever a, and its cycle scales with a (y = a sat(u / a), G linear)
+    levels = dfwb.hunting_map(plant, "K*10/(s*(s+1)**2)", ("K", 0.1, 1, 2), ("a", 0.5, 2, 2),
+                              **dict(options, out_dir=tmp_path / "levels"))
+    assert levels.classes("truth").tolist() == levels.classes("df").tolist() == [["none", "stable"]] * 2
+    small, large = (levels.cells[j][1]["truth"]["cycles"][0] for j in (0, 1))
+    assert large["amplitude_x"] == pytest.approx(4 * small["amplitude_x"], rel=1e-6)
+    assert large["omega"] == pytest.approx(small["omega"], rel=1e-6)
 
 
 def test_the_df_predictions_of_an_fmu_loop_are_followed_in_a_parameter(built):
     """The saturating loop under K 10/(s (s + 1)^2) for K from 0.5 to 1: G crosses -180 degrees at w = 1
     with |G| = 5 K, so the predicted cycle stays at w = 1 with N(F) = 1/(5 K): every point of the branch
-    against the saturation's closed form. The true cycles are not continued: said in one line."""
+    against the saturation's closed form."""
     from scipy.optimize import brentq
 
     plant = dfwb.fmu_plant(built["Saturation"])
@@ -432,8 +439,22 @@ def test_the_df_predictions_of_an_fmu_loop_are_followed_in_a_parameter(built):
         F = brentq(lambda F: foreign_models.saturation_df(F) - 1 / (5 * point.parameter), 1.0 + 1e-12, 1e3,
                    xtol=1e-14)
         assert point.omega == pytest.approx(1.0, rel=1e-6) and point.F == pytest.approx(F, rel=1e-6), point
-    with pytest.raises(dfwb.DfwbError, match="its true cycles are not continued yet"):
-        dfwb.continuation(plant, "K*10/(s*(s+1)**2)", "K", 0.5, 2, F_range=(0.5, 50), omega_range=(0.3, 3))
+
+
+def test_the_true_cycles_of_an_fmu_loop_are_sampled_along_a_parameter(built):
+    """The saturating loop under K 10/(s (s + 1)^2) for K from 0.1 to 1: its linear loop loses stability at
+    K = 0.2 (Routh), where the saturation's stable cycle is born. Searched at four values, the true cycles
+    form one stable branch from 0.4 on; its beginning is bracketed between 0.1 and 0.4, around 0.2."""
+    plant = dfwb.fmu_plant(built["Saturation"])
+    response = dfwb.continuation(plant, "K*10/(s*(s+1)**2)", "K", 0.1, 1, sources="truth", F_range=(0.5, 50),
+                                 omega_range=(0.3, 3), n_F=6, n_omega=8, samples=4)
+    [branch] = response.branches
+    assert branch.source == "truth" and [p.parameter for p in branch.points] == pytest.approx([0.4, 0.7, 1.0])
+    assert all(p.stable and max(p.multipliers) < 1 for p in branch.points)
+    assert branch.ends[0][1] == "it begins between 0.1 and 0.4" and branch.ends[1][1] == "the end of the range"
+    [begins] = response.bifurcations
+    assert begins.kind == "bracketed" and abs(begins.parameter - 0.2) <= begins.accuracy
+    assert any("searched at 4 values" in note for note in response.notes)
 
 
 def test_an_fmu_margin_or_map_needs_its_ranges(built):

@@ -236,14 +236,9 @@ def test_a_scene_maps_and_follows_an_fmu_loop(folder, tmp_path):
     ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"', "give F_range and omega_range"),
     ('[[limit_cycle]]\nname = "l"\nplant = "Saturation.fmu"\nG = "1/s"\nF_range = [1, 2]\nomega_range = [1, 2]\n'
      'verify = true', "verify runs dfwb's own closed-loop FMUs"),
-    ('[[map]]\nname = "m"\nplant = "Saturation.fmu"\nG = "K/(s*(s+1)**2)"\nF_range = [1, 2]\n'
-     'omega_range = [1, 2]\nx = {name = "K", start = 1, stop = 2, n = 2}\ny = {name = "a", start = 1, stop = 2, n = 2}',
-     "map[0]: a is a parameter of the FMU: a hunting map of a user's FMU runs over G's parameters"),
     ('[[map]]\nname = "m"\nplant = "Saturation.fmu"\nG = "K*(s+z)/(s*(s+1)**2)"\n'
      'x = {name = "K", start = 1, stop = 2, n = 2}\ny = {name = "z", start = 1, stop = 2, n = 2}',
      "map[0]: give F_range and omega_range"),
-    ('[[continuation]]\nname = "c"\nplant = "Saturation.fmu"\nG = "K/(s*(s+1)**2)"\nparameter = "K"\nstart = 1\n'
-     'stop = 2\nF_range = [1, 2]\nomega_range = [1, 2]', "continuation[0]: sources: a user's FMU has its DF predictions"),
     ('[[continuation]]\nname = "c"\nplant = "friction"\nG = "K/s"\nparameter = "K"\nstart = 1\nstop = 2\n'
      'F_range = [1, 2]', "continuation[0]: F_range: for a user's FMU only"),
     ('[engine]\nrtol = 1e-6\n[[series]]\nname = "s"\nplant = "friction"\nF = [1]\nomega = [1]',

@@ -285,7 +285,7 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
                  starts: Optional[Sequence[float]] = None, fmu_dir: Optional[Union[str, Path]] = None,
                  progress: bool = False, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
                  n_F: int = 16, n_omega: int = 48, rtol: Optional[float] = None, timeout: Optional[float] = None,
-                 **params: float) -> ContinuationResponse:
+                 samples: int = 11, **params: float) -> ContinuationResponse:
     """Limit cycles followed in one parameter, with their bifurcations: which values make the loop hunt.
 
     The true cycles the systematic search finds at the range's ends (and at ``starts``), and the DF's
@@ -295,8 +295,9 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
     or vanishing; two branches meeting where the stick phase shrinks to nothing, a nonsmooth fold), and
     branches going to infinity at the linear loop's stability boundary (:mod:`dfwb.engine.continuation`).
 
-    Your own model-exchange FMU has its DF's predictions followed (``sources="df"``), found on its DF map
-    at the start values; its true cycles are not continued (:func:`limit_cycles` finds them at a value).
+    Your own model-exchange FMU has its DF's predictions followed, found on its DF map at the start values,
+    and its true cycles searched at ``samples`` values and joined into branches, where they begin, end or
+    change their stability bracketed by the samples (:mod:`dfwb.foreign.continuation`).
 
     Parameters
     ----------
@@ -321,6 +322,8 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
         Show progress.
     F_range, omega_range, n_F, n_omega, rtol, timeout : keyword-only
         Your FMU only: as for :func:`limit_cycle_margin` (the ranges are required).
+    samples : int, keyword-only
+        Your FMU only: the values where its true cycles are searched (2 to 1000).
     **params : float
         The other parameters of G and of the plant.
 
@@ -344,7 +347,7 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
         return follow(spec, G, parameter, start, stop, params, sources=sources, max_points=max_points,
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
                       omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
-                      rtol=rtol, timeout=timeout)
+                      rtol=rtol, timeout=timeout, samples=_integer("samples", samples))
 
 
 def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Union[str, Path]] = None,

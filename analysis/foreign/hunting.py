@@ -3,12 +3,12 @@
 The truth is :mod:`dfwb.foreign.loop`'s (model exchange: integrated and shot,
 Floquet multipliers; co-simulation: co-simulated, refined and extrapolated,
 stable cycles only), run from first forces +-F0 at the DF's predictions'
-forces and across the F range. A setting's cell (:func:`classifier`, for
-:func:`dfwb.engine.margin.margins`) has the shape
+forces and across the F range. A setting's cell (:func:`cells`, and
+:func:`classifier` for :func:`dfwb.engine.margin.margins`) has the shape
 :func:`dfwb.engine.hunting.classify` gives: the truth's class and cycles, and
-the DF's, from one map of the FMU's DF shared by every gain (the plant does
-not change with G). An FMU has no linear part dfwb knows, so the DF's verdict
-here is never "diverges".
+the DF's, from a map of the FMU's DF at the setting's plant parameters (one
+map for every gain, or every setting of G). An FMU has no linear part dfwb
+knows, so the DF's verdict here is never "diverges".
 """
 
 import math
@@ -79,18 +79,21 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
 
 def cells(engine, family, F_range, omega_range, size=MAP):
     """``classify_at(values, truth=True, df=True)``: the cell of ``family`` (a LoopFamily of a user's FMU) at
-    ``values`` of G's free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
+    ``values`` of its free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
     verdict unknown: None). The FMU's DF map over ``F_range`` x ``omega_range`` (``size`` points, on the
-    engine's looser twin) is computed once, at the first cell, and serves every cell: the plant's
-    parameters do not change from cell to cell."""
-    shared = []
+    engine's looser twin) is computed once for each setting of the FMU's own parameters: over G's
+    parameters alone, one map serves every cell."""
+    maps = {}
 
     def classify_at(values, truth=True, df=True):
         G, params = family.G(values), family.params(values)
-        if not shared:
+        key = tuple(sorted(params.items()))
+        if key not in maps:
+            if len(maps) >= 4:  # a map over the FMU's parameters: each cell its own (a few kept)
+                maps.clear()
             F_grid, omega_grid = np.geomspace(*F_range, size[0]), np.geomspace(*omega_range, size[1])
-            shared.append(DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid)))
-        dfmap = shared[0]
+            maps[key] = DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid))
+        dfmap = maps[key]
         predictions = balance(engine, G, params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid).cycles
         cell = {"linear": {"stable": None, "max_real_pole": None}}
         if truth:

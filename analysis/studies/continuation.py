@@ -18,6 +18,7 @@ from dfwb.studies.responses import ContinuationResponse
 
 SOURCES = ("truth", "df")
 MAX_STARTS = 16  # parameter values searched for starts, at most
+SAMPLES = 11  # values where a user's FMU's true cycles are searched
 
 
 def check_parameter(family, name, start, stop, plant=True):
@@ -44,15 +45,16 @@ def check_parameter(family, name, start, stop, plant=True):
 
 def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
            fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=16, n_omega=48, rtol=None,
-           timeout=None):
+           timeout=None, samples=SAMPLES):
     """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.
 
     ``values``: G's and the plant's other parameters; ``starts``: parameter values where cycles and
     predictions are searched to start branches from (default: the range's two ends); ``progress``:
     ``progress(stage, done, total)``. Returns a :class:`~dfwb.studies.responses.ContinuationResponse`.
-    A user's model-exchange FMU (an FMUPlant or an .fmu path) has its DF predictions followed
-    (``sources="df"``), found on its DF map over ``F_range`` x ``omega_range`` (``n_F`` x ``n_omega``)
-    at the start values; its true cycles are not continued.
+    A user's model-exchange FMU (an FMUPlant or an .fmu path) has its DF predictions followed, found on
+    its DF map over ``F_range`` x ``omega_range`` (``n_F`` x ``n_omega``) at the start values, and its
+    true cycles searched at ``samples`` values of the range and joined into branches
+    (:mod:`dfwb.foreign.continuation`: their changes bracketed by the samples).
     """
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.describing import F_RANGE, DFEngine
@@ -72,14 +74,19 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     searches, notes, cycle_starts, prediction_starts, ranges = [], [], [], [], []
     foreign = getattr(family.spec, "foreign", False)
     if foreign:
-        engine, fixed = _foreign_engine(family.spec, sources, F_range, omega_range, n_F, n_omega, rtol, timeout)
-    elif (F_range, omega_range, rtol, timeout, n_F, n_omega) != (None, None, None, None, 16, 48):
-        raise InputError("F_range, omega_range, n_F, n_omega, rtol and timeout are for a user's FMU: dfwb's own "
-                         "plants derive their ranges and are computed exactly")
+        engine, fixed = _foreign_engine(family.spec, F_range, omega_range, n_F, n_omega, rtol, timeout)
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= 1000:
+            raise InputError(f"samples = {samples!r}: the values where a user's FMU's cycles are searched, 2 to "
+                             "1000")
+    elif (F_range, omega_range, rtol, timeout, n_F, n_omega, samples) != (None, None, None, None, 16, 48, SAMPLES):
+        raise InputError("F_range, omega_range, n_F, n_omega, rtol, timeout and samples are for a user's FMU: "
+                         "dfwb's own plants derive their ranges, are computed exactly and continued")
     else:
         engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
     for k, value in enumerate(at):
-        if foreign:  # its predictions only, on its own DF map at this value
+        if foreign and "df" not in sources:
+            continue
+        if foreign:  # its predictions, on its own DF map at this value (its truth is sampled below)
             try:
                 predictions = search(family.spec.name, family.G({name: value}), family.params({name: value}),
                                      *fixed, engine=engine).cycles
@@ -116,6 +123,15 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         if progress:
             progress("starts", k + 1, len(at))
     branches, bifurcations = [], []
+    if foreign and "truth" in sources:
+        from dfwb.foreign.continuation import sampled_branches
+
+        more, found = sampled_branches(engine, family, name, bounds, samples, fixed[0], fixed[1], fixed[2:],
+                                       progress)
+        branches += more
+        bifurcations += found
+        notes.append(f"the true cycles searched at {samples} values of {name} and joined where near: where a "
+                     "branch begins, ends or changes its stability is bracketed by the samples")
     if cycle_starts:
         more, found = continue_cycles(family, name, bounds, cycle_starts, fmu_dir, max_points)
         branches += more
@@ -132,17 +148,14 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                                 searches=searches, notes=notes, unit=family.spec.unit)
 
 
-def _foreign_engine(spec, sources, F_range, omega_range, n_F, n_omega, rtol, timeout):
+def _foreign_engine(spec, F_range, omega_range, n_F, n_omega, rtol, timeout):
     """(engine, (F_range, omega_range, n_F, n_omega)) of a continuation of a user's FMU, refused in one line
     where it cannot go."""
     from dfwb.engine.scales import search_ranges
     from dfwb.foreign.engine import engine_for
 
-    if "truth" in sources:
-        raise InputError("the continuation of a user's FMU follows the DF's predictions (sources = df): its true "
-                         "cycles are not continued yet (limit_cycles with exact = True finds them at a value)")
     if spec.kind != "model-exchange":
-        raise InputError(f"{spec.name}: the DF of a co-simulation FMU is too rough to follow by differences (give "
+        raise InputError(f"{spec.name}: the DF and the cycles of a co-simulation FMU are too rough to follow (give "
                          "a model-exchange FMU)")
     if F_range is None or omega_range is None:
         raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")

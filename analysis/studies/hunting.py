@@ -141,8 +141,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
 
     Returns a :class:`~dfwb.studies.responses.HuntingMapResponse`; see :func:`dfwb.hunting_map`.
     ``own_folder``: ``out_dir`` belongs to the caller (a scene's), so a different map there starts over
-    instead of being refused. A user's FMU (an FMUPlant or an .fmu path) maps G's parameters, its cells
-    classified here (:func:`dfwb.foreign.hunting.cells`, the FMU's own workers), with ``F_range`` and
+    instead of being refused. A user's FMU (an FMUPlant or an .fmu path) has its cells classified here
+    (:func:`dfwb.foreign.hunting.cells`, the FMU's own workers), with ``F_range`` and
     ``omega_range`` (required) and ``n_F`` x ``n_omega`` for its DF map, ``rtol`` and ``timeout``; it has no
     linear loop nor bifurcation curves dfwb could draw.
     """
@@ -273,14 +273,11 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
 
 
 def _foreign_cells(family, axes, F_range, omega_range, size, rtol, timeout):
-    """(classify_at, what the cells depend on) of a map of a user's FMU over G's parameters."""
+    """(classify_at, what the cells depend on) of a map of a user's FMU (over G's parameters one DF map of
+    the FMU serves every cell; over its own, each cell computes its own)."""
     from dfwb.foreign.engine import engine_for as fmu_engine
     from dfwb.foreign.hunting import cells
 
-    for name in axes:
-        if name in family.plant_names:
-            raise InputError(f"{name} is a parameter of the FMU: a hunting map of a user's FMU runs over G's "
-                             "parameters (one DF map of the FMU serves every cell)")
     if F_range is None or omega_range is None:
         raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
     F, omega = search_ranges(None, F_range, omega_range)

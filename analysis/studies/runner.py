@@ -430,12 +430,13 @@ class SceneRun:
                    "fmu": fmu_revision(fmu_path(spec, self.fmu_dir)) if not own else dict(own, sha256=spec.info.digest),
                    "plant": c.plant, "G": G if isinstance(G, str) else num_den(G),
                    "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
-                   "sources": c.sources, "max_points": c.max_points}
+                   "sources": c.sources, "max_points": c.max_points, "samples": c.samples if own else None}
             task = display.add(f"{c.name}: continuation", 1, 0, 0)
             response = _cached_continuation(self.cache.get(key))
             if response is None:
                 response = follow(spec, G, c.parameter, c.start, c.stop, c.params, sources=tuple(c.sources),
-                                  max_points=c.max_points, fmu_dir=self.fmu_dir, **own)
+                                  max_points=c.max_points, fmu_dir=self.fmu_dir,
+                                  **(dict(own, samples=c.samples) if own else {}))
                 self.cache.put(key, finite(response.as_dict()))
             else:
                 self.outcome.cache_hits += 1

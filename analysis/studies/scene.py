@@ -284,7 +284,8 @@ def _fmu_study(section, spec):
 def _no_fmu_keys(section):
     """A section of dfwb's own plant given a user's FMU's keys: refused, never ignored."""
     given = [key for key in ("F_range", "omega_range") if getattr(section, key) is not None]
-    given += [key for key, default in (("n_F", 16), ("n_omega", 48)) if getattr(section, key) != default]
+    given += [key for key, default in (("n_F", 16), ("n_omega", 48), ("samples", 11))
+              if getattr(section, key, default) != default]
     if given:
         raise InputError(f"{', '.join(given)}: for a user's FMU only (dfwb's own plants derive their ranges)")
 
@@ -379,6 +380,7 @@ class Continuation:
     stop: float = rule(Finite)
     sources: list = rule(ListOf(OneOf("truth", "df"), min_length=1, max_length=2), ["truth", "df"])
     max_points: int = rule(Integer(ge=2, le=10_000), 200)
+    samples: int = rule(Integer(ge=2, le=1000), 11)  # a user's FMU: the values its true cycles are searched at
 
     def __post_init__(self):
         from dfwb.studies.continuation import check_parameter
@@ -386,11 +388,8 @@ class Continuation:
         spec = section_plant(self)
         if getattr(spec, "foreign", False):
             _fmu_study(self, spec)
-            if self.sources != ["df"]:
-                raise InputError("sources: a user's FMU has its DF predictions followed (sources = [\"df\"]); "
-                                 "its true cycles are not continued yet")
             if spec.kind != "model-exchange":
-                raise InputError("the DF of a co-simulation FMU is too rough to follow by differences: give "
+                raise InputError("the DF and the cycles of a co-simulation FMU are too rough to follow: give "
                                  "kind = \"model-exchange\" where the FMU offers it")
         elif spec.loop is None:
             raise InputError(f"plant {self.plant!r} has no exact closed loop to follow cycles of")
@@ -443,10 +442,6 @@ class Map:
         spec = section_plant(self)
         if getattr(spec, "foreign", False):
             _fmu_study(self, spec)
-            for axis in (self.x, self.y):
-                if axis.name in spec.info.parameters:
-                    raise InputError(f"{axis.name} is a parameter of the FMU: a hunting map of a user's FMU runs "
-                                     "over G's parameters")
         elif spec.loop is None:
             raise InputError(f"plant {self.plant!r} has no exact closed loop to classify")
         else:
