@@ -473,7 +473,9 @@ def parser():
     build = commands.add_parser("build",
                                 help="build the FMUs: plants, controller and exact closed loops (skips those "
                                      "whose sources are unchanged)")
-    build.add_argument("--out", action=_Once, type=Path, default=None, help=f"output folder (default: {FMU_DIR_HELP})")
+    build.add_argument("--out", action=_Once, type=Path, default=None,
+                       help=f"output folder (default: {FMU_DIR_HELP}); the native plant FMUs (the kind dfwb runs by "
+                            "default) go into its native/")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.add_argument("--naive", action="store_true", help="also build the benchmark's fixed-step twins")
     build.add_argument("--native", action="store_true",
