@@ -25,6 +25,9 @@ SIDE = {LOWER: -1, UPPER: 1}  # sigma: pressing into the boundary means sigma * 
 WALL = {EventKind.WALL_LOWER: LOWER, EventKind.WALL_UPPER: UPPER}  # the event of reaching a wall -> contact
 
 
+GAP0_FMU = ", or -1 in an FMU (h/2)"  # an FMU's start value -1 stands for h/2 (its facades map it)
+
+
 def check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0=None):
     """The two-mass backlash's parameter checks, in order (shared with its closed loop); gap0 (None: h/2)."""
     check("M1", M1, lambda: M1 > 0.0, "M1 must be > 0 (kg)")
@@ -33,7 +36,7 @@ def check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0=None):
     check("h", h, lambda: h >= MIN_CLEARANCE, f"h must be >= {MIN_CLEARANCE:g} (m)")
     check("eps", eps, lambda: 0.0 <= eps <= 1.0, "eps must be in [0, 1]")
     gap0 = 0.5 * h if gap0 is None else gap0
-    check("gap0", gap0, lambda: 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m)")
+    check("gap0", gap0, lambda: 0.0 <= gap0 <= h, f"gap0 must be in [0, h] = [0, {h!r}] (m){GAP0_FMU}")
     for name, value in (("x1_0", x1_0), ("v1_0", v1_0), ("v2_0", v2_0)):
         check(name, value, True, f"{name} must be a finite number")
     return gap0

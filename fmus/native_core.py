@@ -55,6 +55,7 @@ from collections import namedtuple
 from pathlib import Path
 
 from . import loops as _loops
+from .backlash import GAP0_FMU
 from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
 from .exact import DfwbError, Diverged, Drive, PlantError
 from .state import StateRefused
@@ -209,6 +210,14 @@ def _as_double(value):
 
 def _c_repr(value):
     return repr(_as_double(value))
+
+
+def _clearance_tails(h):
+    """The ``tails`` of a refusal that quotes a clearance h given as a non-float (as Python writes it): of
+    gap0, and of a loop state's gap."""
+    if type(h) is float:
+        return ()
+    return tuple((f"= [0, {_c_repr(h)}] (m){note}", f"= [0, {h!r}] (m){note}") for note in (GAP0_FMU, ""))
 
 
 def _raise(code, buffer, originals=None, tails=()):
@@ -507,7 +516,7 @@ class NativeTwoMassBacklash(_NativeSolver):
         if gap0 is None:
             gap0 = originals["gap0"] = 0.5 * _as_double(h)  # as Python: 0.5 * h (h is checked first)
         values = (M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics)
-        tails = () if type(h) is float else ((f"= [0, {_c_repr(h)}] (m)", f"= [0, {h!r}] (m)"),)
+        tails = _clearance_tails(h)
         self._create(core, values, originals, tails)
 
     @property
@@ -855,7 +864,7 @@ class NativeBacklashLoop(_NativeLoop):
                  state=None, section=None, modes=None, budget=None, *, core=None):
         if gap0 is None:
             gap0 = 0.5 * _as_double(h)  # as Python: 0.5 * h (h is checked first)
-        tails = () if type(h) is float else ((f"= [0, {_c_repr(h)}] (m)", f"= [0, {h!r}] (m)"),)
+        tails = _clearance_tails(h)
         self._create(core, b, a, (M1, M2, h, eps, x1_0, v1_0, v2_0, gap0), z0, state, section, modes, budget, tails)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
         self.r2 = M2 / (M1 + M2)

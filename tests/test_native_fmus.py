@@ -98,7 +98,8 @@ def refusal(path, start_values, stop_time=1.0, step=0.01):
     ("FrictionMass", {"M": -1.0}, "M = -1.0 is out of range"),
     ("FrictionMass", {"harmonics": 11}, "harmonics = 11"),
     ("TwoMassBacklash", {"eps": 1.5}, "eps = 1.5 is out of range"),
-    ("TwoMassBacklash", {"gap0": 0.5}, "gap0 = 0.5 is out of range"),
+    ("TwoMassBacklash", {"gap0": 0.5}, "gap0 = 0.5 is out of range: gap0 must be in [0, h] = [0, 0.1] (m), or -1 "
+                                       "in an FMU (h/2)"),  # what the FMU accepts: its start value -1 too
     ("FrictionMass", {"f": float("nan")}, "f = nan is out of range"),
 ])
 def test_same_refusals(native_fmus, fmus, python_oracle, model, start_values, words):

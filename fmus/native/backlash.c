@@ -204,7 +204,7 @@ static int validate(void *plant, dfwb_err *err)
 {
     dfwb_backlash *p = (dfwb_backlash *)plant;
     const dfwb_pw *pw = &p->pw;
-    char rh[DFWB_REPR_SIZE], allowed[96];
+    char rh[DFWB_REPR_SIZE], allowed[128];
     int rc, i;
     if ((rc = dfwb_state_check(err, "M1", p->M1, isfinite(p->M1) && p->M1 > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "M2", p->M2, isfinite(p->M2) && p->M2 > 0.0, "must be > 0")) != DFWB_OK
@@ -259,7 +259,7 @@ static const dfwb_plant_class BACKLASH = {DFWB_PLANT_BACKLASH, sizeof(dfwb_backl
 int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
                         double v2_0, double gap0)
 {
-    char rh[DFWB_REPR_SIZE], allowed[96];
+    char rh[DFWB_REPR_SIZE], allowed[128];
     int rc;
     if ((rc = dfwb_check(err, "M1", M1, M1 > 0.0, "M1 must be > 0 (kg)")) != DFWB_OK
         || (rc = dfwb_check(err, "M2", M2, M2 > 0.0, "M2 must be > 0 (kg)")) != DFWB_OK
@@ -269,7 +269,7 @@ int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double ep
     dfwb_repr(h, rh); /* h is valid here */
     strcpy(allowed, "gap0 must be in [0, h] = [0, ");
     strcat(allowed, rh);
-    strcat(allowed, "] (m)");
+    strcat(allowed, "] (m), or -1 in an FMU (h/2)");
     if ((rc = dfwb_check(err, "gap0", gap0, 0.0 <= gap0 && gap0 <= h, allowed)) != DFWB_OK
         || (rc = dfwb_check(err, "x1_0", x1_0, 1, "x1_0 must be a finite number")) != DFWB_OK
         || (rc = dfwb_check(err, "v1_0", v1_0, 1, "v1_0 must be a finite number")) != DFWB_OK)
