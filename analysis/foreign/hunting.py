@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from dfwb.base.errors import InputError
 from dfwb.engine import cycles as search
 from dfwb.engine.hunting import DFMap, df_cell, truth_cell
 from dfwb.engine.limit_cycles import balance, df_map
@@ -23,9 +24,23 @@ from dfwb.engine.periodic import TrueCycle, trace_arrays
 from dfwb.engine.transfer import num_den
 from dfwb.foreign.loop import MAX_RETURNS, SETTLE
 
-__all__ = ["true_search", "cells", "classifier", "MAP"]
+__all__ = ["study", "true_search", "cells", "classifier", "MAP"]
 
 MAP = (16, 48)  # the shared DF map's forces x frequencies: dfwb.limit_cycles' default
+
+
+def study(spec, F_range, omega_range, size, rtol, timeout):
+    """(engine, F range, omega range) of a margin, map or continuation of a user's FMU: its DF map's ranges
+    (required: dfwb cannot derive them from an FMU) and sides checked, refused in one line."""
+    from dfwb.engine.scales import search_ranges
+    from dfwb.foreign.engine import engine_for
+
+    if F_range is None or omega_range is None:
+        raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
+    F, omega = search_ranges(None, F_range, omega_range)
+    if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in size):
+        raise InputError(f"n_F, n_omega = {size[0]!r}, {size[1]!r}: the DF map's sides, integers from 2 to 1000")
+    return engine_for(spec, rtol=rtol, timeout=timeout), F, omega
 
 
 def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range):

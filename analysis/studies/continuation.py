@@ -13,6 +13,7 @@ import math
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily, number
+from dfwb.foreign.hunting import MAP
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.responses import ContinuationResponse
 
@@ -44,7 +45,7 @@ def check_parameter(family, name, start, stop, plant=True):
 
 
 def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
-           fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=16, n_omega=48, rtol=None,
+           fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None,
            timeout=None, samples=SAMPLES):
     """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.
 
@@ -78,7 +79,7 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= 1000:
             raise InputError(f"samples = {samples!r}: the values where a user's FMU's cycles are searched, 2 to "
                              "1000")
-    elif (F_range, omega_range, rtol, timeout, n_F, n_omega, samples) != (None, None, None, None, 16, 48, SAMPLES):
+    elif (F_range, omega_range, rtol, timeout, n_F, n_omega, samples) != (None, None, None, None, *MAP, SAMPLES):
         raise InputError("F_range, omega_range, n_F, n_omega, rtol, timeout and samples are for a user's FMU: "
                          "dfwb's own plants derive their ranges, are computed exactly and continued")
     else:
@@ -151,18 +152,13 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
 def _foreign_engine(spec, F_range, omega_range, n_F, n_omega, rtol, timeout):
     """(engine, (F_range, omega_range, n_F, n_omega)) of a continuation of a user's FMU, refused in one line
     where it cannot go."""
-    from dfwb.engine.scales import search_ranges
-    from dfwb.foreign.engine import engine_for
+    from dfwb.foreign.hunting import study
 
     if spec.kind != "model-exchange":
         raise InputError(f"{spec.name}: the DF and the cycles of a co-simulation FMU are too rough to follow (give "
                          "a model-exchange FMU)")
-    if F_range is None or omega_range is None:
-        raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
-    F, omega = search_ranges(None, F_range, omega_range)
-    if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in (n_F, n_omega)):
-        raise InputError(f"n_F, n_omega = {n_F!r}, {n_omega!r}: the DF map's sides, integers from 2 to 1000")
-    return engine_for(spec, rtol=rtol, timeout=timeout), (F, omega, n_F, n_omega)
+    engine, F, omega = study(spec, F_range, omega_range, (n_F, n_omega), rtol, timeout)
+    return engine, (F, omega, n_F, n_omega)
 
 
 def _sources(sources):

@@ -39,7 +39,6 @@ from dfwb.engine.hunting import (
     linear_map,
     valid_cell,
 )
-from dfwb.engine.scales import search_ranges
 from dfwb.foreign.hunting import MAP
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
@@ -275,16 +274,10 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
 def _foreign_cells(family, axes, F_range, omega_range, size, rtol, timeout):
     """(classify_at, what the cells depend on) of a map of a user's FMU (over G's parameters one DF map of
     the FMU serves every cell; over its own, each cell computes its own)."""
-    from dfwb.foreign.engine import engine_for as fmu_engine
-    from dfwb.foreign.hunting import cells
+    from dfwb.foreign.hunting import cells, study
 
-    if F_range is None or omega_range is None:
-        raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
-    F, omega = search_ranges(None, F_range, omega_range)
-    if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in size):
-        raise InputError(f"n_F, n_omega = {size[0]!r}, {size[1]!r}: the DF map's sides, integers from 2 to 1000")
     spec = family.spec
-    engine = fmu_engine(spec, rtol=rtol, timeout=timeout)
+    engine, F, omega = study(spec, F_range, omega_range, size, rtol, timeout)
     own = {"sha256": spec.info.digest, "input": spec.input, "output": spec.output, "kind": spec.kind,
            "rtol": engine.rtol, "F_range": list(F), "omega_range": list(omega), "map": list(size)}
     return cells(engine, family, F, omega, size), own

@@ -6,9 +6,7 @@ from dfwb.base.errors import InputError
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.margin import K_RANGE, SCAN, margins
-from dfwb.engine.scales import search_ranges
-from dfwb.foreign.engine import engine_for
-from dfwb.foreign.hunting import MAP, classifier
+from dfwb.foreign.hunting import MAP, classifier, study
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.continuation import _text
 from dfwb.studies.responses import MarginResponse
@@ -28,12 +26,7 @@ def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, 
     family = LoopFamily(plant, G, values)
     report = None if progress is None else (lambda done, total: progress("gain factors", done, total))
     if getattr(family.spec, "foreign", False):
-        if F_range is None or omega_range is None:
-            raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
-        F, omega = search_ranges(None, F_range, omega_range)
-        if not all(isinstance(n, int) and not isinstance(n, bool) and 2 <= n <= 1000 for n in (n_F, n_omega)):
-            raise InputError(f"n_F, n_omega = {n_F!r}, {n_omega!r}: the DF map's sides, integers from 2 to 1000")
-        engine = engine_for(family.spec, rtol=rtol, timeout=timeout)
+        engine, F, omega = study(family.spec, F_range, omega_range, (n_F, n_omega), rtol, timeout)
         found = margins(family, k_range, count, None, engine if df else None, report,
                         classifier=classifier(engine, F, omega, (n_F, n_omega)))
     else:
