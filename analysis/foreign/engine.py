@@ -110,11 +110,7 @@ class FMUEngine:
                                    f"{self.plant.name}: the closed loop's cycles",
                                    timeout=self.timeout * max(len(group[0]) + len(group[1]), 1))
 
-        if shares == 1:
-            answers = [call(groups[0])]
-        else:
-            with ThreadPoolExecutor(shares, thread_name_prefix="dfwb-fmu") as pool:
-                answers = list(pool.map(call, groups))
+        answers = self._spread(call, groups)
         found, by_start, by_seed = [], [None] * len(starts), [None] * len(seeds)
         for i, ((group_starts, _), answer) in enumerate(zip(groups, answers)):
             for cycle in answer["cycles"]:
@@ -145,11 +141,15 @@ class FMUEngine:
 
     def batch(self, points):
         """DFResults of several (F, omega, params) points, in order, computed by up to ``jobs`` workers at once."""
-        points = list(points)
-        if self.jobs == 1 or len(points) < 2:
-            return [self.point(*point) for point in points]
-        with ThreadPoolExecutor(min(self.jobs, len(points)), thread_name_prefix="dfwb-fmu") as pool:
-            return list(pool.map(lambda point: self.point(*point), points))
+        return self._spread(lambda point: self.point(*point), list(points))
+
+    def _spread(self, call, items):
+        """[call(item) for item in items], up to ``jobs`` at once (each call borrows its own worker)."""
+        threads = min(self.jobs, len(items))
+        if threads < 2:
+            return [call(item) for item in items]
+        with ThreadPoolExecutor(threads, thread_name_prefix="dfwb-fmu") as pool:
+            return list(pool.map(call, items))
 
 
 def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,

@@ -51,6 +51,11 @@ class Flow:
         self.y_max = 0.0  # the largest |y| seen
         self._y = 0.0  # the last output: the first guess of the next evaluation's
 
+    def atol(self, rtol):
+        """Absolute tolerances from the scales seen, so that rtol rules (1e-6 of the largest for a part at 0)."""
+        scale = self.scale
+        return np.maximum(rtol * np.maximum(scale, 1e-6 * max(float(np.max(scale, initial=0.0)), 1e-300)), 1e-300)
+
     # -- evaluation ------------------------------------------------------------------------------
     def evaluate(self, t, z):
         """Put the FMU at (t, z) with its input; returns (y, u)."""

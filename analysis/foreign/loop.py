@@ -75,8 +75,7 @@ class _Loop:
         self.flow = Flow(instance, law, rate, n + (0 if omega is None else 2 * (HARMONICS + 1) + 2))
 
     def atol(self, rtol):
-        scale = self.flow.scale
-        return np.maximum(rtol * np.maximum(scale, 1e-6 * max(float(np.max(scale, initial=0.0)), 1e-300)), 1e-300)
+        return self.flow.atol(rtol)
 
 
 def _swing(loop, t, z, duration, rtol):
@@ -105,30 +104,28 @@ def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9, seeds=()):
         raise FMUError(f"{instance.info.path}: cannot save and restore its state (canGetAndSetFMUstate): the "
                        "cycles cannot be shot from it")
     T_ref = 2 * math.pi / omega_ref
-    found, outcomes = [], []
-    for F0 in starts:
+
+    def from_start(F0):
         instance.start(params, F0)
         w0 = -F0 * C / float(C @ C) if float(C @ C) > 0 else np.zeros(len(B))
+        if cosimulation:
+            return held_loop.settle_and_refine(instance, A, B, C, D, w0, T_ref, rtol, SETTLE)
+        z = np.concatenate((instance.states(), w0))
+        return _settle_and_shoot(instance, _Loop(instance, A, B, C, D), z, T_ref, rtol, A, B, C, D)
+
+    runs = [(f"F0={F0:g}", lambda F0=F0: from_start(F0)) for F0 in starts]
+    runs += [(f"DF F={F:.6g}, omega={omega:.6g}", lambda F=F, omega=omega: _seeded(instance, params, F, omega, rtol,
+                                                                                   A, B, C, D))
+             for F, omega in (seeds if not cosimulation else ())]
+    found, outcomes = [], []
+    for label, run in runs:
         try:
-            if cosimulation:
-                outcome, cycle = held_loop.settle_and_refine(instance, A, B, C, D, w0, T_ref, rtol, SETTLE)
-            else:
-                loop = _Loop(instance, A, B, C, D)
-                z = np.concatenate((instance.states(), w0))
-                outcome, cycle = _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D)
+            outcome, cycle = run()
         except (FMUError, FloatingPointError) as error:
             outcome, cycle = f"failed: {error}", None
         outcomes.append(outcome)
         if cycle is not None:
-            merge(found, dict(cycle, started_from=[f"F0={F0:g}"]))
-    for F, omega in seeds if not cosimulation else ():
-        try:
-            outcome, cycle = _seeded(instance, params, F, omega, rtol, A, B, C, D)
-        except (FMUError, FloatingPointError) as error:
-            outcome, cycle = f"failed: {error}", None
-        outcomes.append(outcome)
-        if cycle is not None:
-            merge(found, dict(cycle, started_from=[f"DF F={F:.6g}, omega={omega:.6g}"]))
+            merge(found, dict(cycle, started_from=[label]))
     return found, outcomes
 
 

@@ -35,8 +35,7 @@ def response(instance, F, omega, params, stop, step, outputs):
         flow.evaluate(0.0, z)
         values[0] = instance.read(outputs)
         for i in range(count):
-            atol = RTOL * np.maximum(flow.scale, 1e-6 * max(float(np.max(flow.scale, initial=0.0)), 1e-300))
-            _t, z, _events, _crossed = flow.run(times[i], z, times[i + 1], RTOL, np.maximum(atol, 1e-300))
+            _t, z, _events, _crossed = flow.run(times[i], z, times[i + 1], RTOL, flow.atol(RTOL))
             flow.evaluate(times[i + 1], z)
             values[i + 1] = instance.read(outputs)
     else:
