@@ -35,7 +35,7 @@ import functools
 import itertools
 import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Optional
@@ -59,6 +59,7 @@ from dfwb.base.schema import (
 )
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE
 from dfwb.fmus.piecewise import PlantError
+from dfwb.foreign.description import KINDS
 from dfwb.foreign.plant import is_fmu_path
 from dfwb.plants import names
 from dfwb.plants import plant as find_plant
@@ -119,9 +120,13 @@ def _has_title(title):
 
 PlantOrFMU = Checked(Text(), _plant_or_fmu)  # a registered plant, or a user's FMU
 Variable = Text(max_length=200)  # an FMU's input or output
+FMUKind = OneOf(*KINDS)  # how a user's FMU runs
+MapSide = Integer(ge=2, le=1000)  # a DF map's forces or frequencies
 Positive = Number(gt=0)
 Force = Number(ge=F_RANGE[0], le=F_RANGE[1])  # [N]: what the engine accepts
 Frequency = Number(ge=OMEGA_RANGE[0], le=OMEGA_RANGE[1])  # [rad/s]
+ForceRange = ListOf(Force, min_length=2, max_length=2)  # [lo, hi]
+FrequencyRange = ListOf(Frequency, min_length=2, max_length=2)
 NonNegative = Number(ge=0)
 Finite = Number()
 Name = Text(pattern=r"[A-Za-z_][A-Za-z0-9_-]*", max_length=64)
@@ -209,7 +214,7 @@ class Series:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
+    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
     params: dict = rule(Params, {})
     grid: dict = rule(TableOf(ListOf(Finite, min_length=1)), {})
     F: list = rule(ListOf(Force, min_length=1))
@@ -243,7 +248,7 @@ class Trace:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
+    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
     params: dict = rule(Params, {})
     F: float = rule(Force)
     omega: float = rule(Frequency)
@@ -271,21 +276,23 @@ class Trace:
                                  f"(allowed: {', '.join(known)})")
 
 
-def _fmu_study(section, spec):
-    """A continuation's or a map's user's FMU: its DF map's ranges are given, and each with lo < hi."""
-    if section.F_range is None or section.omega_range is None:
+def _check_ranges(section, spec):
+    """A section's F_range and omega_range: each [lo, hi] with lo < hi, and both given for a user's FMU."""
+    if getattr(spec, "foreign", False) and (section.F_range is None or section.omega_range is None):
         raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
     for key in ("F_range", "omega_range"):
-        lo, hi = getattr(section, key)
-        if not lo < hi:
-            raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
+        if getattr(section, key) is not None:
+            lo, hi = getattr(section, key)
+            if not lo < hi:
+                raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
 
 
 def _no_fmu_keys(section):
-    """A section of dfwb's own plant given a user's FMU's keys: refused, never ignored."""
-    given = [key for key in ("F_range", "omega_range") if getattr(section, key) is not None]
-    given += [key for key, default in (("n_F", 16), ("n_omega", 48), ("samples", 11))
-              if getattr(section, key, default) != default]
+    """A section of dfwb's own plant given a user's FMU's keys (away from their defaults): refused, never
+    ignored."""
+    defaults = {f.name: f.default for f in fields(section)}
+    given = [key for key in ("F_range", "omega_range", "n_F", "n_omega", "samples")
+             if key in defaults and getattr(section, key) != defaults[key]]
     if given:
         raise InputError(f"{', '.join(given)}: for a user's FMU only (dfwb's own plants derive their ranges)")
 
@@ -321,15 +328,15 @@ class LimitCycle:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
+    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
     params: dict = rule(Params, {})  # the plant's parameters and G's
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
     den: Optional[list] = rule(ListOf(Finite), None)
-    F_range: Optional[list] = rule(ListOf(Force, min_length=2, max_length=2), None)  # None: derived
-    omega_range: Optional[list] = rule(ListOf(Frequency, min_length=2, max_length=2), None)
-    n_F: int = rule(Integer(ge=2, le=1000), 16)
-    n_omega: int = rule(Integer(ge=2, le=1000), 48)
+    F_range: Optional[list] = rule(ForceRange, None)  # None: derived
+    omega_range: Optional[list] = rule(FrequencyRange, None)
+    n_F: int = rule(MapSide, 16)
+    n_omega: int = rule(MapSide, 48)
     verify: bool = rule(Boolean(), False)
     exact: bool = rule(Boolean(), False)
     samples_per_period: int = rule(Integer(ge=16, le=100_000), 512)
@@ -340,13 +347,7 @@ class LimitCycle:
             raise InputError(f"exact = true: plant {self.plant!r} has no exact closed loop")
         if getattr(spec, "foreign", False) and self.verify:
             raise InputError("verify runs dfwb's own closed-loop FMUs: not for a user's FMU (use exact = true)")
-        if getattr(spec, "foreign", False) and (self.F_range is None or self.omega_range is None):
-            raise InputError("give F_range and omega_range: dfwb cannot derive them from a user's FMU")
-        for key in ("F_range", "omega_range"):
-            if getattr(self, key) is not None:
-                lo, hi = getattr(self, key)
-                if not lo < hi:
-                    raise InputError(f"{key} = [{lo:g}, {hi:g}]: expected [lo, hi] with lo < hi")
+        _check_ranges(self, spec)
         self.family()
 
     def controller(self):
@@ -366,11 +367,11 @@ class Continuation:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
-    F_range: Optional[list] = rule(ListOf(Force, min_length=2, max_length=2), None)  # a user's FMU's DF map
-    omega_range: Optional[list] = rule(ListOf(Frequency, min_length=2, max_length=2), None)
-    n_F: int = rule(Integer(ge=2, le=1000), 16)
-    n_omega: int = rule(Integer(ge=2, le=1000), 48)
+    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
+    F_range: Optional[list] = rule(ForceRange, None)  # a user's FMU's DF map
+    omega_range: Optional[list] = rule(FrequencyRange, None)
+    n_F: int = rule(MapSide, 16)
+    n_omega: int = rule(MapSide, 48)
     params: dict = rule(Params, {})  # the other parameters of the plant and of G
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
@@ -387,7 +388,7 @@ class Continuation:
 
         spec = section_plant(self)
         if getattr(spec, "foreign", False):
-            _fmu_study(self, spec)
+            _check_ranges(self, spec)
             if spec.kind != "model-exchange":
                 raise InputError("the DF and the cycles of a co-simulation FMU are too rough to follow: give "
                                  "kind = \"model-exchange\" where the FMU offers it")
@@ -421,11 +422,11 @@ class Map:
     plant: str = rule(PlantOrFMU)
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(OneOf("model-exchange", "co-simulation"), None)  # ... and how it runs
-    F_range: Optional[list] = rule(ListOf(Force, min_length=2, max_length=2), None)  # a user's FMU's DF map
-    omega_range: Optional[list] = rule(ListOf(Frequency, min_length=2, max_length=2), None)
-    n_F: int = rule(Integer(ge=2, le=1000), 16)
-    n_omega: int = rule(Integer(ge=2, le=1000), 48)
+    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
+    F_range: Optional[list] = rule(ForceRange, None)  # a user's FMU's DF map
+    omega_range: Optional[list] = rule(FrequencyRange, None)
+    n_F: int = rule(MapSide, 16)
+    n_omega: int = rule(MapSide, 48)
     params: dict = rule(Params, {})
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
@@ -441,7 +442,7 @@ class Map:
 
         spec = section_plant(self)
         if getattr(spec, "foreign", False):
-            _fmu_study(self, spec)
+            _check_ranges(self, spec)
         elif spec.loop is None:
             raise InputError(f"plant {self.plant!r} has no exact closed loop to classify")
         else:
