@@ -15,8 +15,10 @@ the compiled core (:mod:`.native_core`) is copied by its own exact ``copy``.
     MAGIC  <header: JSON, one line>  <pickle of (facade values, solver)>
 
 The header names the format, the model and the package the FMU bundles its
-code as (``dfwb_fmus_<source hash>``): a state of another model or another
-build is refused before anything is unpickled. The pickle is read by a
+code as (``dfwb_fmus_<source hash>``), and the pickle's length and SHA-256: a
+state of another model or another build, and bytes that are not exactly
+what the FMU wrote (truncated, extended, a flipped bit), are refused before
+anything is unpickled, at deserialization. The pickle is read by a
 restricted unpickler (the "Restricting Globals" recipe of the :mod:`pickle`
 documentation): ``find_class`` returns only the classes of an explicit
 table (:func:`allowed_classes`, looked up by module and name, never through
@@ -39,16 +41,18 @@ Plain Python only: this module runs inside the FMUs.
 """
 
 import copy
+import hashlib
 import io
 import json
 import math
 import pickle
 
 MAGIC = b"dfwb-fmu-state\n"
-FORMAT = 1
+FORMAT = 2  # 2: the header holds the pickle's length and SHA-256
 MAX_BYTES = 1 << 18  # 256 kB: a solver state is a few kB (LinearSystem's full transition cache 45 kB); a
 # pickle builds objects of ~60-220 bytes from one-byte opcodes before they are checked, so this also bounds
 # the memory a crafted state takes (4 MiB of EMPTY_LIST opcodes took 370 MB)
+HASH_PIECE = 2000  # bytes: below hashlib's 2048, over which it releases the GIL (see _sha256)
 MAX_NODES = 200_000  # objects visited when a restored state is checked
 
 
@@ -69,8 +73,9 @@ class RefusedState:
     """What deserialisation returns for bytes it refuses: setting it logs ``refused`` as an error.
 
     (pythonfmu calls the deserialiser on the class, with no instance to log
-    to; the error surfaces at fmi2SetFMUstate, and a host shim may test for
-    the ``refused`` attribute to report it at fmi2DeSerializeFMUstate.)
+    to. The FMU's shim serializes what was deserialized once more and
+    refuses at fmi2DeSerializeFMUstate what serializes as ``MAGIC +
+    b"refused: "``; without the shim, the error surfaces at fmi2SetFMUstate.)
     """
 
     __slots__ = ("refused",)
@@ -113,9 +118,25 @@ class _Unpickler(pickle.Unpickler):
 
 def encode(state, table):
     """Bytes of a :class:`FMUState` (MAGIC, a JSON header line, the pickle)."""
-    header = json.dumps({"format": FORMAT, "model": state.model, "package": state.package}).encode()
     payload = pickle.dumps((state.values, state.solver), protocol=4)
     check_graph((state.values, state.solver), table)  # what is written can be read back
+    return frame(state.model, state.package, payload)
+
+
+def _sha256(data):
+    """SHA-256 in pieces of HASH_PIECE bytes: hashlib releases the GIL for a larger update, and inside a
+    pythonfmu FMU called from a Python host that let another thread run mid-call and corrupted the heap
+    (tests/test_attack_fmu.py's long random call sequences died in 1 run of 4, "corrupted double-linked list")."""
+    digest = hashlib.sha256()
+    for start in range(0, len(data), HASH_PIECE):
+        digest.update(data[start:start + HASH_PIECE])
+    return digest.hexdigest()
+
+
+def frame(model, package, payload):
+    """MAGIC, the header line (format, model, package, the payload's length and SHA-256), the payload."""
+    header = json.dumps({"format": FORMAT, "model": model, "package": package,
+                         "bytes": len(payload), "sha256": _sha256(payload)}).encode()
     return MAGIC + header + b"\n" + payload
 
 
@@ -139,6 +160,11 @@ def decode(data, model, package, table):
     if header.get("package") != package:
         raise StateRefused(f"the state comes from another build ({header.get('package')!r}; "
                            f"this FMU is {package!r})")
+    if header.get("bytes") != len(payload):
+        raise StateRefused(f"the state holds {len(payload)} bytes after its header, which says "
+                           f"{header.get('bytes')!r} (truncated, or bytes appended)")
+    if header.get("sha256") != _sha256(payload):
+        raise StateRefused("the state's bytes do not match their SHA-256 (damaged)")
     try:
         loaded = _Unpickler(payload, table).load()
     except StateRefused:

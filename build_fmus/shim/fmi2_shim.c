@@ -46,6 +46,13 @@
       serializes into a buffer of the exact size and copies it (pythonfmu copies `size` bytes,
       reading past its own bytes when the host's buffer is larger).
 
+   5. A serialized state is refused at fmi2DeSerializeFMUstate, as the native FMUs refuse it: pythonfmu
+      reads the bytes with a class method that cannot log, and the facade turns bytes it refuses (not a
+      state, another model's or build's, truncated, extended, damaged: fmus/state.py checks a SHA-256)
+      into a placeholder that serializes as "dfwb-fmu-state\nrefused: <why>". The shim serializes each
+      state it deserialized once more, and for such a placeholder frees it, logs the reason and returns
+      fmi2Error; the host's *FMUstate is then left as it was (it is replaced only by an accepted state).
+
    Build: cc -shared -fPIC -O2 -fvisibility=hidden -I<fmpy>/c-code -o <model>.so fmi2_shim.c -ldl -lpthread */
 
 #define _GNU_SOURCE
@@ -692,6 +699,29 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     return status;
 }
 
+/* pythonfmu deserializes by a class method with no instance to log to: bytes the facade refuses become a
+   RefusedState, which it serializes as REFUSED_PREFIX + the reason (fmus/facade.py _fmu_state_to_bytes).
+   1 (and the reason in why) if the state just deserialized is such a refusal. */
+#define REFUSED_PREFIX "dfwb-fmu-state\nrefused: "
+static int refused_state(Shim *s, fmi2FMUstate state, char *why, size_t room) {
+    size_t size = 0, prefix = sizeof REFUSED_PREFIX - 1;
+    char *bytes = NULL;
+    int refused = 1;
+    snprintf(why, room, "the state read cannot be serialized again");
+    BEGIN(s);
+    if (settle(s, "fmi2SerializedFMUstateSize", inner.fmi2SerializedFMUstateSize(s->inner, state, &size)) <=
+            fmi2Warning && size <= MAX_STATE_BYTES && (bytes = malloc(size ? size : 1))) {
+        BEGIN(s);
+        if (settle(s, "fmi2SerializeFMUstate", inner.fmi2SerializeFMUstate(s->inner, state, bytes, size)) <=
+                fmi2Warning) {
+            refused = size >= prefix && memcmp(bytes, REFUSED_PREFIX, prefix) == 0;
+            if (refused) snprintf(why, room, "%.*s", (int)(size - prefix), bytes + prefix);
+        }
+    }
+    free(bytes);
+    return refused;
+}
+
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
     Shim *s = (Shim *)c;
@@ -706,9 +736,26 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         s->error = 1;
         return fmi2Error;
     }
+    fmi2FMUstate fresh = NULL; /* the host's *FMUstate is replaced only by a state that was accepted */
     BEGIN(s);
-    return settle(s, "fmi2DeSerializeFMUstate",
-                  inner.fmi2DeSerializeFMUstate(s->inner, serializedState ? serializedState : "", size, FMUstate));
+    fmi2Status status = settle(s, "fmi2DeSerializeFMUstate",
+                               inner.fmi2DeSerializeFMUstate(s->inner, serializedState ? serializedState : "",
+                                                             size, &fresh));
+    if (status > fmi2Warning) return status;
+    char why[1024];
+    if (refused_state(s, fresh, why, sizeof why)) {
+        BEGIN(s);
+        settle(s, "fmi2FreeFMUstate", inner.fmi2FreeFMUstate(s->inner, &fresh));
+        shim_log(s, fmi2Error, "fmi2DeSerializeFMUstate: %s", why);
+        s->error = 1;
+        return fmi2Error;
+    }
+    if (*FMUstate) {
+        BEGIN(s);
+        settle(s, "fmi2FreeFMUstate", inner.fmi2FreeFMUstate(s->inner, FMUstate));
+    }
+    *FMUstate = fresh;
+    return status;
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
