@@ -216,6 +216,42 @@ def test_crafted_states_are_refused_never_crash(native_fmus):
     assert "refused at deserialization" in outcomes
 
 
+def _serialized(path, values, steps):
+    fmu, vr, log, t = run_raw(path, values, steps)
+    state = fmu.getFMUstate()
+    data = bytes(fmu.serializeFMUstate(state))
+    fmu.freeFMUstate(state)
+    return fmu, log, data
+
+
+@pytest.mark.parametrize("kind", ["native", "python"])
+def test_bytes_that_are_not_a_state_are_refused_at_deserialization(native_fmus, fmus, kind):
+    """Issue 23's audit: both kinds refuse at fmi2DeSerializeFMUstate (fmi2Error, the reason logged) garbage,
+    truncated or extended bytes, a flipped bit, another model's state and the other kind's state; the host's
+    state handle is left as it was, and the instance still takes its own state afterwards."""
+    mine, theirs = (native_fmus, fmus) if kind == "native" else (fmus, native_fmus)
+    fmu, log, data = _serialized(mine["TwoMassBacklash"], {"F": 50.0, "omega": 20.0}, 5)
+    other_model = _serialized(mine["FrictionMass"], {"F": 10.0}, 3)[2]
+    other_kind = _serialized(theirs["TwoMassBacklash"], {"F": 50.0, "omega": 20.0}, 5)[2]
+    flipped = bytearray(data)
+    flipped[len(data) // 2] ^= 0x10
+    bad = {"garbage": b"\x00garbage" * 20, "truncated": data[:-1], "extended": data + b"\x00",
+           "flipped bit": bytes(flipped), "another model": other_model, "the other kind": other_kind,
+           "empty": b""}
+    deserialize = getattr(fmu.dll, "fmi2DeSerializeFMUstate")  # raw: a status, not an exception
+    for label, blob in bad.items():
+        handle = fmpy.fmi2.fmi2FMUstate()
+        before = len(log)
+        status = deserialize(fmu.component, blob, len(blob), ctypes.byref(handle))
+        assert status == 3 and not handle, (label, status)  # fmi2Error, the handle untouched (NULL)
+        assert any(level == 3 and "refused" in text for level, text in log[before:]), (label, log[before:])
+    restored = fmu.deSerializeFMUstate(data)  # the error state allows it; setting it leaves that state
+    fmu.setFMUstate(restored)
+    fmu.freeFMUstate(restored)
+    assert bytes(fmu.serializeFMUstate(kept := fmu.getFMUstate())) == data
+    fmu.freeFMUstate(kept)
+
+
 def test_fmu_kind_and_path(monkeypatch, tmp_path):
     assert FMU_KINDS == ("native", "python")
     monkeypatch.delenv("DFWB_FMU", raising=False)
@@ -271,9 +307,9 @@ def test_dfwb_build_native_writes_the_three_fmus(tmp_path, capsys):
 
     assert main(["build", "--native", "--out", str(tmp_path)]) == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == sorted(f"{model}.fmu" for model in MODELS)
-    assert capsys.readouterr().out.count("built (native)") == 3
+    assert capsys.readouterr().out.count(": built (native") == 3
     assert main(["build", "--native", "--out", str(tmp_path)]) == 0  # up to date: nothing rebuilt
-    assert capsys.readouterr().out.count("up to date (native)") == 3
+    assert capsys.readouterr().out.count(": up to date (native") == 3
     with pytest.raises(SystemExit) as stopped:
         main(["build", "--native", "--naive", "--out", str(tmp_path)])
     assert stopped.value.code == 2 and "--native and --naive" in capsys.readouterr().err
