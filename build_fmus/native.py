@@ -1,10 +1,14 @@
 """Build the native FMUs: the plants on the C core with an FMI 2.0 wrapper, no Python inside.
 
 ``dfwb build --native`` writes FrictionMass.fmu, TwoMassBacklash.fmu and
-StaticBacklash.fmu whose binary (``binaries/linux64/<Model>.so``) is the C
-core (``fmus/native/*.c``) plus the FMI 2.0 co-simulation wrapper
-``fmus/native/fmu/fmi2_plant.c``, and whose ``sources/`` folder holds all of
-it (an importer can compile the FMU for another platform).
+StaticBacklash.fmu whose binaries are the C core (``fmus/native/*.c``) plus
+the FMI 2.0 co-simulation wrapper ``fmus/native/fmu/fmi2_plant.c``, compiled
+for each platform this machine can build for (:data:`PLATFORMS`):
+``binaries/linux64/<Model>.so`` with the system's C compiler, and
+``binaries/win64/<Model>.dll`` with mingw-w64 (``x86_64-w64-mingw32-gcc``,
+Debian's gcc-mingw-w64-x86-64) where it is installed. Their ``sources/``
+folder holds all of it (an importer can compile the FMU for another
+platform, e.g. with ``fmpy.build.build_platform_binary``).
 
 They are twins of the pythonfmu FMUs, not copies: the model description is
 written from the same facade class (:mod:`dfwb.fmus.facade`) by the same
@@ -16,13 +20,14 @@ parameter, the input, an output of the core). Only the CoSimulation element
 differs (no execution tool, memory through the host's callbacks).
 
 A native FMU's hash covers the C sources, the facade and builder modules,
-pythonfmu's version, the compiler command and :data:`NATIVE_REVISION`; an
+pythonfmu's version, each platform's compiler command and :data:`NATIVE_REVISION`; an
 FMU whose recorded hash matches is not rebuilt (as for the pythonfmu FMUs).
 """
 
 import functools
 import hashlib
 import os
+import shutil
 import subprocess
 import tempfile
 import uuid
@@ -38,12 +43,18 @@ from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
 from .errors import BuildError
 from .recorded import recorded_hash
 
-__all__ = ["build_native", "native_models", "native_hash", "WRAPPER", "NATIVE_REVISION"]
+__all__ = ["build_native", "native_models", "native_hash", "platforms", "WRAPPER", "NATIVE_REVISION", "PLATFORMS"]
 
 NATIVE_REVISION = "1"
 WRAPPER = NATIVE_DIR / "fmu" / "fmi2_plant.c"
 BUILDER = Path(__file__).with_name("builder.py")  # writes the model description (finish_model_description)
 GENERATION_TOOL = "dfwb native (C core, fmus/native)"
+# The FMI platforms a native FMU carries a binary for: (file suffix, cross compiler or None for the system's).
+# win64: mingw-w64's printf made C99's (the messages name numbers as on linux64), its libgcc linked in (the DLL
+# needs only KERNEL32 and msvcrt); -fPIC and -fvisibility mean nothing in a PE DLL (FMI_API is dllexport).
+PLATFORMS = {"linux64": (".so", None), "win64": (".dll", "x86_64-w64-mingw32-gcc")}
+WIN64_FLAGS = ("-O2", "-std=c99", "-shared", "-ffp-contract=off", "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc",
+               "-s")
 
 # Per plant: the core's plant kind, its parameter order (dfwb_core.h) and the order of dfwb_*_output's array.
 KINDS = {
@@ -82,8 +93,22 @@ def _headers():
     return folder
 
 
-def _command(extra_flags=()):
-    return compiler() + list(FLAGS) + [str(flag) for flag in extra_flags]
+def platforms():
+    """The platforms of :data:`PLATFORMS` this machine can build binaries for (linux64, and win64 with mingw-w64)."""
+    return [name for name, (_suffix, cross) in PLATFORMS.items() if cross is None or shutil.which(cross)]
+
+
+def _command(extra_flags=(), platform="linux64"):
+    if platform not in PLATFORMS:
+        raise BuildError(f"platform {platform!r}: the native FMUs are built for {', '.join(PLATFORMS)}")
+    cross = PLATFORMS[platform][1]
+    if cross is None:
+        return compiler() + list(FLAGS) + [str(flag) for flag in extra_flags]
+    found = shutil.which(cross)
+    if not found:
+        raise BuildError(f"building {platform} binaries needs {cross} on PATH (Debian: apt-get install "
+                         f"gcc-mingw-w64-x86-64)")
+    return [found] + list(WIN64_FLAGS) + [str(flag) for flag in extra_flags]
 
 
 @functools.lru_cache(maxsize=8)
@@ -95,11 +120,12 @@ def _static_digest():
     return digest.hexdigest()
 
 
-def native_hash(model, extra_flags=()):
-    """The hash a native FMU of ``model`` records (see the module's docstring)."""
+def native_hash(model, extra_flags=(), targets=("linux64",)):
+    """The hash a native FMU of ``model`` with binaries for ``targets`` records (see the module's docstring)."""
     if model.__name__ not in KINDS:
         raise BuildError(f"{model.__name__} has no native FMU (native: {', '.join(KINDS)})")
-    words = "\0".join(_command(extra_flags) + list(LIBS) + [model.__name__, _static_digest()])
+    commands = [word for target in targets for word in [target] + _command(extra_flags, target)]
+    words = "\0".join(commands + list(LIBS) + [model.__name__, _static_digest()])
     return hashlib.sha256(words.encode()).hexdigest()[:16]
 
 
@@ -174,22 +200,32 @@ def model_header(model, root):
     return "\n".join(lines)
 
 
-def _compile(stage, target, extra_flags):
-    command = (_command(extra_flags) + [f"-I{_headers()}", f"-I{stage}", "-o", str(target)]
-               + [str(stage / name) for name in _source_names() if name.endswith(".c")] + list(LIBS))
-    try:
-        run = subprocess.run(command, capture_output=True, text=True, cwd=stage)
-    except OSError as error:
-        raise BuildError(f"compiling the native FMU failed: {command[0]}: {error}") from None
-    if run.returncode != 0:
-        lines = [line.strip() for line in run.stderr.splitlines() if line.strip()]
-        first = next((line for line in lines if "error" in line), lines[0] if lines else "no message")
-        raise BuildError(f"compiling the native FMU failed (exit {run.returncode}): {first}")
+def _compile(stage, binaries, extra_flags):
+    """Compile the staged sources into ``binaries`` ({platform: path}), the platforms side by side."""
+    runs = {}
+    for platform, target in binaries.items():
+        command = (_command(extra_flags, platform) + [f"-I{_headers()}", f"-I{stage}", "-o", str(target)]
+                   + [str(stage / name) for name in _source_names() if name.endswith(".c")] + list(LIBS))
+        try:
+            runs[platform] = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                              cwd=stage)
+        except OSError as error:
+            raise BuildError(f"compiling the native FMU failed: {command[0]}: {error}") from None
+    failed = []
+    for platform, run in runs.items():
+        stderr = run.communicate()[1]
+        if run.returncode != 0:
+            lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+            first = next((line for line in lines if "error" in line), lines[0] if lines else "no message")
+            failed.append(f"compiling the native FMU for {platform} failed (exit {run.returncode}): {first}")
+    if failed:
+        raise BuildError(failed[0])
 
 
-def build_one_native(model, out_dir, digest=None, extra_flags=()):
-    """Build ``<out_dir>/<Model>.fmu``, the native FMU of ``model`` (atomic replace); its path."""
-    digest = digest or native_hash(model, extra_flags)
+def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linux64",)):
+    """Build ``<out_dir>/<Model>.fmu``, the native FMU of ``model`` with binaries for ``targets`` (atomic
+    replace); its path."""
+    digest = digest or native_hash(model, extra_flags, targets)
     root = _description(model, digest)
     dest = Path(out_dir) / f"{model.__name__}.fmu"
     with tempfile.TemporaryDirectory(prefix="dfwb_native_") as tmp:
@@ -198,37 +234,39 @@ def build_one_native(model, out_dir, digest=None, extra_flags=()):
         for path in [WRAPPER] + sources():
             (stage / path.name).write_bytes(path.read_bytes())
         (stage / "dfwb_model.h").write_text(model_header(model, root))
-        binary = Path(tmp) / f"{model.__name__}.so"
-        _compile(stage, binary, extra_flags)
+        binaries = {target: Path(tmp) / f"{target}{PLATFORMS[target][0]}" for target in targets}
+        _compile(stage, binaries, extra_flags)
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
             archive.writestr("modelDescription.xml",
                              b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8"))
-            archive.write(binary, f"binaries/linux64/{model.__name__}.so")
+            for target, binary in binaries.items():
+                archive.write(binary, f"binaries/{target}/{model.__name__}{PLATFORMS[target][0]}")
             for name in _source_names():
                 archive.write(stage / name, f"sources/{name}")
         partial.replace(dest)
     return dest
 
 
-def build_native(out_dir, models=None, force=False, report=print, extra_flags=()):
+def build_native(out_dir, models=None, force=False, report=print, extra_flags=(), targets=None):
     """Build the native FMUs of ``models`` (default :func:`native_models`) into ``out_dir``; their paths.
 
     As :func:`dfwb.build_fmus.builder.build`: an FMU whose recorded hash matches
     is kept (``force`` rebuilds it), ``report`` gets one line per FMU.
     ``extra_flags`` go to the compiler (and into the hash), e.g. ``("-Wall", "-Werror")``.
+    ``targets``: the platforms to build binaries for (default :func:`platforms`: all this machine can).
     """
+    targets = tuple(platforms() if targets is None else targets)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for model in native_models() if models is None else models:
         path = out_dir / f"{model.__name__}.fmu"
-        digest = native_hash(model, extra_flags)
+        digest = native_hash(model, extra_flags, targets)
         if not force and recorded_hash(path) == digest:
-            report(f"{path}: up to date (native)")
+            report(f"{path}: up to date (native, {' + '.join(targets)})")
         else:
-            build_one_native(model, out_dir, digest, extra_flags)
-            report(f"{path}: built (native)")
+            build_one_native(model, out_dir, digest, extra_flags, targets)
+            report(f"{path}: built (native, {' + '.join(targets)})")
         paths.append(path)
     return paths
-

@@ -81,7 +81,9 @@
 extern "C" {
 #endif
 
-#if defined(__GNUC__) || defined(__clang__)
+#if defined(_WIN32)
+#define DFWB_API /* in a DLL only the FMI functions are exported (dllexport in the FMU wrapper) */
+#elif defined(__GNUC__) || defined(__clang__)
 #define DFWB_API __attribute__((visibility("default")))
 #else
 #define DFWB_API

@@ -36,12 +36,18 @@ typedef struct {
     const char *overflow;   /* set when a power or |z| overflowed (Python: OverflowError), its message */
 } dfwb_err;
 
-/* Record a refusal (the first one wins) and return its code. printf-style message. */
-int dfwb_fail(dfwb_err *err, int code, const char *fmt, ...)
-#if defined(__GNUC__) || defined(__clang__)
-    __attribute__((format(printf, 3, 4)))
+/* printf-style arguments, checked by the compiler: C99's printf (mingw-w64 builds with
+   __USE_MINGW_ANSI_STDIO=1, whose printf is gnu_printf, not msvcrt's). */
+#if defined(__MINGW32__)
+#define DFWB_PRINTF(fmt, args) __attribute__((format(gnu_printf, fmt, args)))
+#elif defined(__GNUC__) || defined(__clang__)
+#define DFWB_PRINTF(fmt, args) __attribute__((format(printf, fmt, args)))
+#else
+#define DFWB_PRINTF(fmt, args)
 #endif
-    ;
+
+/* Record a refusal (the first one wins) and return its code. printf-style message. */
+int dfwb_fail(dfwb_err *err, int code, const char *fmt, ...) DFWB_PRINTF(3, 4);
 
 /* repr(x) as Python writes a float (shortest round trip; '1e+16', '0.0001', '12.0', 'nan', '-inf'). */
 #define DFWB_REPR_SIZE 32

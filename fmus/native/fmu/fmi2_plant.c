@@ -28,7 +28,8 @@
    own. Logging: fmi2OK messages only while logging is on; warnings and errors always.
 
    Build (build_fmus/native.py): cc -O2 -std=c99 -ffp-contract=off -fPIC -shared -fvisibility=hidden
-   -I<FMI 2.0 headers> -I<folder of dfwb_model.h> -I<core sources> fmi2_plant.c <core *.c> -lm */
+   -I<FMI 2.0 headers> -I<folder of dfwb_model.h> -I<core sources> fmi2_plant.c <core *.c> -lm; for win64,
+   x86_64-w64-mingw32-gcc with -D__USE_MINGW_ANSI_STDIO=1 -static-libgcc instead of -fPIC -fvisibility. */
 
 #include <math.h>
 #include <stdarg.h>
@@ -40,7 +41,11 @@
 #include "exact.h"
 #include "fmi2Functions.h"
 
+#if defined(_WIN32)
+#define FMI_API __declspec(dllexport)
+#else
 #define FMI_API __attribute__((visibility("default")))
+#endif
 
 /* Roles of a variable in dfwb_model.h. */
 enum {
@@ -135,11 +140,7 @@ static void emit(instance *c, fmi2Status status, const char *category, const cha
 }
 
 /* Refuse the current call: log "<Model>: <message>" with status error, enter the Error state. */
-static fmi2Status refuse(instance *c, const char *fmt, ...)
-#if defined(__GNUC__) || defined(__clang__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
+static fmi2Status refuse(instance *c, const char *fmt, ...) DFWB_PRINTF(2, 3);
 static fmi2Status refuse(instance *c, const char *fmt, ...)
 {
     char text[MESSAGE];
