@@ -43,10 +43,11 @@ from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
 from .errors import BuildError
 from .recorded import recorded_hash
 
-__all__ = ["build_native", "native_models", "native_hash", "platforms", "WRAPPER", "NATIVE_REVISION", "PLATFORMS"]
+__all__ = ["build_native", "native_models", "native_hash", "platforms", "WRAPPERS", "NATIVE_REVISION", "PLATFORMS"]
 
 NATIVE_REVISION = "1"
-WRAPPER = NATIVE_DIR / "fmu" / "fmi2_plant.c"
+FMU_SOURCES = NATIVE_DIR / "fmu"  # the FMU around the core: plant_fmu.c/.h and one layer per FMI version
+WRAPPERS = {2: ("fmi2_plant.c", "plant_fmu.c", "plant_fmu.h"), 3: ("fmi3_plant.c", "plant_fmu.c", "plant_fmu.h")}
 BUILDER = Path(__file__).with_name("builder.py")  # writes the model description (finish_model_description)
 GENERATION_TOOL = "dfwb native (C core, fmus/native)"
 # The FMI platforms a native FMU carries a binary for: (file suffix, cross compiler or None for the system's).
@@ -115,7 +116,8 @@ def _command(extra_flags=(), platform="linux64"):
 def _static_digest():
     """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
     digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
-    for path in [WRAPPER, Path(facade.__file__), BUILDER, Path(__file__)] + sources():
+    wrappers = sorted(FMU_SOURCES.glob("*.[ch]"))
+    for path in wrappers + [Path(facade.__file__), BUILDER, Path(__file__)] + sources():
         digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 
@@ -153,7 +155,7 @@ def _description(model, digest):
 
 
 def _source_names():
-    return [WRAPPER.name, "dfwb_model.h"] + [path.name for path in sources()]
+    return list(WRAPPERS[2]) + ["dfwb_model.h"] + [path.name for path in sources()]
 
 
 def _c_string(text):
@@ -231,7 +233,7 @@ def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linu
     with tempfile.TemporaryDirectory(prefix="dfwb_native_") as tmp:
         stage = Path(tmp) / "sources"
         stage.mkdir()
-        for path in [WRAPPER] + sources():
+        for path in [FMU_SOURCES / name for name in WRAPPERS[2]] + sources():
             (stage / path.name).write_bytes(path.read_bytes())
         (stage / "dfwb_model.h").write_text(model_header(model, root))
         binaries = {target: Path(tmp) / f"{target}{PLATFORMS[target][0]}" for target in targets}

@@ -1,353 +1,31 @@
-/* fmi2_plant.c - an FMI 2.0 co-simulation FMU of one dfwb plant on the C core: no Python anywhere.
+/* fmi2_plant.c - the FMI 2.0 co-simulation interface of a native dfwb plant FMU: each fmi2 function checks
+   what only FMI 2.0 has (the fmuType, the GUID, the callbacks) and calls plant_fmu.c, which holds the
+   behaviour (see its comment). Messages go to the host's logger with every '%' doubled (it reads a printf
+   format); memory comes from its allocateMemory/freeMemory. */
 
-   The native twin of the pythonfmu facades of fmus/facade.py (FrictionMass, TwoMassBacklash,
-   StaticBacklash): same model name, variables, value references, start values and ranges (the builder,
-   build_fmus/native.py, writes them from the facade into dfwb_model.h and modelDescription.xml), the same
-   solver (the C port, bit-identical to the Python one) and the same behaviour:
-
-   - Time: fmi2SetupExperiment's start time t0 is honoured; the excitation F cos(omega t + phi) is in
-     absolute time and the Fourier outputs I_k(t) = int_{t0}^{t} y exp(-i k omega s) ds in absolute phase.
-   - Errors: a refused call logs one message (status fmi2Error, "<Model>: <the facade's text>") and
-     returns fmi2Error; the instance is then in FMI's Error state, where only the getters,
-     fmi2SetFMUstate, fmi2Reset and fmi2FreeInstance make sense (any other call is refused, naming it).
-     Refused: a bad parameter (at fmi2ExitInitializationMode, the solver's own message), a parameter set
-     after initialisation (its value is kept), an input that is not finite or beyond 1e100, a step at
-     the wrong time or of a bad length, fmi2DoStep before initialisation or after fmi2Terminate, a
-     valueReference that is not a variable of that type, NULL arrays, an Integer output (a counter) beyond
-     32 bits. A step the solver refuses half way keeps the outputs of the last good point (never NaN);
-     outputs that overflow at the start leave the start values (0).
-   - FMU state: fmi2GetFMUstate copies the instance exactly (the solver included); fmi2SetFMUstate
-     restores it (the outputs are the state's own: 0 for a state before initialisation); a state handle
-     of another FMU (a tag of the GUID marks this model's) is refused, never read as this model's; a
-     serialized state ("DFWBFMUS", a version, the plant kind, the model's GUID, the facade's values, the
-     solver's checked bytes of dfwb_*_to_bytes) is accepted only by this model of the same build, and only
-     when every field is valid and the solver's fixed parameters are those its parameter values make
-     (dfwb_*_same_parameters) at the state's time.
-
-   Memory: the instance and FMU states use the host's allocateMemory/freeMemory; the core mallocs its
-   own. Logging: fmi2OK messages only while logging is on; warnings and errors always.
-
-   Build (build_fmus/native.py): cc -O2 -std=c99 -ffp-contract=off -fPIC -shared -fvisibility=hidden
-   -I<FMI 2.0 headers> -I<folder of dfwb_model.h> -I<core sources> fmi2_plant.c <core *.c> -lm; for win64,
-   x86_64-w64-mingw32-gcc with -D__USE_MINGW_ANSI_STDIO=1 -static-libgcc instead of -fPIC -fvisibility. */
-
-#include <math.h>
-#include <stdarg.h>
-#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
-#include "dfwb_core.h"
-#include "exact.h"
 #include "fmi2Functions.h"
+#include "plant_fmu.h"
 
-#if defined(_WIN32)
-#define FMI_API __declspec(dllexport)
-#else
-#define FMI_API __attribute__((visibility("default")))
-#endif
-
-/* Roles of a variable in dfwb_model.h. */
-enum {
-    ROLE_PARAMETER = 1, /* index: the core parameter it sets */
-    ROLE_INPUT,         /* the input force f */
-    ROLE_OUTPUT,        /* index: into dfwb_*_output's array */
-    ROLE_EVENTS,
-    ROLE_CONTACT,
-    ROLE_IMPACTS,
-    ROLE_ENGAGED,
-    ROLE_COSINE, /* index: k of Ick */
-    ROLE_SINE    /* index: k of Isk */
-};
-
-typedef struct {
-    const char *name;
-    int integer; /* an Integer variable (else Real) */
-    int role;
-    int index;
-    double start;
-} model_variable;
-
-#include "dfwb_model.h" /* DFWB_MODEL_NAME, _KIND, _GUID, _VARIABLES[], _NVARS, _INPUT_PARAMETER, ... */
-
-#if DFWB_MODEL_KIND == DFWB_PLANT_FRICTION
-typedef dfwb_friction plant;
-#define CORE(name) dfwb_friction_##name
-#define NPARAMS DFWB_FRICTION_PARAMS
-#define NOUT 4
-#elif DFWB_MODEL_KIND == DFWB_PLANT_BACKLASH
-typedef dfwb_backlash plant;
-#define CORE(name) dfwb_backlash_##name
-#define NPARAMS DFWB_BACKLASH_PARAMS
-#define NOUT 5
-#elif DFWB_MODEL_KIND == DFWB_PLANT_STATIC_BACKLASH
-typedef dfwb_static_backlash plant;
-#define CORE(name) dfwb_static_backlash_##name
-#define NPARAMS DFWB_STATIC_BACKLASH_PARAMS
-#define NOUT 3
-#else
-#error "dfwb_model.h: unknown DFWB_MODEL_KIND"
-#endif
-
-#define NVARS (sizeof DFWB_MODEL_VARIABLES / sizeof DFWB_MODEL_VARIABLES[0])
-#define NK (DFWB_HARMONICS_MAX + 1)
-#define MAX_INPUT 1e100
 #define MESSAGE 1200
 
-enum phase { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED, ERROR };
-static const char *const PHASES[] = {"instantiated", "initialization mode", "stepping", "terminated", "error"};
-
-/* What a state holds besides the solver (the Python facade's values, state.FMUState.values). */
-typedef struct {
-    int phase;
-    double start, time;
-    double values[NVARS]; /* parameters and the input (Integer ones as doubles); outputs unused */
-} facade;
-
-typedef struct {
-    uint64_t tag;  /* state_tag(): a state of another FMU is refused, never read as ours (0 once freed) */
-    facade f;
-    plant *solver; /* NULL before initialisation */
-} fmu_state;
-
-typedef struct {
-    fmi2CallbackFunctions cb;
-    char *name;
-    int logging;
-    facade f;
-    plant *solver;
-    /* derived from the solver: the outputs of the last good point, the Fourier integrals */
-    double outputs[NVARS];
-    int overflow, frozen;
-    int fourier_known;
-    double cosine[NK], sine[NK];
-    int rotated;
-    dfwb_cx rotation[NK];
-} instance;
-
-/* -- messages --------------------------------------------------------------------------- */
-static void emit(instance *c, fmi2Status status, const char *category, const char *text)
+static void log_fmi2(const plant_host *host, const char *instance, int status, const char *category,
+                     const char *text)
 {
+    fmi2CallbackLogger logger = (fmi2CallbackLogger)host->callback;
     char escaped[2 * MESSAGE + 1], *out = escaped;
     const char *p;
-    if (!c->cb.logger || (status < fmi2Warning && !c->logging)) return;
+    if (!logger) return;
     for (p = text; *p && out < escaped + 2 * MESSAGE - 1; p++) { /* the host's logger reads a printf format */
         *out++ = *p;
         if (*p == '%') *out++ = '%';
     }
     *out = '\0';
-    c->cb.logger(c->cb.componentEnvironment, c->name, status, category, escaped);
+    logger(host->environment, instance, (fmi2Status)status, category, escaped);
 }
 
-/* Refuse the current call: log "<Model>: <message>" with status error, enter the Error state. */
-static fmi2Status refuse(instance *c, const char *fmt, ...) DFWB_PRINTF(2, 3);
-static fmi2Status refuse(instance *c, const char *fmt, ...)
-{
-    char text[MESSAGE];
-    int n = snprintf(text, sizeof text, "%s: ", DFWB_MODEL_NAME);
-    va_list args;
-    va_start(args, fmt);
-    vsnprintf(text + n, sizeof text - (size_t)n, fmt, args);
-    va_end(args);
-    emit(c, fmi2Error, "logStatusError", text);
-    c->f.phase = ERROR;
-    return fmi2Error;
-}
-
-/* repr of a float (and of an Integer variable's value, an int) as Python writes it. */
-typedef struct {
-    char s[DFWB_REPR_SIZE];
-} repr_t;
-
-static repr_t repr(double x)
-{
-    repr_t r;
-    dfwb_repr(x, r.s);
-    return r;
-}
-
-static repr_t repr_value(const model_variable *v, double x)
-{
-    repr_t r;
-    if (v->integer)
-        snprintf(r.s, sizeof r.s, "%lld", (long long)x);
-    else
-        dfwb_repr(x, r.s);
-    return r;
-}
-
-/* Refuse unless in one of the phases (mask of 1 << phase): "<call> is not allowed in the <phase> state". */
-static int expect(instance *c, const char *call, unsigned phases)
-{
-    if (phases & (1u << c->f.phase)) return 1;
-    refuse(c, "%s is not allowed in the %s state%s", call, PHASES[c->f.phase],
-           c->f.phase == ERROR ? " (after an error only getters, setFMUstate, reset and freeInstance)" : "");
-    return 0;
-}
-
-#define ANY_BUT_ERROR ((1u << INSTANTIATED) | (1u << INITIALIZATION) | (1u << STEPPING) | (1u << TERMINATED))
-
-/* -- the solver ------------------------------------------------------------------------------ */
-static const model_variable *variable(size_t vr) { return vr < NVARS ? &DFWB_MODEL_VARIABLES[vr] : NULL; }
-
-static int settable(const model_variable *v) { return v->role == ROLE_PARAMETER || v->role == ROLE_INPUT; }
-
-static double input_value(const facade *f)
-{
-    size_t i;
-    for (i = 0; i < NVARS; i++)
-        if (DFWB_MODEL_VARIABLES[i].role == ROLE_INPUT) return f->values[i];
-    return 0.0;
-}
-
-/* The core's parameters from the facade's values, the phase turned to the start time t0. */
-static void core_parameters(const facade *f, double params[NPARAMS])
-{
-    size_t i;
-    memset(params, 0, NPARAMS * sizeof params[0]);
-    for (i = 0; i < NVARS; i++) {
-        const model_variable *v = &DFWB_MODEL_VARIABLES[i];
-        if (v->role == ROLE_PARAMETER) params[v->index] = f->values[i];
-    }
-    params[DFWB_MODEL_INPUT_PARAMETER] = input_value(f);
-    if (f->start != 0.0) /* F cos(omega t + phi) = F cos(omega (t - t0) + phi + omega t0) */
-        params[DFWB_MODEL_PHI_PARAMETER] = params[DFWB_MODEL_PHI_PARAMETER] + params[DFWB_MODEL_OMEGA_PARAMETER] * f->start;
-#ifdef DFWB_MODEL_GAP0_PARAMETER
-    if (params[DFWB_MODEL_GAP0_PARAMETER] == -1.0) /* the start value -1: centred, whatever h is */
-        params[DFWB_MODEL_GAP0_PARAMETER] = 0.5 * params[DFWB_MODEL_H_PARAMETER];
-#endif
-}
-
-/* The core names an Integer parameter's value as a float ("harmonics = 11.0"): write it as the int it is. */
-static void integer_values(const facade *f, char *err)
-{
-    size_t i, n;
-    for (i = 0; i < NVARS; i++) {
-        const model_variable *v = &DFWB_MODEL_VARIABLES[i];
-        char as_float[DFWB_REPR_SIZE + 64], as_int[DFWB_REPR_SIZE + 64];
-        if (!(v->role == ROLE_PARAMETER && v->integer)) continue;
-        snprintf(as_float, sizeof as_float, "%s = %s", v->name, repr(f->values[i]).s);
-        snprintf(as_int, sizeof as_int, "%s = %s", v->name, repr_value(v, f->values[i]).s);
-        n = strlen(as_float);
-        if (strncmp(err, as_float, n) == 0 && strlen(as_int) <= n) { /* int32: never longer */
-            memmove(err + strlen(as_int), err + n, strlen(err + n) + 1);
-            memcpy(err, as_int, strlen(as_int));
-        }
-    }
-}
-
-static int new_solver(const facade *f, plant **out, char *err, size_t errlen)
-{
-    double params[NPARAMS];
-    int rc;
-    core_parameters(f, params);
-    rc = CORE(new)(params, out, err, errlen);
-    if (rc != DFWB_OK && err) integer_values(f, err);
-    return rc;
-}
-
-/* exp(-i k omega t0), k = 0..harmonics, as cmath.exp(-1j * k * omega * t0) computes it. */
-static void set_rotation(instance *c)
-{
-    int k;
-    c->rotated = c->solver != NULL && c->f.start != 0.0;
-    if (!c->rotated) return;
-    for (k = 0; k <= CORE(harmonics)(c->solver); k++) {
-        dfwb_cx z = dfwb_cx_make(-0.0, -1.0);
-        z = dfwb_cx_mul(z, dfwb_cx_real((double)k));
-        z = dfwb_cx_mul(z, dfwb_cx_real(c->f.values[DFWB_MODEL_OMEGA_VR]));
-        z = dfwb_cx_mul(z, dfwb_cx_real(c->f.start));
-        c->rotation[k] = isfinite(z.re) && isfinite(z.im) ? dfwb_cx_exp(z) : dfwb_cx_make(NAN, NAN);
-    }
-}
-
-/* The outputs after a step (PlantFMU._refresh): kept at the last good point once one overflows. */
-static void refresh(instance *c)
-{
-    double state[NOUT], fresh[NVARS];
-    size_t i;
-    int overflow = 0;
-    if (c->frozen) return;
-    CORE(output)(c->solver, state);
-    for (i = 0; i < NVARS; i++) {
-        const model_variable *v = &DFWB_MODEL_VARIABLES[i];
-        double value = 0.0;
-        switch (v->role) {
-        case ROLE_OUTPUT: value = state[v->index]; break;
-        case ROLE_EVENTS: value = (double)CORE(events)(c->solver); break;
-#if DFWB_MODEL_KIND == DFWB_PLANT_BACKLASH
-        case ROLE_CONTACT: value = dfwb_backlash_contact(c->solver); break;
-        case ROLE_IMPACTS: value = (double)dfwb_backlash_impacts(c->solver); break;
-#endif
-#if DFWB_MODEL_KIND == DFWB_PLANT_STATIC_BACKLASH
-        case ROLE_ENGAGED: value = dfwb_static_backlash_engaged(c->solver); break;
-#endif
-        default: continue;
-        }
-        fresh[i] = value;
-        if (!isfinite(value)) overflow = 1;
-    }
-    c->overflow = overflow;
-    if (overflow) return; /* never NaN: the last good point stays (none yet, at the start: the start values) */
-    for (i = 0; i < NVARS; i++) {
-        int role = DFWB_MODEL_VARIABLES[i].role;
-        if (role != ROLE_PARAMETER && role != ROLE_INPUT && role != ROLE_COSINE && role != ROLE_SINE)
-            c->outputs[i] = fresh[i];
-    }
-    c->fourier_known = 0;
-}
-
-/* The Fourier integrals in absolute phase (Ick = Re I_k, Isk = -Im I_k); 0 on refusal. */
-static int fourier(instance *c)
-{
-    double re[NK], im[NK];
-    char err[MESSAGE];
-    int k, n;
-    if (c->fourier_known || !c->solver) return 1;
-    n = CORE(harmonics)(c->solver);
-    if (CORE(integrals)(c->solver, re, im, err, sizeof err) != DFWB_OK) {
-        refuse(c, "getReal failed: %s", err);
-        return 0;
-    }
-    for (k = 0; k < NK; k++) c->cosine[k] = c->sine[k] = 0.0;
-    for (k = 0; k <= n; k++) {
-        dfwb_cx value = dfwb_cx_make(re[k], im[k]);
-        if (c->rotated) value = dfwb_cx_mul(value, c->rotation[k]);
-        if (!(isfinite(value.re) && isfinite(value.im))) {
-            refuse(c, "the Fourier integrals at t = %s overflow a float", repr(c->f.time).s);
-            return 0;
-        }
-        c->cosine[k] = value.re;
-        c->sine[k] = -value.im;
-    }
-    c->fourier_known = 1;
-    return 1;
-}
-
-/* A step failed half way: outputs stay at the last good point, the integrals too if known (else 0). */
-static void broken(instance *c)
-{
-    if (!c->fourier_known) {
-        memset(c->cosine, 0, sizeof c->cosine);
-        memset(c->sine, 0, sizeof c->sine);
-        c->fourier_known = 1;
-    }
-    c->frozen = 1;
-}
-
-static void defaults(instance *c)
-{
-    size_t i;
-    memset(&c->f, 0, sizeof c->f);
-    for (i = 0; i < NVARS; i++) c->f.values[i] = DFWB_MODEL_VARIABLES[i].start;
-    c->f.phase = INSTANTIATED;
-    memset(c->outputs, 0, sizeof c->outputs);
-    c->overflow = c->frozen = c->fourier_known = c->rotated = 0;
-}
-
-static void *allocate(const instance *c, size_t size) { return c->cb.allocateMemory(1, size); }
-
-/* -- instantiation ---------------------------------------------------------------------------- */
 FMI_API const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 FMI_API const char *fmi2GetVersion(void) { return fmi2Version; }
 
@@ -355,617 +33,169 @@ FMI_API fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String
                                       const fmi2CallbackFunctions *functions, fmi2Boolean visible,
                                       fmi2Boolean loggingOn)
 {
-    instance *c;
-    size_t n;
+    plant_host host;
+    char why[200];
     (void)resources;
     (void)visible;
     if (!functions || !functions->allocateMemory || !functions->freeMemory) return NULL;
-    if (type != fmi2CoSimulation || !guid || strcmp(guid, DFWB_MODEL_GUID) != 0) {
+    if (type != fmi2CoSimulation || !guid || strcmp(guid, plant_fmu_token()) != 0) {
+        snprintf(why, sizeof why, "%s: %s", plant_fmu_model(),
+                 type != fmi2CoSimulation ? "only co-simulation is supported" : "the GUID is not this FMU's");
         if (functions->logger)
-            functions->logger(functions->componentEnvironment, name ? name : "", fmi2Fatal, "logStatusFatal",
-                              type != fmi2CoSimulation ? DFWB_MODEL_NAME ": only co-simulation is supported"
-                                                       : DFWB_MODEL_NAME ": the GUID is not this FMU's");
+            functions->logger(functions->componentEnvironment, name ? name : "", fmi2Fatal, "logStatusFatal", why);
         return NULL;
     }
-    c = functions->allocateMemory(1, sizeof *c);
-    if (!c) return NULL;
-    c->cb = *functions;
-    n = name ? strlen(name) : 0;
-    c->name = functions->allocateMemory(n + 1, 1);
-    if (!c->name) {
-        functions->freeMemory(c);
-        return NULL;
-    }
-    if (n) memcpy(c->name, name, n);
-    c->name[n] = '\0';
-    c->logging = loggingOn != fmi2False;
-    c->solver = NULL;
-    defaults(c);
-    return c;
+    host.log = log_fmi2;
+    host.environment = functions->componentEnvironment;
+    host.callback = (void (*)(void))functions->logger;
+    host.allocate = functions->allocateMemory;
+    host.release = functions->freeMemory;
+    host.real_kind = "Real";
+    host.integer_kind = "Integer";
+    return plant_fmu_new(name, loggingOn != fmi2False, &host);
 }
 
-FMI_API void fmi2FreeInstance(fmi2Component component)
-{
-    instance *c = component;
-    if (!c) return;
-    CORE(free)(c->solver);
-    c->cb.freeMemory(c->name);
-    c->cb.freeMemory(c);
-}
+FMI_API void fmi2FreeInstance(fmi2Component c) { plant_fmu_free(c); }
 
-FMI_API fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn, size_t n,
-                                       const fmi2String categories[])
+FMI_API fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n, const fmi2String categories[])
 {
-    instance *c = component;
     (void)n;
     (void)categories;
     if (!c) return fmi2Error;
-    c->logging = loggingOn != fmi2False;
+    plant_fmu_logging(c, loggingOn != fmi2False);
     return fmi2OK;
 }
 
-FMI_API fmi2Status fmi2Reset(fmi2Component component)
-{
-    instance *c = component;
-    if (!c) return fmi2Error;
-    CORE(free)(c->solver);
-    c->solver = NULL;
-    defaults(c);
-    return fmi2OK;
-}
+/* Every other call: fmi2Error for a NULL instance, else plant_fmu's status. */
+#define CALL(c, expression) ((c) ? (fmi2Status)(expression) : fmi2Error)
 
-/* -- initialisation, steps ----------------------------------------------------------------------- */
-FMI_API fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+FMI_API fmi2Status fmi2Reset(fmi2Component c) { return CALL(c, plant_fmu_reset(c)); }
+
+FMI_API fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                        fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
-    instance *c = component;
-    (void)toleranceDefined;
-    (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
-    if (!c) return fmi2Error;
-    if (!expect(c, "setupExperiment", 1u << INSTANTIATED)) return fmi2Error;
-    if (!isfinite(startTime))
-        return refuse(c, "start time %s refused: it must be a finite number", repr(startTime).s);
-    c->f.start = c->f.time = startTime;
-    return fmi2OK;
+    (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
+    return CALL(c, plant_fmu_setup(c, startTime));
 }
 
-FMI_API fmi2Status fmi2EnterInitializationMode(fmi2Component component)
-{
-    instance *c = component;
-    if (!c) return fmi2Error;
-    if (!expect(c, "enterInitializationMode", 1u << INSTANTIATED)) return fmi2Error;
-    c->f.phase = INITIALIZATION;
-    return fmi2OK;
-}
+FMI_API fmi2Status fmi2EnterInitializationMode(fmi2Component c) { return CALL(c, plant_fmu_enter_initialization(c)); }
+FMI_API fmi2Status fmi2ExitInitializationMode(fmi2Component c) { return CALL(c, plant_fmu_exit_initialization(c)); }
 
-static int input_ok(instance *c, double value)
+FMI_API fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior)
 {
-    if (isfinite(value) && fabs(value) <= MAX_INPUT) return 1;
-    refuse(c, "at t = %s: f = %s is out of range: the input f must be a finite number of magnitude <= 1e+100",
-           repr(c->f.time).s, repr(value).s);
-    return 0;
-}
-
-FMI_API fmi2Status fmi2ExitInitializationMode(fmi2Component component)
-{
-    instance *c = component;
-    char err[MESSAGE];
-    if (!c) return fmi2Error;
-    if (!expect(c, "exitInitializationMode", 1u << INITIALIZATION)) return fmi2Error;
-    if (!input_ok(c, input_value(&c->f))) return fmi2Error;
-    if (new_solver(&c->f, &c->solver, err, sizeof err) != DFWB_OK) return refuse(c, "invalid parameter: %s", err);
-    set_rotation(c);
-    refresh(c);
-    if (c->overflow) {
-        CORE(free)(c->solver);
-        c->solver = NULL;
-        return refuse(c, "invalid parameters: the outputs at the start overflow a float (a force or a mass "
-                         "out of scale)");
-    }
-    c->f.phase = STEPPING;
-    return fmi2OK;
-}
-
-FMI_API fmi2Status fmi2DoStep(fmi2Component component, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior)
-{
-    instance *c = component;
-    char err[MESSAGE];
-    double now, end;
     (void)noSetPrior;
-    if (!c) return fmi2Error;
-    if (c->f.phase == TERMINATED) return refuse(c, "doStep at t = %s refused: the FMU is terminated", repr(t).s);
-    if (!c->solver || c->f.phase == INSTANTIATED || c->f.phase == INITIALIZATION)
-        return refuse(c, "doStep called before initialisation");
-    if (!expect(c, "doStep", 1u << STEPPING)) return fmi2Error;
-    if (!(isfinite(h) && h > 0.0))
-        return refuse(c, "communication step %s at t = %s: it must be > 0 and finite", repr(h).s, repr(t).s);
-    now = c->f.time;
-    if (!(fabs(t - now) <= 1e-9 * fmax(1.0, fabs(now)))) /* NaN refused too */
-        return refuse(c, "doStep at t = %s, but the FMU is at t = %s", repr(t).s, repr(now).s);
-    end = fmax(t + h, now);
-    if (CORE(set_input)(c->solver, input_value(&c->f), err, sizeof err) != DFWB_OK ||
-        CORE(advance)(c->solver, end - c->f.start, err, sizeof err) != DFWB_OK) {
-        broken(c);
-        return refuse(c, "step from t = %s refused: %s", repr(t).s, err);
-    }
-    c->f.time = end;
-    refresh(c);
-    if (c->overflow) {
-        broken(c);
-        return refuse(c, "step from t = %s to %s refused: the motion overflows a float (outputs are no longer "
-                         "finite)", repr(t).s, repr(end).s);
-    }
-    return fmi2OK;
+    return CALL(c, plant_fmu_step(c, t, h));
 }
 
-FMI_API fmi2Status fmi2CancelStep(fmi2Component component)
+FMI_API fmi2Status fmi2CancelStep(fmi2Component c)
 {
-    instance *c = component;
-    return c ? refuse(c, "cancelStep refused: doStep never returns fmi2Pending") : fmi2Error;
+    return CALL(c, plant_fmu_refuse(c, "cancelStep refused: doStep never returns fmi2Pending"));
 }
 
-FMI_API fmi2Status fmi2Terminate(fmi2Component component)
+FMI_API fmi2Status fmi2Terminate(fmi2Component c) { return CALL(c, plant_fmu_terminate(c)); }
+
+FMI_API fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[])
 {
-    instance *c = component;
-    if (!c) return fmi2Error;
-    if (!expect(c, "terminate", 1u << STEPPING)) return fmi2Error;
-    c->f.phase = TERMINATED;
-    return fmi2OK;
+    return CALL(c, plant_fmu_get_reals(c, "getReal", vr, n, value));
 }
 
-/* -- variables --------------------------------------------------------------------------------- */
-static const char *kind_name(int integer) { return integer ? "Integer" : "Real"; }
-
-/* The variables of vr[] (each of the kind asked), or 0 after a refusal naming the first that is not. */
-static int lookup(instance *c, const char *call, const fmi2ValueReference vr[], size_t n, int integer,
-                  const void *values)
+FMI_API fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer value[])
 {
-    size_t i;
-    if (n > 0 && (!vr || !values)) {
-        refuse(c, "%s: a NULL array for %zu valueReferences", call, n);
-        return 0;
-    }
-    for (i = 0; i < n; i++) {
-        const model_variable *v = variable(vr[i]);
-        if (!v || v->integer != integer) {
-            refuse(c, "%s failed: TypeError: Variable with valueReference=%u is not of type %s!", call,
-                   (unsigned)vr[i], kind_name(integer));
-            return 0;
-        }
-    }
-    return 1;
+    return CALL(c, plant_fmu_get_integers(c, "getInteger", vr, n, value));
 }
 
-static double value_of(instance *c, size_t vr, int *ok)
+FMI_API fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[])
 {
-    const model_variable *v = &DFWB_MODEL_VARIABLES[vr];
-    *ok = 1;
-    if (settable(v)) return c->f.values[vr];
-    if (v->role == ROLE_COSINE || v->role == ROLE_SINE) {
-        if (!c->solver && !c->fourier_known) return 0.0;
-        if (!fourier(c)) {
-            *ok = 0;
-            return 0.0;
-        }
-        return v->role == ROLE_COSINE ? c->cosine[v->index] : c->sine[v->index];
-    }
-    return c->outputs[vr];
-}
-
-FMI_API fmi2Status fmi2GetReal(fmi2Component component, const fmi2ValueReference vr[], size_t n, fmi2Real value[])
-{
-    instance *c = component;
-    size_t i;
-    int ok = 1;
-    if (!c) return fmi2Error;
-    if (!lookup(c, "getReal", vr, n, 0, value)) {
-        if (value) memset(value, 0, n * sizeof value[0]);
-        return fmi2Error;
-    }
-    for (i = 0; i < n && ok; i++) value[i] = value_of(c, vr[i], &ok);
-    if (!ok) {
-        memset(value, 0, n * sizeof value[0]);
-        return fmi2Error;
-    }
-    return fmi2OK;
-}
-
-FMI_API fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueReference vr[], size_t n,
-                                  fmi2Integer value[])
-{
-    instance *c = component;
-    size_t i;
-    int ok;
-    if (!c) return fmi2Error;
-    if (!lookup(c, "getInteger", vr, n, 1, value)) {
-        if (value) memset(value, 0, n * sizeof value[0]);
-        return fmi2Error;
-    }
-    for (i = 0; i < n; i++) {
-        double x = value_of(c, vr[i], &ok);
-        if (!(x >= -2147483648.0 && x <= 2147483647.0)) { /* a counter of a long run or of a crafted state */
-            memset(value, 0, n * sizeof value[0]);
-            return refuse(c, "getInteger: %s = %.0f does not fit a 32-bit Integer", DFWB_MODEL_VARIABLES[vr[i]].name,
-                          x);
-        }
-        value[i] = (fmi2Integer)x;
-    }
-    return fmi2OK;
-}
-
-FMI_API fmi2Status fmi2GetBoolean(fmi2Component component, const fmi2ValueReference vr[], size_t n,
-                                  fmi2Boolean value[])
-{
-    instance *c = component;
     if (!c) return fmi2Error;
     if (n == 0) return fmi2OK;
     if (value) memset(value, 0, n * sizeof value[0]);
-    return refuse(c, "getBoolean failed: TypeError: Variable with valueReference=%u is not of type Boolean!",
-                  vr ? (unsigned)vr[0] : 0u);
+    return (fmi2Status)plant_fmu_refuse(
+        c, "getBoolean failed: TypeError: Variable with valueReference=%u is not of type Boolean!",
+        vr ? (unsigned)vr[0] : 0u);
 }
 
-FMI_API fmi2Status fmi2GetString(fmi2Component component, const fmi2ValueReference vr[], size_t n,
-                                 fmi2String value[])
+FMI_API fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String value[])
 {
-    instance *c = component;
     size_t i;
     if (!c) return fmi2Error;
     if (n == 0) return fmi2OK;
     for (i = 0; value && i < n; i++) value[i] = "";
-    return refuse(c, "getString failed: TypeError: Variable with valueReference=%u is not of type String!",
-                  vr ? (unsigned)vr[0] : 0u);
+    return (fmi2Status)plant_fmu_refuse(
+        c, "getString failed: TypeError: Variable with valueReference=%u is not of type String!",
+        vr ? (unsigned)vr[0] : 0u);
 }
 
-/* SolverFMU._set_values: everything checked first, then all set (a refusal sets none). */
-static fmi2Status set_values(instance *c, const char *call, const fmi2ValueReference vr[], size_t n,
-                             const double *values, int integer)
+FMI_API fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[])
 {
-    size_t i;
-    if (!lookup(c, call, vr, n, integer, values)) return fmi2Error;
-    if (n && (c->f.phase == TERMINATED || c->f.phase == ERROR)) {
-        char names[MESSAGE] = "";
-        size_t used = 0;
-        for (i = 0; i < n && used < sizeof names - 64; i++)
-            used += (size_t)snprintf(names + used, sizeof names - used, "%s%s", i ? ", " : "",
-                                     DFWB_MODEL_VARIABLES[vr[i]].name);
-        return refuse(c, "%s of %s refused: not allowed in the %s state", call, names, PHASES[c->f.phase]);
-    }
-    for (i = 0; i < n; i++) {
-        const model_variable *v = &DFWB_MODEL_VARIABLES[vr[i]];
-        if (v->role == ROLE_INPUT) {
-            if (!input_ok(c, values[i])) return fmi2Error;
-        } else if (v->role != ROLE_PARAMETER) {
-            return refuse(c, "%s: %s is an output and cannot be set", call, v->name);
-        } else if (c->f.phase == STEPPING) {
-            return refuse(c, "%s of %s = %s refused: %s is a fixed parameter and cannot be set after "
-                             "initialisation (%s stays %s)", call, v->name, repr_value(v, values[i]).s, v->name,
-                          v->name, repr_value(v, c->f.values[vr[i]]).s);
-        }
-    }
-    for (i = 0; i < n; i++) c->f.values[vr[i]] = values[i];
-    return fmi2OK;
+    return CALL(c, plant_fmu_set_reals(c, "setReal", vr, n, value));
 }
 
-FMI_API fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], size_t n,
-                               const fmi2Real value[])
-{
-    instance *c = component;
-    return c ? set_values(c, "setReal", vr, n, value, 0) : fmi2Error;
-}
-
-FMI_API fmi2Status fmi2SetInteger(fmi2Component component, const fmi2ValueReference vr[], size_t n,
+FMI_API fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                   const fmi2Integer value[])
 {
-    instance *c = component;
-    double values[NVARS];
-    size_t i;
-    if (!c) return fmi2Error;
-    if (n > NVARS) return refuse(c, "setInteger: %zu valueReferences, this FMU has %zu variables", n, NVARS);
-    for (i = 0; value && i < n; i++) values[i] = value[i];
-    return set_values(c, "setInteger", vr, n, value ? values : NULL, 1);
-}
-
-static fmi2Status no_variable(fmi2Component component, const fmi2ValueReference vr[], size_t n, const char *kind)
-{
-    instance *c = component;
-    char list[MESSAGE] = "";
-    size_t i, used = 0;
-    if (!c) return fmi2Error;
-    if (n == 0) return fmi2OK;
-    for (i = 0; vr && i < n && used < sizeof list - 32; i++)
-        used += (size_t)snprintf(list + used, sizeof list - used, "%s%u", i ? ", " : "", (unsigned)vr[i]);
-    return refuse(c, "valueReferences [%s]: this FMU has no %s variable", list, kind);
+    return CALL(c, plant_fmu_set_integers(c, "setInteger", vr, n, value));
 }
 
 FMI_API fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[])
 {
     (void)v;
-    return no_variable(c, vr, n, "Boolean");
+    return CALL(c, plant_fmu_no_variable(c, vr, n, "Boolean"));
 }
 
 FMI_API fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[])
 {
     (void)v;
-    return no_variable(c, vr, n, "String");
+    return CALL(c, plant_fmu_no_variable(c, vr, n, "String"));
 }
 
-/* -- FMU state ----------------------------------------------------------------------------------- */
-/* What marks a state of this model (FNV-1a of its GUID): a handle of another FMU's state is refused. */
-static uint64_t state_tag(void)
+FMI_API fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state)
 {
-    uint64_t h = 14695981039346656037u;
-    const char *p;
-    for (p = DFWB_MODEL_GUID; *p; p++) h = (h ^ (unsigned char)*p) * 1099511628211u;
-    return h;
+    return CALL(c, plant_fmu_get_state(c, state));
 }
 
-/* The state behind a non-NULL handle, or NULL after a refusal: not a state of this model. */
-static fmu_state *own_state(instance *c, const char *call, void *state)
+FMI_API fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) { return CALL(c, plant_fmu_set_state(c, state)); }
+
+FMI_API fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state)
 {
-    fmu_state *s = state;
-    if (s->tag == state_tag()) return s;
-    refuse(c, "%s: the state is not one of this FMU (%s): another FMU's, or freed", call, DFWB_MODEL_NAME);
-    return NULL;
+    return CALL(c, plant_fmu_free_state(c, state));
 }
 
-static void free_state(const instance *c, fmu_state *s)
+FMI_API fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size)
 {
-    if (!s) return;
-    CORE(free)(s->solver);
-    s->tag = 0;
-    c->cb.freeMemory(s);
+    return CALL(c, plant_fmu_state_size(c, state, size));
 }
 
-FMI_API fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
+FMI_API fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte out[], size_t size)
 {
-    instance *c = component;
-    fmu_state *s;
-    plant *copy = NULL;
-    if (!c) return fmi2Error;
-    if (!state) return refuse(c, "getFMUstate: a NULL pointer for the state");
-    if (!expect(c, "getFMUstate", ANY_BUT_ERROR)) return fmi2Error;
-    if (*state && !own_state(c, "getFMUstate", *state)) return fmi2Error;
-    if (c->solver && !(copy = CORE(copy)(c->solver))) return refuse(c, "getFMUstate failed: out of memory");
-    s = *state; /* a state given back is overwritten in place */
-    if (s) {
-        CORE(free)(s->solver);
-    } else if (!(s = allocate(c, sizeof *s))) {
-        CORE(free)(copy);
-        return refuse(c, "getFMUstate failed: out of memory");
-    }
-    s->tag = state_tag();
-    s->f = c->f;
-    s->solver = copy;
-    *state = s;
-    return fmi2OK;
+    return CALL(c, plant_fmu_serialize(c, state, (unsigned char *)out, size));
 }
 
-/* The checks of SolverFMU._set_fmu_state on a state's facade values and solver; 0 after a refusal. */
-static int state_ok(instance *c, const fmu_state *s)
+FMI_API fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte in[], size_t size, fmi2FMUstate *state)
 {
-    char err[MESSAGE];
-    plant *fresh = NULL;
-    size_t i;
-    int same;
-    const facade *f = &s->f;
-    if (f->phase < INSTANTIATED || f->phase > TERMINATED ||
-        (s->solver == NULL) != (f->phase == INSTANTIATED || f->phase == INITIALIZATION)) {
-        refuse(c, "the state's phase does not match its solver");
-        return 0;
-    }
-    for (i = 0; i < NVARS; i++) {
-        const model_variable *v = &DFWB_MODEL_VARIABLES[i];
-        if (settable(v) && v->integer && !(f->values[i] == floor(f->values[i]) && fabs(f->values[i]) < 2147483648.0)) {
-            refuse(c, "the state's %s is not an int", v->name);
-            return 0;
-        }
-    }
-    if (!(isfinite(f->start) && isfinite(f->time))) {
-        refuse(c, "the state's _start_time or _time is not a finite float");
-        return 0;
-    }
-    if (!s->solver) return 1;
-    if (new_solver(f, &fresh, err, sizeof err) != DFWB_OK) {
-        refuse(c, "the state's parameters are refused: %s", err);
-        return 0;
-    }
-    same = CORE(same_parameters)(fresh, s->solver);
-    CORE(free)(fresh);
-    if (!same) {
-        refuse(c, "the state's solver does not match its parameters");
-        return 0;
-    }
-    if (!(CORE(time)(s->solver) == f->time - f->start)) {
-        refuse(c, "the state's solver time does not match the state's time");
-        return 0;
-    }
-    return 1;
-}
-
-FMI_API fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
-{
-    instance *c = component;
-    const fmu_state *s = state;
-    plant *copy = NULL;
-    if (!c) return fmi2Error;
-    if (!s) return refuse(c, "setFMUstate: a NULL state");
-    if (!own_state(c, "setFMUstate", state) || !state_ok(c, s)) return fmi2Error;
-    if (s->solver && !(copy = CORE(copy)(s->solver))) return refuse(c, "setFMUstate failed: out of memory");
-    CORE(free)(c->solver);
-    c->solver = copy;
-    c->f = s->f;
-    c->frozen = 0; /* PlantFMU._restored */
-    c->overflow = c->fourier_known = 0; /* nothing of this instance's run: a state before initialisation reads */
-    memset(c->outputs, 0, sizeof c->outputs); /* as a reset instance, 0 */
-    set_rotation(c);
-    if (c->solver) refresh(c);
-    return fmi2OK;
-}
-
-FMI_API fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *state)
-{
-    instance *c = component;
-    if (!c) return fmi2Error;
-    if (state && *state) {
-        if (!own_state(c, "freeFMUstate", *state)) return fmi2Error;
-        free_state(c, *state);
-        *state = NULL;
-    }
-    return fmi2OK;
-}
-
-/* Serialized: "DFWBFMUS", u32 version, u32 plant kind, the GUID (40 bytes, NUL padded), then u64 fields: the
-   phase, t0, t, the NVARS values, the solver's byte count (0: none) and the solver's bytes. */
-#define MAGIC "DFWBFMUS"
-#define FORMAT 1
-#define GUID_BYTES 40
-#define FIXED (8 + 4 + 4 + GUID_BYTES + 8 * (3 + NVARS + 1))
-#define MAX_SOLVER_BYTES ((size_t)1 << 16)
-
-static void put_u64(unsigned char *p, uint64_t u)
-{
-    int i;
-    for (i = 0; i < 8; i++) p[i] = (unsigned char)(u >> (8 * i));
-}
-
-static uint64_t get_u64(const unsigned char *p)
-{
-    uint64_t u = 0;
-    int i;
-    for (i = 0; i < 8; i++) u |= (uint64_t)p[i] << (8 * i);
-    return u;
-}
-
-static void put_f64(unsigned char *p, double x)
-{
-    uint64_t u;
-    memcpy(&u, &x, sizeof u);
-    put_u64(p, u);
-}
-
-static double get_f64(const unsigned char *p)
-{
-    uint64_t u = get_u64(p);
-    double x;
-    memcpy(&x, &u, sizeof x);
-    return x;
-}
-
-static size_t solver_bytes(const plant *solver)
-{
-    size_t size = 0;
-    if (!solver || CORE(to_bytes)(solver, NULL, 0, &size, NULL, 0) != DFWB_OK) return 0;
-    return size;
-}
-
-FMI_API fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate state, size_t *size)
-{
-    instance *c = component;
-    if (!c) return fmi2Error;
-    if (!state || !size) return refuse(c, "serializedFMUstateSize: a NULL state or size");
-    if (!own_state(c, "serializedFMUstateSize", state)) return fmi2Error;
-    *size = FIXED + solver_bytes(((const fmu_state *)state)->solver);
-    return fmi2OK;
-}
-
-FMI_API fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUstate state, fmi2Byte out[], size_t size)
-{
-    instance *c = component;
-    const fmu_state *s = state;
-    unsigned char *p = (unsigned char *)out;
-    size_t i, n, needed;
-    char err[MESSAGE];
-    if (!c) return fmi2Error;
-    if (!s || !out) return refuse(c, "serializeFMUstate: a NULL state or buffer");
-    if (!own_state(c, "serializeFMUstate", state)) return fmi2Error;
-    n = solver_bytes(s->solver);
-    needed = FIXED + n;
-    if (size < needed)
-        return refuse(c, "serializeFMUstate: a buffer of %zu bytes, the state takes %zu", size, needed);
-    memset(p, 0, FIXED);
-    memcpy(p, MAGIC, 8);
-    p[8] = FORMAT;
-    p[12] = DFWB_MODEL_KIND;
-    memcpy(p + 16, DFWB_MODEL_GUID, strlen(DFWB_MODEL_GUID) < GUID_BYTES ? strlen(DFWB_MODEL_GUID) : GUID_BYTES);
-    p += 16 + GUID_BYTES;
-    put_u64(p, (uint64_t)s->f.phase);
-    put_f64(p + 8, s->f.start);
-    put_f64(p + 16, s->f.time);
-    for (i = 0; i < NVARS; i++) put_f64(p + 24 + 8 * i, s->f.values[i]);
-    p += 24 + 8 * NVARS;
-    put_u64(p, (uint64_t)n);
-    if (n && CORE(to_bytes)(s->solver, p + 8, n, &n, err, sizeof err) != DFWB_OK)
-        return refuse(c, "serializeFMUstate failed: %s", err);
-    return fmi2OK;
-}
-
-FMI_API fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte in[], size_t size,
-                                           fmi2FMUstate *state)
-{
-    instance *c = component;
-    const unsigned char *p = (const unsigned char *)in;
-    char guid[GUID_BYTES + 1] = {0}, err[MESSAGE];
-    fmu_state *s;
-    size_t i, n;
-    uint64_t phase;
-    plant *solver = NULL;
-    if (!c) return fmi2Error;
-    if (!p || !state) return refuse(c, "deSerializeFMUstate: a NULL buffer or state pointer");
-    if (*state && !own_state(c, "deSerializeFMUstate", *state)) return fmi2Error;
-    strncpy(guid, DFWB_MODEL_GUID, GUID_BYTES);
-    if (size < FIXED || memcmp(p, MAGIC, 8) != 0 || get_u64(p + 8) != (FORMAT | ((uint64_t)DFWB_MODEL_KIND << 32)))
-        return refuse(c, "serialized state refused: not a state of a native %s FMU", DFWB_MODEL_NAME);
-    if (memcmp(p + 16, guid, GUID_BYTES) != 0)
-        return refuse(c, "serialized state refused: it was written by another build of %s", DFWB_MODEL_NAME);
-    p += 16 + GUID_BYTES;
-    phase = get_u64(p);
-    n = (size_t)get_u64(p + 24 + 8 * NVARS);
-    if (phase > TERMINATED || n > MAX_SOLVER_BYTES || size != FIXED + n)
-        return refuse(c, "serialized state refused: %zu bytes do not hold a state of this FMU", size);
-    if (n && CORE(from_bytes)(p + 32 + 8 * NVARS, n, &solver, err, sizeof err) != DFWB_OK)
-        return refuse(c, "serialized state refused: %s", err);
-    s = *state ? (fmu_state *)*state : allocate(c, sizeof *s);
-    if (!s) {
-        CORE(free)(solver);
-        return refuse(c, "deSerializeFMUstate failed: out of memory");
-    }
-    if (*state) CORE(free)(s->solver);
-    s->tag = state_tag();
-    s->f.phase = (int)phase;
-    s->f.start = get_f64(p + 8);
-    s->f.time = get_f64(p + 16);
-    for (i = 0; i < NVARS; i++) s->f.values[i] = get_f64(p + 24 + 8 * i);
-    s->solver = solver;
-    *state = s;
-    return fmi2OK;
+    return CALL(c, plant_fmu_deserialize(c, (const unsigned char *)in, size, state));
 }
 
 /* -- what a co-simulation FMU without derivatives or asynchronous steps answers ------------------- */
-FMI_API fmi2Status fmi2GetDirectionalDerivative(fmi2Component component, const fmi2ValueReference u[], size_t nu,
+FMI_API fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
                                                 const fmi2ValueReference z[], size_t nz, const fmi2Real dv[],
                                                 fmi2Real dz[])
 {
-    instance *c = component;
     (void)u, (void)nu, (void)z, (void)nz, (void)dv, (void)dz;
-    return c ? refuse(c, "getDirectionalDerivative refused: providesDirectionalDerivative is false") : fmi2Error;
+    return CALL(c, plant_fmu_refuse(c, "getDirectionalDerivative refused: providesDirectionalDerivative is false"));
 }
 
-FMI_API fmi2Status fmi2SetRealInputDerivatives(fmi2Component component, const fmi2ValueReference vr[], size_t n,
+FMI_API fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                                const fmi2Integer order[], const fmi2Real value[])
 {
-    instance *c = component;
     (void)vr, (void)n, (void)order, (void)value;
-    return c ? refuse(c, "setRealInputDerivatives refused: canInterpolateInputs is false") : fmi2Error;
+    return CALL(c, plant_fmu_refuse(c, "setRealInputDerivatives refused: canInterpolateInputs is false"));
 }
 
-FMI_API fmi2Status fmi2GetRealOutputDerivatives(fmi2Component component, const fmi2ValueReference vr[], size_t n,
+FMI_API fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                                 const fmi2Integer order[], fmi2Real value[])
 {
-    instance *c = component;
     (void)vr, (void)n, (void)order, (void)value;
-    return c ? refuse(c, "getRealOutputDerivatives refused: maxOutputDerivativeOrder is 0") : fmi2Error;
+    return CALL(c, plant_fmu_refuse(c, "getRealOutputDerivatives refused: maxOutputDerivativeOrder is 0"));
 }
 
 /* The step status functions only make sense after fmi2Pending or fmi2Discard, which doStep never returns. */
@@ -979,9 +209,8 @@ FMI_API fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2St
 
 FMI_API fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
-    instance *i = c;
-    if (!i || !value) return fmi2Error;
-    *value = i->f.time; /* fmi2LastSuccessfulTime */
+    if (!c || !value) return fmi2Error;
+    *value = plant_fmu_time(c); /* fmi2LastSuccessfulTime */
     return s == fmi2LastSuccessfulTime ? fmi2OK : fmi2Discard;
 }
 
