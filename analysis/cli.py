@@ -155,15 +155,18 @@ def cmd_info(args):
 def cmd_build(args):
     """Build the production FMUs (the registry's plants, LinearSystem and the exact closed loops); ``--naive``: the
     plants' fixed-step twins too."""
-    from dfwb.fmi.location import NATIVE_FOLDER, build_fmus, fmu_folder
+    from dfwb.fmi.location import NATIVE_FMI3_FOLDER, NATIVE_FOLDER, build_fmus, fmu_folder
 
     if args.native:
         from dfwb.build_fmus.native import build_native
 
         if args.naive:
             raise InputError("--native and --naive: the naive twins exist only as pythonfmu FMUs")
-        build_native(args.out if args.out is not None else fmu_folder() / NATIVE_FOLDER, force=args.force)
+        default = fmu_folder() / (NATIVE_FMI3_FOLDER if args.fmi_version == 3 else NATIVE_FOLDER)
+        build_native(args.out if args.out is not None else default, force=args.force, fmi_version=args.fmi_version)
         return 0
+    if args.fmi_version == 3:
+        raise InputError("--fmi-version 3 needs --native: the FMI 3.0 FMUs are the native plant FMUs")
     build_fmus(args.out, naive=args.naive, force=args.force)
     return 0
 
@@ -479,8 +482,11 @@ def parser():
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.add_argument("--naive", action="store_true", help="also build the benchmark's fixed-step twins")
     build.add_argument("--native", action="store_true",
-                       help="build only the native plant FMUs (C core, no Python needed by the importer) into --out "
-                            "(default: the FMU folder's native/)")
+                       help="build only the native plant FMUs (C core, no Python needed by the importer; binaries for "
+                            "linux64, and win64 where mingw-w64 is installed) into --out (default: the FMU folder's "
+                            "native/, or native/fmi3/ for FMI 3.0)")
+    build.add_argument("--fmi-version", action=_Once, type=int, choices=(2, 3), default=2,
+                       help="FMI version of the native FMUs: 2 (2.0) or 3 (3.0); default: 2")
     build.set_defaults(run=cmd_build)
 
     info = commands.add_parser("info", help="what your own FMU offers: its inputs, outputs and parameters "

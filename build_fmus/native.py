@@ -41,6 +41,7 @@ from dfwb.fmus import facade
 
 from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
 from .errors import BuildError
+from .fmi3 import TIME, build_description, fmi3_description
 from .recorded import recorded_hash
 
 __all__ = ["build_native", "native_models", "native_hash", "platforms", "WRAPPERS", "NATIVE_REVISION", "PLATFORMS"]
@@ -54,6 +55,9 @@ GENERATION_TOOL = "dfwb native (C core, fmus/native)"
 # win64: mingw-w64's printf made C99's (the messages name numbers as on linux64), its libgcc linked in (the DLL
 # needs only KERNEL32 and msvcrt); -fPIC and -fvisibility mean nothing in a PE DLL (FMI_API is dllexport).
 PLATFORMS = {"linux64": (".so", None), "win64": (".dll", "x86_64-w64-mingw32-gcc")}
+BINARY_FOLDERS = {2: {"linux64": "linux64", "win64": "win64"},  # binaries/<folder>/ per FMI version
+                  3: {"linux64": "x86_64-linux", "win64": "x86_64-windows"}}
+FMI_VERSIONS = (2, 3)
 WIN64_FLAGS = ("-O2", "-std=c99", "-shared", "-ffp-contract=off", "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc",
                "-s")
 
@@ -99,6 +103,12 @@ def platforms():
     return [name for name, (_suffix, cross) in PLATFORMS.items() if cross is None or shutil.which(cross)]
 
 
+def _version(fmi_version):
+    if fmi_version not in FMI_VERSIONS:
+        raise BuildError(f"FMI version {fmi_version!r}: the native FMUs are FMI 2.0 or 3.0 (2 or 3)")
+    return fmi_version
+
+
 def _command(extra_flags=(), platform="linux64"):
     if platform not in PLATFORMS:
         raise BuildError(f"platform {platform!r}: the native FMUs are built for {', '.join(PLATFORMS)}")
@@ -122,17 +132,18 @@ def _static_digest():
     return digest.hexdigest()
 
 
-def native_hash(model, extra_flags=(), targets=("linux64",)):
-    """The hash a native FMU of ``model`` with binaries for ``targets`` records (see the module's docstring)."""
+def native_hash(model, extra_flags=(), targets=("linux64",), fmi_version=2):
+    """The hash a native FMU of ``model`` (FMI ``fmi_version``) with binaries for ``targets`` records (see the
+    module's docstring)."""
     if model.__name__ not in KINDS:
         raise BuildError(f"{model.__name__} has no native FMU (native: {', '.join(KINDS)})")
     commands = [word for target in targets for word in [target] + _command(extra_flags, target)]
-    words = "\0".join(commands + list(LIBS) + [model.__name__, _static_digest()])
+    words = "\0".join(commands + list(LIBS) + [model.__name__, f"FMI {_version(fmi_version)}", _static_digest()])
     return hashlib.sha256(words.encode()).hexdigest()[:16]
 
 
 def _description(model, digest):
-    """The finished model description of the pythonfmu FMU, made native (CoSimulation, tool, GUID)."""
+    """The finished FMI 2.0 model description of the pythonfmu FMU, made native (CoSimulation, tool, GUID)."""
     from .builder import finish_model_description  # the build machinery: only when an FMU is built
 
     with tempfile.TemporaryDirectory(prefix="dfwb_native_xml_") as tmp:
@@ -147,15 +158,20 @@ def _description(model, digest):
     cosimulation.set("modelIdentifier", model.__name__)
     cosimulation.attrib.update(COSIMULATION)
     files = ET.SubElement(cosimulation, "SourceFiles")
-    for name in _source_names():
+    for name in _source_names(2):
         if name.endswith(".c"):
             ET.SubElement(files, "File", name=name)
     ET.indent(root)
     return root
 
 
-def _source_names():
-    return list(WRAPPERS[2]) + ["dfwb_model.h"] + [path.name for path in sources()]
+def _source_names(fmi_version):
+    return list(WRAPPERS[fmi_version]) + ["dfwb_model.h"] + [path.name for path in sources()]
+
+
+def _token(model, digest):
+    """The FMI 3.0 FMU's instantiationToken (the FMI 2.0 FMU's GUID is made the same way, without "fmi3/")."""
+    return "{%s}" % uuid.uuid5(uuid.NAMESPACE_URL, f"dfwb/native/fmi3/{model.__name__}/{digest}")
 
 
 def _c_string(text):
@@ -165,19 +181,23 @@ def _c_string(text):
 
 
 def model_header(model, root):
-    """dfwb_model.h for ``model``: its kind, GUID and every variable's name, type, role and start value."""
+    """dfwb_model.h for ``model`` from its FMI 2.0 or 3.0 model description ``root``: its kind, GUID (or
+    instantiationToken) and every variable's name, type, role and start value."""
     kind, parameters, outputs = KINDS[model.__name__]
     index = {name: i for i, name in enumerate(parameters)}
     rows, vr_of = [], {}
-    for vr, scalar in enumerate(root.find("ModelVariables")):
-        name, causality = scalar.get("name"), scalar.get("causality")
-        if int(scalar.get("valueReference")) != vr:
+    fmi3 = root.get("fmiVersion") == "3.0"
+    for vr, variable in enumerate(root.find("ModelVariables")):
+        name, causality = variable.get("name"), variable.get("causality")
+        if int(variable.get("valueReference")) != vr:
             raise BuildError(f"{model.__name__}: value references are not 0, 1, 2, ... ({name})")
-        element = scalar[0]
-        integer = int(element.tag == "Integer")
+        element = variable if fmi3 else variable[0]  # FMI 3.0: <Float64 .../>; FMI 2.0: <ScalarVariable><Real/>
+        integer = int(element.tag in ("Integer", "Int32"))
         start = float(element.get("start", "0"))
         vr_of[name] = vr
-        if causality == "parameter":
+        if causality == "independent" and name == TIME:
+            role, position = "ROLE_TIME", 0
+        elif causality == "parameter":
             role, position = "ROLE_PARAMETER", index[name]
         elif causality == "input":
             role, position = "ROLE_INPUT", index[name]
@@ -191,7 +211,7 @@ def model_header(model, root):
             raise BuildError(f"{model.__name__}: the native wrapper knows no role for the variable {name!r}")
         rows.append(f"    {{{_c_string(name)}, {integer}, {role}, {position}, {start!r}}},")
     defines = {"DFWB_MODEL_NAME": _c_string(model.__name__), "DFWB_MODEL_KIND": kind,
-               "DFWB_MODEL_GUID": _c_string(root.get("guid")),
+               "DFWB_MODEL_GUID": _c_string(root.get("instantiationToken" if fmi3 else "guid")),
                "DFWB_MODEL_INPUT_PARAMETER": index["f"], "DFWB_MODEL_PHI_PARAMETER": index["phi"],
                "DFWB_MODEL_OMEGA_PARAMETER": index["omega"], "DFWB_MODEL_OMEGA_VR": vr_of["omega"]}
     if "gap0" in index:
@@ -202,12 +222,12 @@ def model_header(model, root):
     return "\n".join(lines)
 
 
-def _compile(stage, binaries, extra_flags):
+def _compile(stage, binaries, extra_flags, fmi_version):
     """Compile the staged sources into ``binaries`` ({platform: path}), the platforms side by side."""
     runs = {}
     for platform, target in binaries.items():
         command = (_command(extra_flags, platform) + [f"-I{_headers()}", f"-I{stage}", "-o", str(target)]
-                   + [str(stage / name) for name in _source_names() if name.endswith(".c")] + list(LIBS))
+                   + [str(stage / name) for name in _source_names(fmi_version) if name.endswith(".c")] + list(LIBS))
         try:
             runs[platform] = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                               cwd=stage)
@@ -224,51 +244,61 @@ def _compile(stage, binaries, extra_flags):
         raise BuildError(failed[0])
 
 
-def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linux64",)):
-    """Build ``<out_dir>/<Model>.fmu``, the native FMU of ``model`` with binaries for ``targets`` (atomic
-    replace); its path."""
-    digest = digest or native_hash(model, extra_flags, targets)
+def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linux64",), fmi_version=2):
+    """Build ``<out_dir>/<Model>.fmu``, the native FMI ``fmi_version`` FMU of ``model`` with binaries for
+    ``targets`` (atomic replace); its path."""
+    digest = digest or native_hash(model, extra_flags, targets, fmi_version)
     root = _description(model, digest)
+    if fmi_version == 3:
+        root = fmi3_description(root, _token(model, digest))
     dest = Path(out_dir) / f"{model.__name__}.fmu"
+    names = _source_names(fmi_version)
     with tempfile.TemporaryDirectory(prefix="dfwb_native_") as tmp:
         stage = Path(tmp) / "sources"
         stage.mkdir()
-        for path in [FMU_SOURCES / name for name in WRAPPERS[2]] + sources():
+        for path in [FMU_SOURCES / name for name in WRAPPERS[fmi_version]] + sources():
             (stage / path.name).write_bytes(path.read_bytes())
         (stage / "dfwb_model.h").write_text(model_header(model, root))
         binaries = {target: Path(tmp) / f"{target}{PLATFORMS[target][0]}" for target in targets}
-        _compile(stage, binaries, extra_flags)
+        _compile(stage, binaries, extra_flags, fmi_version)
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
             archive.writestr("modelDescription.xml",
                              b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8"))
             for target, binary in binaries.items():
-                archive.write(binary, f"binaries/{target}/{model.__name__}{PLATFORMS[target][0]}")
-            for name in _source_names():
+                folder = BINARY_FOLDERS[fmi_version][target]
+                archive.write(binary, f"binaries/{folder}/{model.__name__}{PLATFORMS[target][0]}")
+            for name in names:
                 archive.write(stage / name, f"sources/{name}")
+            if fmi_version == 3:
+                archive.writestr("sources/buildDescription.xml",
+                                 build_description(model.__name__, [name for name in names if name.endswith(".c")]))
         partial.replace(dest)
     return dest
 
 
-def build_native(out_dir, models=None, force=False, report=print, extra_flags=(), targets=None):
-    """Build the native FMUs of ``models`` (default :func:`native_models`) into ``out_dir``; their paths.
+def build_native(out_dir, models=None, force=False, report=print, extra_flags=(), targets=None, fmi_version=2):
+    """Build the native FMI ``fmi_version`` (2 or 3) FMUs of ``models`` (default :func:`native_models`) into
+    ``out_dir``; their paths.
 
     As :func:`dfwb.build_fmus.builder.build`: an FMU whose recorded hash matches
     is kept (``force`` rebuilds it), ``report`` gets one line per FMU.
     ``extra_flags`` go to the compiler (and into the hash), e.g. ``("-Wall", "-Werror")``.
     ``targets``: the platforms to build binaries for (default :func:`platforms`: all this machine can).
     """
+    fmi_version = _version(fmi_version)
     targets = tuple(platforms() if targets is None else targets)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
+    what = f"native, FMI {fmi_version}.0, {' + '.join(targets)}"
     for model in native_models() if models is None else models:
         path = out_dir / f"{model.__name__}.fmu"
-        digest = native_hash(model, extra_flags, targets)
+        digest = native_hash(model, extra_flags, targets, fmi_version)
         if not force and recorded_hash(path) == digest:
-            report(f"{path}: up to date (native, {' + '.join(targets)})")
+            report(f"{path}: up to date ({what})")
         else:
-            build_one_native(model, out_dir, digest, extra_flags, targets)
-            report(f"{path}: built (native, {' + '.join(targets)})")
+            build_one_native(model, out_dir, digest, extra_flags, targets, fmi_version)
+            report(f"{path}: built ({what})")
         paths.append(path)
     return paths

@@ -27,6 +27,7 @@ __all__ = ["default_fmu_dir", "fmu_folder", "fmu_kind", "fmu_path", "models", "b
 
 FMU_KINDS = ("native", "python")
 NATIVE_FOLDER = "native"
+NATIVE_FMI3_FOLDER = "native/fmi3"  # dfwb build --native --fmi-version 3
 
 
 def default_fmu_dir():
