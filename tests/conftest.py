@@ -102,6 +102,18 @@ def native_fmus(tmp_path_factory):
     return {path.stem: path for path in paths}
 
 
+@pytest.fixture(scope="session")
+def fmi3_fmus(tmp_path_factory):
+    """{model name: path} of the native plant FMUs as FMI 3.0, built once per session with warnings as errors."""
+    from dfwb.build_fmus.native import build_native
+
+    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+        pytest.skip("no C compiler (cc) on PATH to build the native FMUs")
+    paths = build_native(tmp_path_factory.mktemp("fmi3_fmus"), report=lambda message: None, fmi_version=3,
+                         extra_flags=("-Wall", "-Wextra", "-Werror"))
+    return {path.stem: path for path in paths}
+
+
 @pytest.fixture
 def solver(monkeypatch):
     """use(kind) for the FMUs on the compiled core: None unsets DFWB_FMU_SOLVER, "python" or "native" sets it

@@ -28,8 +28,6 @@ import pytest
 from fmpy.fmi3 import FMU3Slave, fmi3FMUState
 from fmpy.validation import validate_fmu
 
-from dfwb.build_fmus.native import build_native
-
 pytestmark = pytest.mark.needs_cc
 
 CASES = {
@@ -38,16 +36,6 @@ CASES = {
                                                                  "Ic1", "Is2"]),
     "StaticBacklash": ({"F": 1.0, "omega": 2.0}, ["y", "v", "engaged", "events", "Ic1", "Is1"]),
 }
-
-
-@pytest.fixture(scope="session")
-def fmi3_fmus(tmp_path_factory):
-    """{model: path} of the FMI 3.0 native FMUs, built once with warnings as errors."""
-    if not shutil.which("cc"):
-        pytest.skip("no C compiler (cc) on PATH")
-    paths = build_native(tmp_path_factory.mktemp("fmi3_fmus"), report=lambda message: None, fmi_version=3,
-                         extra_flags=("-Wall", "-Wextra", "-Werror"))
-    return {path.stem: path for path in paths}
 
 
 def _simulate(path, start_values, outputs, start_time=0.0, stop_time=2.0):

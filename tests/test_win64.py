@@ -1,9 +1,10 @@
 """The native FMUs' win64 binaries, run by a Windows host under Wine, against their linux64 binaries.
 
-The C host (tests/c_host/fmu_host.c) is compiled twice from one source: for
-linux64 with the system's compiler, and for Windows with mingw-w64; the
-Windows host loads ``binaries/win64/<Model>.dll`` with LoadLibrary and runs
-under Wine. Both run the same FMU (the one archive carries both binaries)
+The C host (tests/c_host/fmu_host.c) is compiled from one source for
+linux64 with the system's compiler and for Windows with mingw-w64, each for
+FMI 2.0 and (``-DFMI3``) FMI 3.0; the Windows host loads
+``binaries/win64/<Model>.dll`` (FMI 3.0: ``binaries/x86_64-windows/``) with
+LoadLibrary and runs under Wine. Both run the same FMU (the one archive carries both binaries)
 through the same calls: a run on a grid, its FMU state taken half way,
 serialized, refused when cut by one byte, deserialized, set, and the second
 half run again; and refusals (a bad parameter) with the FMU's own message.
@@ -55,29 +56,31 @@ def _missing(what):
 
 @pytest.fixture(scope="module")
 def hosts(tmp_path_factory):
-    """{platform: command prefix} of the C host compiled for linux64 and for Windows (run by Wine)."""
+    """{(FMI version, platform): (command prefix, environment)} of the C host compiled for linux64 and for
+    Windows (run by Wine), for FMI 2.0 and 3.0."""
     if not shutil.which(MINGW):
         _missing(f"no {MINGW} on PATH")
     wine = shutil.which("wine")
     if not wine:
         _missing("no wine on PATH")
     folder = tmp_path_factory.mktemp("win64_hosts")
-    builds = {"linux64": (["cc", "-D_DEFAULT_SOURCE"], folder / "fmu_host", ["-lm", "-ldl"]),
-              "win64": ([MINGW], folder / "fmu_host.exe", [])}
-    for compiler, binary, libraries in builds.values():
-        build = subprocess.run(compiler + ["-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", f"-I{FMI_HEADERS}",
-                                           str(HOST_SOURCE), "-o", str(binary)] + libraries,
-                               capture_output=True, text=True)
-        assert build.returncode == 0, f"compiling the C host failed:\n{build.stderr}"
+    builds = {"linux64": (["cc", "-D_DEFAULT_SOURCE"], "fmu_host{}", ["-lm", "-ldl"]),
+              "win64": ([MINGW], "fmu_host{}.exe", [])}
+    for version in (2, 3):
+        for compiler, binary, libraries in builds.values():
+            build = subprocess.run(compiler + ["-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", f"-I{FMI_HEADERS}"]
+                                   + (["-DFMI3"] if version == 3 else []) + [str(HOST_SOURCE), "-o",
+                                   str(folder / binary.format(version))] + libraries, capture_output=True, text=True)
+            assert build.returncode == 0, f"compiling the C host failed:\n{build.stderr}"
     prefix = folder / "wineprefix"  # a private prefix: the first run makes it (~7 s), nothing in $HOME
     env = {"WINEPREFIX": str(prefix), "WINEDEBUG": "-all", "HOME": str(folder), "PATH": os.environ["PATH"],
            "WINEDLLOVERRIDES": "mscoree,mshtml="}  # no Mono or Gecko installer dialogs
-    return {"linux64": ([str(folder / "fmu_host")], {}),
-            "win64": ([wine, str(folder / "fmu_host.exe")], env)}
+    return {**{(version, "linux64"): ([str(folder / f"fmu_host{version}")], {}) for version in (2, 3)},
+            **{(version, "win64"): ([wine, str(folder / f"fmu_host{version}.exe")], env) for version in (2, 3)}}
 
 
-def _run(hosts, platform, directory, model, stop, step, values, outputs, state_time=None):
-    command, env = hosts[platform]
+def _run(hosts, version, platform, directory, model, stop, step, values, outputs, state_time=None):
+    command, env = hosts[version, platform]
     where = f"Z:{directory}" if platform == "win64" else str(directory)
     args = command + [where, model, repr(stop), repr(step)]
     args += ["--state", repr(state_time)] if state_time is not None else []
@@ -87,9 +90,12 @@ def _run(hosts, platform, directory, model, stop, step, values, outputs, state_t
     return run.returncode, [line.rstrip("\r") for line in run.stdout.splitlines()], clean
 
 
-def _extracted(path, tmp_path):
+WINDOWS_FOLDER = {2: "win64", 3: "x86_64-windows"}
+
+
+def _extracted(path, tmp_path, version):
     directory = Path(fmpy.extract(str(path), unzipdir=str(tmp_path / path.stem)))
-    assert (directory / "binaries" / "win64" / f"{path.stem}.dll").is_file()
+    assert (directory / "binaries" / WINDOWS_FOLDER[version] / f"{path.stem}.dll").is_file()
     description = fmpy.read_model_description(str(path))
     return directory, {v.name: v.valueReference for v in description.modelVariables}
 
@@ -111,14 +117,21 @@ CASES = [
 ]
 
 
+@pytest.fixture(params=[2, 3], ids=["FMI2", "FMI3"])
+def fmus_of_version(request, native_fmus, fmi3_fmus):
+    """(FMI version, {model: path}) of the native FMUs of that version."""
+    return request.param, (native_fmus if request.param == 2 else fmi3_fmus)
+
+
 @pytest.mark.parametrize("model, stop, step, values, outputs, state_time", CASES)
-def test_win64_binary_gives_the_linux64_numbers(native_fmus, hosts, tmp_path, model, stop, step, values, outputs,
+def test_win64_binary_gives_the_linux64_numbers(fmus_of_version, hosts, tmp_path, model, stop, step, values, outputs,
                                                 state_time):
-    directory, vr = _extracted(native_fmus[model], tmp_path)
+    version, fmus = fmus_of_version
+    directory, vr = _extracted(fmus[model], tmp_path, version)
     runs = {}
     for platform in ("linux64", "win64"):
-        code, lines, log = _run(hosts, platform, directory, model, stop, step, {vr[k]: v for k, v in values.items()},
-                                [vr[name] for name in outputs], state_time)
+        code, lines, log = _run(hosts, version, platform, directory, model, stop, step,
+                                {vr[k]: v for k, v in values.items()}, [vr[name] for name in outputs], state_time)
         assert code == 0, (platform, log)
         first, again, notes = _rows(lines)
         np.testing.assert_array_equal(again, first[-len(again):], err_msg=f"{platform}: the restored run")
@@ -139,11 +152,12 @@ def test_win64_binary_gives_the_linux64_numbers(native_fmus, hosts, tmp_path, mo
     ("FrictionMass", {"M": -1.0}, "M = -1.0"),
     ("StaticBacklash", {"k": -2.5e-7, "F": 1.0}, "k = -2.5e-07"),
 ])
-def test_win64_refuses_as_linux64(native_fmus, hosts, tmp_path, model, values, words):
+def test_win64_refuses_as_linux64(fmus_of_version, hosts, tmp_path, model, values, words):
     """A refused parameter: the same exit, status and message (its numbers printed alike) on both platforms."""
-    directory, vr = _extracted(native_fmus[model], tmp_path)
-    out = {platform: _run(hosts, platform, directory, model, 1.0, 0.1, {vr[k]: v for k, v in values.items()},
-                          [vr[next(iter(vr))]])
+    version, fmus = fmus_of_version
+    directory, vr = _extracted(fmus[model], tmp_path, version)
+    out = {platform: _run(hosts, version, platform, directory, model, 1.0, 0.1,
+                          {vr[k]: v for k, v in values.items()}, [vr[next(iter(vr))]])
            for platform in ("linux64", "win64")}
     assert out["linux64"][0] == out["win64"][0] == 1
     assert out["linux64"][1] == out["win64"][1] == []
