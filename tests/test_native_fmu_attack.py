@@ -581,11 +581,14 @@ def fuzz():
     f.FreeFMUstate(c, C.byref(st))
     f.FreeInstance(c)
     data = bytes(data)
-    fixed = 56 + 8 * (3 + f.nv + 1)  # the wrapper's part; then the core's: a 24-byte header (CRC-32 at 20)
+    fixed = 56 + 8 * (3 + f.nv + 1)  # the wrapper's part; then the core's: a 24-byte header (CRC-32 at 20); then
+    # the wrapper's seal: a CRC-32 of all that (4 bytes)
 
     def fix_crc(blob):
-        if len(blob) > fixed + 24:
-            blob[fixed + 20:fixed + 24] = struct.pack("<I", zlib.crc32(bytes(blob[fixed + 24:])))
+        if len(blob) > fixed + 28:
+            blob[fixed + 20:fixed + 24] = struct.pack("<I", zlib.crc32(bytes(blob[fixed + 24:-4])))
+        if len(blob) > 4:
+            blob[-4:] = struct.pack("<I", zlib.crc32(bytes(blob[:-4])))
         return blob
 
     c = f.new()
@@ -625,7 +628,7 @@ def fuzz():
     while time.perf_counter() < deadline:
         blob = bytearray(data)
         kind = k % 4
-        if kind == 0:  # bit flips, checksum as it is (mostly refused by the core)
+        if kind == 0:  # bit flips, checksums as they are (refused by the seal)
             for _ in range(rng.randint(1, 3)):
                 blob[rng.randrange(len(blob))] ^= 1 << rng.randrange(8)
         elif kind == 1:  # bit flips past the checksum
@@ -697,11 +700,12 @@ def test_fuzzed_serialized_states_never_crash(libraries, model):
 
 def crafted(data, value, at):
     """The serialized state ``data`` with the int64 at ``at`` (in the core's bytes) set to ``value``, the core's
-    CRC-32 fixed: bytes the core's checks see as valid."""
+    CRC-32 and the wrapper's seal fixed: bytes the checksums see as valid."""
     core = data.index(b"DFWBSTAT")  # the core's header: magic, ABI, kind, length, CRC-32 (at 20), then the payload
     blob = bytearray(data)
     struct.pack_into("<q", blob, at, value)
-    struct.pack_into("<I", blob, core + 20, zlib.crc32(bytes(blob[core + 24:])))
+    struct.pack_into("<I", blob, core + 20, zlib.crc32(bytes(blob[core + 24:-4])))
+    struct.pack_into("<I", blob, len(blob) - 4, zlib.crc32(bytes(blob[:-4])))  # the wrapper's seal
     return bytes(blob)
 
 

@@ -11,6 +11,7 @@ the binary links no libpython.
 import ctypes
 import math
 import random
+import zlib
 
 import fmpy
 import numpy as np
@@ -201,6 +202,8 @@ def test_crafted_states_are_refused_never_crash(native_fmus):
     header = 16 + 40 + 24
     forged = bytearray(data)
     forged[header:header + 8] = bytearray(ctypes.c_double(2.0))
+    assert attempt(bytes(forged)) == "refused at deserialization"  # its CRC-32 no longer matches
+    forged[-4:] = zlib.crc32(forged[:-4]).to_bytes(4, "little")  # a crafted state, sealed again
     assert attempt(bytes(forged)) == "refused when set"
     assert any("does not match its parameters" in text for _status, text in log)
     assert attempt(data[:-1]) == "refused at deserialization"

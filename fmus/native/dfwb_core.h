@@ -81,6 +81,16 @@
 extern "C" {
 #endif
 
+/* No fused multiply-add: every operation rounds as the Python oracle's does. dfwb's builds pass -ffp-contract=off;
+   this asks the same of clang and MSVC building the sources with their own defaults (an importer's, e.g. fmpy's
+   cmake build). GCC ignores the pragma: it needs -ffp-contract=off (CFLAGS) where the target has FMA (aarch64;
+   x86_64 has none without -mfma). */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(_MSC_VER)
+#pragma fp_contract(off)
+#endif
+
 #if defined(_WIN32)
 #define DFWB_API /* in a DLL only the FMI functions are exported (dllexport in the FMU wrapper) */
 #elif defined(__GNUC__) || defined(__clang__)

@@ -204,14 +204,14 @@ void dfwb_log_free(dfwb_log *log)
 /* -- states as bytes ------------------------------------------------------------------ */
 static const unsigned char MAGIC[8] = {'D', 'F', 'W', 'B', 'S', 'T', 'A', 'T'};
 
-static void put_u64(unsigned char *p, uint64_t u)
+void dfwb_put_u64(unsigned char *p, uint64_t u)
 {
     int i;
     for (i = 0; i < 8; i++)
         p[i] = (unsigned char)(u >> (8 * i));
 }
 
-static uint64_t get_u64(const unsigned char *p)
+uint64_t dfwb_get_u64(const unsigned char *p)
 {
     uint64_t u = 0;
     int i;
@@ -220,20 +220,20 @@ static uint64_t get_u64(const unsigned char *p)
     return u;
 }
 
-static void put_u32(unsigned char *p, uint32_t u)
+void dfwb_put_u32(unsigned char *p, uint32_t u)
 {
     int i;
     for (i = 0; i < 4; i++)
         p[i] = (unsigned char)(u >> (8 * i));
 }
 
-static uint32_t get_u32(const unsigned char *p)
+uint32_t dfwb_get_u32(const unsigned char *p)
 {
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
 /* zlib's CRC-32 (reflected 0xEDB88320), bit by bit: a state is a few hundred bytes */
-static uint32_t crc32(const unsigned char *p, size_t n)
+uint32_t dfwb_crc32(const unsigned char *p, size_t n)
 {
     uint32_t crc = 0xFFFFFFFFu;
     size_t i;
@@ -274,9 +274,9 @@ static void io_u64(dfwb_io *io, uint64_t *u)
             io->bad_int = 1;
             return;
         }
-        *u = get_u64(io->in + io->pos);
+        *u = dfwb_get_u64(io->in + io->pos);
     } else if (io->out != NULL) {
-        put_u64(io->out + io->pos, *u);
+        dfwb_put_u64(io->out + io->pos, *u);
     }
     io->pos += 8;
 }
@@ -327,10 +327,10 @@ void dfwb_io_motion(dfwb_io *io, dfwb_motion *m)
 void dfwb_state_header(unsigned char *buf, int kind, size_t payload)
 {
     memcpy(buf, MAGIC, 8);
-    put_u32(buf + 8, (uint32_t)DFWB_CORE_ABI);
-    put_u32(buf + 12, (uint32_t)kind);
-    put_u32(buf + 16, (uint32_t)payload);
-    put_u32(buf + 20, crc32(buf + DFWB_STATE_HEADER, payload));
+    dfwb_put_u32(buf + 8, (uint32_t)DFWB_CORE_ABI);
+    dfwb_put_u32(buf + 12, (uint32_t)kind);
+    dfwb_put_u32(buf + 16, (uint32_t)payload);
+    dfwb_put_u32(buf + 20, dfwb_crc32(buf + DFWB_STATE_HEADER, payload));
 }
 
 int dfwb_state_open(const unsigned char *buf, size_t len, int kind, size_t payload, dfwb_err *err)
@@ -344,20 +344,20 @@ int dfwb_state_open(const unsigned char *buf, size_t len, int kind, size_t paylo
                          (unsigned long)len, DFWB_STATE_HEADER);
     if (memcmp(buf, MAGIC, 8) != 0)
         return dfwb_fail(err, DFWB_E_STATE, "these bytes are not a state of the dfwb C core (no DFWBSTAT header)");
-    abi = get_u32(buf + 8);
+    abi = dfwb_get_u32(buf + 8);
     if (abi != (uint32_t)DFWB_CORE_ABI)
         return dfwb_fail(err, DFWB_E_STATE, "the state was written by core ABI %lu, this core is ABI %d",
                          (unsigned long)abi, DFWB_CORE_ABI);
-    their_kind = get_u32(buf + 12);
+    their_kind = dfwb_get_u32(buf + 12);
     if (their_kind != (uint32_t)kind)
         return dfwb_fail(err, DFWB_E_STATE, "the state is one of a %s, not of a %s",
                          their_kind <= 6u ? dfwb_plant_name((int)their_kind) : "unknown plant", name);
-    declared = get_u32(buf + 16);
+    declared = dfwb_get_u32(buf + 16);
     if (declared != (uint32_t)payload || len != DFWB_STATE_HEADER + payload)
         return dfwb_fail(err, DFWB_E_STATE, "a %s state has %lu bytes, these are %lu (declaring %lu): "
                          "truncated or oversized", name, (unsigned long)(DFWB_STATE_HEADER + payload),
                          (unsigned long)len, (unsigned long)declared + DFWB_STATE_HEADER);
-    if (get_u32(buf + 20) != crc32(buf + DFWB_STATE_HEADER, payload))
+    if (dfwb_get_u32(buf + 20) != dfwb_crc32(buf + DFWB_STATE_HEADER, payload))
         return dfwb_fail(err, DFWB_E_STATE, "the state's checksum does not match its bytes: they are damaged");
     return DFWB_OK;
 }

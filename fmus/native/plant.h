@@ -7,6 +7,7 @@
 #define DFWB_PLANT_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "dfwb_core.h"
 #include "exact.h"
@@ -24,6 +25,15 @@ int dfwb_check_t_end(dfwb_err *err, double t, double t_end);
 
 /* out[4] = {f, F, omega, phi} */
 void dfwb_drive_values(const dfwb_drive *d, double out[4]);
+
+/* Little-endian integers in states as bytes. */
+void dfwb_put_u64(unsigned char *p, uint64_t u);
+uint64_t dfwb_get_u64(const unsigned char *p);
+void dfwb_put_u32(unsigned char *p, uint32_t u);
+uint32_t dfwb_get_u32(const unsigned char *p);
+
+/* zlib.crc32 of n bytes (the states' checksum; the FMU wrapper seals its serialized states with it too). */
+uint32_t dfwb_crc32(const unsigned char *p, size_t n);
 
 /* 1 when a and b have the same bits (memcmp: -0.0 differs from 0.0, a NaN equals itself). */
 int dfwb_same_double(double a, double b);

@@ -44,6 +44,7 @@
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "plant.h"
 #include "plant_fmu.h"
 
 
@@ -718,37 +719,26 @@ int plant_fmu_free_state(plant_fmu *c, void **state)
 }
 
 /* Serialized: "DFWBFMUS", u32 version, u32 plant kind, the GUID (40 bytes, NUL padded), then u64 fields: the
-   phase, t0, t, the NVARS values, the solver's byte count (0: none) and the solver's bytes. */
+   phase, t0, t, the NVARS values, the solver's byte count (0: none), the solver's bytes, and a u32 CRC-32 of
+   everything before it (so that bytes that are not exactly what an FMU wrote are refused at deserialization,
+   whichever field a damage hits). */
 #define MAGIC "DFWBFMUS"
-#define FORMAT 1
+#define FORMAT 2
+#define SEAL 4 /* the trailing CRC-32 */
 #define GUID_BYTES 40
 #define FIXED (8 + 4 + 4 + GUID_BYTES + 8 * (3 + NVARS + 1))
 #define MAX_SOLVER_BYTES ((size_t)1 << 16)
-
-static void put_u64(unsigned char *p, uint64_t u)
-{
-    int i;
-    for (i = 0; i < 8; i++) p[i] = (unsigned char)(u >> (8 * i));
-}
-
-static uint64_t get_u64(const unsigned char *p)
-{
-    uint64_t u = 0;
-    int i;
-    for (i = 0; i < 8; i++) u |= (uint64_t)p[i] << (8 * i);
-    return u;
-}
 
 static void put_f64(unsigned char *p, double x)
 {
     uint64_t u;
     memcpy(&u, &x, sizeof u);
-    put_u64(p, u);
+    dfwb_put_u64(p, u);
 }
 
 static double get_f64(const unsigned char *p)
 {
-    uint64_t u = get_u64(p);
+    uint64_t u = dfwb_get_u64(p);
     double x;
     memcpy(&x, &u, sizeof x);
     return x;
@@ -765,7 +755,7 @@ int plant_fmu_state_size(plant_fmu *c, void *state, size_t *size)
 {
     if (!state || !size) return refuse(c, "serializedFMUstateSize: a NULL state or size");
     if (!own_state(c, "serializedFMUstateSize", state)) return PLANT_ERROR;
-    *size = FIXED + solver_bytes(((const fmu_state *)state)->solver);
+    *size = FIXED + solver_bytes(((const fmu_state *)state)->solver) + SEAL;
     return PLANT_OK;
 }
 
@@ -778,7 +768,7 @@ int plant_fmu_serialize(plant_fmu *c, void *state, unsigned char out[], size_t s
     if (!s || !out) return refuse(c, "serializeFMUstate: a NULL state or buffer");
     if (!own_state(c, "serializeFMUstate", state)) return PLANT_ERROR;
     n = solver_bytes(s->solver);
-    needed = FIXED + n;
+    needed = FIXED + n + SEAL;
     if (size < needed)
         return refuse(c, "serializeFMUstate: a buffer of %zu bytes, the state takes %zu", size, needed);
     memset(p, 0, FIXED);
@@ -787,14 +777,15 @@ int plant_fmu_serialize(plant_fmu *c, void *state, unsigned char out[], size_t s
     p[12] = DFWB_MODEL_KIND;
     memcpy(p + 16, DFWB_MODEL_GUID, strlen(DFWB_MODEL_GUID) < GUID_BYTES ? strlen(DFWB_MODEL_GUID) : GUID_BYTES);
     p += 16 + GUID_BYTES;
-    put_u64(p, (uint64_t)s->f.phase);
+    dfwb_put_u64(p, (uint64_t)s->f.phase);
     put_f64(p + 8, s->f.start);
     put_f64(p + 16, s->f.time);
     for (i = 0; i < NVARS; i++) put_f64(p + 24 + 8 * i, s->f.values[i]);
     p += 24 + 8 * NVARS;
-    put_u64(p, (uint64_t)n);
+    dfwb_put_u64(p, (uint64_t)n);
     if (n && CORE(to_bytes)(s->solver, p + 8, n, &n, err, sizeof err) != DFWB_OK)
         return refuse(c, "serializeFMUstate failed: %s", err);
+    dfwb_put_u32(out + FIXED + n, dfwb_crc32(out, FIXED + n));
     return PLANT_OK;
 }
 
@@ -809,15 +800,18 @@ int plant_fmu_deserialize(plant_fmu *c, const unsigned char in[], size_t size, v
     if (!p || !state) return refuse(c, "deSerializeFMUstate: a NULL buffer or state pointer");
     if (*state && !own_state(c, "deSerializeFMUstate", *state)) return PLANT_ERROR;
     strncpy(guid, DFWB_MODEL_GUID, GUID_BYTES);
-    if (size < FIXED || memcmp(p, MAGIC, 8) != 0 || get_u64(p + 8) != (FORMAT | ((uint64_t)DFWB_MODEL_KIND << 32)))
+    if (size < FIXED + SEAL || memcmp(p, MAGIC, 8) != 0 ||
+        dfwb_get_u64(p + 8) != (FORMAT | ((uint64_t)DFWB_MODEL_KIND << 32)))
         return refuse(c, "serialized state refused: not a state of a native %s FMU", DFWB_MODEL_NAME);
     if (memcmp(p + 16, guid, GUID_BYTES) != 0)
         return refuse(c, "serialized state refused: it was written by another build of %s", DFWB_MODEL_NAME);
     p += 16 + GUID_BYTES;
-    phase = get_u64(p);
-    n = (size_t)get_u64(p + 24 + 8 * NVARS);
-    if (phase > TERMINATED || n > MAX_SOLVER_BYTES || size != FIXED + n)
+    phase = dfwb_get_u64(p);
+    n = (size_t)dfwb_get_u64(p + 24 + 8 * NVARS);
+    if (phase > TERMINATED || n > MAX_SOLVER_BYTES || size != FIXED + n + SEAL)
         return refuse(c, "serialized state refused: %zu bytes do not hold a state of this FMU", size);
+    if (dfwb_get_u32(in + FIXED + n) != dfwb_crc32(in, FIXED + n))
+        return refuse(c, "serialized state refused: its CRC-32 does not match its bytes (damaged)");
     if (n && CORE(from_bytes)(p + 32 + 8 * NVARS, n, &solver, err, sizeof err) != DFWB_OK)
         return refuse(c, "serialized state refused: %s", err);
     s = *state ? (fmu_state *)*state : allocate(c, sizeof *s);
