@@ -73,6 +73,7 @@ from pythonfmu.builder import FmuBuilder
 
 from dfwb.fmus import facade
 
+from .core import WIN64_CC, win64_compiler
 from .errors import BuildError
 from .recorded import HASH_PREFIX, recorded_hash
 
@@ -262,7 +263,7 @@ def source_hash(model):
     if native(model):
         for name, content in core_sources().items():
             digest.update(b"native/" + name.encode() + b"\0" + content + b"\0")
-    digest.update(SHIM_SOURCE.read_bytes() + b"\0")
+    digest.update(SHIM_SOURCE.read_bytes() + b"\0" + "+".join(shim_platforms()).encode() + b"\0")
     digest.update(pythonfmu.__version__.encode() + BUILDER_REVISION.encode())
     return digest.hexdigest()[:16]
 
@@ -300,7 +301,8 @@ def finish_model_description(xml_bytes, model, digest):
 
 
 SHIM_SOURCE = Path(__file__).resolve().parent / "shim" / "fmi2_shim.c"
-SHIM_SUFFIX = ".pythonfmu.so"  # pythonfmu's own linux64 binary, next to the shim: <Model>.pythonfmu.so
+SHIM_SUFFIX = {"linux64": ".so", "win64": ".dll"}  # pythonfmu's own binary goes next to the shim, as
+INNER_NAME = ".pythonfmu"  # binaries/<platform>/<Model>.pythonfmu<suffix>
 PYTHON_RECORD = "resources/dfwb_python.txt"  # the libpython the shim loads first in a host without Python
 
 
@@ -314,27 +316,37 @@ def _compiler():
                      "no $CC, cc, gcc or clang on PATH")
 
 
-@functools.lru_cache(maxsize=4)
-def _shim_binary(source_digest):
-    """The compiled shim (bytes), compiled once per process for each shim source."""
+def shim_platforms():
+    """The platforms whose binary is dfwb's shim: linux64, and win64 where mingw-w64 is installed (without it,
+    binaries/win64 keeps pythonfmu's own DLL, untested)."""
+    return ["linux64"] + (["win64"] if win64_compiler() else [])
+
+
+@functools.lru_cache(maxsize=8)
+def _shim_binary(source_digest, platform):
+    """The compiled shim (bytes) for ``platform``, compiled once per process for each shim source."""
     import fmpy
 
     headers = Path(fmpy.__file__).resolve().parent / "c-code"  # fmi2Functions.h & co. (FMI 2.0)
     if not (headers / "fmi2Functions.h").is_file():
         raise BuildError(f"building the FMUs needs the FMI 2.0 headers of fmpy: no fmi2Functions.h in {headers}")
     with tempfile.TemporaryDirectory(prefix="dfwb_shim_") as tmp:
-        binary = Path(tmp) / "shim.so"
-        command = _compiler() + ["-std=gnu99", "-shared", "-fPIC", "-O2", "-fvisibility=hidden",
-                                 f"-I{headers}", "-o", str(binary), str(SHIM_SOURCE), "-ldl", "-lpthread"]
+        binary = Path(tmp) / f"shim{SHIM_SUFFIX[platform]}"
+        if platform == "win64":  # C99's printf (%zu), libgcc linked in: the DLL needs only KERNEL32 and msvcrt
+            command = [win64_compiler() or WIN64_CC, "-std=gnu99", "-shared", "-O2", "-static-libgcc", "-s",
+                       "-D__USE_MINGW_ANSI_STDIO=1", f"-I{headers}", "-o", str(binary), str(SHIM_SOURCE)]
+        else:
+            command = _compiler() + ["-std=gnu99", "-shared", "-fPIC", "-O2", "-fvisibility=hidden",
+                                     f"-I{headers}", "-o", str(binary), str(SHIM_SOURCE), "-ldl", "-lpthread"]
         run = subprocess.run(command, capture_output=True, text=True)
         if run.returncode != 0:
             raise BuildError(f"compiling the FMI shim failed ({' '.join(command)}):\n{run.stderr.strip()}")
         return binary.read_bytes()
 
 
-def shim_binary():
-    """The shim for binaries/linux64 (see build_fmus/shim/fmi2_shim.c), cached by the hash of its source."""
-    return _shim_binary(hashlib.sha256(SHIM_SOURCE.read_bytes()).hexdigest())
+def shim_binary(platform="linux64"):
+    """The shim for binaries/<platform> (see build_fmus/shim/fmi2_shim.c), cached by the hash of its source."""
+    return _shim_binary(hashlib.sha256(SHIM_SOURCE.read_bytes()).hexdigest(), platform)
 
 
 CORE_RESOURCE = "resources/libdfwb_core.so"  # what dfwb.fmus.facade.core_in opens
@@ -371,13 +383,22 @@ def python_record():
     return "\n"
 
 
-def _package_linux64(item, data, target):
-    """Write pythonfmu's linux64 binary as <Model>.pythonfmu.so and the shim as <Model>.so."""
-    inner = item.filename[:-len(".so")] + SHIM_SUFFIX
-    moved = zipfile.ZipInfo(inner, item.date_time)
+def _shimmed(item, data, target, platform):
+    """Write pythonfmu's binary as <Model>.pythonfmu.so (.dll) and the shim as <Model>.so (.dll)."""
+    suffix = SHIM_SUFFIX[platform]
+    moved = zipfile.ZipInfo(item.filename[:-len(suffix)] + INNER_NAME + suffix, item.date_time)
     moved.compress_type, moved.external_attr = item.compress_type, item.external_attr
     target.writestr(moved, data)
-    target.writestr(item, shim_binary())
+    target.writestr(item, shim_binary(platform))
+
+
+def _shim_platform(name, platforms):
+    """The platform of binaries/<platform>/<Model>.<suffix> if dfwb's shim replaces it, else None."""
+    for platform in platforms:
+        if name.startswith(f"binaries/{platform}/") and name.endswith(SHIM_SUFFIX[platform]) \
+                and name.count("/") == 2:
+            return platform
+    return None
 
 
 def _limit_text(value, kind):
@@ -454,13 +475,15 @@ def build_one(model, out_dir, digest=None, core=None):
         script.write_text(SCRIPT.format(model=model.__name__, package=package, module=module))
         raw = FmuBuilder.build_FMU(script, dest=tmp / "raw", project_files=[stage])
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")  # concurrent builds never mix
+        platforms = shim_platforms()
         with zipfile.ZipFile(raw) as source, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as target:
             for item in source.infolist():
                 data = source.read(item.filename)
                 if item.filename == "modelDescription.xml":
                     data = finish_model_description(data, model, digest)
-                if item.filename.startswith("binaries/linux64/") and item.filename.endswith(".so"):
-                    _package_linux64(item, data, target)  # win64: pythonfmu's dll as is (untested)
+                platform = _shim_platform(item.filename, platforms)
+                if platform:
+                    _shimmed(item, data, target, platform)
                     continue
                 target.writestr(item, data)
             record = zipfile.ZipInfo(PYTHON_RECORD, source.getinfo("modelDescription.xml").date_time)

@@ -28,13 +28,15 @@ from pathlib import Path
 
 from .errors import BuildError
 
-__all__ = ["build_core", "sources", "compiler", "NATIVE_DIR", "FLAGS", "CoreBuildError"]
+__all__ = ["build_core", "sources", "compiler", "win64_compiler", "NATIVE_DIR", "FLAGS", "WIN64_CC",
+           "CoreBuildError"]
 
 # dfwb.fmus's native/ folder: ../fmus next to this package, in a checkout and in an installed wheel alike
 NATIVE_DIR = Path(__file__).resolve().parent.parent / "fmus" / "native"
 FLAGS = ("-O2", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off", "-fvisibility=hidden")
 LIBS = ("-lm",)
 PREFIX = "libdfwb_core-"
+WIN64_CC = "x86_64-w64-mingw32-gcc"  # mingw-w64 (Debian: gcc-mingw-w64-x86-64): the win64 binaries of the FMUs
 
 
 class CoreBuildError(BuildError):
@@ -58,6 +60,12 @@ def compiler():
         if found:
             return [found] + words[1:]
     raise CoreBuildError("building the C core needs a C compiler: no $CC, cc, gcc or clang on PATH")
+
+
+def win64_compiler():
+    """The path of :data:`WIN64_CC`, or None where it is not installed (the FMUs then carry no dfwb-built win64
+    binary)."""
+    return shutil.which(WIN64_CC)
 
 
 def _digest(command, files):

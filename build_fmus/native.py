@@ -27,7 +27,6 @@ FMU whose recorded hash matches is not rebuilt (as for the pythonfmu FMUs).
 import functools
 import hashlib
 import os
-import shutil
 import subprocess
 import tempfile
 import uuid
@@ -39,7 +38,7 @@ import pythonfmu
 
 from dfwb.fmus import facade
 
-from .core import FLAGS, LIBS, NATIVE_DIR, compiler, sources
+from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
 from .errors import BuildError
 from .fmi3 import TIME, build_description, fmi3_description
 from .recorded import recorded_hash
@@ -51,10 +50,11 @@ FMU_SOURCES = NATIVE_DIR / "fmu"  # the FMU around the core: plant_fmu.c/.h and 
 WRAPPERS = {2: ("fmi2_plant.c", "plant_fmu.c", "plant_fmu.h"), 3: ("fmi3_plant.c", "plant_fmu.c", "plant_fmu.h")}
 BUILDER = Path(__file__).with_name("builder.py")  # writes the model description (finish_model_description)
 GENERATION_TOOL = "dfwb native (C core, fmus/native)"
-# The FMI platforms a native FMU carries a binary for: (file suffix, cross compiler or None for the system's).
+# The FMI platforms a native FMU carries a binary for, and its file suffix (linux64: the system's C compiler;
+# win64: mingw-w64, WIN64_CC).
 # win64: mingw-w64's printf made C99's (the messages name numbers as on linux64), its libgcc linked in (the DLL
 # needs only KERNEL32 and msvcrt); -fPIC and -fvisibility mean nothing in a PE DLL (FMI_API is dllexport).
-PLATFORMS = {"linux64": (".so", None), "win64": (".dll", "x86_64-w64-mingw32-gcc")}
+PLATFORMS = {"linux64": ".so", "win64": ".dll"}
 BINARY_FOLDERS = {2: {"linux64": "linux64", "win64": "win64"},  # binaries/<folder>/ per FMI version
                   3: {"linux64": "x86_64-linux", "win64": "x86_64-windows"}}
 FMI_VERSIONS = (2, 3)
@@ -100,7 +100,7 @@ def _headers():
 
 def platforms():
     """The platforms of :data:`PLATFORMS` this machine can build binaries for (linux64, and win64 with mingw-w64)."""
-    return [name for name, (_suffix, cross) in PLATFORMS.items() if cross is None or shutil.which(cross)]
+    return ["linux64"] + (["win64"] if win64_compiler() else [])
 
 
 def _version(fmi_version):
@@ -112,12 +112,11 @@ def _version(fmi_version):
 def _command(extra_flags=(), platform="linux64"):
     if platform not in PLATFORMS:
         raise BuildError(f"platform {platform!r}: the native FMUs are built for {', '.join(PLATFORMS)}")
-    cross = PLATFORMS[platform][1]
-    if cross is None:
+    if platform == "linux64":
         return compiler() + list(FLAGS) + [str(flag) for flag in extra_flags]
-    found = shutil.which(cross)
+    found = win64_compiler()
     if not found:
-        raise BuildError(f"building {platform} binaries needs {cross} on PATH (Debian: apt-get install "
+        raise BuildError(f"building {platform} binaries needs {WIN64_CC} on PATH (Debian: apt-get install "
                          f"gcc-mingw-w64-x86-64)")
     return [found] + list(WIN64_FLAGS) + [str(flag) for flag in extra_flags]
 
@@ -259,7 +258,7 @@ def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linu
         for path in [FMU_SOURCES / name for name in WRAPPERS[fmi_version]] + sources():
             (stage / path.name).write_bytes(path.read_bytes())
         (stage / "dfwb_model.h").write_text(model_header(model, root))
-        binaries = {target: Path(tmp) / f"{target}{PLATFORMS[target][0]}" for target in targets}
+        binaries = {target: Path(tmp) / f"{target}{PLATFORMS[target]}" for target in targets}
         _compile(stage, binaries, extra_flags, fmi_version)
         partial = dest.with_name(f".{dest.name}.{os.getpid()}.partial")
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -267,7 +266,7 @@ def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linu
                              b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8"))
             for target, binary in binaries.items():
                 folder = BINARY_FOLDERS[fmi_version][target]
-                archive.write(binary, f"binaries/{folder}/{model.__name__}{PLATFORMS[target][0]}")
+                archive.write(binary, f"binaries/{folder}/{model.__name__}{PLATFORMS[target]}")
             for name in names:
                 archive.write(stage / name, f"sources/{name}")
             if fmi_version == 3:

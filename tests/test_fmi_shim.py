@@ -126,8 +126,9 @@ def boom(tmp_path_factory):
     with zipfile.ZipFile(raw) as source, zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as target:
         for item in source.infolist():
             data = source.read(item.filename)
-            if item.filename.startswith("binaries/linux64/") and item.filename.endswith(".so"):
-                builder._package_linux64(item, data, target)
+            platform = builder._shim_platform(item.filename, ["linux64"])
+            if platform:
+                builder._shimmed(item, data, target, platform)
             else:
                 target.writestr(item, data)
         target.writestr(builder.PYTHON_RECORD, builder.python_record())

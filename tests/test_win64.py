@@ -27,11 +27,19 @@ Wine under real Windows is not Windows: what this proves is that the DLL is a
 well-formed win64 FMU whose code gives linux64's numbers on Wine's C runtime;
 Microsoft's msvcrt may round its sin and cos differently in the last bit.
 
+The pythonfmu FMUs' win64 binary is dfwb's shim too (build_fmus/shim), in
+front of pythonfmu's DLL. That DLL needs a Windows Python (python3.dll) and
+the MSVC runtime, which Wine here has not: what is tested is the shim alone,
+its exports, its checks before anything is loaded (a wrong GUID refused with
+a message) and its one-line fatal message naming the DLL that cannot load.
+A pythonfmu FMU running on Windows is not tested.
+
 Skips without mingw-w64 or Wine, unless DFWB_REQUIRE_WIN64=1 (set by .ci/run,
 which installs both), where their absence fails.
 """
 
 import os
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -79,11 +87,12 @@ def hosts(tmp_path_factory):
             **{(version, "win64"): ([wine, str(folder / f"fmu_host{version}.exe")], env) for version in (2, 3)}}
 
 
-def _run(hosts, version, platform, directory, model, stop, step, values, outputs, state_time=None):
+def _run(hosts, version, platform, directory, model, stop, step, values, outputs, state_time=None, guid=None):
     command, env = hosts[version, platform]
     where = f"Z:{directory}" if platform == "win64" else str(directory)
     args = command + [where, model, repr(stop), repr(step)]
     args += ["--state", repr(state_time)] if state_time is not None else []
+    args += ["--guid", guid] if guid is not None else []
     args += [f"{vr}={value!r}" for vr, value in values.items()] + [str(vr) for vr in outputs]
     run = subprocess.run(args, capture_output=True, text=True, timeout=120, env=env)
     clean = [line.rstrip("\r") for line in run.stderr.splitlines() if "[" in line or "fmu_host" in line]
@@ -162,3 +171,28 @@ def test_win64_refuses_as_linux64(fmus_of_version, hosts, tmp_path, model, value
     assert out["linux64"][0] == out["win64"][0] == 1
     assert out["linux64"][1] == out["win64"][1] == []
     assert out["win64"][2] == out["linux64"][2] and any(words in line for line in out["linux64"][2]), out
+
+
+def _dll_table(path):
+    """(exported names, imported DLL names) of a PE DLL, read by mingw-w64's objdump."""
+    dump = subprocess.run([MINGW.replace("gcc", "objdump"), "-p", str(path)], capture_output=True, text=True,
+                          check=True).stdout
+    exports = re.findall(r"^\s*\[\s*\d+\]\s+(\w+)$", dump, re.M)
+    return set(exports), set(re.findall(r"DLL Name: (\S+)", dump))
+
+
+def test_pythonfmu_fmu_carries_the_shim_for_win64(fmus, native_fmus, hosts, tmp_path):
+    directory, vr = _extracted(fmus["FrictionMass"], tmp_path, 2)
+    shim = directory / "binaries" / "win64" / "FrictionMass.dll"
+    inner = directory / "binaries" / "win64" / "FrictionMass.pythonfmu.dll"
+    exports, imports = _dll_table(shim)
+    native = _dll_table(_extracted(native_fmus["TwoMassBacklash"], tmp_path / "native", 2)[0] / "binaries" / "win64"
+                        / "TwoMassBacklash.dll")[0]  # the 34 functions of FMI 2.0 co-simulation, as fmpy loads them
+    assert exports == native and len(exports) == 34, exports ^ native
+    assert imports == {"KERNEL32.dll", "msvcrt.dll"} and "python3.dll" in _dll_table(inner)[1]
+    code, lines, log = _run(hosts, 2, "win64", directory, "FrictionMass", 1.0, 0.1, {}, [vr["x"]],
+                            guid="{not-this-fmu}")
+    assert code == 1 and lines == [] and any("fmuGUID {not-this-fmu} is not this FMU's guid" in line for line in log)
+    code, lines, log = _run(hosts, 2, "win64", directory, "FrictionMass", 1.0, 0.1, {}, [vr["x"]])
+    said = " ".join(log)
+    assert code == 1 and "status 4" in said and "FrictionMass.pythonfmu.dll: Windows error 126" in said, log

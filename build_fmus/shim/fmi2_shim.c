@@ -1,6 +1,7 @@
-/* dfwb FMI 2.0 co-simulation shim: binaries/linux64/<model>.so of every dfwb FMU (linux64 only).
+/* dfwb FMI 2.0 co-simulation shim: binaries/linux64/<model>.so and binaries/win64/<model>.dll of every
+   pythonfmu-built dfwb FMU.
 
-   pythonfmu 0.7.0's own binary sits next to this one as <model>.pythonfmu.so; every fmi2
+   pythonfmu 0.7.0's own binary sits next to this one as <model>.pythonfmu.so (.dll); every fmi2
    function of FMI 2.0 co-simulation is exported here and forwarded to it. The shim adds:
 
    1. Errors are fmi2Error. The inner FMU is instantiated with the shim's callbacks (its
@@ -31,6 +32,9 @@
       the home of the loaded library (the nearest ancestor folder with lib/python3.X/os.py)
       is given to Py_SetPythonHome, so no environment variable is needed. If no libpython
       loads, fmi2Instantiate logs one fmi2Fatal message and returns NULL.
+      On Windows pythonfmu's DLL imports python3.dll itself (and the MSVC runtime): Windows finds them on
+      the DLL search path (a Python 3 installation's folder on PATH); if it does not, fmi2Instantiate logs
+      one fmi2Fatal message naming the DLL and the Windows error, and returns NULL.
 
    4. Arguments are checked before pythonfmu sees them (it would crash, or fail with fmi2Fatal):
       fmi2Instantiate returns NULL, with one fmi2Fatal message, for a fmuType other than
@@ -53,12 +57,13 @@
       state it deserialized once more, and for such a placeholder frees it, logs the reason and returns
       fmi2Error; the host's *FMUstate is then left as it was (it is replaced only by an accepted state).
 
-   Build: cc -shared -fPIC -O2 -fvisibility=hidden -I<fmpy>/c-code -o <model>.so fmi2_shim.c -ldl -lpthread */
+   Build: cc -shared -fPIC -O2 -fvisibility=hidden -I<fmpy>/c-code -o <model>.so fmi2_shim.c -ldl -lpthread
+          x86_64-w64-mingw32-gcc -shared -O2 -static-libgcc -I<fmpy>/c-code -o <model>.dll fmi2_shim.c */
 
+#ifndef _WIN32
 #define _GNU_SOURCE
-#include <dlfcn.h>
+#endif
 #include <limits.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,7 +73,43 @@
 
 #include "fmi2Functions.h"
 
+/* What differs between the platforms: loading a library and finding a function in it, this library's own
+   path, the lock around the first load, and how a resource URI names a folder. */
+#ifdef _WIN32
+#include <windows.h>
+#define INNER_SUFFIX ".pythonfmu.dll"
+#define OWN_SUFFIX ".dll"
+#ifndef PATH_MAX
+#define PATH_MAX MAX_PATH
+#endif
+static void *open_inner(const char *path) { return (void *)LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH); }
+static void *find(void *library, const char *name) { return (void *)(size_t)GetProcAddress((HMODULE)library, name); }
+static const char *load_error(void) {
+    static char text[300];
+    DWORD code = GetLastError();
+    snprintf(text, sizeof text, "Windows error %lu%s", (unsigned long)code,
+             code == ERROR_MOD_NOT_FOUND ? " (a DLL it needs is not on the DLL search path: python3.dll of a "
+                                           "Python 3 installation on PATH, and the MSVC runtime)" : "");
+    return text;
+}
+static SRWLOCK load_lock = SRWLOCK_INIT;
+static void lock(void) { AcquireSRWLockExclusive(&load_lock); }
+static void unlock(void) { ReleaseSRWLockExclusive(&load_lock); }
+#else
+#include <dlfcn.h>
+#include <pthread.h>
 #define INNER_SUFFIX ".pythonfmu.so"
+#define OWN_SUFFIX ".so"
+static void *open_inner(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
+static void *find(void *library, const char *name) { return dlsym(library, name); }
+static const char *load_error(void) {
+    const char *error = dlerror();
+    return error ? error : "?";
+}
+static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
+static void lock(void) { pthread_mutex_lock(&load_lock); }
+static void unlock(void) { pthread_mutex_unlock(&load_lock); }
+#endif
 #define PYTHON_RECORD "dfwb_python.txt"
 #define PHASE_VR 0x7FFFFFFFu /* the facade's private integer: its phase (fmus/facade.py PHASE_VR) */
 #define MAX_STATE_BYTES ((size_t)1 << 20) /* a serialized state is at most tens of kB; fmus/state.py: 256 kB */
@@ -91,7 +132,6 @@ static struct { INNER_FUNCTIONS(FIELD) } inner;
 #undef FIELD
 
 static void *inner_library;
-static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 
 static void locate_self(void) {}
 
@@ -249,6 +289,9 @@ static int resource_folder(const char *uri, char *out, size_t size) {
     }
     out[n] = '\0';
     while (n > 1 && out[n - 1] == '/') out[--n] = '\0';
+#ifdef _WIN32
+    if (n > 2 && out[0] == '/' && out[2] == ':') memmove(out, out + 1, n--); /* file:///C:/a: C:/a */
+#endif
     return n > 0;
 }
 
@@ -257,6 +300,13 @@ static int is_file(const char *path) {
     return stat(path, &info) == 0 && S_ISREG(info.st_mode);
 }
 
+#ifdef _WIN32
+/* pythonfmu's DLL imports python3.dll: Windows loads it with the DLL (see 3. above). */
+static int ensure_python(const char *resources, char *why, size_t size) {
+    (void)resources, (void)why, (void)size;
+    return 1;
+}
+#else
 /* Py_SetPythonHome(<ancestor of the library with lib/python3.X/os.py>) unless PYTHONHOME is set. */
 static void set_python_home(void *python) {
     static wchar_t home_w[PATH_MAX];
@@ -320,6 +370,7 @@ static int ensure_python(const char *resources, char *why, size_t size) {
                  "of a Python 3.10 to 3.13 with a shared libpython");
     return 0;
 }
+#endif
 
 /* Whether fmuGUID is the guid of <resources>/../modelDescription.xml (not found: not checked). */
 static int guid_matches(const char *resources, const char *guid, char *why, size_t size) {
@@ -366,26 +417,39 @@ static int resources_ok(const char *resources, char *why, size_t size) {
     return ok;
 }
 
-/* dlopen pythonfmu's binary (next to this one) once; on failure, `why` says why. */
+/* The path of this library (the shim), or 0. */
+static int own_path(char *path, size_t size) {
+#ifdef _WIN32
+    HMODULE self;
+    if (!GetModuleHandleExA(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_UNCHANGED_REFCOUNT,
+                            (LPCSTR)(void *)&locate_self, &self))
+        return 0;
+    DWORD n = GetModuleFileNameA(self, path, (DWORD)size);
+    return n > 0 && n < size;
+#else
+    Dl_info info;
+    if (!dladdr((void *)&locate_self, &info) || !info.dli_fname) return 0;
+    return snprintf(path, size, "%s", info.dli_fname) < (int)size;
+#endif
+}
+
+/* Load pythonfmu's binary (next to this one) once; on failure, `why` says why. */
 static int load_inner(char *why, size_t size) {
     if (inner_library) return 1;
-    Dl_info info;
-    if (!dladdr((void *)&locate_self, &info) || !info.dli_fname) {
+    char path[PATH_MAX + 32];
+    if (!own_path(path, sizeof path - sizeof INNER_SUFFIX)) {
         snprintf(why, size, "cannot find the path of the FMU's binary");
         return 0;
     }
-    char path[PATH_MAX + 32];
-    snprintf(path, sizeof path, "%s", info.dli_fname);
-    size_t n = strlen(path);
-    if (n > 3 && strcmp(path + n - 3, ".so") == 0) path[n - 3] = '\0';
+    size_t n = strlen(path), own = strlen(OWN_SUFFIX);
+    if (n > own && strcmp(path + n - own, OWN_SUFFIX) == 0) path[n - own] = '\0';
     strncat(path, INNER_SUFFIX, sizeof path - strlen(path) - 1);
-    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    void *library = open_inner(path);
     if (!library) {
-        const char *error = dlerror();
-        snprintf(why, size, "cannot load %s: %s", path, error ? error : "?");
+        snprintf(why, size, "cannot load %s: %s", path, load_error());
         return 0;
     }
-#define LOOKUP(name) inner.name = (name##TYPE *)dlsym(library, #name);
+#define LOOKUP(name) inner.name = (name##TYPE *)find(library, #name);
     INNER_FUNCTIONS(LOOKUP)
 #undef LOOKUP
     if (!inner.fmi2Instantiate || !inner.fmi2FreeInstance) {
@@ -464,7 +528,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 
     char why[4096], resources[PATH_MAX];
     int ok;
-    pthread_mutex_lock(&load_lock);
+    lock();
     if (fmuType != fmi2CoSimulation) {
         snprintf(why, sizeof why, "fmuType %d refused: this FMU is for co-simulation (fmi2CoSimulation) only",
                  (int)fmuType);
@@ -478,7 +542,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     } else {
         ok = ensure_python(resources, why, sizeof why) && load_inner(why, sizeof why);
     }
-    pthread_mutex_unlock(&load_lock);
+    unlock();
     if (!ok) {
         shim_log(s, fmi2Fatal, "fmi2Instantiate: %s", why);
         free(s->name);
@@ -486,14 +550,20 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return NULL;
     }
     BEGIN(s);
-    /* pythonfmu takes the URI minus "file://", with only %20 decoded: give it the decoded folder */
-    char *uri = malloc(strlen(resources) + 8);
+    /* pythonfmu takes the URI minus "file://" (on Windows "file:///"), with only %20 decoded: give it the
+       decoded folder */
+#ifdef _WIN32
+    const char *scheme = "file:///";
+#else
+    const char *scheme = "file://";
+#endif
+    char *uri = malloc(strlen(resources) + 9);
     if (!uri) {
         free(s->name);
         free(s);
         return NULL;
     }
-    strcpy(uri, "file://");
+    strcpy(uri, scheme);
     strcat(uri, resources);
     s->inner = inner.fmi2Instantiate(s->name, fmuType, fmuGUID, uri, &s->own, visible, fmi2True);
     free(uri);

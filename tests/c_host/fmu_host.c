@@ -1,7 +1,7 @@
 /* Minimal FMI 2.0 (or, built with -DFMI3, FMI 3.0) co-simulation host, written in C so that no Python runs on
    the host side.
 
-   usage: fmu_host DIR MODEL_ID STOP_TIME STEP [--state T] [VR=VALUE ...] [VR ...]
+   usage: fmu_host DIR MODEL_ID STOP_TIME STEP [--state T] [--guid G] [VR=VALUE ...] [VR ...]
 
    DIR is an extracted FMU; every VR=VALUE sets a Real start value (by value reference)
    before initialisation, every bare VR is a Real output to print. The host steps from
@@ -14,6 +14,7 @@
    STOP_TIME it checks that the bytes cut by one are refused (fmi2Error), deserializes the bytes, sets the
    state, prints "# restored at <time>" and steps to STOP_TIME again, printing the same rows if the round
    trip is exact.
+   --guid G: instantiate with G instead of the model description's guid (instantiationToken).
 
    Portable: on Windows (built with mingw-w64, run under Wine in the tests) it loads
    binaries/win64/MODEL_ID.dll with LoadLibrary; elsewhere binaries/linux64/MODEL_ID.so with dlopen (FMI 3.0:
@@ -256,13 +257,14 @@ static double run(instance c, long n, double t, double t0, double step, double s
 }
 
 int main(int argc, char **argv) {
-    if (argc < 5) die("usage: fmu_host DIR MODEL_ID STOP_TIME STEP [--state T] [VR=VALUE ...] [VR ...]", NULL);
+    if (argc < 5) die("usage: fmu_host DIR MODEL_ID STOP_TIME STEP [--state T] [--guid G] [VR=VALUE ...] [VR ...]", NULL);
     char dir[4096], path[8192];
     if (!absolute(argv[1], dir, sizeof dir)) die("no such directory: ", argv[1]);
     for (char *p = dir; *p; p++)
         if (*p == '\\') *p = '/';
     const char *id = argv[2];
     double stop = atof(argv[3]), step = atof(argv[4]), state_time = 0.0;
+    const char *guid = NULL;
     int with_state = 0;
     if (!(step > 0.0)) die("STEP must be > 0", NULL);
 
@@ -272,7 +274,9 @@ int main(int argc, char **argv) {
     for (int i = 5; i < argc; i++) {
         char *equals = strchr(argv[i], '=');
         if (n_in == MAX_VARS || n_out == MAX_VARS) die("too many variables", NULL);
-        if (strcmp(argv[i], "--state") == 0 && i + 1 < argc) {
+        if (strcmp(argv[i], "--guid") == 0 && i + 1 < argc) {
+            guid = argv[++i];
+        } else if (strcmp(argv[i], "--state") == 0 && i + 1 < argc) {
             with_state = 1;
             state_time = atof(argv[++i]);
         } else if (equals) {
@@ -298,7 +302,7 @@ int main(int argc, char **argv) {
 #endif
 
     instance_name = id;
-    instance c = instantiate(id, read_guid(dir), dir);
+    instance c = instantiate(id, guid ? guid : read_guid(dir), dir);
     if (!c) die("the FMU's instantiation returned NULL", NULL);
 
     const double t0 = 0.0;
