@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test lint fmus clean
+.PHONY: demo test lint fmus docs docs-check clean
 
 # The virtual environment with the project (editable) and, for tests, its test extras.
 $(VENV)/.base: pyproject.toml
@@ -16,6 +16,10 @@ $(VENV)/.test: $(VENV)/.base
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
+$(VENV)/.docs: $(VENV)/.base
+	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	touch $@
+
 fmus: $(VENV)/.base
 	$(BIN)/dfwb build
 
@@ -26,9 +30,17 @@ demo: fmus
 test: $(VENV)/.test
 	$(BIN)/python -m pytest -q
 
+# The documentation site (docs/_build/html/index.html), warnings as errors, the example notebooks executed.
+docs: $(VENV)/.docs fmus
+	$(BIN)/python -m sphinx -b html -W --keep-going -q docs docs/_build/html
+
+# The same check for CI, the hunting notebook on 3 x 3 maps instead of 12 x 12 (DFWB_HUNTING_N).
+docs-check: $(VENV)/.docs fmus
+	DFWB_HUNTING_N=3 $(BIN)/python -m sphinx -b html -W --keep-going -q docs $(or $(TMPDIR),/tmp)/dfwb-docs-check
+
 # ruff, configured in pyproject.toml ([tool.ruff]); installed with the test extras.
 lint: $(VENV)/.test
 	$(BIN)/ruff check .
 
 clean:
-	rm -rf $(VENV) build out
+	rm -rf $(VENV) build out docs/_build docs/examples docs/reference/generated

@@ -673,7 +673,7 @@ def parser():
 
     run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
     run.add_argument("scenes", type=Path, nargs="+", action="extend", metavar="SCENE.toml",
-                     help="scene file(s), e.g. scenes/*.toml")
+                     help="scene file(s), e.g. scenes/fig08_backlash_nyquist_eps.toml")
     run.add_argument("--out", action=_Once, type=Path,
                      help="output folder (default: out/scenes/<scene>; with several scenes, "
                                               "one subfolder each)")

@@ -147,10 +147,10 @@ def test_dfwb_run_reports_a_bad_scene_in_one_line_and_exit_code_2(tmp_path, caps
     assert not (tmp_path / "out").exists()  # nothing written
 
 
-def test_the_readme_scene_is_valid():
-    readme = (ROOT / "README.md").read_text()
-    block = readme.split("## Scenes", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]  # the scenes section's
-    scene = parse_scene(block, "README.md")
+def test_the_documented_scene_is_valid():
+    page = (ROOT / "docs" / "guide" / "scenes.md").read_text()
+    block = page.split("```toml\n", 1)[1].split("```", 1)[0]  # the scenes guide's first scene
+    scene = parse_scene(block, "scenes.md")
     assert [s.name for s in scene.series] == ["backlash"] and scene.limit_cycle[0].verify
     assert len(scene.points()) == 2 * 2 * 43 and not scene.needs_harmonics
 

@@ -43,7 +43,7 @@ class DescribingFunctionResponse:
     N : ndarray of complex
         The describing function X_1 / F [m/N].
     harmonics : ndarray of float
-        |X_k| [m], k = 0 .. harmonics, on a trailing axis: shape ``N.shape + (harmonics + 1,)``.
+        ``|X_k|`` [m], k = 0 .. harmonics, on a trailing axis: shape ``N.shape + (harmonics + 1,)``.
     periodic : ndarray of bool
         Whether the response at the point settled on a periodic orbit.
     N_error : ndarray of float
