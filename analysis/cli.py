@@ -18,7 +18,35 @@ from pathlib import Path
 
 from dfwb.base.errors import InputError, RunError
 
-FMU_DIR_HELP = "$DFWB_FMU_DIR, else a per-user folder, ~/.cache/dfwb/fmus"
+EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --help
+    "build": "dfwb build --native --fmi-version 3 --out out/fmus",
+    "info": "dfwb info out/fmus/TwoMassBacklash.fmu",
+    "df": "dfwb df friction --F 10 20 --omega 1",
+    "sweep": "dfwb sweep backlash --F 20 50 --omega-log 1 100 20 --grid eps=0.2,0.8 --out out/sweep",
+    "limit-cycle": "dfwb limit-cycle friction --G 'Kp + Ki/s' --set Kp=10 Ki=2 --exact --plot out/lc.png",
+    "continue": "dfwb continue friction --G 'Kp + Ki/s' --set Kp=10 --parameter Ki=1:30 --plot out/branch.png",
+    "map": "dfwb map friction --G 'Kp + Ki/s' --x Kp=1:50:12 --y Ki=0.1:25:12 --out out/map",
+    "margin": "dfwb margin friction --G '20 + 100/s + 2*s/(0.1*s+1)'",
+    "examples": "dfwb examples --out out/examples",
+    "bench": "dfwb bench --quick --out out/bench",
+    "stress": "dfwb stress --quick",
+    "run": "dfwb run scenes/fig08_backlash_nyquist_eps.toml --out out/fig08",
+    "paper": "dfwb paper --out out/paper",
+    "demo": "dfwb demo --out out",
+}
+
+
+def _fmu_dir_help():
+    """The FMU folder as it will be used here, and the rule that chose it."""
+    from dfwb.fmi.location import default_fmu_dir
+
+    return f"{default_fmu_dir()}: $DFWB_FMU_DIR, else $XDG_CACHE_HOME/dfwb/fmus, else ~/.cache/dfwb/fmus"
+
+
+def _cache_dir_help():
+    from dfwb.base.files import user_cache_dir
+
+    return f"{user_cache_dir()}: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb"
 FIGURE_COMMANDS = {"limit-cycle", "continue", "map", "margin", "examples", "bench", "run", "paper", "demo"}
 
 
@@ -29,6 +57,19 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class _Commands:
+    """The subcommands: each with its one-line help as its description and a runnable example at the end."""
+
+    def __init__(self, subparsers):
+        self._subparsers = subparsers
+
+    def add_parser(self, name, help):
+        description = help[0].upper() + help[1:] + "."
+        return self._subparsers.add_parser(name, help=help, description=description,
+                                           epilog=f"example:\n  {EXAMPLES[name]}",
+                                           formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
 class _Once(argparse.Action):
@@ -455,7 +496,8 @@ def cmd_demo(args):
 
 def fmu_folder_option(command):
     """--fmus DIR: where the FMUs are (built there if missing or stale)."""
-    command.add_argument("--fmus", action=_Once, type=Path, default=None, help=f"FMU folder (default: {FMU_DIR_HELP})")
+    command.add_argument("--fmus", action=_Once, type=Path, default=None,
+                         help=f"FMU folder (default: {_fmu_dir_help()})")
 
 
 def fmu_options(command):
@@ -470,14 +512,19 @@ def parser():
     from dfwb.plants import names
 
     plant_names = names()
-    top = _Parser(prog="dfwb", description="Describing-function workbench for friction and backlash.")
-    commands = top.add_subparsers(dest="command", required=True)
+    import dfwb
+
+    top = _Parser(prog="dfwb", description="Describing-function workbench for friction and backlash: exact DFs, "
+                                           "limit cycles and hunting under a controller G(s), the plants as FMUs.",
+                  epilog="dfwb COMMAND --help: each command's options and an example.")
+    top.add_argument("--version", action="version", version=f"dfwb {dfwb.__version__}")
+    commands = _Commands(top.add_subparsers(dest="command", required=True, metavar="COMMAND"))
 
     build = commands.add_parser("build",
                                 help="build the FMUs: plants, controller and exact closed loops (skips those "
                                      "whose sources are unchanged)")
     build.add_argument("--out", action=_Once, type=Path, default=None,
-                       help=f"output folder (default: {FMU_DIR_HELP}); the native plant FMUs (the kind dfwb runs by "
+                       help=f"output folder (default: {_fmu_dir_help()}); the native plant FMUs (the kind dfwb runs by "
                             "default) go into its native/")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
     build.add_argument("--naive", action="store_true", help="also build the benchmark's fixed-step twins")
@@ -552,10 +599,11 @@ def parser():
             own_fmu_options(command)
         else:
             command.add_argument("plant", choices=plant_names, help="the plant")
-        command.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
-                                                       "e.g. 'Kp + Ki/s'")
-        command.add_argument("--num", type=float, nargs="+", action="extend",
-                             help="controller numerator coefficients, highest power first")
+        controller = command.add_mutually_exclusive_group(required=True)
+        controller.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
+                                                          "e.g. 'Kp + Ki/s'")
+        controller.add_argument("--num", type=float, nargs="+", action="extend",
+                                help="controller numerator coefficients, highest power first (with --den)")
         command.add_argument("--den", type=float, nargs="+", action="extend",
                              help="controller denominator coefficients")
         command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
@@ -587,7 +635,7 @@ def parser():
         command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
                              help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
         command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
-                             help="cache folder (default: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb)")
+                             help=f"cache folder (default: {_cache_dir_help()})")
         command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
         fmu_options(command)
         command.add_argument("--quiet", action="store_true", help="no progress display")
@@ -656,14 +704,14 @@ def parser():
     examples.set_defaults(run=cmd_examples)
 
     bench = commands.add_parser("bench", help="run time against error of every method (Pareto plots, bench.md)")
-    bench.add_argument("--quick", action="store_true", help="the quick set (under 3 minutes)")
+    bench.add_argument("--quick", action="store_true", help="the quick set (about a minute on 2 cores)")
     bench.add_argument("--out", action=_Once, type=Path, default=Path("out/bench"),
                        help="output folder (default: %(default)s)")
     fmu_folder_option(bench)  # every kind of plant FMU is measured: no --fmu
     bench.set_defaults(run=cmd_bench)
 
     stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")
-    stress.add_argument("--quick", action="store_true", help="the quick set (at least 50 cases, under 2 minutes)")
+    stress.add_argument("--quick", action="store_true", help="the quick set (377 cases, 20 to 30 s)")
     stress.add_argument("--json", action="store_true", help="print one JSON object (cases, failed, failures)")
     stress.add_argument("--part", action=_Once, type=_integer(1, 10_000), default=1,
                         help="run only this piece of the set (default: %(default)s)")

@@ -145,3 +145,48 @@ def test_fmu_kind_is_checked(capsys, monkeypatch):
     with pytest.raises(SystemExit) as stopped:
         main(["df", "friction", "--F", "10", "--omega", "1"])
     assert stopped.value.code == 2 and "DFWB_FMU = 'fortran' is not an FMU kind" in capsys.readouterr().err
+
+
+def test_version(capsys):
+    import dfwb
+    from dfwb.cli import main
+
+    with pytest.raises(SystemExit) as stopped:
+        main(["--version"])
+    assert stopped.value.code == 0 and capsys.readouterr().out.strip() == f"dfwb {dfwb.__version__}"
+
+
+def test_every_command_has_a_description_and_an_example_that_parses():
+    import shlex
+
+    from dfwb.cli import EXAMPLES, parser
+
+    top = parser()
+    commands = top._subparsers._group_actions[0].choices
+    assert set(commands) == set(EXAMPLES)
+    for name, command in commands.items():
+        text = command.format_help()
+        assert command.description and " ".join(command.description.split()) in " ".join(text.split()), name
+        assert f"example:\n  {EXAMPLES[name]}" in text, name
+        args = top.parse_args(shlex.split(EXAMPLES[name])[1:])  # the example is valid on the command line
+        assert args.command == name
+
+
+def test_a_controller_is_required_and_shown_so(capsys):
+    from dfwb.cli import parser
+
+    usage = parser()._subparsers._group_actions[0].choices["limit-cycle"].format_usage()
+    assert "(--G G | --num NUM [NUM ...])" in " ".join(usage.split())
+    with pytest.raises(SystemExit) as stopped:
+        parser().parse_args(["limit-cycle", "friction"])
+    assert stopped.value.code == 2 and "one of the arguments --G --num is required" in capsys.readouterr().err
+
+
+def test_the_stress_help_says_the_quick_sets_size():
+    import re
+
+    from dfwb.cli import parser
+    from dfwb.verify.stress import all_cases
+
+    text = " ".join(parser()._subparsers._group_actions[0].choices["stress"].format_help().split())
+    assert int(re.search(r"the quick set \((\d+) cases", text).group(1)) == len(all_cases(quick=True))

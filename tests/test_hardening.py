@@ -242,8 +242,9 @@ def test_a_second_run_into_a_busy_folder_is_refused(fmus, tmp_path):
             run_sweep("friction", grid([10.0], [1.0]), tmp_path, jobs=1, progress=False)
         with pytest.raises(FolderBusy):
             run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path, jobs=1, cache=False, progress=False)
-    assert not (tmp_path / "results.csv").exists()
+    assert not (tmp_path / "results.csv").exists() and not (tmp_path / ".dfwb.lock").exists()  # none left
     run_sweep("friction", grid([10.0], [1.0]), tmp_path, jobs=1, progress=False)  # free again
+    assert (tmp_path / "results.csv").exists() and not (tmp_path / ".dfwb.lock").exists()
 
 
 # -- 9. a cache that cannot be written ------------------------------------------------------------------------------

@@ -150,20 +150,41 @@ def file_digest(path):
     return digest.hexdigest()
 
 
+LOCK_ATTEMPTS = 100  # a lock file replaced between our open and our lock this many times in a row: busy
+
+
 @contextlib.contextmanager
 def folder_lock(folder):
-    """Hold an exclusive lock on ``folder`` for one run; a second run into it is refused, not interleaved."""
+    """Hold an exclusive lock on ``folder`` for one run; a second run into it is refused, not interleaved.
+
+    The lock is ``folder/.dfwb.lock``, removed when the run ends (no stale file is left). Removing it is safe
+    because a run that locked a file checks that the path still names that file, else it tries again.
+    """
     folder = ensure_folder(folder)
     path = folder / ".dfwb.lock"
-    with named(path):
-        _unlink_link(path)
-        descriptor = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
-    try:
+    for _attempt in range(LOCK_ATTEMPTS):
+        with named(path):
+            _unlink_link(path)
+            descriptor = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
         try:
             fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            os.close(descriptor)
             raise FolderBusy(f"{folder} is in use by another dfwb run: wait for it or choose another folder") \
                 from None
+        mine = os.fstat(descriptor)
+        try:
+            current = os.stat(path, follow_symlinks=False)
+        except FileNotFoundError:
+            current = None
+        if current is not None and (current.st_dev, current.st_ino) == (mine.st_dev, mine.st_ino):
+            break
+        os.close(descriptor)  # the run before us removed it between our open and our lock: again
+    else:
+        raise FolderBusy(f"{folder}: its lock file keeps being replaced: another dfwb run? choose another folder")
+    try:
         yield folder
     finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)  # still locked: a run waiting on this file will see it gone and try again
         os.close(descriptor)
