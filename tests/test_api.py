@@ -130,3 +130,17 @@ def test_run_scene_and_sweep_write_the_same_records(fmus, tmp_path):
     series = json.loads((tmp_path / "scene" / "results.json").read_text())["series"]["s"]
     assert [(r["N_re"], r["N_im"]) for r in series] == [(r["N_re"], r["N_im"]) for r in records]
     assert set(series[0]) == set(records[0])  # one record shape in a scene's and a sweep's JSON
+
+
+def test_responses_show_a_short_repr_a_summary_with_units_and_html():
+    import dfwb
+
+    df = dfwb.describing_function("friction", F=[10.0, 20.0], omega=1.0)
+    cycles = dfwb.limit_cycles("friction", "Kp + Ki/s", exact=True, Kp=10, Ki=2)
+    for response in (df, cycles):
+        shown = repr(response)
+        assert "\n" not in shown and len(shown) < 300 and "np.float64" not in shown, shown
+        assert str(response) == response.summary() and "rad/s" in str(response) and " N" in str(response)
+        assert response._repr_html_().startswith("<pre>") and "<" not in response._repr_html_()[5:-6]
+    assert "F [N]" in str(df) and "-1/N [N/m]" in str(df) and str(df).count("\n") == 3
+    assert "period 57.26" in str(cycles)

@@ -11,6 +11,7 @@ with units on the axes.
 
 from __future__ import annotations
 
+import html
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,8 +23,22 @@ __all__ = ["DescribingFunctionResponse", "LimitCycleResponse", "ContinuationResp
            "MarginResponse"]
 
 
-@dataclass(eq=False)
-class DescribingFunctionResponse:
+class _Shown:
+    """How a response shows itself: ``repr`` one line (its class and the summary's first line), ``str`` the
+    summary with units (what the command line prints), and the summary in a notebook (``_repr_html_``)."""
+
+    def __repr__(self):
+        return f"<{type(self).__name__}: {self.summary().splitlines()[0]}>"
+
+    def __str__(self):
+        return self.summary()
+
+    def _repr_html_(self):
+        return f"<pre>{html.escape(self.summary())}</pre>"
+
+
+@dataclass(eq=False, repr=False)
+class DescribingFunctionResponse(_Shown):
     """The describing function N(F, omega) of a plant over a grid of points.
 
     Made by :func:`dfwb.describing_function`. Arrays are shaped like
@@ -65,6 +80,24 @@ class DescribingFunctionResponse:
     periodic: Any
     points: list = field(repr=False)
     N_error: Any = None
+
+    ROWS = 20  # points listed by summary(), at most
+
+    def summary(self) -> str:
+        """The grid and a table of its points with units (the first ``ROWS``), as ``print(response)`` shows it."""
+        F, omega = np.ravel(self.F), np.ravel(self.omega)
+        N, inverse = np.ravel(np.asarray(self.N, dtype=complex)), np.ravel(self.minus_inverse)
+        periodic = np.ravel(self.periodic)
+        lines = [f"describing function of {self.plant}: {F.size} point(s), F {F.min():.4g} to {F.max():.4g} N, "
+                 f"omega {omega.min():.4g} to {omega.max():.4g} rad/s"
+                 + (f", {np.count_nonzero(~periodic)} not periodic" if not periodic.all() else ""),
+                 f"{'F [N]':>12} {'omega [rad/s]':>14} {'N [m/N]':>26} {'-1/N [N/m]':>26} {'periodic':>9}"]
+        for i in range(min(F.size, self.ROWS)):
+            N_i, inverse_i = f"{N[i].real:.5g}{N[i].imag:+.5g}j", f"{inverse[i].real:.5g}{inverse[i].imag:+.5g}j"
+            lines.append(f"{F[i]:12.6g} {omega[i]:14.6g} {N_i:>26} {inverse_i:>26} {str(bool(periodic[i])):>9}")
+        if F.size > self.ROWS:
+            lines.append(f"... {F.size - self.ROWS} more (response.points lists them all)")
+        return "\n".join(lines)
 
     @property
     def shape(self) -> tuple:
@@ -123,8 +156,8 @@ class DescribingFunctionResponse:
         return lines
 
 
-@dataclass(eq=False)
-class LimitCycleResponse:
+@dataclass(eq=False, repr=False)
+class LimitCycleResponse(_Shown):
     """Limit cycles of a plant under a controller G(s), predicted by harmonic balance G(jw) N(F, w) = -1.
 
     Made by :func:`dfwb.limit_cycles`.
@@ -262,9 +295,6 @@ class LimitCycleResponse:
                              f"{how}; {which}" + (f"\n      {c.df}" if c.df else ""))
         return "\n".join(lines)
 
-    def __str__(self):
-        return self.summary()
-
     def markdown(self) -> str:
         """Tables of the predictions (and judge), and of the true cycles with the DF's errors (a scene's
         summary.md)."""
@@ -355,8 +385,8 @@ _CONTINUATION = {  # the shape of ContinuationResponse.as_dict()
     "searches": [{"parameter": float, "cycles": int, "coverage": {"complete": bool, ...: object}}], "notes": [str]}
 
 
-@dataclass(eq=False)
-class ContinuationResponse:
+@dataclass(eq=False, repr=False)
+class ContinuationResponse(_Shown):
     """Limit cycles followed in one parameter: branches of true cycles and of DF predictions, and bifurcations.
 
     Made by :func:`dfwb.continuation`.
@@ -444,9 +474,6 @@ class ContinuationResponse:
         lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
 
-    def __str__(self):
-        return self.summary()
-
     def plot(self, ax=None) -> list:
         """The bifurcation diagram: amplitude against the parameter, truth and DF, stable solid, unstable dashed,
         each bifurcation marked and named. Returns the lines drawn.
@@ -475,8 +502,8 @@ def _values(values):
     return ", ".join(f"{name} = {value:g}" for name, value in values.items())
 
 
-@dataclass(eq=False)
-class HuntingMapResponse:
+@dataclass(eq=False, repr=False)
+class HuntingMapResponse(_Shown):
     """Which settings of two parameters make the loop hunt: every cell classified by the truth and the DF.
 
     Made by :func:`dfwb.hunting_map`.
@@ -560,9 +587,6 @@ class HuntingMapResponse:
                          "hunting_map.png and .svg")
         return "\n".join(lines)
 
-    def __str__(self):
-        return self.summary()
-
     def plot(self, axes=None) -> list:
         """Truth and DF side by side: hunting cells coloured by the cycle's amplitude, the other classes in
         flat colours, the linear loop's stability boundary and the bifurcation curves drawn over both.
@@ -591,8 +615,8 @@ class HuntingMapResponse:
         return drawn(path, self.plot, ncols=2, figsize=(13, 6.2), sharey=True, layout="constrained")
 
 
-@dataclass(eq=False)
-class MarginResponse:
+@dataclass(eq=False, repr=False)
+class MarginResponse(_Shown):
     """The gain factors k for which k G makes the machine hunt, by the truth and by the DF.
 
     Made by :func:`dfwb.limit_cycle_margin`.
@@ -649,9 +673,6 @@ class MarginResponse:
                 lines.append(f"    at k = {b.k:.8g} (+-{b.accuracy:.1g}) hunting {'starts' if b.starts else 'stops'}: "
                              f"{b.kind}" + (f" ({b.detail})" if b.detail else ""))
         return "\n".join(lines)
-
-    def __str__(self):
-        return self.summary()
 
     def plot(self, ax=None) -> list:
         """Hunting amplitude against k (log-log), truth and DF; the hunting ranges shaded, k = 1 marked."""
