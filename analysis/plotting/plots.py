@@ -15,6 +15,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib import ticker
 
 from dfwb.base.files import write_atomic
 from dfwb.plotting.backend import use_batch_backend  # noqa: F401 (here too, for callers of plots)
@@ -22,6 +23,14 @@ from dfwb.plotting.backend import use_batch_backend  # noqa: F401 (here too, for
 RE_INVERSE = "Re{-1/N} [N/m]"
 IM_INVERSE = "Im{-1/N} [N/m]"
 OMEGA = "omega [rad/s]"
+TITLE_SIZE = "medium"  # the tick labels' size (rc xtick.labelsize): a smaller title reads as a footnote
+
+
+class PlainLogFormatter(ticker.LogFormatter):
+    """Log-axis tick labels as plain numbers (30, 0.1, not 3x10^1); matplotlib still picks which ticks get one."""
+
+    def __call__(self, x, pos=None):
+        return f"{x:g}" if super().__call__(x, pos) else ""
 
 
 def get_axes(ax=None, **subplots):
@@ -43,9 +52,11 @@ def minus_inverse(rows):
 def nyquist(ax, curves, marks=(), label_marks=True):
     """-1/N loci: ``curves`` is [(label, rows, style)], marks are omegas shown as dots; returns the lines.
 
-    ``ax`` None draws into a new figure."""
+    A mark's label that would overlap an earlier one is left out (where curves meet, e.g. at low w, one
+    label says it; the dots stay), so set the axes' limits before calling. ``ax`` None draws into a new
+    figure."""
     ax = get_axes(ax)
-    lines = []
+    lines, labels = [], []
     for label, rows, style in curves:
         omega, values = minus_inverse(rows)
         if len(values) == 0:
@@ -58,8 +69,16 @@ def nyquist(ax, curves, marks=(), label_marks=True):
                 point = values[hits[0]]
                 ax.plot(point.real, point.imag, "o", ms=3, color=line.get_color())
                 if label_marks:
-                    ax.annotate(f"{mark:g}", (point.real, point.imag), fontsize=6, xytext=(2, 2),
-                                textcoords="offset points", color=line.get_color())
+                    labels.append(ax.annotate(f"{mark:g}", (point.real, point.imag), fontsize=6, xytext=(2, 2),
+                                              textcoords="offset points", color=line.get_color()))
+    ax.autoscale_view()  # the limits the labels land in
+    placed = []
+    for text in labels:
+        box = text.get_window_extent()
+        if any(box.overlaps(other) for other in placed):
+            text.remove()
+        else:
+            placed.append(box)
     ax.set_xlabel(RE_INVERSE)
     ax.set_ylabel(IM_INVERSE)
     ax.grid(alpha=0.3)
@@ -92,18 +111,26 @@ def harmonic_map(ax, rows, title):
     mesh = ax.pcolormesh(omega, np.arange(amplitudes.shape[0]), levels, shading="nearest",
                          vmin=top - 8, vmax=top, cmap="viridis")
     ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(PlainLogFormatter())  # less than a decade shows 3x10^1 and 4x10^1 otherwise
+    ax.xaxis.set_minor_formatter(PlainLogFormatter(labelOnlyBase=False))
     ax.set_xlabel(OMEGA)
     ax.set_ylabel("harmonic k")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_SIZE)
     return mesh
 
 
 def vertical_marks(ax, frequencies):
-    """Dashed verticals at named frequencies (e.g. w_C, w_J, w_L)."""
+    """Dashed verticals at named frequencies (e.g. w_C, w_J, w_L) within the axes' x range (one outside
+    would widen the axes into a blank band), each named right of its line, or left of it in the axes' last
+    tenth (w_L, where the data end, would be cut at the edge)."""
+    lo, hi = ax.get_xlim()
+    to_axes = ax.transData + ax.transAxes.inverted()
     for name, value in frequencies.items():
-        ax.axvline(value, ls=":", lw=0.8, color="gray")
-        ax.annotate(name, (value, 1.0), xycoords=("data", "axes fraction"), fontsize=7, color="gray",
-                    xytext=(2, -10), textcoords="offset points")
+        if lo <= value <= hi:
+            left = to_axes.transform((value, 1.0))[0] > 0.9
+            ax.axvline(value, ls=":", lw=0.8, color="gray")
+            ax.annotate(name, (value, 1.0), xycoords=("data", "axes fraction"), fontsize=7, color="gray",
+                        xytext=(-2 if left else 2, -10), textcoords="offset points", ha="right" if left else "left")
 
 
 def save(figure, out_dir, name):

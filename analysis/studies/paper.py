@@ -75,11 +75,11 @@ class Paper:
         figure, ax = plots.plt.subplots(figsize=(6.5, 5))
         curves = [(f"F = {F:g} N", select(self.data["friction"], F), {}) for F in FRICTION_F]
         curves.append(("linear (Fc = Fs = 0)", self.data["friction_linear"], {"color": "k", "ls": "--"}))
-        plots.nyquist(ax, curves, FRICTION_MARKS)
         ax.set_xlim(0, 14000)
-        ax.set_ylim(-12000, 0)
+        ax.set_ylim(-12000, 600)  # the paper's 0 at the top, and room for the linear curve's labels below the title
+        plots.nyquist(ax, curves, FRICTION_MARKS)
         ax.legend(fontsize=8)
-        ax.set_title("Fig. 3: friction, -1/N(F, w), marks at w = 30..100 rad/s", fontsize=9)
+        ax.set_title("Fig. 3: friction, -1/N(F, w), marks at w = 30..100 rad/s", fontsize=plots.TITLE_SIZE)
         png = plots.save(figure, self.out, "fig03_friction_nyquist")
         table = self.table(self.data["friction"] + self.data["friction_linear"], FRICTION_MARKS[::2])
         self.add("Fig. 3 - friction, Nyquist plane of -1/N", png,
@@ -93,8 +93,8 @@ class Paper:
                     {"ls": ":", "lw": 1.2}) for dv in KARNOPP_DV]
         plots.re_im_loglog(axes, curves)
         axes[0].legend(fontsize=7)
-        axes[0].set_title("Fig. 4: |Re{-1/N}| against w", fontsize=9)
-        axes[1].set_title("|Im{-1/N}| against w", fontsize=9)
+        axes[0].set_title("Fig. 4: |Re{-1/N}| against w", fontsize=plots.TITLE_SIZE)
+        axes[1].set_title("|Im{-1/N}| against w", fontsize=plots.TITLE_SIZE)
         png = plots.save(figure, self.out, "fig04_friction_re_im")
         linear = {r["omega"]: value_minus_inv_N(r)
                   for r in self.data["friction_linear"]}
@@ -136,7 +136,7 @@ class Paper:
         ax.set_xlim(65, 95)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-        ax.set_title("Fig. 5: friction, x(t) at w = 0.5 rad/s", fontsize=9)
+        ax.set_title("Fig. 5: friction, x(t) at w = 0.5 rad/s", fontsize=plots.TITLE_SIZE)
         png = plots.save(figure, self.out, "fig05_friction_time")
         self.add("Fig. 5 - friction, time response at w = 0.5 rad/s", png,
                  "F = 10 N sticks for long stretches of each period (flat parts); F = 50 N barely sticks, "
@@ -164,7 +164,7 @@ class Paper:
         curves = [(f"eps = {eps:g}", select(self.data["backlash_F50"], 50.0, eps=eps), {}) for eps in EPS_FIG8]
         plots.nyquist(ax, curves, BACKLASH_MARKS)
         ax.legend(fontsize=8)
-        ax.set_title("Fig. 8: backlash with impacts, F = 50 N, marks at w = 15..40 rad/s", fontsize=9)
+        ax.set_title("Fig. 8: backlash with impacts, F = 50 N, marks at w = 15..40 rad/s", fontsize=plots.TITLE_SIZE)
         png = plots.save(figure, self.out, "fig08_backlash_nyquist_eps")
         table = self.table(select(self.data["backlash_F50"], 50.0), BACKLASH_MARKS)
         self.add("Fig. 8 - dynamic backlash, -1/N for eps = 0.1..0.9", png, table)
@@ -175,7 +175,7 @@ class Paper:
             rows = self.data["backlash_F"] + self.data["backlash_F50"]
             curves = [(f"F = {F:g} N", select(rows, F, eps=eps), {}) for F in FRICTION_F]
             plots.nyquist(ax, curves, BACKLASH_MARKS, label_marks=False)
-            ax.set_title(f"Fig. 9: eps = {eps:g}", fontsize=9)
+            ax.set_title(f"Fig. 9: eps = {eps:g}", fontsize=plots.TITLE_SIZE)
             ax.legend(fontsize=7)
         png = plots.save(figure, self.out, "fig09_backlash_nyquist_F")
         self.add("Fig. 9 - dynamic backlash, -1/N for F = 10..50 N", png,
@@ -191,7 +191,7 @@ class Paper:
         for ax in axes:
             plots.vertical_marks(ax, validity_frequencies(50.0, eps=0.5))
         axes[0].legend(fontsize=7)
-        axes[0].set_title("Fig. 10: F = 50 N, static against dynamic backlash", fontsize=9)
+        axes[0].set_title("Fig. 10: F = 50 N, static against dynamic backlash", fontsize=plots.TITLE_SIZE)
         png = plots.save(figure, self.out, "fig10_backlash_re_im")
         w = validity_frequencies(50.0, eps=0.5)
         lo, hi = 1.0, 0.5 * w["w_J"]
@@ -225,7 +225,7 @@ class Paper:
             trace = self.traces[f"backlash_w{omega:g}_eps{eps * 10:02.0f}"]
             ax.plot(trace["time"], trace["v1"], lw=1)
             ax.set_ylabel("dx1/dt [m/s]")
-            ax.set_title(f"Fig. 11: F = 50 N, w = {omega:g} rad/s, eps = {eps:g}", fontsize=9)
+            ax.set_title(f"Fig. 11: F = 50 N, w = {omega:g} rad/s, eps = {eps:g}", fontsize=plots.TITLE_SIZE)
             ax.grid(alpha=0.3)
             point = [r for r in select(self.data["backlash_F50"], 50.0, eps=eps) if r["omega"] == omega]
             if point:
