@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dfwb.base.values import parameters
 from dfwb.plants.closed_forms import static_backlash_plant_df, validity_frequencies
 from dfwb.plotting import plots
 
@@ -274,7 +275,7 @@ class Paper:
                 N = value_N(r)
                 inv = ("-" if r["minus_inv_N_re"] is None
                        else f"{value_minus_inv_N(r):.6g}")
-                lines.append(f"| {r['F']:g} | {json.dumps(r['params'], sort_keys=True)} | {r['omega']:g} | {N:.6g} "
+                lines.append(f"| {r['F']:g} | {parameters(r['params'])} | {r['omega']:g} | {N:.6g} "
                              f"| {inv} | {r['periodic']} |")
         return "\n".join(lines)
 

@@ -31,6 +31,7 @@ from pathlib import Path
 from dfwb.base.errors import InputError, RunError
 from dfwb.base.files import ensure_folder, file_digest, folder_lock, inside, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
+from dfwb.base.values import parameters
 from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
 from dfwb.fmi.location import fmu_path
 from dfwb.studies.cache import (
@@ -571,7 +572,7 @@ class SceneRun:
                 N = complex(r["N_re"], r["N_im"])
                 inverse = ("-" if r["minus_inv_N_re"] is None
                            else f"{complex(r['minus_inv_N_re'], r['minus_inv_N_im']):.6g}")
-                lines.append(f"| {r['F']:g} | {json.dumps(r['params'], sort_keys=True)} | {r['omega']:.6g} | "
+                lines.append(f"| {r['F']:g} | {parameters(r['params'])} | {r['omega']:.6g} | "
                              f"{N:.6g} | {inverse} | {r['periodic']} | {r['note']} |")
             if step > 1:
                 lines.append(f"\nEvery {step}th of {len(rows)} points; all are in `results.csv`.")
