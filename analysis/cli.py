@@ -288,8 +288,8 @@ def _controller(args):
     """The controller as the user gave it: an expression (its parameters set by --set), or --num/--den."""
     from dfwb.engine.transfer import from_coefficients
 
-    if (args.G is None) == (args.num is None):
-        raise InputError("give the controller either as --G EXPR or as --num ... --den ...")
+    if args.den is not None and args.num is None:  # --G or --num: the parser requires one of them
+        raise InputError("--den goes with --num: give the controller as --G EXPR or as --num ... --den ...")
     return args.G if args.G is not None else from_coefficients(args.num, args.den or [])
 
 
@@ -512,12 +512,11 @@ def parser():
     from dfwb.plants import names
 
     plant_names = names()
-    import dfwb
-
+    version = sys.modules[__package__].__version__  # dfwb, loaded with this module (not imported: a higher layer)
     top = _Parser(prog="dfwb", description="Describing-function workbench for friction and backlash: exact DFs, "
                                            "limit cycles and hunting under a controller G(s), the plants as FMUs.",
                   epilog="dfwb COMMAND --help: each command's options and an example.")
-    top.add_argument("--version", action="version", version=f"dfwb {dfwb.__version__}")
+    top.add_argument("--version", action="version", version=f"dfwb {version}")
     commands = _Commands(top.add_subparsers(dest="command", required=True, metavar="COMMAND"))
 
     build = commands.add_parser("build",

@@ -118,7 +118,8 @@ def test_cli_json_contract(fmus, capsys):
     (["--G", "1/(s+1)", "--F-range", "10", "1"], "is not a range"),
     (["--G", "1/(s+1)", "--omega-range", "0", "1"], "is not a range"),
     (["--G", "1/(s+1)", "--set", "eps=3"], "eps = 3.0 is out of range"),
-    (["--G", "1/(s+1)", "--num", "1"], "either as --G"),
+    (["--G", "1/(s+1)", "--num", "1"], "argument --num: not allowed with argument --G"),
+    (["--G", "1/(s+1)", "--den", "1", "1"], "--den goes with --num"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(capsys, argv, message):
     with pytest.raises(SystemExit) as stop:
