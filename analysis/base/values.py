@@ -13,16 +13,7 @@ import numpy as np
 
 from dfwb.base.errors import InputError
 
-__all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive", "parameters"]
-
-
-def parameters(params):
-    """A parameter set as a table or a legend shows it: ``eps = 0.2, h = 0.05``, or ``defaults`` when empty.
-
-    >>> parameters({"h": 0.05, "eps": 0.2}), parameters({})
-    ('eps = 0.2, h = 0.05', 'defaults')
-    """
-    return ", ".join(f"{name} = {value:g}" for name, value in sorted(params.items())) or "defaults"
+__all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive"]
 
 
 def short(value, width=80):

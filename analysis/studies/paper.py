@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dfwb.base.values import parameters
+from dfwb.base.text import parameters
 from dfwb.plants.closed_forms import static_backlash_plant_df, validity_frequencies
 from dfwb.plotting import plots
 

@@ -31,7 +31,7 @@ from pathlib import Path
 from dfwb.base.errors import InputError, RunError
 from dfwb.base.files import ensure_folder, file_digest, folder_lock, inside, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
-from dfwb.base.values import parameters
+from dfwb.base.text import parameters
 from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
 from dfwb.fmi.location import fmu_path
 from dfwb.studies.cache import (
