@@ -4,7 +4,7 @@ A scene whose points, traces and figures are all in the cache, written into a
 new folder, only copies: it must not import python-control (only the limit
 cycles need it) nor pyplot (the figures come from the cache), nor the engine's
 FMU runtime (fmpy, numpy: nothing is simulated), the worker pool, the
-progress display or tqdm. Checked by the modules a fresh process has loaded
+progress display. Checked by the modules a fresh process has loaded
 (not by timing, which the machine's load blurs), with the command line run
 as a user runs it. ``benchmarks/startup.py`` measures the time.
 """
@@ -29,7 +29,7 @@ outputs = ["x"]
 '''
 
 # Never loaded by a cached re-run of SCENE (no log-spaced grid, no limit cycle): what runs, draws or shows work.
-NOT_NEEDED = ("control", "matplotlib", "fmpy", "numpy", "scipy", "rich", "tqdm", "multiprocessing",
+NOT_NEEDED = ("control", "matplotlib", "fmpy", "numpy", "scipy", "rich", "multiprocessing",
               "concurrent.futures.process", "dfwb.fmi.session", "dfwb.fmi.simulation", "dfwb.plotting.plots",
               "dfwb.build_fmus.builder", "pydantic")
 
@@ -75,7 +75,7 @@ def test_a_cached_rerun_imports_neither_control_nor_pyplot(runs):
 
 
 def test_a_cached_rerun_loads_no_engine_pool_or_display(runs):
-    """Nothing runs an FMU, spawns a worker or shows progress: fmpy, numpy, scipy, the pool, rich and tqdm
+    """Nothing runs an FMU, spawns a worker or shows progress: fmpy, numpy, scipy, the pool and rich
     stay unloaded (the first run, which computes, loads the engine: the probe sees imports)."""
     _, (_, first), (_, second) = runs
     assert {"fmpy", "numpy", "dfwb.fmi.simulation"} <= first

@@ -33,6 +33,7 @@ from dfwb.fmi.location import fmu_folder, fmu_path
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import plant as find_plant
 from dfwb.studies.executor import Chunk, Executor, chunked
+from dfwb.studies.progress import Display
 
 MAX_POINTS = 200_000  # DF points of one sweep or scene: hours of computing, a few hundred MB of results
 
@@ -164,10 +165,8 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
                 done[k] = record
         pending = [p for p in points if key(*p) not in done]
         jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
-        from tqdm import tqdm  # the progress bar: only for a sweep that runs (the scenes import MAX_POINTS)
-
-        with log, tqdm(total=len(points), initial=len(points) - len(pending), unit="pt", disable=not progress,
-                       desc=f"{plant} DF") as bar:
+        with log, Display(progress, f"DF sweep of {plant} into {out_dir}") as display:
+            task = display.add("DF points", len(points), len(points) - len(pending), 0)
             last_json = time.monotonic()
             settings = (("drive", drive), ("samples_per_period", samples_per_period))
             with _computing(spec, engine, pending, jobs, settings, fmu_dir) as batches:
@@ -175,7 +174,7 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
                     log.append([to_row(r) for r in results if not r["note"].startswith("failed:")])
                     for r in results:  # a failed point is reported in results.json, and computed again on resume
                         done[_key_of(r)] = r
-                    bar.update(len(results))
+                    display.advance(task, len(results))
                     if time.monotonic() - last_json > 5.0:
                         _write_json(out_dir, points, done)
                         last_json = time.monotonic()
