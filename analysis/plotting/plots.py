@@ -24,6 +24,7 @@ RE_INVERSE = "Re{-1/N} [N/m]"
 IM_INVERSE = "Im{-1/N} [N/m]"
 OMEGA = "omega [rad/s]"
 TITLE_SIZE = "medium"  # the tick labels' size (rc xtick.labelsize): a smaller title reads as a footnote
+LEGEND_SIZE = "small"  # a legend readable beside the ticks, not 7 points
 
 
 class PlainLogFormatter(ticker.LogFormatter):
@@ -209,6 +210,16 @@ def scene_figure(out_dir, figure, data, traces, scene):
     return save(fig, Path(out_dir), figure.name)
 
 
+def _frame(ax, points):
+    """Square limits around the points that matter (the origin, where -1/N starts, and the cycles), with room
+    around them: the plane shows where G(jw) and -1/N meet, not an empty half."""
+    re, im = [z.real for z in points], [z.imag for z in points]
+    centre = complex(0.5 * (min(re) + max(re)), 0.5 * (min(im) + max(im)))
+    half = 0.8 * max(max(re) - min(re), max(im) - min(im), 1e-9) + 1.0
+    ax.set_xlim(centre.real - half, centre.real + half)
+    ax.set_ylim(centre.imag - half, centre.imag + half)
+
+
 def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6, true_cycles=()):
     """The Nyquist plane of a limit-cycle search: G(jw), -1/N(F, w) for ``curves`` forces of the map, the
     predicted cycles marked (circles, filled: stable) and the exact loop's true cycles (stars at G(jw) of
@@ -236,14 +247,13 @@ def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6, true_
         if c.prediction is not None and c.prediction < len(cycles):
             predicted = -1.0 / cycles[c.prediction].N
             ax.plot([predicted.real, point.real], [predicted.imag, point.imag], color="0.5", lw=0.8)
-    span = max([abs(-1.0 / c.N) for c in cycles] + [abs(complex(G(1j * c.omega))) for c in true_cycles] + [1.0])
-    ax.set_xlim(-3 * span, 3 * span)
-    ax.set_ylim(-3 * span, 3 * span)
+    marks = [-1.0 / c.N for c in cycles] + [complex(G(1j * c.omega)) for c in true_cycles]
+    _frame(ax, [0j] + marks if marks else [-3 + 3j, 3 - 3j])
     ax.set_xlabel("Re [N/m]")
     ax.set_ylabel("Im [N/m]")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    ax.set_title("G(jw) and -1/N(F, w): limit cycles where they meet at the same w", fontsize=9)
+    ax.legend(fontsize=LEGEND_SIZE, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)  # below: never on a cycle
+    ax.set_title("G(jw) and -1/N(F, w): limit cycles where they meet at the same w", fontsize=TITLE_SIZE)
     return lines
 
 
@@ -266,8 +276,8 @@ def true_cycle_response(ax, true_cycles):
     ax.set_xlabel("t / period (dotted: events: stick, break-away, impacts, engagements)")
     ax.set_ylabel("over the first-harmonic amplitude")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    ax.set_title("the truth: the exact closed loop's periodic orbits over one period", fontsize=9)
+    ax.legend(fontsize=LEGEND_SIZE)
+    ax.set_title("the truth: the exact closed loop's periodic orbits over one period", fontsize=TITLE_SIZE)
     return lines
 
 
@@ -275,7 +285,7 @@ def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=(), tru
     """Nyquist plane (:func:`limit_cycle_plane`), the judge's runs and the true cycles over a period,
     written to ``path`` (PNG and SVG)."""
     panels = 1 + bool(runs) + bool(true_cycles)
-    figure, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 5), squeeze=False)
+    figure, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 6), squeeze=False)
     limit_cycle_plane(axes[0][0], G, F_grid, omega_grid, N_grid, cycles, true_cycles=true_cycles)
     if true_cycles:
         true_cycle_response(axes[0][-1], true_cycles)
@@ -298,9 +308,9 @@ def limit_cycle_figure(path, G, F_grid, omega_grid, N_grid, cycles, runs=(), tru
         ax.set_xlabel("t [s] (the last 6 periods)")
         ax.set_ylabel("plant output / predicted amplitude")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=LEGEND_SIZE)
         ax.set_title("the judge: co-simulation; dashed: predicted amplitude, dotted: predicted period\n"
-                     "(a run that leaves its cycle, as from an unstable one, runs off the plot)", fontsize=9)
+                     "(a run that leaves its cycle, as from an unstable one, runs off the plot)", fontsize=TITLE_SIZE)
     return save(figure, path.parent, path.stem)
 
 
