@@ -28,7 +28,8 @@ def run_case(fmu_path, start_values, stop_time, samples_per_period, outputs):
     return exact, sampled
 
 
-def plot_case(model, exact, sampled, start_values, samples_per_period, outputs, path):
+def plot_case(model, exact, sampled, start_values, samples_per_period, outputs, path, units=None):
+    """The two runs of one plant, one panel per output; ``units`` ({name: unit}) puts units in the title."""
     figure, axes = plt.subplots(len(outputs), 1, sharex=True, figsize=(8, 2.2 * len(outputs) + 0.8))
     for ax, (name, label) in zip(np.atleast_1d(axes), outputs):
         ax.plot(exact["time"], exact[name], lw=1.6, label="built-in excitation (exact)")
@@ -38,7 +39,8 @@ def plot_case(model, exact, sampled, start_values, samples_per_period, outputs, 
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time t [s]")
-    settings = ", ".join(f"{k} = {v:g}" for k, v in start_values.items())
+    units = units or {}
+    settings = ", ".join(f"{k} = {v:g}" + (f" {units[k]}" if units.get(k) else "") for k, v in start_values.items())
     figure.suptitle(f"{model}: force F cos(omega t), {settings}")
     figure.tight_layout()
     figure.savefig(path, dpi=110)
@@ -58,9 +60,11 @@ def run_demo(fmus, out_dir="out", report=print):
             plant.demo.samples_per_period, plant.demo.outputs
         exact, sampled = run_case(fmus[model], start_values, stop_time, samples, outputs)
         path = out_dir / f"demo_{model}.png"
-        plot_case(model, exact, sampled, start_values, samples, outputs, path)
+        units = plant.model.units()
+        plot_case(model, exact, sampled, start_values, samples, outputs, path, units)
         first = outputs[0][0]
         gap = np.max(np.abs(np.interp(sampled["time"], exact["time"], exact[first]) - sampled[first]))
-        report(f"{path}: {model}, max |{first} exact - {first} sampled input| = {gap:.3g}")
+        unit = f" {units[first]}" if units.get(first) else ""
+        report(f"{path}: {model}, max |{first} exact - {first} sampled input| = {gap:.3g}{unit}")
         written.append(path)
     return written
