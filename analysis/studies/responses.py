@@ -144,16 +144,32 @@ class DescribingFunctionResponse(_Shown):
         forces = F.reshape(curves.shape)
         omegas = omega.reshape(curves.shape)
         lines = []
-        for values, Fs, ws in zip(curves, forces, omegas):
+        for index, (values, Fs, ws) in enumerate(zip(curves, forces, omegas)):
             label = f"{self.plant}: " + (f"F = {Fs[0]:g} N" if np.all(Fs == Fs[0]) else f"omega = {ws[0]:g} rad/s")
             kwargs = dict({"marker": "o", "ms": 4} if len(values) == 1 else {}, label=label)
             kwargs.update(style)
             line, = ax.plot(values.real, values.imag, **kwargs)
             lines.append(line)
+            _mark_decades(ax, values, ws, line.get_color(), named=index == 0)
         ax.set_xlabel(RE_INVERSE)
         ax.set_ylabel(IM_INVERSE)
         ax.grid(alpha=0.3)
         return lines
+
+
+def _mark_decades(ax, values, omegas, colour, named):
+    """Dots where a -1/N curve passes each decade of omega (1, 10, 100 rad/s ...), named on the first curve:
+    over log-spaced frequencies most points crowd near the origin, and the dots say which w is where."""
+    finite = np.isfinite(values) & (omegas > 0)
+    if np.all(omegas == omegas[0]) or not finite.any():
+        return
+    lo, hi = np.log10(omegas[finite].min()), np.log10(omegas[finite].max())
+    for decade in range(int(np.ceil(lo)), int(np.floor(hi)) + 1):
+        i = int(np.argmin(np.abs(np.log10(np.where(finite, omegas, np.inf)) - decade)))
+        ax.plot(values[i].real, values[i].imag, "o", ms=3, color=colour)
+        if named:
+            ax.annotate(f"w = {10.0 ** decade:g}", (values[i].real, values[i].imag), xytext=(3, 3),
+                        textcoords="offset points", fontsize="x-small", color=colour)
 
 
 @dataclass(eq=False, repr=False)
