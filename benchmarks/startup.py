@@ -7,9 +7,9 @@ figure from the cache) are each timed ``--runs`` times as subprocesses, the
 way a user starts them. Prints both medians and their ratio (issue 14's
 target: a cached re-run within 2x of the bare start-up).
 
-Usage: ``.venv/bin/python benchmarks/startup.py [--runs 7] [--scene SCENE.toml] [--fmus DIR] [--quiet]``
-(default scene: two friction points and one Nyquist figure; ``--fmus``: the
-FMU folder, default dfwb's own). :func:`measure` returns the numbers, for a
+Usage: ``.venv/bin/python benchmarks/startup.py [--runs 7] [--scene SCENE.toml | --shipped] [--fmus DIR] [--quiet]``
+(default scene: two friction points and one Nyquist figure; ``--shipped``: every scene of ``scenes/``, one
+row each, and the largest ratio; ``--fmus``: the FMU folder, default dfwb's own). :func:`measure` returns the numbers, for a
 caller that reports them elsewhere. Both commands run in the environment as
 it is: with ``PYTHONDONTWRITEBYTECODE=1`` every dfwb module is compiled at
 each start, which costs both, the re-run more (it imports more of dfwb).
@@ -88,15 +88,36 @@ def measure(runs=7, scene=None, fmus=None, quiet=False):
     return first, statistics.median(bare), statistics.median(cached)
 
 
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+
+
+def shipped(runs, fmus, quiet):
+    """A row per shipped scene (first run, ``dfwb --help``, cached re-run, ratio) and the largest ratio."""
+    print("| scene | first run (s) | dfwb --help (s) | cached re-run (s) | ratio |\n|---|---|---|---|---|")
+    ratios = []
+    for scene in sorted(SCENES.glob("*.toml")):
+        first, help_s, rerun_s = measure(runs, scene, fmus, quiet)
+        ratios.append(rerun_s / help_s)
+        print(f"| {scene.stem} | {first:.2f} | {help_s:.3f} | {rerun_s:.3f} | {ratios[-1]:.2f}x |", flush=True)
+    print(f"\nlargest ratio: {max(ratios):.2f}x, median {statistics.median(ratios):.2f}x (target: within 2x; "
+          f"medians of {runs} interleaved runs each)")
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=_runs, default=7, help="timed runs of each command (default: %(default)s)")
     parser.add_argument("--scene", type=Path, help="the scene file (default: two points and one figure)")
     parser.add_argument("--fmus", type=Path, help="FMU folder (default: dfwb's own)")
+    parser.add_argument("--shipped", action="store_true", help="every shipped scene (scenes/*.toml), one row each")
     parser.add_argument("--quiet", action="store_true", help="time the re-run with --quiet (no progress display)")
     args = parser.parse_args(argv)
     if args.scene is not None and not args.scene.is_file():
         parser.error(f"--scene {args.scene}: no such file")
+    if args.shipped:
+        if args.scene is not None:
+            parser.error("--scene and --shipped: give one")
+        return shipped(args.runs, args.fmus, args.quiet)
     first, help_s, rerun_s = measure(args.runs, args.scene, args.fmus, args.quiet)
     print(f"first run (computes and draws):  {first:.2f} s")
     print(f"dfwb --help:                     {help_s:.3f} s (median of {args.runs})")
