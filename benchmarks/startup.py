@@ -9,8 +9,8 @@ target: a cached re-run within 2x of the bare start-up).
 
 Usage: ``.venv/bin/python benchmarks/startup.py [--runs 7] [--scene SCENE.toml | --shipped] [--fmus DIR] [--quiet]``
 (default scene: two friction points and one Nyquist figure; ``--shipped``: every scene of ``scenes/``, one
-row each, and the largest ratio; ``--fmus``: the FMU folder, default dfwb's own). :func:`measure` returns the numbers, for a
-caller that reports them elsewhere. Both commands run in the environment as
+row each, and the largest ratio; ``--fmus``: the FMU folder, default dfwb's own). :func:`measure` returns
+the numbers, for a caller that reports them elsewhere. Both commands run in the environment as
 it is: with ``PYTHONDONTWRITEBYTECODE=1`` every dfwb module is compiled at
 each start, which costs both, the re-run more (it imports more of dfwb).
 """
