@@ -112,9 +112,9 @@ def _extracted(path, tmp_path, version):
 def _rows(lines):
     """(the numeric rows of the first run, those after the restore, the '#' lines)."""
     restored = next(i for i, line in enumerate(lines) if line.startswith("# restored"))
-    numbers = [[float(word) for word in line.split()] for line in lines if not line.startswith("#")]
-    first = [row for row in numbers[:len([1 for line in lines[:restored] if not line.startswith("#")])]]
-    return np.array(first), np.array(numbers[len(first):]), [line for line in lines if line.startswith("#")]
+    rows = [[float(word) for word in line.split()] for line in lines if not line.startswith("#")]
+    before = sum(not line.startswith("#") for line in lines[:restored])  # the rows of the first run
+    return np.array(rows[:before]), np.array(rows[before:]), [line for line in lines if line.startswith("#")]
 
 
 CASES = [

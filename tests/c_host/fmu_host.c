@@ -86,11 +86,10 @@ typedef fmi2Byte state_byte;
 #define MAX_VARS 64
 
 /* The FMU's functions: the same names for both versions (FMI 3.0's getFloat64 is getReal here, ...). */
-#define V(fmi2name, fmi3name) VERSIONED(fmi2name, fmi3name)
 #ifdef FMI3
-#define VERSIONED(fmi2name, fmi3name) fmi3name
+#define V(fmi2name, fmi3name) fmi3name
 #else
-#define VERSIONED(fmi2name, fmi3name) fmi2name
+#define V(fmi2name, fmi3name) fmi2name
 #endif
 #define FUNCTIONS(X)                                                                                      \
     X(setReal, V(fmi2SetReal, fmi3SetFloat64))                                                            \
