@@ -22,6 +22,24 @@ class FMUPlant:
         The continuous Real input the force enters, the Real output whose DF is taken.
     kind : {"model-exchange", "co-simulation"}
         How it runs: model exchange when it offers it (the sine enters exactly), else co-simulation.
+
+    Examples
+    --------
+    dfwb's own friction-mass FMU (built into the FMU folder on first use) taken as a user's FMU:
+
+    >>> import dfwb
+    >>> from dfwb.fmi.location import fmu_path
+    >>> own = dfwb.fmu_plant(fmu_path(dfwb.plant("friction")), input="f", output="x")
+    >>> own.summary
+    'FrictionMass: FMI 2.0 co-simulation, force f -> position x [m]'
+    >>> own.kind, own.input, own.output, own.unit, own.foreign, own.name.endswith("FrictionMass.fmu")
+    ('co-simulation', 'f', 'x', 'm', True, True)
+    >>> own.defaults()["Fs"], own.check({"M": 2})
+    (7.0, {'M': 2.0})
+    >>> own.check({"mass": 2})  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: ...FrictionMass.fmu: no parameter 'mass' (its parameters: M, B, Fc, Fs, ...)
     """
 
     info: FMUInfo
@@ -93,6 +111,38 @@ def fmu_plant(path, input=None, output=None, kind=None):
         A file that is not a sane FMU, FMI 1.0, no binary for this machine, an input that
         is not a continuous Real input or an output that is not a Real output: one line
         naming the FMU, the reason and what it offers.
+
+    Examples
+    --------
+    dfwb's own friction-mass FMU (built into the FMU folder on first use) as a user's FMU: its one
+    continuous Real input is found by itself, its output (one of several) is named. Its describing
+    function, computed by the generic driver with an error estimate, against dfwb's exact one:
+
+    >>> import dfwb
+    >>> from dfwb.fmi.location import fmu_path
+    >>> path = fmu_path(dfwb.plant("friction"))
+    >>> own = dfwb.fmu_plant(path, output="x")
+    >>> own.kind, own.input, own.output
+    ('co-simulation', 'f', 'x')
+    >>> response = dfwb.describing_function(own, F=10.0, omega=1.0)
+    >>> exact = dfwb.describing_function("friction", F=10.0, omega=1.0)
+    >>> bool(abs(complex(response.N) - complex(exact.N)) <= float(response.N_error) < 1e-3)
+    True
+
+    A file that is not there, an input the FMU does not have, an output not named:
+
+    >>> dfwb.fmu_plant("no-such.fmu")
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: no-such.fmu: no such FMU file
+    >>> dfwb.fmu_plant(path, input="force", output="x")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: ...FrictionMass.fmu: no input 'force' (its continuous Real inputs: f)
+    >>> dfwb.fmu_plant(path)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: ...FrictionMass.fmu: name its output with --output (its Real outputs: x, v, Ff, ...)
     """
     if not isinstance(path, (str, Path)):
         raise PlantError(f"an FMU's path must be a string, not {type(path).__name__} {path!r:.60}")

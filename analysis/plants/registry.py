@@ -142,6 +142,25 @@ class Plant:
         The exact closed loop of the plant with a linear controller (a
         :class:`dfwb.fmus.loops.FeedbackLoop`): what ``dfwb limit-cycle
         --exact`` shoots periodic orbits of; None: no exact loop.
+
+    Examples
+    --------
+    An entry of dfwb's friction mass under another name: the facts every plant gives, checked at once
+    (each name must be an output or a parameter of the FMU facade):
+
+    >>> import dfwb
+    >>> from dfwb.fmus.facade import FrictionMass
+    >>> entry = dfwb.Plant("my-friction", FrictionMass, output="x", section=("x", "v"), modes=("mode",),
+    ...                    initial={"x": "x0", "v": "v0"}, shifts={"x": 1.0}, position="x0")
+    >>> entry.fmu_name, entry.unit, entry.defaults()["Fs"], entry.check({"M": 2})
+    ('FrictionMass', 'm', 7.0, {'M': 2.0})
+    >>> dfwb.Plant("my-friction", FrictionMass, output="y", section=("x", "v"), modes=(), initial={},
+    ...            shifts={}, position="x0")
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: plant 'my-friction': output ['y'] are not outputs of FrictionMass
+
+    An entry takes no part in dfwb until it is registered (:func:`register`).
     """
 
     name: str
@@ -288,6 +307,32 @@ def register(entry):
     A name may be registered again only with the same facts (a module
     imported twice makes new functions for the same plant), and the first
     entry stays; another plant of that name is an error.
+
+    Examples
+    --------
+    A plant of your own (here dfwb's friction mass under a facade class of a module ``my_plants``)
+    registered, used by name, and taken out again, which leaves the registry as it was:
+
+    >>> import dfwb
+    >>> from dfwb.fmus.facade import FrictionMass
+    >>> class MyFriction(FrictionMass):
+    ...     __module__ = "my_plants"  # as if defined there: dfwb's own classes cannot be unregistered
+    >>> before = dfwb.names()
+    >>> entry = dfwb.register(dfwb.Plant("my-friction", MyFriction, output="x", section=("x", "v"),
+    ...                                  modes=("mode",), initial={"x": "x0", "v": "v0"}, shifts={"x": 1.0},
+    ...                                  position="x0"))
+    >>> dfwb.names()
+    ('friction', 'backlash', 'static-backlash', 'my-friction')
+    >>> dfwb.plant("my-friction") is entry, dfwb.register(entry) is entry  # the same facts again: no change
+    (True, True)
+    >>> dfwb.register(dfwb.Plant("my-friction", FrictionMass, output="v", section=("x", "v"), modes=(),
+    ...                          initial={}, shifts={}, position="x0"))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: a plant named 'my-friction' is registered already (FMU MyFriction): ...
+    >>> dfwb.unregister("my-friction")
+    >>> dfwb.names() == before
+    True
     """
     if not isinstance(entry, Plant):
         raise PlantError(f"register() takes a dfwb.Plant, not {type(entry).__name__} {entry!r:.60}")
@@ -309,7 +354,28 @@ def _facts(entry):
 
 
 def unregister(name):
-    """Remove a plant that was registered (tests that add one take it out again); not one dfwb ships."""
+    """Remove a plant that was registered (tests that add one take it out again); not one dfwb ships.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> from dfwb.fmus.facade import StaticBacklash
+    >>> class MyBacklash(StaticBacklash):
+    ...     __module__ = "my_plants"  # as if defined there: dfwb's own classes cannot be unregistered
+    >>> before = dfwb.names()
+    >>> entry = dfwb.register(dfwb.Plant("my-backlash", MyBacklash, output="y", section=("x", "v", "y"),
+    ...                                  modes=("engaged",), initial={}, shifts={"x": 1.0, "y": "k"},
+    ...                                  position="x0"))
+    >>> "my-backlash" in dfwb.names()
+    True
+    >>> dfwb.unregister("my-backlash")
+    >>> dfwb.names() == before
+    True
+    >>> dfwb.unregister("static-backlash")
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: plant 'static-backlash' is built into dfwb and cannot be unregistered
+    """
     entry = plant(name)
     if entry.model.__module__.startswith("dfwb."):
         raise PlantError(f"plant {entry.name!r} is built into dfwb and cannot be unregistered")
@@ -317,7 +383,16 @@ def unregister(name):
 
 
 def names():
-    """The registered plants' names, in registration order."""
+    """The registered plants' names, in registration order.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> dfwb.names()
+    ('friction', 'backlash', 'static-backlash')
+    >>> [dfwb.plant(name).fmu_name for name in dfwb.names()]
+    ['FrictionMass', 'TwoMassBacklash', 'StaticBacklash']
+    """
     return tuple(PLANTS)
 
 
@@ -326,6 +401,19 @@ def plant(name):
 
     An entry, or a user's FMU plant (:class:`dfwb.foreign.plant.FMUPlant`, marked ``foreign``), is
     returned as it is.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> friction = dfwb.plant("friction")
+    >>> friction.name, friction.fmu_name, friction.output, friction.unit
+    ('friction', 'FrictionMass', 'x', 'm')
+    >>> dfwb.plant(friction) is friction
+    True
+    >>> dfwb.plant("frictoin")
+    Traceback (most recent call last):
+    ...
+    dfwb.fmus.exact.PlantError: unknown plant 'frictoin' (allowed: friction, backlash, static-backlash)
     """
     if isinstance(name, Plant) or getattr(name, "foreign", False) is True:
         return name

@@ -69,6 +69,20 @@ class DescribingFunctionResponse(_Shown):
         The record of every point (:meth:`dfwb.engine.describing.DFResult.as_dict`), in C
         (row-major) order of the grid: ``points[i]`` belongs to ``N.flat[i]``. The same shape
         as a row of ``results.json`` (and, flattened, of ``results.csv``).
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> response = dfwb.describing_function("friction", F=10.0, omega=[1.0, 2.0])
+    >>> response
+    <DescribingFunctionResponse: describing function of friction: 2 point(s), F 10 to 10 N, omega 1 to 2 rad/s>
+    >>> print(response)  # doctest: +NORMALIZE_WHITESPACE
+    describing function of friction: 2 point(s), F 10 to 10 N, omega 1 to 2 rad/s
+           F [N]  omega [rad/s]                    N [m/N]                 -1/N [N/m]  periodic
+              10              1          -0.23505-0.29799j             1.6318-2.0687j      True
+              10              2        -0.082037-0.084764j             5.8956-6.0916j      True
+    >>> response.shape, response.periodic.tolist(), response.points[1]["omega"]
+    ((2,), [True, True], 2.0)
     """
 
     plant: str
@@ -215,6 +229,18 @@ class LimitCycleResponse(_Shown):
         G's parameters and the plant's as given.
     unit : str
         The plant output's unit.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> response = dfwb.limit_cycles("static-backlash", "20*(s+2)/(s+20)", F_range=(0.01, 100),
+    ...                              omega_range=(0.1, 50), n_F=6, n_omega=12)
+    >>> print(response)  # doctest: +ELLIPSIS
+    1 limit cycle(s) of static-backlash predicted by the describing function in F 0.01 to 100 N, omega 0.1 to 50 rad/s
+      [0] F = 0.248572... N, omega = 0.913731... rad/s, period 6.876... s, amplitude 0.11316... m, stable, ...
+    >>> cycle = response.predictions[0]
+    >>> cycle.stable, round(cycle.F, 6), response.N_grid.shape, response.exact
+    (True, 0.248573, (6, 12), False)
     """
 
     plant: str
@@ -433,6 +459,21 @@ class ContinuationResponse(_Shown):
         Parameter values that could not be searched, and why.
     unit : str
         The plant output's unit.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> response = dfwb.continuation("friction", "Kp + Ki/s", "Ki", 1, 30, Kp=10, sources="truth")
+    >>> response
+    <ContinuationResponse: friction under G = Kp + Ki/s (Kp = 10), Ki from 1 to 30: 1 branch(es)>
+    >>> print(response)  # doctest: +ELLIPSIS
+    friction under G = Kp + Ki/s (Kp = 10), Ki from 1 to 30: 1 branch(es)
+      [0] truth: ... points, Ki 1 to 24.773, ... stable; ends: at 1, the end of the range; at 5.07..., infinity
+      truth infinity at Ki = 5 (+-0): ... the linear loop's stability boundary
+      truth nonsmooth-fold at Ki = 24.773... (+-...): omega 2.8993... rad/s, amplitude 0.87549... m; ...
+    >>> branch = response.branches[0]
+    >>> branch.source, branch.ends[0], [(b.kind, round(b.parameter, 4)) for b in response.bifurcations]
+    ('truth', (1.0, 'the end of the range'), [('infinity', 5.0), ('nonsmooth-fold', 24.773)])
     """
 
     plant: str
@@ -548,6 +589,24 @@ class HuntingMapResponse(_Shown):
     seconds : float
     out_dir : path or None
         Where the map was written (``cells.csv``, ``cells.json``, ``map.json``, ``hunting_map.png``).
+
+    Examples
+    --------
+    The smallest map, 2 x 2 cells, in this process and without the bifurcation curves:
+
+    >>> import dfwb
+    >>> response = dfwb.hunting_map("friction", "Kp + Ki/s", ("Kp", 5, 20, 2), ("Ki", 1, 4, 2), jobs=1,
+    ...                             curves=False)
+    >>> print(response)  # doctest: +ELLIPSIS
+    friction under G = Kp + Ki/s: 4 cells, Kp 5 to 20, Ki 1 to 4 (4 computed, 0 cached, 0 resumed; ... s)
+      truth: 4 hunts (a stable cycle)
+      DF: 3 no cycle in the range searched, 1 diverges (from some starts)
+      the DF misses 4 of the 4 cells that hunt and predicts hunting in 0 that do not
+    >>> response.classes("df").tolist()
+    [['none', 'none'], ['diverges', 'none']]
+    >>> cell = response.cells[0][0]
+    >>> cell["x"], cell["y"], cell["truth"]["class"], round(cell["truth"]["cycles"][0]["period"], 2)
+    (5.0, 1.0, 'stable', 60.3)
     """
 
     plant: str
@@ -650,6 +709,20 @@ class MarginResponse(_Shown):
         or starts the hunting: a bifurcation's kind or "bisected", ``starts``, ``accuracy``), ``scan``
         (k, class, amplitude, omega), ``hunts_at(k)`` and ``room()``: the factors by which the gain may fall
         or grow from 1 before the verdict changes.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> response = dfwb.limit_cycle_margin("friction", "20 + 100/s + 2*s/(0.1*s+1)", count=9)
+    >>> print(response)  # doctest: +ELLIPSIS
+    friction under k G, G = 20 + 100/s + 2*s/(0.1*s+1), k from 0.01 to 100:
+      truth: hunts as it is (k = 1); stops below k = 0.83005... Hunts for k in [0.83005..., 100]
+        at k = 0.830053... (+-...) hunting starts: nonsmooth-fold (...)
+      DF: hunts as it is (k = 1); stops below k = 0.79...; stops above k = 4.1... Hunts for k in [0.79..., 4.1...]
+        at k = 0.79... (+-...) hunting starts: bisected (...)
+        at k = 4.1... (+-...) hunting stops: bisected (...)
+    >>> [round(k, 4) for k in response.truth.intervals[0]], response.truth.room()[1]
+    ([0.8301, 100.0], None)
     """
 
     plant: str
