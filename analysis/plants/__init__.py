@@ -1,5 +1,7 @@
 """The plants: the contract every plant fulfils, the registry, and the three built-in plants.
 
+Examples
+--------
 >>> from dfwb.plants import names
 >>> "friction" in names()
 True
