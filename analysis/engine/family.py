@@ -66,17 +66,24 @@ class _Built:
 
 
 class _Fixed:
-    """A controller without parameters."""
+    """A controller without parameters. Given as (num, den), it is checked now and built when first used."""
 
     names = ()
 
     def __init__(self, G):
-        from dfwb.engine.transfer import to_transfer_function
+        from dfwb.engine.transfer import is_pair, pair_of, to_transfer_function
 
-        self.G = to_transfer_function(G)
+        self.pair, self.G = (pair_of(G), None) if is_pair(G) else (None, to_transfer_function(G))
         self.text = "G(s)"
 
+    def checked(self, values):
+        return self.pair if self.G is None else self.transfer_function(values)
+
     def transfer_function(self, values):
+        if self.G is None:
+            from dfwb.engine.transfer import system
+
+            self.G = system(*self.pair)
         return self.G
 
 
@@ -147,7 +154,7 @@ class LoopFamily:
         spec.check({k: v for k, v in self.values.items() if k in self.plant_names})
         self._linear = {}  # plant parameters -> the linear plant's (num, den) polynomials
         if not any(name in free for name in self.controller.names):
-            self.G()  # every value given: refuse an improper or degenerate G now, before anything runs
+            self.check()  # every value given: refuse an improper or degenerate G now, before anything runs
 
     def check_name(self, name):
         """Refuse a name that is no parameter of G or of the plant (or is s)."""
@@ -165,13 +172,26 @@ class LoopFamily:
             merged[name] = number(name, value)
         return merged
 
-    def G(self, values=None):
-        """The controller at the values (a python-control TransferFunction, checked)."""
+    def _complete(self, values):
         merged = self.merged(values)
         missing = [name for name in self.controller.names if name not in merged]
         if missing:
             raise InputError(f"G(s) = {self.controller.text}: the parameter {missing[0]} is given no value")
-        return self.controller.transfer_function(merged)
+        return merged
+
+    def G(self, values=None):
+        """The controller at the values (a python-control TransferFunction, checked)."""
+        return self.controller.transfer_function(self._complete(values))
+
+    def check(self, values=None):
+        """Refuse an improper or degenerate G at the values; an expression's or a (num, den)'s is checked
+        without building a system (python-control is not imported)."""
+        checked = getattr(self.controller, "checked", None)
+        merged = self._complete(values)
+        if checked is None:
+            self.controller.transfer_function(merged)
+        else:
+            checked(merged)
 
     def coefficients(self, values=None):
         """(num, den) of G at the values, highest power first: an expression's without building a checked

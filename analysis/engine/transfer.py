@@ -6,11 +6,13 @@ syntax tree and every node is checked against that list before anything is
 evaluated, so user text is never ``eval``-ed. A name other than ``s`` is a
 parameter of the controller (``"Kp + Ki/s"``); each needs a value.
 
-The arithmetic is python-control's (the same polynomial products and sums in
-the same order, so the coefficients are the ones ``control.tf`` arithmetic
-gives), done on plain coefficient arrays: a :class:`TransferFamily` parsed
-once evaluates in microseconds for each set of parameter values, which a
-continuation needs.
+The arithmetic is done on plain lists of coefficients (highest power first,
+of degree at most ``MAX_DEGREE``, so a product is a short loop): a
+:class:`TransferFamily` parsed once evaluates in microseconds for each set of
+parameter values, which a continuation needs, and checking a controller
+(:func:`check_coefficients`) needs neither numpy nor python-control. A scene
+is checked when it is read, so a re-run whose results are all in the cache
+imports neither; python-control comes in only when a system is built.
 
 Examples
 --------
@@ -28,13 +30,10 @@ dfwb.base.errors.InputError: G(s) = s**2/(s+1) is improper (numerator degree 2 >
 
 import ast
 import math
+import numbers
 import re
 
-import control as ct
-import numpy as np
-
 from dfwb.base.errors import InputError
-from dfwb.base.values import reals, short
 
 ALLOWED_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 MAX_LENGTH = 1000  # characters of an expression: a controller is a line, not a file
@@ -46,7 +45,7 @@ PARAMETER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")  # a parameter's name
 
 
 class _Rational:
-    """num(s) / den(s) as coefficient arrays (highest power first), with python-control's SISO arithmetic."""
+    """num(s) / den(s) as lists of coefficients (highest power first), with SISO transfer-function arithmetic."""
 
     __slots__ = ("num", "den")
 
@@ -55,10 +54,10 @@ class _Rational:
 
     @staticmethod
     def of(value):
-        return value if isinstance(value, _Rational) else _Rational(np.array([float(value)]), np.array([1.0]))
+        return value if isinstance(value, _Rational) else _Rational([float(value)], [1.0])
 
     def __neg__(self):
-        return _Rational(self.num * -1, self.den)
+        return _Rational([-c for c in self.num], self.den)
 
     def __add__(self, other):
         other = _Rational.of(other)
@@ -91,32 +90,45 @@ class _Rational:
         return max(len(self.num), len(self.den)) - 1
 
 
-_polymul = np.convolve  # what numpy.polymul computes, without its conversions
+def _polymul(a, b):
+    """The product of two polynomials (their coefficients' convolution)."""
+    out = [0.0] * (len(a) + len(b) - 1)
+    for i, x in enumerate(a):
+        for j, y in enumerate(b):
+            out[i + j] += x * y
+    return out
 
 
 def _polyadd(a, b):
-    """numpy.polyadd of two 1-D arrays (the shorter padded with leading zeros)."""
-    if len(a) < len(b):
-        a = np.concatenate((np.zeros(len(b) - len(a)), a))
-    elif len(b) < len(a):
-        b = np.concatenate((np.zeros(len(a) - len(b)), b))
-    return a + b
+    """The sum of two polynomials (the shorter padded with leading zeros)."""
+    width = max(len(a), len(b))
+    a, b = [0.0] * (width - len(a)) + list(a), [0.0] * (width - len(b)) + list(b)
+    return [x + y for x, y in zip(a, b)]
+
+
+def _strip(coefficients):
+    """Leading zeros removed (all zeros: [])."""
+    coefficients = [float(c) for c in coefficients]
+    first = next((i for i, c in enumerate(coefficients) if c != 0.0), len(coefficients))
+    return coefficients[first:]
 
 
 def _trim(coefficients):
-    """Leading zeros removed (all zeros: [0]), as python-control truncates its polynomials."""
-    if coefficients[0] != 0.0:
-        return coefficients
-    nonzero = np.flatnonzero(coefficients)
-    return coefficients[nonzero[0]:] if nonzero.size else np.zeros(1)
+    """Leading zeros removed (all zeros: [0.0]), as python-control truncates its polynomials."""
+    return _strip(coefficients) or [0.0]
+
+
+def _float(value):
+    """float(value), infinite where a Python integer is too large for a float."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
 
 
 def _number(value, text):
     """A finite float of a literal (1e309 and 10**400 written out are not numbers the engine can use)."""
-    try:
-        number = float(value)
-    except OverflowError:
-        number = math.inf
+    number = _float(value)
     if not math.isfinite(number):
         raise InputError(f"G(s) = {text}: the number {value!r} is not finite")
     return number
@@ -151,7 +163,7 @@ def _evaluate(node, text, values):
         return _number(node.value, text)
     if isinstance(node, ast.Name):
         if node.id == "s":
-            return _Rational(np.array([1.0, 0.0]), np.array([1.0]))
+            return _Rational([1.0, 0.0], [1.0])
         return values[node.id]
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
         value = _evaluate(node.operand, text, values)
@@ -201,8 +213,28 @@ def _check_tree(tree, text):
     return tuple(sorted(names, key=lambda name: text.find(name)))
 
 
+def check_coefficients(num, den, text):
+    """(num, den) of a proper, finite G(s) of degree at most ``MAX_DEGREE`` that depends on s, leading
+    zeros removed; anything else refused in one line naming ``text``. Plain Python: no numpy, no control."""
+    num, den = _strip(num), _strip(den)
+    if not den:
+        raise InputError(f"G(s) = {text} has a zero denominator")
+    if not all(math.isfinite(c) for c in num + den):
+        raise InputError(f"G(s) = {text} has coefficients that are not finite")
+    if len(den) - 1 > MAX_DEGREE:
+        raise InputError(f"G(s) = {text} has degree {len(den) - 1}: at most {MAX_DEGREE} is allowed")
+    if len(num) > len(den):
+        raise InputError(f"G(s) = {text} is improper (numerator degree {len(num) - 1} > denominator degree "
+                         f"{len(den) - 1}): a controller must be proper")
+    if len(den) == 1 and len(num) <= 1:
+        raise InputError(f"G(s) = {text} has no s: a controller must depend on s")
+    return num or [0.0], den
+
+
 def check_transfer_function(G, text=None):
     """Refuse a G(s) that is not a proper, finite SISO transfer function; return it."""
+    import control as ct
+
     text = text or str(G).strip()
     if not isinstance(G, ct.TransferFunction):
         if isinstance(G, ct.StateSpace):
@@ -213,18 +245,7 @@ def check_transfer_function(G, text=None):
         raise InputError(f"G(s) = {text} must have one input and one output")
     if not G.isctime():
         raise InputError(f"G(s) = {text} must be a continuous-time transfer function")
-    num, den = np.trim_zeros(np.atleast_1d(G.num[0][0]), "f"), np.trim_zeros(np.atleast_1d(G.den[0][0]), "f")
-    if len(den) == 0:
-        raise InputError(f"G(s) = {text} has a zero denominator")
-    if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
-        raise InputError(f"G(s) = {text} has coefficients that are not finite")
-    if len(den) - 1 > MAX_DEGREE:
-        raise InputError(f"G(s) = {text} has degree {len(den) - 1}: at most {MAX_DEGREE} is allowed")
-    if len(num) > len(den):
-        raise InputError(f"G(s) = {text} is improper (numerator degree {len(num) - 1} > denominator degree "
-                         f"{len(den) - 1}): a controller must be proper")
-    if len(den) == 1 and len(num) <= 1:
-        raise InputError(f"G(s) = {text} has no s: a controller must depend on s")
+    check_coefficients(*num_den(G), text)
     return G
 
 
@@ -272,7 +293,7 @@ class TransferFamily:
                 raise InputError(f"G(s) = {self.text}: the parameter {name} is given no value (set it, e.g. "
                                  f"{name}=1)")
             value = values[name]
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise InputError(f"G(s) parameter {name} = {value!r:.40} is not a number")
             if not math.isfinite(float(value)):
                 raise InputError(f"G(s) parameter {name} = {value!r} is not finite")
@@ -292,10 +313,14 @@ class TransferFamily:
             raise InputError(f"G(s) = {self.text} has no s: a controller must depend on s")
         return value
 
+    def checked(self, values=None):
+        """(num, den) at ``values``, checked as :func:`check_coefficients` checks them (no system built)."""
+        value = self._rational(values or {})
+        return check_coefficients(value.num, value.den, self.text)
+
     def transfer_function(self, values=None):
         """The checked python-control TransferFunction at ``values``."""
-        value = self._rational(values or {})
-        return check_transfer_function(ct.tf(value.num, value.den), self.text)
+        return system(*self.checked(values))
 
     def coefficients(self, values=None):
         """(num, den) at ``values``, highest power first, as python-control would hold them (not checked)."""
@@ -308,15 +333,20 @@ def parse_transfer_function(text, values=None):
     return TransferFamily(text).transfer_function(values)
 
 
-def from_coefficients(num, den, names=("--num", "--den")):
-    """A proper TransferFunction from coefficient lists (highest power first); ``names``: how the user wrote them."""
+def checked_pair(num, den, names=("--num", "--den")):
+    """(num, den) given as coefficient lists (highest power first), checked; ``names``: how the user wrote them."""
     if not num or not den:
         raise InputError(f"{names[0]} and {names[1]} both need at least one coefficient")
     if not all(math.isfinite(c) for c in list(num) + list(den)):
         raise InputError(f"G(s) coefficients num = {num}, den = {den} must be finite")
     if not any(den):
         raise InputError(f"G(s) den = {den} is zero")
-    return check_transfer_function(ct.tf(list(num), list(den)), f"({num})/({den})")
+    return check_coefficients(num, den, f"({num})/({den})")
+
+
+def from_coefficients(num, den, names=("--num", "--den")):
+    """A proper TransferFunction from coefficient lists (highest power first); ``names``: how the user wrote them."""
+    return system(*checked_pair(num, den, names))
 
 
 def num_den(G):
@@ -324,11 +354,51 @@ def num_den(G):
     return [float(c) for c in G.num[0][0]], [float(c) for c in G.den[0][0]]
 
 
+def is_pair(G):
+    """Whether G is given as (num, den)."""
+    return isinstance(G, (tuple, list)) and len(G) == 2
+
+
+def pair_of(G):
+    """(num, den) of G given as two flat lists (or arrays) of real numbers, checked; no system is built."""
+    if all(isinstance(part, (list, tuple)) and len(part) <= MAX_COEFFICIENTS
+           and all(type(c) in (int, float) for c in part) for part in G):  # plain numbers: no numpy needed
+        num, den = ([_float(c) for c in part] for part in G)
+    else:
+        from dfwb.base.values import reals, short
+
+        try:
+            num, den = (reals(name, part, MAX_COEFFICIENTS) for name, part in zip(("num", "den"), G))
+        except InputError as error:
+            raise InputError(f"G = {short(G)}: num and den must be lists of real numbers ({error})") from None
+        if num.ndim > 1 or den.ndim > 1:
+            raise InputError(f"G = {short(G)}: num and den must be flat lists of real numbers")
+        num, den = num.reshape(-1).tolist(), den.reshape(-1).tolist()
+    if max(len(num), len(den)) > MAX_DEGREE + 1:
+        raise InputError(f"G = ({num[:3]}..., {den[:3]}...): a polynomial of degree {max(len(num), len(den)) - 1}, "
+                         f"at most {MAX_DEGREE} is allowed")
+    return checked_pair(num, den, names=("num", "den"))
+
+
+def system(num, den):
+    """The python-control TransferFunction of checked coefficients (python-control is imported here)."""
+    import control as ct
+
+    return ct.tf(list(num), list(den))
+
+
 def to_transfer_function(G):
     """G as a checked TransferFunction: an expression in s, (num, den), or a python-control system (see
     :func:`dfwb.transfer_function`)."""
     if isinstance(G, str):
         return parse_transfer_function(G)
+    if is_pair(G):
+        return system(*pair_of(G))
+    import control as ct
+    import numpy as np
+
+    from dfwb.base.values import short
+
     if isinstance(G, (ct.TransferFunction, ct.StateSpace)):
         text = f"the {type(G).__name__} {G.name!r}"  # str(G) is a multi-line table
         if G.ninputs != 1 or G.noutputs != 1:
@@ -342,16 +412,5 @@ def to_transfer_function(G):
             if not G.isctime():
                 raise InputError(f"G(s) = {text} must be a continuous-time system (dt = 0), not dt = {G.dt}")
         return check_transfer_function(G, text)
-    if isinstance(G, (tuple, list)) and len(G) == 2:
-        try:
-            num, den = (reals(name, part, MAX_COEFFICIENTS) for name, part in zip(("num", "den"), G))
-        except InputError as error:
-            raise InputError(f"G = {short(G)}: num and den must be lists of real numbers ({error})") from None
-        if num.ndim > 1 or den.ndim > 1:
-            raise InputError(f"G = {short(G)}: num and den must be flat lists of real numbers")
-        if max(num.size, den.size) > MAX_DEGREE + 1:
-            raise InputError(f"G = {short(G)}: a polynomial of degree {max(num.size, den.size) - 1}, "
-                             f"at most {MAX_DEGREE} is allowed")
-        return from_coefficients(np.atleast_1d(num).tolist(), np.atleast_1d(den).tolist(), names=("num", "den"))
     raise InputError(f"G = {short(G)} is not a controller: give an expression in s, (num, den), "
                      "or a python-control TransferFunction or StateSpace")
