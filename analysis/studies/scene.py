@@ -42,6 +42,7 @@ from typing import Optional
 
 from dfwb.base.errors import InputError
 from dfwb.base.files import read_bytes
+from dfwb.base.grids import log_grid
 from dfwb.base.schema import (
     Boolean,
     Checked,
@@ -195,11 +196,7 @@ class Frequencies:
             raise InputError("the frequency grid is empty: give values = [...] or log = [lo, hi, n]")
 
     def grid(self):
-        spaced = []
-        if self.log:
-            import numpy as np  # only for a log-spaced grid
-
-            spaced = [float(f"{w:.12g}") for w in np.geomspace(self.log[0], self.log[1], int(self.log[2]))]
+        spaced = log_grid(*self.log) if self.log else []
         return sorted(set(spaced) | set(self.values))
 
 
@@ -298,14 +295,14 @@ def _no_fmu_keys(section):
 
 
 def _controller(section):
-    """G as a section gives it: the expression (with parameters), or a TransferFunction of num and den."""
-    from dfwb.engine.transfer import from_coefficients
+    """G as a section gives it: the expression (with parameters), or (num, den), checked."""
+    from dfwb.engine.transfer import checked_pair
 
     if (section.G is None) == (section.num is None and section.den is None):
         raise InputError("give the controller either as G = \"...\" or as num = [...] and den = [...]")
     if section.G is not None:
         return section.G
-    return from_coefficients(section.num or [], section.den or [], names=("num", "den"))
+    return checked_pair(section.num or [], section.den or [], names=("num", "den"))
 
 
 def _family(section, free=()):
@@ -320,9 +317,9 @@ def _family(section, free=()):
 
 
 @SECTION
-class LimitCycle:
-    """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation
-    (``verify``) and against the exact closed loop's true cycles (``exact``)."""
+class _Loop:
+    """What every section of a plant in feedback with G(s) gives: the plant (or a user's FMU, its variables,
+    how it runs and its DF map), the controller and the parameters."""
 
     name: str = rule(Name)
     plant: str = rule(PlantOrFMU)
@@ -333,10 +330,33 @@ class LimitCycle:
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
     den: Optional[list] = rule(ListOf(Finite), None)
-    F_range: Optional[list] = rule(ForceRange, None)  # None: derived
+    F_range: Optional[list] = rule(ForceRange, None)  # None: derived (a user's FMU: required)
     omega_range: Optional[list] = rule(FrequencyRange, None)
     n_F: int = rule(MapSide, 16)
     n_omega: int = rule(MapSide, 48)
+
+    def controller(self):
+        """G as given: the expression (with parameters), or (num, den)."""
+        return _controller(self)
+
+    def exact_plant(self, what):
+        """The section's plant, refused unless it has an exact closed loop (to ``what``) or is a user's FMU
+        (then with its DF map's ranges)."""
+        spec = section_plant(self)
+        if getattr(spec, "foreign", False):
+            _check_ranges(self, spec)
+        elif spec.loop is None:
+            raise InputError(f"plant {self.plant!r} has no exact closed loop to {what}")
+        else:
+            _no_fmu_keys(self)
+        return spec
+
+
+@SECTION
+class LimitCycle(_Loop):
+    """Limit cycles of a plant under force = -G(s) position, optionally judged by co-simulation
+    (``verify``) and against the exact closed loop's true cycles (``exact``)."""
+
     verify: bool = rule(Boolean(), False)
     exact: bool = rule(Boolean(), False)
     samples_per_period: int = rule(Integer(ge=16, le=100_000), 512)
@@ -350,32 +370,15 @@ class LimitCycle:
         _check_ranges(self, spec)
         self.family()
 
-    def controller(self):
-        """G as given: the expression (with parameters), or a TransferFunction of num and den."""
-        return _controller(self)
-
     def family(self):
         """The :class:`~dfwb.engine.family.LoopFamily` of the plant, G and params (checked)."""
         return _family(self)
 
 
 @SECTION
-class Continuation:
+class Continuation(_Loop):
     """Limit cycles (true and predicted) followed in one parameter of G or of the plant, with bifurcations."""
 
-    name: str = rule(Name)
-    plant: str = rule(PlantOrFMU)
-    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
-    output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
-    F_range: Optional[list] = rule(ForceRange, None)  # a user's FMU's DF map
-    omega_range: Optional[list] = rule(FrequencyRange, None)
-    n_F: int = rule(MapSide, 16)
-    n_omega: int = rule(MapSide, 48)
-    params: dict = rule(Params, {})  # the other parameters of the plant and of G
-    G: Optional[str] = rule(Text(), None)
-    num: Optional[list] = rule(ListOf(Finite), None)
-    den: Optional[list] = rule(ListOf(Finite), None)
     parameter: str = rule(Text(max_length=64))
     start: float = rule(Finite)
     stop: float = rule(Finite)
@@ -386,22 +389,13 @@ class Continuation:
     def __post_init__(self):
         from dfwb.studies.continuation import check_parameter
 
-        spec = section_plant(self)
-        if getattr(spec, "foreign", False):
-            _check_ranges(self, spec)
-            if spec.kind != "model-exchange":
-                raise InputError("the DF and the cycles of a co-simulation FMU are too rough to follow: give "
-                                 "kind = \"model-exchange\" where the FMU offers it")
-        elif spec.loop is None:
-            raise InputError(f"plant {self.plant!r} has no exact closed loop to follow cycles of")
-        else:
-            _no_fmu_keys(self)
+        spec = self.exact_plant("follow cycles of")
+        if getattr(spec, "foreign", False) and spec.kind != "model-exchange":
+            raise InputError("the DF and the cycles of a co-simulation FMU are too rough to follow: give "
+                             "kind = \"model-exchange\" where the FMU offers it")
         if self.parameter in self.params:
             raise InputError(f"{self.parameter} is the parameter followed: give its range, not a value in params")
         check_parameter(_family(self, free=(self.parameter,)), self.parameter, self.start, self.stop)
-
-    def controller(self):
-        return _controller(self)
 
 
 @SECTION
@@ -415,22 +409,9 @@ class Axis:
 
 
 @SECTION
-class Map:
+class Map(_Loop):
     """A hunting map: every cell of two parameters classified by the truth and by the DF."""
 
-    name: str = rule(Name)
-    plant: str = rule(PlantOrFMU)
-    input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
-    output: Optional[str] = rule(Variable, None)
-    kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
-    F_range: Optional[list] = rule(ForceRange, None)  # a user's FMU's DF map
-    omega_range: Optional[list] = rule(FrequencyRange, None)
-    n_F: int = rule(MapSide, 16)
-    n_omega: int = rule(MapSide, 48)
-    params: dict = rule(Params, {})
-    G: Optional[str] = rule(Text(), None)
-    num: Optional[list] = rule(ListOf(Finite), None)
-    den: Optional[list] = rule(ListOf(Finite), None)
     x: Axis = rule(Table(Axis))
     y: Axis = rule(Table(Axis))
     amplitudes: int = rule(Integer(ge=1, le=100), 5)
@@ -440,13 +421,7 @@ class Map:
         from dfwb.studies.continuation import check_parameter
         from dfwb.studies.hunting import MAX_CELLS
 
-        spec = section_plant(self)
-        if getattr(spec, "foreign", False):
-            _check_ranges(self, spec)
-        elif spec.loop is None:
-            raise InputError(f"plant {self.plant!r} has no exact closed loop to classify")
-        else:
-            _no_fmu_keys(self)
+        self.exact_plant("classify")
         if self.x.name == self.y.name:
             raise InputError(f"x and y are both {self.x.name}: a map needs two different parameters")
         for axis in (self.x, self.y):
@@ -457,9 +432,6 @@ class Map:
             check_parameter(family, axis.name, axis.start, axis.stop)
         if self.x.n * self.y.n > MAX_CELLS:
             raise InputError(f"a map of {self.x.n} x {self.y.n} = {self.x.n * self.y.n} cells: at most {MAX_CELLS}")
-
-    def controller(self):
-        return _controller(self)
 
     def axes(self):
         """(x, y) as (name, start, stop, n)."""
