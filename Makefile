@@ -10,6 +10,7 @@ $(VENV)/.base: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m compileall -q analysis fmus build_fmus >/dev/null  # as pip does for a regular install
 	touch $@
 
 $(VENV)/.test: $(VENV)/.base

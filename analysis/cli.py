@@ -22,7 +22,7 @@ EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --h
     "build": "dfwb build --native --fmi-version 3 --out out/fmus",
     "info": "dfwb info out/fmus/TwoMassBacklash.fmu",
     "df": "dfwb df friction --F 10 20 --omega 1",
-    "sweep": "dfwb sweep backlash --F 20 50 --omega-log 1 100 20 --grid eps=0.2,0.8 --out out/sweep",
+    "sweep": "dfwb sweep backlash --F 20 50 --omega-log 1 100 20 --grid eps=0.2,0.8 --out out/sweep --plot",
     "limit-cycle": "dfwb limit-cycle friction --G 'Kp + Ki/s' --set Kp=10 Ki=2 --exact --plot out/lc.png",
     "continue": "dfwb continue friction --G 'Kp + Ki/s' --set Kp=10 --parameter Ki=1:30 --plot out/branch.png",
     "map": "dfwb map friction --G 'Kp + Ki/s' --x Kp=1:50:12 --y Ki=0.1:25:12 --out out/map",
@@ -47,7 +47,8 @@ def _cache_dir_help():
     from dfwb.base.files import user_cache_dir
 
     return f"{user_cache_dir()}: $XDG_CACHE_HOME/dfwb, else ~/.cache/dfwb"
-FIGURE_COMMANDS = {"limit-cycle", "continue", "map", "margin", "examples", "bench", "run", "paper", "demo"}
+FIGURE_COMMANDS = {"sweep", "limit-cycle", "continue", "map", "margin", "examples", "bench", "run", "paper", "demo"}
+PLOT_COMMANDS = {"sweep", "limit-cycle", "continue", "margin"}  # they draw only with --plot
 
 
 
@@ -146,9 +147,9 @@ def _omegas(args):
         if not (OMEGA_RANGE[0] <= lo < hi <= OMEGA_RANGE[1] and 2 <= n <= MAX_POINTS and n == int(n)):
             raise InputError(f"--omega-log {lo:g} {hi:g} {n:g}: expected {OMEGA_RANGE[0]:g} <= LO < HI <= "
                              f"{OMEGA_RANGE[1]:g} rad/s and an integer N from 2 to {MAX_POINTS}")
-        import numpy as np
+        from dfwb.base.grids import log_grid
 
-        return [float(w) for w in np.geomspace(lo, hi, int(n))]
+        return log_grid(lo, hi, n)
     if not args.omega:
         raise InputError("give --omega W [W ...] or --omega-log LO HI N")
     return args.omega
@@ -274,13 +275,21 @@ def cmd_sweep(args):
     if both:
         raise InputError(f"{both[0]} is given both by --set and by --grid: give it in one of them")
     forces, omegas = _points(args)
+    cache = _cache(args)
     points = grid(forces, omegas, params, grids)  # counted before it is built; each set checked by run_sweep
     rows = run_sweep(spec, points, args.out, args.jobs, args.drive, args.samples_per_period, args.fmus,
-                     progress=not args.quiet, resume=not args.no_resume, rtol=args.rtol, timeout=args.timeout)
+                     progress=not args.quiet, resume=not args.no_resume, rtol=args.rtol, timeout=args.timeout,
+                     cache=cache)
     failed = [r for r in rows if r["note"].startswith("failed:")]
-    print(f"{len(rows)} points in {args.out}/results.csv and results.json"
+    png = rows.figure(args.out / "nyquist.png") if args.plot and rows.drawable() else None
+    print(f"{len(rows)} points in {args.out}/results.csv and results.json ({rows.computed} computed, "
+          f"{rows.cached} from the cache, {rows.resumed} resumed)"
           + (f"; {len(failed)} failed (kept out of results.csv: a resumed sweep computes them again)"
-             if failed else ""))
+             if failed else "")
+          + (f"; the -1/N curves in {png} and .svg" if png else ""))
+    if args.plot and png is None:  # the results are written: only the figure is missing
+        raise RunError(f"--plot: no point has a finite -1/N (N = 0, or the point failed, at every one): no curves "
+                       f"to draw; the results are in {args.out}")
     return 0
 
 
@@ -468,9 +477,9 @@ def cmd_run(args):
         folders[out] = path
     for (path, scene), out in zip(scenes, folders):
         o = run_scene(scene, out, args.jobs, args.dask, _cache(args), args.fmus, progress=not args.quiet)
-        if o.up_to_date:
-            print(f"{o.out_dir}/summary.md: up to date ({o.points} points, {len(o.figures)} figure(s)), "
-                  f"{o.seconds:.2f} s")
+        if o.up_to_date or o.copied:
+            how = "up to date" if o.up_to_date else "copied from the cache (the same scene, code and FMUs)"
+            print(f"{o.out_dir}/summary.md: {how} ({o.points} points, {len(o.figures)} figure(s)), {o.seconds:.2f} s")
         else:
             df_hits = o.points - o.computed - o.resumed  # o.cache_hits also counts traces and judge runs
             others = o.cache_hits - df_hits
@@ -492,6 +501,13 @@ def cmd_demo(args):
 
     run_demo(_fmus(args.fmus), args.out)
     return 0
+
+
+def cache_options(command):
+    """--cache DIR and --no-cache: the content-addressed cache of computed points, shared by every command."""
+    command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
+                         help=f"cache folder (default: {_cache_dir_help()})")
+    command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
 
 
 def fmu_folder_option(command):
@@ -589,6 +605,9 @@ def parser():
                        help="result folder (resumed if it holds this sweep)")
     sweep.add_argument("--jobs", action=_Once, type=_jobs, default=None, help="worker processes (default: all cores)")
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
+    sweep.add_argument("--plot", action="store_true",
+                       help="draw the -1/N curves (one per force and parameter set) into OUT/nyquist.png and .svg")
+    cache_options(sweep)
     sweep.add_argument("--quiet", action="store_true", help="no progress bar")
     sweep.set_defaults(run=cmd_sweep)
 
@@ -633,9 +652,7 @@ def parser():
                              help="worker processes, or Dask workers with --dask local (default: all cores)")
         command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
                              help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
-        command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
-                             help=f"cache folder (default: {_cache_dir_help()})")
-        command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+        cache_options(command)
         fmu_options(command)
         command.add_argument("--quiet", action="store_true", help="no progress display")
 
@@ -750,7 +767,7 @@ def main(argv=None):
     prog = f"dfwb {args.command}"
     if getattr(args, "fmu_kind", None):  # the process and its workers run this kind of plant FMU
         os.environ["DFWB_FMU"] = args.fmu_kind
-    if args.command in FIGURE_COMMANDS and (args.command not in ("limit-cycle", "continue", "margin") or args.plot):
+    if args.command in FIGURE_COMMANDS and (args.command not in PLOT_COMMANDS or args.plot):
         from dfwb.plotting.backend import use_batch_backend
 
         use_batch_backend()  # figures go to files, in batch: no display is needed

@@ -5,14 +5,16 @@ private cache), then, interleaved so that both see the same machine load,
 ``dfwb --help`` and ``dfwb run SCENE --out <a new folder>`` (every point and
 figure from the cache) are each timed ``--runs`` times as subprocesses, the
 way a user starts them. Prints both medians and their ratio (issue 14's
-target: a cached re-run within 2x of the bare start-up).
+and 24's target: a cached re-run within 2x of the bare start-up).
 
 Usage: ``.venv/bin/python benchmarks/startup.py [--runs 7] [--scene SCENE.toml | --shipped] [--fmus DIR] [--quiet]``
 (default scene: two friction points and one Nyquist figure; ``--shipped``: every scene of ``scenes/``, one
 row each, and the largest ratio; ``--fmus``: the FMU folder, default dfwb's own). :func:`measure` returns
 the numbers, for a caller that reports them elsewhere. Both commands run in the environment as
-it is: with ``PYTHONDONTWRITEBYTECODE=1`` every dfwb module is compiled at
-each start, which costs both, the re-run more (it imports more of dfwb).
+it is. ``make`` compiles dfwb's bytecode when it installs the venv (as pip
+does for a regular install); with ``PYTHONDONTWRITEBYTECODE=1`` and no
+bytecode, every dfwb module would be compiled at each start, which costs
+both, the re-run more (it imports more of dfwb).
 """
 
 import argparse

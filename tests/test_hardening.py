@@ -70,23 +70,63 @@ def test_inside_refuses_every_name_that_leaves_its_folder(tmp_path):
     assert inside(tmp_path, "traces/a.csv") == tmp_path / "traces" / "a.csv"
 
 
-def test_a_crafted_figure_entry_cannot_write_outside_the_folder(fmus, tmp_path):
-    cache, out = tmp_path / "cache", tmp_path / "out"
-    run_scene(parse_scene(FIGURE_SCENE, "f.toml"), out, jobs=1, cache=cache, progress=False)
-    entries = [p for p in cache.rglob("*.json") if b'\\"kind\\":\\"figure\\"' in p.read_bytes().split(b"\n")[0]]
+def _run_record(cache):
+    """The one cache entry holding a whole run's outputs: (its file, its header, its value)."""
+    entries = [p for p in cache.rglob("*.json") if b'\\"kind\\":\\"run\\"' in p.read_bytes().split(b"\n")[0]]
     assert len(entries) == 1
     head, body = entries[0].read_bytes().split(b"\n", 1)
-    value = json.loads(body)
-    value["files"]["../../outside.png"] = base64.b64encode(b"planted").decode()
-    value["figures"].append("../../outside.png")
-    body = json.dumps(value, sort_keys=True, separators=(",", ":")).encode()  # whoever writes it can sign it
+    return entries[0], head, json.loads(body)
+
+
+def _sign(path, head, value):
+    """Write ``value`` as a valid entry: whoever can write the cache can sign it."""
+    body = json.dumps(value, sort_keys=True, separators=(",", ":")).encode()
     header = dict(json.loads(head), sha256=hashlib.sha256(body).hexdigest())
-    entries[0].write_bytes(json.dumps(header).encode() + b"\n" + body)
+    path.write_bytes(json.dumps(header).encode() + b"\n" + body)
+
+
+@pytest.mark.parametrize("craft", ["outside", "extra", "section", "base64", "points"])
+def test_a_crafted_run_record_cannot_write_outside_the_folder_nor_be_copied(fmus, tmp_path, craft):
+    cache, out = tmp_path / "cache", tmp_path / "out"
+    run_scene(parse_scene(FIGURE_SCENE, "f.toml"), out, jobs=1, cache=cache, progress=False)
+    path, head, value = _run_record(cache)
+    if craft == "outside":  # a name outside the folder instead of the figure's
+        value["files"]["../../outside.png"] = value["files"].pop("nyquist.png")
+        value["figures"] = ["../../outside.png"]
+    elif craft == "extra":
+        value["files"]["planted.sh"] = base64.b64encode(b"planted").decode()
+    elif craft == "section":
+        value["sections"] = [["t", "../../outside.png", "text"]]
+    elif craft == "base64":
+        value["files"]["results.csv"] = "not base64!"
+    else:
+        value["points"] = "12"
+    _sign(path, head, value)
     outcome = run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "second", jobs=1, cache=cache,
                         progress=False)
     assert not (tmp_path / "outside.png").exists() and not (tmp_path.parent / "outside.png").exists()
-    assert outcome.rejected == 1 and outcome.figures_cached == 0  # drawn again
+    assert not (tmp_path / "second" / "planted.sh").exists()
+    assert outcome.rejected == 1 and not outcome.copied and outcome.cache_hits == 2  # run: its 2 points cached
     assert (tmp_path / "second" / "nyquist.png").read_bytes()[:4] == b"\x89PNG"
+    assert "1 cache entries rejected" in (tmp_path / "second" / "summary.md").read_text()
+
+
+def test_a_run_copied_from_the_cache_writes_what_the_run_wrote(fmus, tmp_path):
+    cache = tmp_path / "cache"
+    first = run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "a", jobs=1, cache=cache, progress=False)
+    copied = run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "b", jobs=1, cache=cache, progress=False)
+    assert copied.copied and not first.copied and (copied.points, copied.computed) == (first.points, 0)
+    names = sorted(p.name for p in (tmp_path / "a").iterdir())
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == names
+    for name in names:
+        a, b = (tmp_path / "a" / name).read_text(errors="replace"), (tmp_path / "b" / name).read_text(errors="replace")
+        if name == "summary.md":  # all but the line saying where the results came from
+            assert "every output copied from the cache" in b
+            a, b = (text.split("\n", 4)[4] for text in (a, b))
+        if name != "manifest.json":
+            assert a == b, name
+    assert run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "b", jobs=1, cache=cache,
+                     progress=False).up_to_date
 
 
 def test_a_manifest_naming_files_outside_the_folder_is_damaged(fmus, tmp_path):

@@ -30,9 +30,11 @@ def test_paper_runs_its_scenes_writes_every_figure_and_a_report(fmus, tmp_path):
     # the folder is up to date: nothing is recomputed or redrawn
     run_paper(tmp_path / "paper", jobs=2, progress=False, report=lambda message: None, cache=cache)
     assert {path: path.read_bytes() for path in before} == before
-    # another folder: every point and trace comes from the cache; same report
+    # another folder: the scenes' outputs are copied from the cache; same report
     run_paper(tmp_path / "again", jobs=2, progress=False, report=lambda message: None, cache=cache)
     again = (tmp_path / "again" / "report.md").read_text()
     assert again.split("## Validity")[1] == text.split("## Validity")[1]
     for name in FIGURES:
-        assert " 0 computed" in (tmp_path / "again" / name / "summary.md").read_text()
+        assert "every output copied from the cache" in (tmp_path / "again" / name / "summary.md").read_text()
+        assert (tmp_path / "again" / name / "results.csv").read_bytes() == \
+            (tmp_path / "paper" / name / "results.csv").read_bytes()

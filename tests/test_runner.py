@@ -25,7 +25,7 @@ from dfwb.studies.scene import parse_scene
 ROOT = Path(__file__).resolve().parents[1]
 
 SCENE = '''
-title = "two plants"
+title = "{title}"
 [[series]]
 name = "friction"
 plant = "friction"
@@ -53,8 +53,9 @@ series = ["friction"]
 '''
 
 
-def scene(h=0.1, extra=""):
-    return parse_scene(SCENE.format(h=h) + extra, "test.toml")
+def scene(h=0.1, extra="", title="two plants"):
+    """The two-plant scene; another ``title`` makes another scene over the same points (not copied whole)."""
+    return parse_scene(SCENE.format(h=h, title=title) + extra, "test.toml")
 
 
 def df_entries(cache):
@@ -117,7 +118,7 @@ def test_defaults_given_or_omitted_are_the_same_point_and_harmonics_serve_df_onl
     assert full.computed == 12
     assert all(len(r["harmonics"]) == 11 for r in results(tmp_path / "rich")["series"]["backlash"])
     assert (tmp_path / "rich" / "k.png").exists()
-    plain = parse_scene(SCENE.format(h=0.1).replace("params = { h = 0.1 }", "").replace(
+    plain = parse_scene(SCENE.format(h=0.1, title="two plants").replace("params = { h = 0.1 }", "").replace(
         "grid = { eps", "params = {M1 = 1.0}\ngrid = { eps"), "plain.toml")
     slim = run_scene(plain, tmp_path / "slim", jobs=1, cache=cache, progress=False)
     assert (slim.computed, slim.cache_hits) == (0, 12)  # h = 0.1 and M1 = 1 are the defaults
@@ -135,9 +136,9 @@ def test_a_corrupt_cache_is_detected_and_recomputed(fmus, tmp_path):
     value = json.loads(body)
     value["N_re"] += 1.0  # tampered
     entries[1].write_bytes(head + b"\n" + json.dumps(value).encode())
-    again = run_scene(scene(), tmp_path / "b", jobs=1, cache=cache, progress=False)
+    again = run_scene(scene(title="another"), tmp_path / "b", jobs=1, cache=cache, progress=False)
     assert (again.computed, again.cache_hits, again.rejected) == (2, 10, 2)
-    assert results(tmp_path / "a") == results(tmp_path / "b")
+    assert dict(results(tmp_path / "a"), title="another") == results(tmp_path / "b")
     assert "2 cache entries rejected" in (tmp_path / "b" / "summary.md").read_text()
 
 
@@ -208,8 +209,10 @@ def test_traces_equal_a_direct_simulation_and_are_cached(fmus, tmp_path):
     for column in columns:
         assert np.array_equal(np.array(column[1:], dtype=float), direct[column[0]][keep])
     assert (tmp_path / "a" / "f.png").exists() and first.points == 0
-    second = run_scene(parse_scene(text), tmp_path / "b", cache=tmp_path / "cache", progress=False)
-    assert second.cache_hits == 1
+    other = text.replace('title = "trace"', 'title = "the same trace"')  # not copied whole: the trace's entry
+    second = run_scene(parse_scene(other), tmp_path / "b", cache=tmp_path / "cache", progress=False)
+    assert second.cache_hits == 1 and not second.copied
+    assert (tmp_path / "b" / "traces" / "t.csv").read_bytes() == (tmp_path / "a" / "traces" / "t.csv").read_bytes()
 
 
 def test_a_limit_cycle_scene_equals_the_direct_search_and_reruns_from_the_cache(fmus, tmp_path):
@@ -231,7 +234,7 @@ def test_dfwb_run_from_the_command_line(fmus, tmp_path, capsys):
     from dfwb.cli import main
 
     path = tmp_path / "s.toml"
-    path.write_text(SCENE.format(h=0.1))
+    path.write_text(SCENE.format(h=0.1, title="two plants"))
     assert main(["run", str(path), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "--quiet"]) == 0
     assert "12 points (12 computed, 0 cached, 0 resumed), 2 figure(s)" in capsys.readouterr().out
     assert main(["run", str(path), "--out", str(tmp_path / "o"), "--cache", str(tmp_path / "c"), "--quiet"]) == 0
@@ -315,8 +318,8 @@ def test_the_command_line_checks_every_scene_before_running_any_and_reports_os_e
     from dfwb.cli import main
 
     good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
-    good.write_text(SCENE.format(h=0.1))
-    bad.write_text(SCENE.format(h=0.1).replace("omega = [0.5, 1.0, 5.0]", "omega = [0.5, 1e9]"))
+    good.write_text(SCENE.format(h=0.1, title="two plants"))
+    bad.write_text(SCENE.format(h=0.1, title="two plants").replace("omega = [0.5, 1.0, 5.0]", "omega = [0.5, 1e9]"))
     with pytest.raises(SystemExit) as stop:
         main(["run", str(good), str(bad), "--out", str(tmp_path / "o"), "--no-cache", "--quiet"])
     assert stop.value.code == 2 and not (tmp_path / "o").exists()

@@ -13,6 +13,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from test_hardening import FIGURE_SCENE  # a scene with two points and one figure
@@ -80,6 +81,25 @@ def test_a_cached_rerun_loads_no_engine_pool_or_display(runs):
     _, (_, first), (_, second) = runs
     assert {"fmpy", "numpy", "dfwb.fmi.simulation"} <= first
     assert sorted(name for name in NOT_NEEDED if name in second) == []
+
+
+SHIPPED = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.toml"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda path: path.stem)
+def test_a_cached_rerun_of_every_shipped_scene_is_a_copy_that_loads_nothing_heavy(fmus, tmp_path, path):
+    """Log-spaced grids, paper figures and limit cycles included: python-control, numpy and pyplot stay
+    unloaded (``benchmarks/startup.py --shipped`` times the same re-runs)."""
+    from dfwb.studies.runner import run_scene
+
+    folder = fmus["FrictionMass"].parent
+    first = run_scene(path, tmp_path / "first", jobs=2, cache=tmp_path / "cache", fmu_dir=folder, progress=False)
+    assert not first.copied and not first.failed
+    code, modules = _run(tmp_path, path, tmp_path / "second", folder)
+    assert code == 0 and sorted(name for name in NOT_NEEDED if name in modules) == []
+    assert "every output copied from the cache" in (tmp_path / "second" / "summary.md").read_text()
+    assert (tmp_path / "second" / "results.json").read_bytes() == (tmp_path / "first" / "results.json").read_bytes()
 
 
 def test_a_run_says_where_its_time_went(fmus, tmp_path):

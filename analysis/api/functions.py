@@ -570,7 +570,7 @@ def grid(F: Sequence[float], omega: Sequence[float], params: Optional[dict] = No
 def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Optional[int] = None,
           drive: str = "internal", samples_per_period: int = 64, fmu_dir: Optional[Union[str, Path]] = None,
           progress: bool = False, resume: bool = True, rtol: Optional[float] = None,
-          timeout: Optional[float] = None) -> list:
+          timeout: Optional[float] = None, cache: Union[bool, str, Path] = True) -> list:
     """A resumable, parallel sweep of DF points into ``out_dir``; returns the record of every point.
 
     Parameters
@@ -590,21 +590,29 @@ def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Opti
         Show a progress bar.
     resume : bool, keyword-only
         Keep the points ``out_dir`` already holds (False: start afresh).
+    cache : bool or path, keyword-only
+        As for :func:`run_scene`: True, the user's cache folder; a folder; False, none. A point not in
+        ``out_dir`` is taken from the cache if a sweep or a scene computed it before, and a computed
+        point is stored there (a scene over the same points then computes none of them).
 
     Returns
     -------
-    list of dict
-        The records (:meth:`dfwb.engine.describing.DFResult.as_dict`), in the order of ``points``.
+    dfwb.studies.sweep.Sweep
+        The records (:meth:`dfwb.engine.describing.DFResult.as_dict`), a list in the order of ``points``;
+        ``.computed``, ``.cached`` and ``.resumed`` count where they came from, and ``.plot()`` draws the
+        -1/N curves (``.figure(path)`` writes them to a PNG and an SVG).
 
     Examples
     --------
     >>> import tempfile, dfwb
     >>> with tempfile.TemporaryDirectory() as out:
-    ...     records = dfwb.sweep("friction", dfwb.grid([10.0], [1.0, 2.0]), out, jobs=1)
+    ...     records = dfwb.sweep("friction", dfwb.grid([10.0], [1.0, 2.0]), out, jobs=1, cache=False)
     >>> [(r["F"], r["omega"], round(r["N_re"], 9)) for r in records]
     [(10.0, 1.0, -0.235053392), (10.0, 2.0, -0.082036929)]
+    >>> records.computed, records.cached, records.resumed
+    (2, 0, 0)
     """
     from dfwb.studies.sweep import run_sweep
 
     return run_sweep(resolve_plant(plant), points, out_dir, jobs, drive, samples_per_period, fmu_dir,
-                     progress=progress, resume=resume, rtol=rtol, timeout=timeout)
+                     cache=cache, progress=progress, resume=resume, rtol=rtol, timeout=timeout)

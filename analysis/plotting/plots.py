@@ -142,6 +142,7 @@ def save(figure, out_dir, name):
         buffer = io.BytesIO()
         figure.savefig(buffer, dpi=120, format=kind)
         write_atomic(out_dir / f"{name}.{kind}", buffer.getvalue())
+        figure.set_layout_engine("none")  # laid out by the first save: the second keeps that layout
     plt.close(figure)
     return out_dir / f"{name}.png"
 
@@ -166,6 +167,17 @@ def curves_of(data, names):
             label = f"{name}: F = {F:g} N" + (f", {extra}" if extra else "")
             curves.append((label, rows, {}))
     return curves
+
+
+def nyquist_panel(ax, curves, title, marks=()):
+    """A scene's nyquist figure, and a sweep's: the -1/N loci (:func:`nyquist`), their legend and the title;
+    returns the lines. ``ax`` None draws into a new figure."""
+    ax = get_axes(ax, figsize=(6.5, 5))
+    lines = nyquist(ax, curves, marks)
+    if lines:
+        ax.legend(fontsize=7)
+    ax.set_title(title, fontsize=9)
+    return lines
 
 
 def scene_figure(out_dir, figure, data, traces, scene):
@@ -200,9 +212,7 @@ def scene_figure(out_dir, figure, data, traces, scene):
         ax = axes[0]
     else:
         fig, ax = plt.subplots(figsize=(6.5, 5))
-        nyquist(ax, curves_of(data, figure.series), figure.marks)
-        ax.legend(fontsize=7)
-        ax.set_title(title, fontsize=9)
+        nyquist_panel(ax, curves_of(data, figure.series), title, figure.marks)
     if figure.xlim:
         ax.set_xlim(*figure.xlim)
     if figure.ylim:

@@ -9,7 +9,10 @@ Work is skipped at every level:
   one forcing period at a time (exact with the FMU's own excitation) and stops
   at the periodic steady state;
 - time traces, limit cycles and figures exist only when the scene names them;
-  traces and the judge's co-simulations are cached as well.
+  traces and the judge's co-simulations are cached as well;
+- a scene run before over the same points with the same code and FMUs (the same
+  fingerprint) is copied whole: its outputs, figures included, are one cache
+  entry, so such a re-run reads one file and imports no engine, numpy or plot.
 
 Every computed point is appended to ``results.csv`` at once (flushed and
 synced) and stored in the cache, so an interruption loses only the points in
@@ -35,6 +38,8 @@ from dfwb.base.text import parameters
 from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
 from dfwb.fmi.location import fmu_path
 from dfwb.studies.cache import (
+    MAX_ENTRY,
+    Cache,
     code_revision,
     digest,
     drawing_revision,
@@ -53,6 +58,7 @@ MAX_MANIFEST = 64 << 20  # bytes
 RUN_COLUMNS = ["series", "key"] + COLUMNS
 MAX_LOG_ROWS = 2 * MAX_POINTS  # the log of one scene: its points once, plus the rewrite's limit-cycle map rows
 SUMMARY_ROWS = 40  # rows of each series shown in summary.md (all are in results.csv)
+MAX_RECORD = MAX_ENTRY // 2  # bytes of outputs a run's cache record holds (base64 makes them a third larger)
 
 
 @dataclass
@@ -67,6 +73,7 @@ class Outcome:
     rejected: int = 0
     figures_cached: int = 0  # figures copied from the cache instead of drawn
     up_to_date: bool = False  # the folder already held this scene's results: nothing was done
+    copied: bool = False  # every output copied from the cache, as an earlier run of this same scene wrote it
     seconds: float = 0.0
     phases: dict = field(default_factory=dict)  # where the time went: seconds per phase of the run
     figures: list = field(default_factory=list)
@@ -96,18 +103,11 @@ class _Points:
         return self._named[point]
 
     def key(self, plant, F, omega, params, harmonics=None):
-        spec = self.run.specs[plant]
-        if getattr(spec, "foreign", False):  # a user's FMU: its file, variables and the driver's settings
-            e = self.run.scene.engine
-            settings = {"harmonics": harmonics or self.harmonics, "max_periods": e.max_periods, "rtol": e.rtol,
-                        "input": spec.input, "output": spec.output, "drive": spec.kind}
-            return {"kind": "df", "model": "foreign", "fmu": self.run.revisions[plant], "code": self.run.code,
-                    "settings": settings, "params": spec.complete(params), "F": float(F), "omega": float(omega)}
-        engine = dict(self.settings, harmonics=harmonics or self.harmonics)
-        if engine["drive"] == "internal":
-            engine.pop("samples_per_period")
-        return {"kind": "df", "model": spec.fmu_name, "fmu": self.run.revisions[plant], "code": self.run.code,
-                "settings": engine, "params": spec.complete(params), "F": float(F), "omega": float(omega)}
+        """The point's cache key: :func:`dfwb.studies.points.df_key`, the one a sweep uses too."""
+        from dfwb.studies.points import df_key
+
+        return df_key(self.run.specs[plant], F, omega, params, fmu=self.run.revisions[plant], code=self.run.code,
+                      rtol=self.run.scene.engine.rtol, **dict(self.settings, harmonics=harmonics or self.harmonics))
 
     def lookup(self, key):
         """A cached value, also from an entry with more harmonics (N is the same to the last bit)."""
@@ -258,7 +258,9 @@ class SceneRun:
                    "code": self.code, "params": spec.complete(params), "F": trace.F,
                    "omega": trace.omega, "start": trace.start, "stop": trace.stop, "step": trace.step,
                    "outputs": trace.outputs}
-            out[trace.name] = self.cache.get(key)
+            stored = self.cache.get(key)
+            out[trace.name] = _trace_columns(stored, trace.outputs)
+            self.cache.rejected += stored is not None and out[trace.name] is None
             if out[trace.name] is None:
                 missing.append((trace, params, key))
             else:
@@ -369,7 +371,7 @@ class SceneRun:
         write_atomic(self.out / MANIFEST, json.dumps(document, indent=1))
 
     def run(self):
-        started = time.perf_counter()
+        started = self.started = time.perf_counter()
         scene = self.scene
         table = _Points(self, self.settings(HARMONICS if scene.needs_harmonics else 1))
         points = [(p.plant, p.F, p.omega, self.specs[p.plant].checked(p.params)) for p in scene.points()]
@@ -382,6 +384,9 @@ class SceneRun:
             raise RunError(f"--out {self.out} is a file, not a folder")
         with folder_lock(self.out):  # one run at a time writes here
             (self.out / MANIFEST).unlink(missing_ok=True)  # from here on the folder is being changed
+            if self.copy(fingerprint):
+                self.write_manifest(fingerprint)
+                return self.outcome
             phases, mark = self.outcome.phases, [time.perf_counter()]
 
             def lap(name):
@@ -408,19 +413,80 @@ class SceneRun:
             self.outcome.points = len(self.values)
             self.write_results(data, csv_rows, traces, cycles, studies)
             lap("results")
-            self.draw(data, traces, dict(cycles, **studies), fingerprint)
+            self.draw(data, traces, dict(cycles, **studies))
             lap("figures")
             self.outcome.rejected = self.cache.rejected + self.log.rejected
             self.outcome.seconds = time.perf_counter() - started
-            self.write_summary(data, cycles, studies)
+            body = self.summary_body(data, cycles, studies)
+            self.write_summary(body)
             if not self.outcome.failed:  # with points missing, the next run is not up to date: it tries them again
                 self.write_manifest(fingerprint)
+                self.store(fingerprint, body)
         return self.outcome
+
+    # -- a whole run from the cache -----------------------------------------------------------------
+    def output_names(self):
+        """The files of a run of this scene but its summary, as paths relative to the folder (a scene with
+        hunting maps has none: its maps keep their own folders and resume from them)."""
+        if self.scene.map:
+            return None
+        names = ["results.csv", "results.json"] + [f"traces/{t.name}.csv" for t in self.scene.trace]
+        for figure in self.scene.figure:
+            names += [f"{Path(png).stem}{suffix}" for png in self.figure_names(figure) for suffix in (".png", ".svg")]
+        return names
+
+    def store(self, fingerprint, body):
+        """Put this run's outputs in the cache as one record, for a run of the same fingerprint elsewhere."""
+        names = self.output_names()
+        if names is None or not isinstance(self.cache, Cache):
+            return
+        files = {name: (self.out / name).read_bytes() for name in names}
+        if sum(map(len, files.values())) > MAX_RECORD:
+            return  # the points are cached one by one all the same
+        o = self.outcome
+        self.cache.put({"kind": "run", "run": fingerprint},
+                       {"files": {name: base64.b64encode(data).decode() for name, data in files.items()},
+                        "summary": body, "points": o.points, "figures": [p.name for p in o.figures],
+                        "sections": [[title, png.name, text] for title, png, text in o.sections]})
+
+    def copy(self, fingerprint):
+        """Write the outputs of an earlier run of this fingerprint from the cache; False if there is none.
+
+        A record that does not name exactly this scene's outputs, or is not shaped as :meth:`store` writes
+        it, is damaged: counted as rejected, and the scene is run."""
+        names = self.output_names()
+        if names is None:
+            return False
+        stored = self.cache.get({"kind": "run", "run": fingerprint})
+        if stored is None:
+            return False
+        try:
+            pngs = [name for name in names if name.endswith(".png")]
+            if sorted(stored["files"]) != sorted(names) or not set(stored["figures"]) <= set(pngs) \
+                    or not all(isinstance(line, str) for line in stored["summary"]) \
+                    or not all(png in pngs and isinstance(title, str) and isinstance(text, str)
+                               for title, png, text in stored["sections"]) \
+                    or isinstance(stored["points"], bool) or not isinstance(stored["points"], int):
+                raise ValueError("not this scene's record")
+            files = {name: base64.b64decode(stored["files"][name], validate=True) for name in names}
+        except (KeyError, TypeError, ValueError, AttributeError):  # binascii.Error is a ValueError
+            self.cache.rejected += 1
+            self.outcome.rejected = self.cache.rejected
+            return False
+        for name, data in files.items():
+            ensure_folder((self.out / name).parent)
+            self.write(name, data)
+        o = self.outcome
+        o.copied, o.points, o.cache_hits, o.figures_cached = True, stored["points"], stored["points"], len(pngs)
+        o.figures = [self.out / name for name in stored["figures"]]
+        o.sections = [(title, self.out / png, text) for title, png, text in stored["sections"]]
+        o.seconds = time.perf_counter() - self.started
+        self.write_summary(stored["summary"])
+        return True
 
     # -- continuations and maps ----------------------------------------------------------------------
     def continuations(self, display):
         """{name: ContinuationResponse} of the scene's [[continuation]]s, cached whole."""
-        from dfwb.engine.transfer import num_den
         from dfwb.studies.continuation import follow
 
         results = {}
@@ -429,7 +495,7 @@ class SceneRun:
             G = c.controller()
             key = {"kind": "continuation", "code": self.code, "solvers": solver_revision(),
                    "fmu": fmu_revision(fmu_path(spec, self.fmu_dir)) if not own else dict(own, sha256=spec.info.digest),
-                   "plant": c.plant, "G": G if isinstance(G, str) else num_den(G),
+                   "plant": c.plant, "G": G,  # an expression, or (num, den)
                    "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
                    "sources": c.sources, "max_points": c.max_points, "samples": c.samples if own else None}
             task = display.add(f"{c.name}: continuation", 1, 0, 0)
@@ -489,32 +555,14 @@ class SceneRun:
                              for name, r in (studies or {}).items() if name in {m.name for m in self.scene.map}}}
         self.write("results.json", json.dumps(document))
 
-    def draw(self, data, traces, cycles, fingerprint):
-        """Draw each figure, or copy it from the cache when this very run drew it before.
-
-        A cached figure is written only under the names this figure has (:meth:`figure_names`): an entry
-        naming other files (``../x``, another figure's) is damaged, counted as rejected and drawn again."""
+    def draw(self, data, traces, cycles):
+        """Draw each figure (PNG and SVG) and note its sections and files."""
         for figure in self.scene.figure:
-            key = {"kind": "figure", "run": fingerprint, "name": figure.name}
             pngs = self.figure_names(figure)
-            files = [f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
-            stored = self.cache.get(key)
-            if stored is not None and not _names_match(stored, pngs, files):
-                self.cache.rejected += 1
-                stored = None
-            if stored is None:
-                sections = self._draw(figure, pngs, data, traces, cycles)
-                stored = {"sections": [[title, png.name, text] for title, png, text in sections],
-                          "figures": pngs,
-                          "files": {name: base64.b64encode((self.out / name).read_bytes()).decode() for name in files}}
-                self.written += [self.out / name for name in files]
-                self.cache.put(key, stored)
-            else:
-                self.outcome.figures_cached += 1
-                for name in files:
-                    self.write(name, base64.b64decode(stored["files"][name]))
-            self.outcome.sections += [(title, self.out / png, text) for title, png, text in stored["sections"]]
-            self.outcome.figures += [self.out / name for name in stored["figures"]]
+            sections = self._draw(figure, pngs, data, traces, cycles)
+            self.written += [self.out / f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
+            self.outcome.sections += [(title, self.out / png.name, text) for title, png, text in sections]
+            self.outcome.figures += [self.out / png for png in pngs]
 
     def figure_names(self, figure):
         """The PNG file names a figure writes (each with an SVG twin), known before drawing."""
@@ -545,21 +593,35 @@ class SceneRun:
         plots.scene_figure(self.out, figure, data, traces, self.scene)
         return []
 
-    def write_summary(self, data, cycles, studies=None):
-        o, scene = self.outcome, self.scene
-        lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
+    def counts(self):
+        """The summary's line saying where the results came from and how long the run took."""
+        o = self.outcome
+        cache = f"Cache: {self.cache.root or 'off'}."
+        if o.copied:
+            return (f"{o.points} DF points; every output copied from the cache, as an earlier run of this same "
+                    f"scene (the same points, code and FMUs) wrote it; {o.seconds:.2f} s. {cache}")
         # every DF point is computed, resumed or a cache hit; cache_hits also counts traces and judge runs
         df_hits = o.points - o.computed - o.resumed
         others = o.cache_hits - df_hits
-        lines += [f"{o.points} DF points: {o.computed} computed on {self.executor.name}, {df_hits} from the "
-                  f"cache, {o.resumed} resumed from this folder"
-                  + (f"; {others} time trace(s) and closed-loop run(s) from the cache" if others else "")
-                  + (f", {o.rejected} cache entries rejected (corrupt or another version) and recomputed"
-                     if o.rejected else "")
-                  + (f"; {o.figures_cached} figure(s) copied from the cache" if o.figures_cached else "")
-                  + f"; {o.seconds:.2f} s ({phase_times(o.phases)}). Cache: {self.cache.root or 'off'}.", "",
-                  "Results: `results.csv` (one row per point) and `results.json`"
-                  + (", time traces in `traces/`." if scene.trace else "."), ""]
+        return (f"{o.points} DF points: {o.computed} computed on {self.executor.name}, {df_hits} from the "
+                f"cache, {o.resumed} resumed from this folder"
+                + (f"; {others} time trace(s) and closed-loop run(s) from the cache" if others else "")
+                + (f", {o.rejected} cache entries rejected (corrupt or another version) and recomputed"
+                   if o.rejected else "")
+                + f"; {o.seconds:.2f} s ({phase_times(o.phases)}). {cache}")
+
+    def write_summary(self, body):
+        """summary.md: the scene's title and description, :meth:`counts`, then ``body`` (its lines)."""
+        scene = self.scene
+        lines = [f"# {scene.title}", ""] + ([scene.description.strip(), ""] if scene.description.strip() else [])
+        self.write("summary.md", "\n".join(lines + [self.counts(), ""] + body) + "\n")
+
+    def summary_body(self, data, cycles, studies=None):
+        """The lines of summary.md after its counts: the outputs, the figures, each series' points (a
+        sample), the limit cycles and the studies."""
+        o, scene = self.outcome, self.scene
+        lines = ["Results: `results.csv` (one row per point) and `results.json`"
+                 + (", time traces in `traces/`." if scene.trace else "."), ""]
         for title, png, text in o.sections:
             lines += [f"## {title}", "", f"![{title}]({png.name})", "", text, ""]
         shown = {png.name for _, png, _ in o.sections}
@@ -581,7 +643,21 @@ class SceneRun:
         for name, r in (studies or {}).items():
             what = "Continuation" if name in {c.name for c in self.scene.continuation} else "Hunting map"
             lines += ["", f"## {what}: {name}", "", "```", r.summary(), "```"]
-        self.write("summary.md", "\n".join(lines) + "\n")
+        return lines
+
+
+def _trace_columns(value, outputs):
+    """A cached trace's columns in the scene's order (time, then ``outputs``), or None if the entry is not
+    such a trace (the JSON of the cache sorts keys; a foreign entry is simulated again)."""
+    names = ["time"] + list(outputs)
+    if not isinstance(value, dict) or sorted(value) != sorted(names):
+        return None
+    columns = {name: value[name] for name in names}
+    sizes = {len(column) if isinstance(column, list) else -1 for column in columns.values()}
+    if len(sizes) != 1 or -1 in sizes or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                 for column in columns.values() for x in column):
+        return None
+    return columns
 
 
 def _staged(display, name, skip=None):
@@ -633,16 +709,6 @@ class _CachedEngine:
             self.computed += 1
         self.run.values[name] = value
         return DFResult.from_dict(dict(value, params=params))
-
-
-def _names_match(stored, pngs, files):
-    """Whether a cached figure entry names exactly the files of its figure (and is shaped as written)."""
-    try:
-        return (stored["figures"] == pngs and sorted(stored["files"]) == sorted(files)
-                and all(isinstance(text, str) for text in stored["files"].values())
-                and all(png in pngs for _, png, _ in stored["sections"]))
-    except (KeyError, TypeError, ValueError, AttributeError):
-        return False
 
 
 def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=None, progress=True):
