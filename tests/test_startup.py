@@ -109,6 +109,6 @@ def test_a_run_says_where_its_time_went(fmus, tmp_path):
     outcome = run_scene(parse_scene(FIGURE_SCENE), tmp_path / "out", jobs=1, cache=tmp_path / "cache",
                         fmu_dir=fmus["FrictionMass"].parent)
     assert {"start", "points", "traces", "limit cycles", "results", "figures"} == set(outcome.phases)
-    assert 0.0 < sum(outcome.phases.values()) <= outcome.seconds
+    assert 0.0 < sum(outcome.phases.values()) <= outcome.seconds + 1e-9  # the phases add up to the run
     assert outcome.phases["figures"] > 0.0 and "figures" in phase_times(outcome.phases)
     assert phase_times(outcome.phases) in (tmp_path / "out" / "summary.md").read_text()

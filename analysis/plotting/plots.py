@@ -175,8 +175,8 @@ def nyquist_panel(ax, curves, title, marks=()):
     ax = get_axes(ax, figsize=(6.5, 5))
     lines = nyquist(ax, curves, marks)
     if lines:
-        ax.legend(fontsize=7)
-    ax.set_title(title, fontsize=9)
+        ax.legend(fontsize=LEGEND_SIZE)
+    ax.set_title(title, fontsize=TITLE_SIZE)
     return lines
 
 
@@ -192,9 +192,9 @@ def scene_figure(out_dir, figure, data, traces, scene):
                     ax.plot(traces[name]["time"], traces[name][output], lw=1, label=name)
             ax.set_ylabel(output)
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=7)
+            ax.legend(fontsize=LEGEND_SIZE)
         axes[-1, 0].set_xlabel("t [s]")
-        axes[0, 0].set_title(title, fontsize=9)
+        axes[0, 0].set_title(title, fontsize=TITLE_SIZE)
         ax = axes[0, 0]
     elif figure.kind == "harmonics":
         curves = curves_of(data, figure.series)
@@ -202,13 +202,13 @@ def scene_figure(out_dir, figure, data, traces, scene):
         for ax, (label, rows, _) in zip(axes[0], curves):
             mesh = harmonic_map(ax, rows, label)
         fig.colorbar(mesh, ax=axes[0].tolist(), label="log10 (|X_k| / 1 m)")
-        fig.suptitle(title, fontsize=9)
+        fig.suptitle(title, fontsize=TITLE_SIZE)
         ax = axes[0, 0]
     elif figure.kind == "re_im":
         fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
         re_im_loglog(axes, curves_of(data, figure.series))
-        axes[0].legend(fontsize=7)
-        axes[0].set_title(title, fontsize=9)
+        axes[0].legend(fontsize=LEGEND_SIZE)
+        axes[0].set_title(title, fontsize=TITLE_SIZE)
         ax = axes[0]
     else:
         fig, ax = plt.subplots(figsize=(6.5, 5))

@@ -88,8 +88,12 @@ def _remove_shipped():
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def _orphan_watch(parent):
-    """In a worker process: exit as soon as the parent (the dfwb run) is gone, even after a ``kill -9``."""
+def orphan_watch(parent=None):
+    """In a worker process: exit as soon as the parent (the dfwb run) is gone, even after a ``kill -9``.
+
+    ``parent``: the process to outlive; default this process's parent when it starts (a fork server's
+    child watches the server, which ends with the run)."""
+    parent = os.getppid() if parent is None else parent
 
     def watch():
         while os.getppid() == parent:
@@ -190,7 +194,7 @@ class Executor:
             if self._pool is None:
                 self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
                                                          multiprocessing.get_context("spawn"),
-                                                         initializer=_orphan_watch, initargs=(os.getpid(),))
+                                                         initializer=orphan_watch, initargs=(os.getpid(),))
             waiting = {self._pool.submit(function, chunk): chunk for chunk in chunks}
             try:
                 for future in futures.as_completed(waiting):

@@ -12,8 +12,9 @@ from pathlib import Path
 
 from dfwb.base.files import read_bytes, write_atomic
 from dfwb.plants.closed_forms import validity_frequencies
+from dfwb.studies.drawing import Drawing
 from dfwb.studies.paper import EPS_FIG8, EPS_FIG9, FRICTION_F
-from dfwb.studies.runner import phase_times, run_scene
+from dfwb.studies.runner import begin_scene, phase_times
 from dfwb.studies.scene import load_scene, shipped_scenes
 
 __all__ = ["run_paper", "paper_scenes", "write_report", "timing_line"]
@@ -111,8 +112,16 @@ def run_paper(out_dir="out/paper", jobs=None, fmu_dir=None, progress=True, repor
     sections = []
     computed = 0
     phases = {}
-    for path, scene in paper_scenes():
-        outcome = run_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress)
+    runs = []
+    with Drawing(jobs) as drawing:  # each scene's figure is drawn while the next scene computes
+        try:
+            for path, scene in paper_scenes():
+                runs.append(begin_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress, drawing))
+            outcomes = [run.finish() for run in runs]
+        finally:
+            for run in runs:
+                run.close()
+    for outcome in outcomes:
         sections += outcome.sections
         computed += outcome.computed
         for name, value in outcome.phases.items():

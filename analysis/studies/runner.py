@@ -21,6 +21,7 @@ figures and ``summary.md`` are each written atomically.
 """
 
 import base64
+import contextlib
 import csv
 import dataclasses
 import functools
@@ -137,6 +138,7 @@ class SceneRun:
         self.map_rows = []  # CSV rows of the limit cycles' DF maps
         self.log = RunLog(self.out / "results.csv", RUN_COLUMNS, max_rows=MAX_LOG_ROWS)
         self.written = []  # output files of this run (the manifest lists them)
+        self._lock = contextlib.ExitStack()  # the folder's lock, from begin() to finish()
 
     # -- DF points ----------------------------------------------------------------------
     def settings(self, harmonics):
@@ -370,59 +372,96 @@ class SceneRun:
                                 "sections": [(title, png.name, text) for title, png, text in o.sections]}}
         write_atomic(self.out / MANIFEST, json.dumps(document, indent=1))
 
-    def run(self):
-        started = self.started = time.perf_counter()
+    def run(self, drawing=None):
+        """Run the scene; return its :class:`Outcome` (:meth:`begin`, then :meth:`finish`)."""
+        self.begin(drawing)
+        return self.finish()
+
+    def begin(self, drawing=None):
+        """Compute what the scene needs and write its results; its figures are drawn here, or handed to
+        ``drawing`` (a :class:`~dfwb.studies.drawing.Drawing`), which :meth:`finish` waits for. The folder
+        stays locked until then (:meth:`close`)."""
+        started = self.started = self._mark = time.perf_counter()
         scene = self.scene
+        self._done = None
         table = _Points(self, self.settings(HARMONICS if scene.needs_harmonics else 1))
         points = [(p.plant, p.F, p.omega, self.specs[p.plant].checked(p.params)) for p in scene.points()]
         fingerprint = self.fingerprint(table, points)
         done = self.up_to_date(fingerprint)
         if done is not None:
             done.seconds = time.perf_counter() - started
-            return done
+            self._done = done
+            return self
         if self.out.exists() and not self.out.is_dir():
             raise RunError(f"--out {self.out} is a file, not a folder")
-        with folder_lock(self.out):  # one run at a time writes here
+        self._lock.enter_context(folder_lock(self.out))  # one run at a time writes here
+        try:
             (self.out / MANIFEST).unlink(missing_ok=True)  # from here on the folder is being changed
             if self.copy(fingerprint):
                 self.write_manifest(fingerprint)
-                return self.outcome
-            phases, mark = self.outcome.phases, [time.perf_counter()]
-
-            def lap(name):
-                now = time.perf_counter()
-                phases[name] = phases.get(name, 0.0) + now - mark[0]
-                mark[0] = now
-
-            lap("start")  # the scene, the cache, the FMUs' revisions, the fingerprint
+                self._done = self.outcome
+                return self
+            self.lap("start")  # the scene, the cache, the FMUs' revisions, the fingerprint
             with Display(self.progress, scene.title) as display:
                 self.compute_points(points, table, display, "DF points")
-                lap("points")
+                self.lap("points")
                 traces = self.traces(display)
-                lap("traces")
+                self.lap("traces")
                 cycles = self.limit_cycles(display)
-                lap("limit cycles")
+                self.lap("limit cycles")
                 studies = {}  # a scene without them loads neither (nor numpy)
                 if scene.continuation:
                     studies.update(self.continuations(display))
-                    lap("continuations")
+                    self.lap("continuations")
                 if scene.map:
                     studies.update(self.maps(display))
-                    lap("maps")
+                    self.lap("maps")
             data, csv_rows = self.series_rows(table)
             self.outcome.points = len(self.values)
             self.write_results(data, csv_rows, traces, cycles, studies)
-            lap("results")
-            self.draw(data, traces, dict(cycles, **studies))
-            lap("figures")
+            self.lap("results")
+            self._drawn = self.draw(data, traces, dict(cycles, **studies), drawing)
+            self.lap("figures")  # drawn here, or handed to the drawing processes
+            self._rest = (fingerprint, data, cycles, studies)
+            self._ended = time.perf_counter()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def finish(self):
+        """Wait for the figures, write the summary, the manifest and the run's cache record; unlock."""
+        try:
+            if self._done is not None:
+                return self._done
+            fingerprint, data, cycles, studies = self._rest
+            self._mark = time.perf_counter()  # the time since begin() went to other work (other scenes')
+            elsewhere = self._mark - self._ended
+            for pngs, sections in self._drawn:
+                sections = sections.result() if hasattr(sections, "result") else sections
+                self.outcome.sections += [(title, self.out / Path(png).name, text) for title, png, text in sections]
+                self.outcome.figures += [self.out / png for png in pngs]
+            self.lap("figures")  # drawing, or waiting for the drawing processes
             self.outcome.rejected = self.cache.rejected + self.log.rejected
-            self.outcome.seconds = time.perf_counter() - started
+            self.outcome.seconds = time.perf_counter() - self.started - elsewhere
             body = self.summary_body(data, cycles, studies)
             self.write_summary(body)
             if not self.outcome.failed:  # with points missing, the next run is not up to date: it tries them again
                 self.write_manifest(fingerprint)
                 self.store(fingerprint, body)
-        return self.outcome
+            return self.outcome
+        finally:
+            self.close()
+
+    def close(self):
+        """Unlock the folder (a run that failed, or was begun and is given up)."""
+        self._lock.close()
+
+    def lap(self, name):
+        """Add the time since the last lap to the phase ``name``."""
+        now = time.perf_counter()
+        self.outcome.phases[name] = self.outcome.phases.get(name, 0.0) + now - self._mark
+        self._mark = now
 
     # -- a whole run from the cache -----------------------------------------------------------------
     def output_names(self):
@@ -555,14 +594,16 @@ class SceneRun:
                              for name, r in (studies or {}).items() if name in {m.name for m in self.scene.map}}}
         self.write("results.json", json.dumps(document))
 
-    def draw(self, data, traces, cycles):
-        """Draw each figure (PNG and SVG) and note its sections and files."""
+    def draw(self, data, traces, cycles, drawing=None):
+        """[(PNG names, sections)] of the scene's figures, drawn here, or handed to ``drawing`` (then the
+        sections are a Future): each figure written as PNG and SVG."""
+        drawn = []
         for figure in self.scene.figure:
             pngs = self.figure_names(figure)
-            sections = self._draw(figure, pngs, data, traces, cycles)
+            job = (self.out, self.scene, figure, pngs, data, traces, cycles)
+            drawn.append((pngs, draw_figure(*job) if drawing is None else drawing.submit(draw_figure, *job)))
             self.written += [self.out / f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
-            self.outcome.sections += [(title, self.out / png.name, text) for title, png, text in sections]
-            self.outcome.figures += [self.out / png for png in pngs]
+        return drawn
 
     def figure_names(self, figure):
         """The PNG file names a figure writes (each with an SVG twin), known before drawing."""
@@ -571,27 +612,6 @@ class SceneRun:
         if figure.kind in ("limit_cycle", "continuation", "map"):
             return [f"{figure.name}_{name}.png" for name in figure.series]
         return [f"{figure.name}.png"]
-
-    def _draw(self, figure, pngs, data, traces, cycles):
-        """Draw one figure into the files ``pngs`` (and SVGs); return its [(title, png, markdown)] sections."""
-        from dfwb.plotting import plots
-        from dfwb.studies.paper import Paper
-
-        if figure.kind == "paper":
-            paper = Paper(self.out, data, traces)
-            try:
-                getattr(paper, figure.paper)()
-            except (ArithmeticError, IndexError, KeyError, ValueError) as error:
-                raise RunError(f"figure {figure.name}: the paper's {figure.paper} cannot be drawn from this "
-                                   f"scene's points ({type(error).__name__}: {error}); it expects those of "
-                                   f"scenes/{PAPER_FIGURES[figure.paper].file}.toml") from None
-            return paper.sections
-        if figure.kind in ("limit_cycle", "continuation", "map"):
-            for name, png in zip(figure.series, pngs):
-                cycles[name].figure(self.out / png)
-            return []
-        plots.scene_figure(self.out, figure, data, traces, self.scene)
-        return []
 
     def counts(self):
         """The summary's line saying where the results came from and how long the run took."""
@@ -644,6 +664,29 @@ class SceneRun:
             what = "Continuation" if name in {c.name for c in self.scene.continuation} else "Hunting map"
             lines += ["", f"## {what}: {name}", "", "```", r.summary(), "```"]
         return lines
+
+
+def draw_figure(out, scene, figure, pngs, data, traces, cycles):
+    """Draw one figure of ``scene`` into the files ``pngs`` (and SVGs) in ``out``; return its
+    [(title, png, markdown)] sections (a module function: drawing processes run it too)."""
+    from dfwb.plotting import plots
+    from dfwb.studies.paper import Paper
+
+    if figure.kind == "paper":
+        paper = Paper(out, data, traces)
+        try:
+            getattr(paper, figure.paper)()
+        except (ArithmeticError, IndexError, KeyError, ValueError) as error:
+            raise RunError(f"figure {figure.name}: the paper's {figure.paper} cannot be drawn from this "
+                           f"scene's points ({type(error).__name__}: {error}); it expects those of "
+                           f"scenes/{PAPER_FIGURES[figure.paper].file}.toml") from None
+        return paper.sections
+    if figure.kind in ("limit_cycle", "continuation", "map"):
+        for name, png in zip(figure.series, pngs):
+            cycles[name].figure(out / png)
+        return []
+    plots.scene_figure(out, figure, data, traces, scene)
+    return []
 
 
 def _trace_columns(value, outputs):
@@ -726,6 +769,12 @@ def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=Non
     cache : bool or path
         True: ``$XDG_CACHE_HOME/dfwb`` (else ``~/.cache/dfwb``); a path; False: no cache.
     """
+    return begin_scene(scene, out_dir, jobs, dask, cache, fmu_dir, progress).finish()
+
+
+def begin_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=None, progress=True, drawing=None):
+    """:func:`run_scene` up to its figures, which ``drawing`` draws meanwhile: the :class:`SceneRun`, whose
+    ``finish()`` gives the Outcome (and ``close()`` gives the run up)."""
     if not isinstance(scene, Scene):
         path = Path(scene)
         scene = load_scene(path)
@@ -733,7 +782,7 @@ def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=Non
     if out_dir is None:
         raise InputError("out_dir is required when the scene is not a file")
     with Executor(jobs, dask) as executor:
-        return SceneRun(scene, out_dir, executor, open_cache(cache), fmu_dir, progress).run()
+        return SceneRun(scene, out_dir, executor, open_cache(cache), fmu_dir, progress).begin(drawing)
 
 
 __all__ = ["run_scene", "Outcome", "Point"]
