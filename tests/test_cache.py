@@ -67,3 +67,24 @@ def test_no_cache_finds_and_keeps_nothing():
     off = NoCache()
     off.put(KEY, VALUE)
     assert off.get(KEY) is None and off.misses == 1
+
+
+def test_entries_written_in_the_background_are_all_there_when_writing_ends(tmp_path):
+    cache = Cache(tmp_path)
+    keys = [dict(KEY, F=float(n)) for n in range(50)]
+    with cache.writing():
+        for n, key in enumerate(keys):
+            cache.put(key, dict(VALUE, N_re=float(n)))
+        assert cache.get(keys[7]) == dict(VALUE, N_re=7.0)  # a pending entry is read once written
+    assert [cache.get(key)["N_re"] for key in keys] == [float(n) for n in range(50)]
+    assert not list(tmp_path.rglob("*.partial")) and cache.failed == 0
+
+
+def test_a_cache_that_cannot_be_written_in_the_background_warns_once_when_writing_ends(tmp_path):
+    (tmp_path / "cache").write_text("a file where the cache's folder belongs")
+    cache = Cache(tmp_path / "cache")
+    with pytest.warns(cache_module.CacheWarning, match="cannot be written") as caught:
+        with cache.writing():
+            for n in range(3):
+                cache.put(dict(KEY, F=float(n)), VALUE)  # never raises
+    assert len(caught) == 1 and cache.failed == 3 and cache.get(KEY) is None

@@ -24,6 +24,7 @@ RE_INVERSE = "Re{-1/N} [N/m]"
 IM_INVERSE = "Im{-1/N} [N/m]"
 OMEGA = "omega [rad/s]"
 TITLE_SIZE = "medium"  # the tick labels' size (rc xtick.labelsize): a smaller title reads as a footnote
+DPI = 120  # of the PNGs
 LEGEND_SIZE = "small"  # a legend readable beside the ticks, not 7 points
 
 
@@ -136,11 +137,12 @@ def vertical_marks(ax, frequencies):
 
 def save(figure, out_dir, name):
     """PNG and SVG of a figure; returns the PNG path."""
+    figure.set_dpi(DPI)  # laid out at the PNG's resolution: the PNG reuses the text metrics of the layout
     if figure.get_layout_engine() is None:
         figure.tight_layout()
     for kind in ("png", "svg"):  # atomically: an interrupted run never leaves half a figure
         buffer = io.BytesIO()
-        figure.savefig(buffer, dpi=120, format=kind)
+        figure.savefig(buffer, dpi=DPI, format=kind)
         write_atomic(out_dir / f"{name}.{kind}", buffer.getvalue())
         figure.set_layout_engine("none")  # laid out by the first save: the second keeps that layout
     plt.close(figure)

@@ -25,6 +25,7 @@ True
 ({'y': 2.0}, 1, 0)
 """
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -116,6 +117,7 @@ class Cache:
         self.root = Path(directory) if directory is not None else default_dir()
         self.dir = self.root / f"v{FORMAT}"
         self.hits = self.misses = self.rejected = self.failed = 0
+        self._writer, self._pending = None, {}  # within writing(): the thread, and {path: Future} of its writes
 
     def _path(self, text):
         name = hashlib.sha256(text.encode()).hexdigest()
@@ -125,6 +127,8 @@ class Cache:
         """The value stored under ``key``, or None (missing, corrupt or not this version's)."""
         text = canonical(key)
         path = self._path(text)
+        if path in self._pending:
+            self._pending[path].result()  # written by the background thread: read once it is
         try:
             head, _, body = read_bytes(path, MAX_ENTRY, "cache entry").partition(b"\n")
             entry = json.loads(head)
@@ -147,19 +151,52 @@ class Cache:
 
         The file is one header line (format, the key's canonical text, the SHA-256 of the value's text)
         and the value's text: a reader checks all three without serialising anything again. A cache that
-        cannot be written (read-only, full, a folder where an entry belongs) costs a warning, not a result."""
+        cannot be written (read-only, full, a folder where an entry belongs) costs a warning, not a result.
+        Within :meth:`writing`, the file is written by a background thread."""
         body = canonical(value).encode()
         head = json.dumps({"format": FORMAT, "key": canonical(key), "sha256": hashlib.sha256(body).hexdigest()})
-        path = self._path(canonical(key))
+        path, data = self._path(canonical(key)), head.encode() + b"\n" + body
+        if self._writer is None:
+            self._warn(self._write(path, data))
+        else:
+            self._pending[path] = self._writer.submit(self._write, path, data)
+
+    @contextlib.contextmanager
+    def writing(self):
+        """Within: entries are written by one background thread, so that computing goes on while the file
+        system creates their files (slow on some); every entry is written when it ends, and a failure
+        warns then."""
+        if self._writer is not None:  # already within
+            yield self
+            return
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._writer = ThreadPoolExecutor(1, thread_name_prefix="dfwb-cache")
+        try:
+            yield self
+        finally:
+            writer, self._writer = self._writer, None
+            writer.shutdown(wait=True)
+            pending, self._pending = self._pending, {}
+            for future in pending.values():
+                self._warn(future.result())
+
+    def _write(self, path, data):
+        """Write one entry; the OSError that stopped it, or None."""
         try:
             ensure_folder(path.parent)
-            write_atomic(path, head.encode() + b"\n" + body)
+            write_atomic(path, data)
         except OSError as error:
+            return error
+        return None
+
+    def _warn(self, error):
+        if error is not None:
             self.failed += 1
             if self.failed == 1:
                 warnings.warn(f"the cache {self.root} cannot be written ({error.filename}: "
                               f"{error.strerror or error}); results are kept, not cached", CacheWarning,
-                              stacklevel=2)
+                              stacklevel=3)
 
 
 class CacheWarning(UserWarning):
@@ -178,6 +215,9 @@ class NoCache:
 
     def put(self, key, value):
         pass
+
+    def writing(self):
+        return contextlib.nullcontext(self)
 
 
 def open_cache(cache):

@@ -13,6 +13,7 @@ drawn raises its error where the run waits for it (:meth:`Future.result`).
 import concurrent.futures as futures
 import multiprocessing
 import os
+from multiprocessing import forkserver
 
 from dfwb.studies.executor import orphan_watch
 
@@ -26,15 +27,19 @@ class Drawing:
         self.jobs = max(1, jobs or os.cpu_count() or 1)
         self._pool = None
 
-    def submit(self, function, *args):
-        """``function(*args)`` in a drawing process: a Future of its result."""
+    def prepare(self):
+        """Start the fork server, which loads matplotlib and the plots meanwhile: call it when a figure is
+        sure to come, before the computing that precedes it (a run that draws nothing never starts it)."""
         if self._pool is None:
-            from dfwb.plotting.backend import use_batch_backend
-
-            use_batch_backend()  # the server, and the processes it forks, inherit the batch backend
+            os.environ["MPLBACKEND"] = "Agg"  # the server, and the processes it forks, draw into files
             context = multiprocessing.get_context("forkserver")
             context.set_forkserver_preload(PRELOAD)
+            forkserver.ensure_running()  # returns at once; the server imports PRELOAD on its own
             self._pool = futures.ProcessPoolExecutor(self.jobs, context, initializer=orphan_watch)
+
+    def submit(self, function, *args):
+        """``function(*args)`` in a drawing process: a Future of its result."""
+        self.prepare()
         return self._pool.submit(function, *args)
 
     def __enter__(self):

@@ -2,8 +2,9 @@
 
 Each figure is a scene, ``scenes/figNN_*.toml``: its DF series and time
 traces, and a figure of kind ``paper``. ``dfwb paper`` runs those scenes
-(:mod:`dfwb.studies.runner`, so shared points are computed once and a second run
-only redraws from the cache), draws figures 3-6 and 8-12 of docs/models.md with
+(:mod:`dfwb.studies.runner`, so shared points are computed once, each figure is
+drawn in a worker process while the next scene computes, and a second run
+copies each scene from the cache), draws figures 3-6 and 8-12 of docs/models.md with
 the paper's axes, parameters and labels, and writes ``report.md``: the
 figures, the validity frequencies, the DF values behind each figure, and
 what the data say about each statement of the paper, measured, not asserted.
@@ -17,12 +18,10 @@ import numpy as np
 from dfwb.base.text import parameters
 from dfwb.plants.closed_forms import static_backlash_plant_df, validity_frequencies
 from dfwb.plotting import plots
+from dfwb.studies.scene import EPS_FIG8, EPS_FIG9, FRICTION_F
 
-FRICTION_F = [10.0, 20.0, 30.0, 40.0, 50.0]
 FRICTION_MARKS = [30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0]
 BACKLASH_MARKS = [15.0, 20.0, 25.0, 30.0, 35.0, 40.0]
-EPS_FIG8 = [0.1, 0.3, 0.5, 0.7, 0.9]
-EPS_FIG9 = [0.2, 0.8]
 KARNOPP_DV = [1e-2, 1e-3]
 
 

@@ -6,6 +6,7 @@ only orders the scenes, collects the figures' sections and writes
 ``report.md``.
 """
 
+import contextlib
 import re
 import time
 from pathlib import Path
@@ -13,9 +14,8 @@ from pathlib import Path
 from dfwb.base.files import read_bytes, write_atomic
 from dfwb.plants.closed_forms import validity_frequencies
 from dfwb.studies.drawing import Drawing
-from dfwb.studies.paper import EPS_FIG8, EPS_FIG9, FRICTION_F
 from dfwb.studies.runner import begin_scene, phase_times
-from dfwb.studies.scene import load_scene, shipped_scenes
+from dfwb.studies.scene import EPS_FIG8, EPS_FIG9, FRICTION_F, load_scene, shipped_scenes
 
 __all__ = ["run_paper", "paper_scenes", "write_report", "timing_line"]
 
@@ -113,7 +113,8 @@ def run_paper(out_dir="out/paper", jobs=None, fmu_dir=None, progress=True, repor
     computed = 0
     phases = {}
     runs = []
-    with Drawing(jobs) as drawing:  # each scene's figure is drawn while the next scene computes
+    drawing = Drawing(jobs) if jobs != 1 else None  # each scene's figure drawn while the next scene computes
+    with drawing or contextlib.nullcontext():
         try:
             for path, scene in paper_scenes():
                 runs.append(begin_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress, drawing))

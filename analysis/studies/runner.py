@@ -401,8 +401,10 @@ class SceneRun:
                 self.write_manifest(fingerprint)
                 self._done = self.outcome
                 return self
+            if drawing is not None and scene.figure:
+                drawing.prepare()  # its processes get ready while this scene computes
             self.lap("start")  # the scene, the cache, the FMUs' revisions, the fingerprint
-            with Display(self.progress, scene.title) as display:
+            with self.cache.writing(), Display(self.progress, scene.title) as display:
                 self.compute_points(points, table, display, "DF points")
                 self.lap("points")
                 traces = self.traces(display)

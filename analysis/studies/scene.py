@@ -151,6 +151,9 @@ class PaperFigure:
     harmonics: bool = False
 
 
+FRICTION_F = [10.0, 20.0, 30.0, 40.0, 50.0]  # the paper's forces of Fig. 3-6 [N]
+EPS_FIG8 = [0.1, 0.3, 0.5, 0.7, 0.9]  # its gap ratios of Fig. 8 and 9 (the report's validity table needs them
+EPS_FIG9 = [0.2, 0.8]  # without loading the plots)
 PAPER_FIGURES = {  # the paper's figures (dfwb.studies.paper draws them), by id
     "fig03": PaperFigure("fig03_friction_nyquist", {"friction": "friction", "friction_linear": "friction"}),
     "fig04": PaperFigure("fig04_friction_re_im", {"friction": "friction", "friction_linear": "friction",
