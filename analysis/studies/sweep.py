@@ -283,7 +283,7 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
                 cached.append(record)
         jobs = max(1, min(jobs or os.cpu_count() or 1, len(pending) or 1))
         computed = 0
-        with log, Display(progress, f"DF sweep of {plant} into {out_dir}") as display:
+        with log, store.writing(), Display(progress, f"DF sweep of {plant} into {out_dir}") as display:
             task = display.add("DF points", len(points), len(points) - len(pending), len(cached))
             log.append([to_row(r) for r in cached])
             last_json = time.monotonic()
