@@ -2,6 +2,13 @@
 next scene computes: the same figures as drawn in the run's process, a figure's error raised where the
 run waits for it, and the folder unlocked either way."""
 
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import pytest
 from test_hardening import FIGURE_SCENE
 
@@ -52,3 +59,55 @@ def test_a_figure_that_fails_in_a_drawing_process_fails_the_run_and_unlocks_the_
     again = run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "out", jobs=1, cache=False, fmu_dir=folder,
                       progress=False)  # the folder is free again
     assert again.points == 2 and (tmp_path / "out" / "nyquist.png").exists()
+
+
+def _children(pid):
+    """The pids of the processes whose parent is ``pid`` (from /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry.name))
+    return found
+
+
+def _alive(pid):
+    try:
+        state = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_the_drawing_processes_end_when_the_run_is_killed(fmus, tmp_path):
+    """kill -9 of ``dfwb paper`` skips every cleanup: its fork server and drawing processes still end."""
+    command = [sys.executable, "-m", "dfwb.cli", "paper", "--quiet", "--out", str(tmp_path / "p"),
+               "--cache", str(tmp_path / "c"), "--fmus", str(fmus["FrictionMass"].parent)]
+    run = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        drawing = []
+        for _ in range(300):  # until the fork server has forked its drawing processes (at most 30 s)
+            servers = [pid for pid in _children(run.pid)
+                       if b"forkserver" in (Path("/proc") / str(pid) / "cmdline").read_bytes()]
+            drawing = [(server, _children(server)) for server in servers]
+            if any(children for _, children in drawing) or run.poll() is not None:
+                break
+            time.sleep(0.1)
+        assert run.poll() is None and drawing, "the run ended before it drew"
+        os.kill(run.pid, signal.SIGKILL)
+        run.wait()
+        left = [pid for server, children in drawing for pid in [server, *children]]
+        for _ in range(100):  # the orphan watch looks every 0.5 s
+            left = [pid for pid in left if _alive(pid)]
+            if not left:
+                break
+            time.sleep(0.1)
+        assert left == []
+    finally:
+        if run.poll() is None:
+            run.kill()

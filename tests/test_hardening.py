@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from dfwb.base import files as dfwb_files
 from dfwb.base.files import FolderBusy, file_digest, folder_lock, inside, write_atomic
 from dfwb.cli import main
 from dfwb.studies.cache import Cache
@@ -85,7 +86,8 @@ def _sign(path, head, value):
     path.write_bytes(json.dumps(header).encode() + b"\n" + body)
 
 
-@pytest.mark.parametrize("craft", ["outside", "extra", "section", "base64", "points"])
+@pytest.mark.parametrize("craft", ["outside", "extra", "section", "base64", "points", "summary", "negative",
+                                   "figures"])
 def test_a_crafted_run_record_cannot_write_outside_the_folder_nor_be_copied(fmus, tmp_path, craft):
     cache, out = tmp_path / "cache", tmp_path / "out"
     run_scene(parse_scene(FIGURE_SCENE, "f.toml"), out, jobs=1, cache=cache, progress=False)
@@ -99,6 +101,12 @@ def test_a_crafted_run_record_cannot_write_outside_the_folder_nor_be_copied(fmus
         value["sections"] = [["t", "../../outside.png", "text"]]
     elif craft == "base64":
         value["files"]["results.csv"] = "not base64!"
+    elif craft == "summary":  # a text, not a list of lines: its characters are strings too
+        value["summary"] = "x"
+    elif craft == "negative":
+        value["points"] = -5
+    elif craft == "figures":
+        value["figures"] = {"nyquist.png": 1}
     else:
         value["points"] = "12"
     _sign(path, head, value)
@@ -109,6 +117,30 @@ def test_a_crafted_run_record_cannot_write_outside_the_folder_nor_be_copied(fmus
     assert outcome.rejected == 1 and not outcome.copied and outcome.cache_hits == 2  # run: its 2 points cached
     assert (tmp_path / "second" / "nyquist.png").read_bytes()[:4] == b"\x89PNG"
     assert "1 cache entries rejected" in (tmp_path / "second" / "summary.md").read_text()
+
+
+def test_an_output_replaced_by_a_link_during_the_run_is_not_stored_in_the_cache(fmus, tmp_path):
+    from dfwb.studies.runner import begin_scene
+
+    secret, cache = tmp_path / "secret.txt", tmp_path / "cache"
+    secret.write_text("not for the cache")
+    run = begin_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "a", 1, None, cache,
+                      fmus["FrictionMass"].parent, False)
+    (tmp_path / "a" / "results.json").unlink()
+    (tmp_path / "a" / "results.json").symlink_to(secret)  # between the run's writing and its record
+    run.finish()
+    again = run_scene(parse_scene(FIGURE_SCENE, "f.toml"), tmp_path / "b", jobs=1, cache=cache, progress=False)
+    assert not again.copied and "not for the cache" not in (tmp_path / "b" / "results.json").read_text()
+
+
+def test_write_atomic_never_touches_the_process_umask(tmp_path, monkeypatch):
+    """Reading the umask sets it for a moment: a thread writing meanwhile would make a world-writable folder."""
+    def refuse(mask):
+        raise AssertionError("os.umask called while writing")
+
+    monkeypatch.setattr(os, "umask", refuse)
+    write_atomic(tmp_path / "f", b"x")
+    assert (tmp_path / "f").stat().st_mode & 0o777 == 0o644 & ~dfwb_files.UMASK
 
 
 def test_a_run_copied_from_the_cache_writes_what_the_run_wrote(fmus, tmp_path):

@@ -97,11 +97,27 @@ omega_range = [0.1, 50.0]
     (("F_range = [0.01, 100.0]", "F_range = [0.01]"), "limit_cycle[0].F_range: List should have at least 2"),
     (("omega_range = [0.1, 50.0]", "omega_range = [0.1, 50.0]\nsamples_per_period = 8"),
      "limit_cycle[0].samples_per_period: Input should be greater than or equal to 16"),
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"1/(s+1)**9\""),
+     "limit_cycle[0]: G(s) = 1/(s+1)**9 has order 9: the exact closed loop takes controllers of order 1..8"),
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"1e308*s/(1e-308*s+1)\""),
+     "divided by the leading denominator coefficient 1e-308 are not finite numbers"),
+    (("G = \"20*(s+2)/(s+20)\"", "num = [1e308]\nden = [1e-308, 1.0]"),
+     "limit_cycle[0]: G(s) = ([1e+308])/([1e-308, 1.0]): its coefficients divided by the leading"),
+    (("G = \"20*(s+2)/(s+20)\"", "G = \"10**400*s/(s+1)\""),
+     "the power 400 is not allowed: integer powers 0..20 only (write a large number out, e.g. 1e40)"),
 ])
 def test_a_bad_limit_cycle_names_the_problem(change, message):
     with pytest.raises(SceneError) as error:
         parse_scene(LIMIT_CYCLE.replace(*change), "lc.toml")
     assert message in str(error.value), str(error.value)
+
+
+def test_two_figures_cannot_write_the_same_file():
+    text = GOOD + '[[figure]]\nname = "a_b"\nkind = "nyquist"\nseries = ["s"]\n' + \
+        '[[limit_cycle]]\nname = "b"\nplant = "static-backlash"\nG = "20*(s+2)/(s+20)"\n' + \
+        '[[figure]]\nname = "a"\nkind = "limit_cycle"\nseries = ["b"]\n'
+    with pytest.raises(SceneError, match=r"figure\[1\]: figure a writes a_b.png, as figure a_b does: rename one"):
+        parse_scene(text, "f.toml")
 
 
 @pytest.mark.parametrize("figure, message", [

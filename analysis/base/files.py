@@ -102,22 +102,28 @@ def write_atomic(path, content):
     path = Path(path)
     data = content if isinstance(content, bytes) else content.encode()
     with named(path):
-        handle, partial = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+        partial = None
         try:
+            handle, partial = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
             with os.fdopen(handle, "wb") as stream:
                 stream.write(data)
-            os.chmod(partial, 0o644 & ~_umask())
+            os.chmod(partial, 0o644 & ~UMASK)
             os.replace(partial, path)
         except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(partial)
+            if partial is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(partial)
             raise
 
 
 def _umask():
+    """The process's umask (reading it sets it for a moment: done once, at import, before any thread)."""
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+UMASK = _umask()
 
 
 def open_append(path):
@@ -129,10 +135,12 @@ def open_append(path):
         return os.fdopen(descriptor, "a", newline="")
 
 
-def read_bytes(path, limit, what="file"):
-    """The bytes of a regular file of at most ``limit`` bytes (a device or a huge file is never read whole)."""
+def read_bytes(path, limit, what="file", follow=True):
+    """The bytes of a regular file of at most ``limit`` bytes (a device or a huge file is never read whole);
+    ``follow=False``: a symbolic link is refused (ELOOP)."""
     path = Path(path)
-    with named(path), os.fdopen(os.open(path, os.O_RDONLY | os.O_NONBLOCK), "rb") as stream:  # a FIFO never blocks
+    flags = os.O_RDONLY | os.O_NONBLOCK | (0 if follow else os.O_NOFOLLOW)  # a FIFO never blocks
+    with named(path), os.fdopen(os.open(path, flags), "rb") as stream:
         if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
             raise OSError(errno.EINVAL, f"not a regular file (a {what} is a file)", str(path))
         data = stream.read(limit + 1)

@@ -74,10 +74,14 @@ class _Fixed:
         from dfwb.engine.transfer import is_pair, pair_of, to_transfer_function
 
         self.pair, self.G = (pair_of(G), None) if is_pair(G) else (None, to_transfer_function(G))
-        self.text = "G(s)"
+        self.text = "G(s)" if self.pair is None else "({})/({})".format(*self.pair)
 
     def checked(self, values):
-        return self.pair if self.G is None else self.transfer_function(values)
+        if self.G is None:
+            return self.pair
+        from dfwb.engine.transfer import num_den
+
+        return num_den(self.G)
 
     def transfer_function(self, values):
         if self.G is None:
@@ -186,12 +190,16 @@ class LoopFamily:
     def check(self, values=None):
         """Refuse an improper or degenerate G at the values; an expression's or a (num, den)'s is checked
         without building a system (python-control is not imported)."""
+        from dfwb.engine.transfer import check_loop_controller, num_den
+
         checked = getattr(self.controller, "checked", None)
         merged = self._complete(values)
         if checked is None:
-            self.controller.transfer_function(merged)
+            num, den = num_den(self.controller.transfer_function(merged))
         else:
-            checked(merged)
+            num, den = checked(merged)
+        if self.spec.loop is not None:  # the exact closed loop is built of it
+            check_loop_controller(num, den, self.controller.text)
 
     def coefficients(self, values=None):
         """(num, den) of G at the values, highest power first: an expression's without building a checked

@@ -172,7 +172,9 @@ def _evaluate(node, text, values):
         left, right = _evaluate(node.left, text, values), _evaluate(node.right, text, values)
         if isinstance(node.op, ast.Pow):
             if isinstance(right, _Rational) or not (0 <= right <= MAX_DEGREE and right == int(right)):
-                raise InputError(f"G(s) = {text}: only integer powers 0..{MAX_DEGREE} of an expression are allowed")
+                power = "an expression in s" if isinstance(right, _Rational) else f"{right:g}"
+                raise InputError(f"G(s) = {text}: the power {power} is not allowed: integer powers 0..{MAX_DEGREE} "
+                                 "only (write a large number out, e.g. 1e40)")
             result = 1.0
             for _ in range(int(right)):
                 result = _checked_degree(result * left, text)
@@ -229,6 +231,21 @@ def check_coefficients(num, den, text):
     if len(den) == 1 and len(num) <= 1:
         raise InputError(f"G(s) = {text} has no s: a controller must depend on s")
     return num or [0.0], den
+
+
+def check_loop_controller(num, den, text):
+    """Refuse a checked G(s) that the exact closed loop cannot take: its order (the denominator's degree)
+    beyond the controller FMU's, or coefficients that overflow once the denominator is made monic."""
+    from dfwb.fmus.linear_system import MAX_ORDER
+
+    order = len(den) - 1
+    if not 1 <= order <= MAX_ORDER:
+        raise InputError(f"G(s) = {text} has order {order}: the exact closed loop takes controllers of order "
+                         f"1..{MAX_ORDER}")
+    scaled = [c / den[0] for c in list(num) + list(den)]
+    if not all(math.isfinite(c) for c in scaled):
+        raise InputError(f"G(s) = {text}: its coefficients divided by the leading denominator coefficient "
+                         f"{den[0]:g} are not finite numbers")
 
 
 def check_transfer_function(G, text=None):

@@ -13,11 +13,19 @@ drawn raises its error where the run waits for it (:meth:`Future.result`).
 import concurrent.futures as futures
 import multiprocessing
 import os
+import signal
 from multiprocessing import forkserver
 
 from dfwb.studies.executor import orphan_watch
 
 PRELOAD = ["dfwb.plotting.plots", "dfwb.studies.paper"]  # what every figure needs: imported once, in the server
+
+
+def _drawing_process(run):
+    """A drawing process's start: Ctrl-C is the run's to handle (it stops the pool), and the process ends
+    when the run does, however it ends."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    orphan_watch(run)
 
 
 class Drawing:
@@ -35,7 +43,8 @@ class Drawing:
             context = multiprocessing.get_context("forkserver")
             context.set_forkserver_preload(PRELOAD)
             forkserver.ensure_running()  # returns at once; the server imports PRELOAD on its own
-            self._pool = futures.ProcessPoolExecutor(self.jobs, context, initializer=orphan_watch)
+            self._pool = futures.ProcessPoolExecutor(self.jobs, context, initializer=_drawing_process,
+                                                     initargs=(os.getpid(),))
 
     def submit(self, function, *args):
         """``function(*args)`` in a drawing process: a Future of its result."""

@@ -88,15 +88,25 @@ def _remove_shipped():
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def orphan_watch(parent=None):
-    """In a worker process: exit as soon as the parent (the dfwb run) is gone, even after a ``kill -9``.
+def orphan_watch(parent):
+    """In a worker process: exit as soon as the dfwb run (process ``parent``) is gone, even after a ``kill -9``.
 
-    ``parent``: the process to outlive; default this process's parent when it starts (a fork server's
-    child watches the server, which ends with the run)."""
-    parent = os.getppid() if parent is None else parent
+    A pool's worker is the run's child; a fork server's is the server's, and the server outlives the run
+    while its children live: so a worker whose parent is not the run checks that the run still exists."""
+
+    def gone():
+        if os.getppid() == parent:
+            return False
+        try:
+            os.kill(parent, 0)
+        except ProcessLookupError:
+            return True
+        except PermissionError:  # a process of another user took its number: the run is gone
+            return True
+        return False
 
     def watch():
-        while os.getppid() == parent:
+        while not gone():
             time.sleep(0.5)
         os._exit(1)
 

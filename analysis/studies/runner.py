@@ -467,13 +467,14 @@ class SceneRun:
 
     # -- a whole run from the cache -----------------------------------------------------------------
     def output_names(self):
-        """The files of a run of this scene but its summary, as paths relative to the folder (a scene with
-        hunting maps has none: its maps keep their own folders and resume from them)."""
-        if self.scene.map:
+        """The files of a run of this scene but its summary, as paths relative to the folder; None for a scene
+        that is never copied whole: one with hunting maps (they keep their own folders and resume from them)
+        or with the limit cycles of a user's FMU (their points are not cached: one that failed is tried again)."""
+        if self.scene.map or any(lc.plant not in self.fmus for lc in self.scene.limit_cycle):
             return None
         names = ["results.csv", "results.json"] + [f"traces/{t.name}.csv" for t in self.scene.trace]
         for figure in self.scene.figure:
-            names += [f"{Path(png).stem}{suffix}" for png in self.figure_names(figure) for suffix in (".png", ".svg")]
+            names += [f"{Path(png).stem}{suffix}" for png in figure.pngs() for suffix in (".png", ".svg")]
         return names
 
     def store(self, fingerprint, body):
@@ -481,9 +482,12 @@ class SceneRun:
         names = self.output_names()
         if names is None or not isinstance(self.cache, Cache):
             return
-        files = {name: (self.out / name).read_bytes() for name in names}
-        if sum(map(len, files.values())) > MAX_RECORD:
+        try:  # what this run wrote: a file replaced by a link meanwhile is not followed
+            files = {name: read_bytes(self.out / name, MAX_RECORD, "run's output", follow=False) for name in names}
+        except OSError:
             return  # the points are cached one by one all the same
+        if sum(map(len, files.values())) > MAX_RECORD:
+            return
         o = self.outcome
         self.cache.put({"kind": "run", "run": fingerprint},
                        {"files": {name: base64.b64encode(data).decode() for name, data in files.items()},
@@ -503,11 +507,14 @@ class SceneRun:
             return False
         try:
             pngs = [name for name in names if name.endswith(".png")]
-            if sorted(stored["files"]) != sorted(names) or not set(stored["figures"]) <= set(pngs) \
-                    or not all(isinstance(line, str) for line in stored["summary"]) \
-                    or not all(png in pngs and isinstance(title, str) and isinstance(text, str)
-                               for title, png, text in stored["sections"]) \
-                    or isinstance(stored["points"], bool) or not isinstance(stored["points"], int):
+            if not (isinstance(stored["files"], dict) and sorted(stored["files"]) == sorted(names)
+                    and isinstance(stored["figures"], list) and all(png in pngs for png in stored["figures"])
+                    and isinstance(stored["summary"], list) and all(isinstance(line, str) for line in stored["summary"])
+                    and isinstance(stored["sections"], list)
+                    and all(isinstance(section, list) and len(section) == 3 and section[1] in pngs
+                            and isinstance(section[0], str) and isinstance(section[2], str)
+                            for section in stored["sections"])
+                    and type(stored["points"]) is int and stored["points"] >= 0):
                 raise ValueError("not this scene's record")
             files = {name: base64.b64decode(stored["files"][name], validate=True) for name in names}
         except (KeyError, TypeError, ValueError, AttributeError):  # binascii.Error is a ValueError
@@ -601,19 +608,11 @@ class SceneRun:
         sections are a Future): each figure written as PNG and SVG."""
         drawn = []
         for figure in self.scene.figure:
-            pngs = self.figure_names(figure)
+            pngs = figure.pngs()
             job = (self.out, self.scene, figure, pngs, data, traces, cycles)
             drawn.append((pngs, draw_figure(*job) if drawing is None else drawing.submit(draw_figure, *job)))
             self.written += [self.out / f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
         return drawn
-
-    def figure_names(self, figure):
-        """The PNG file names a figure writes (each with an SVG twin), known before drawing."""
-        if figure.kind == "paper":
-            return [f"{PAPER_FIGURES[figure.paper].file}.png"]
-        if figure.kind in ("limit_cycle", "continuation", "map"):
-            return [f"{figure.name}_{name}.png" for name in figure.series]
-        return [f"{figure.name}.png"]
 
     def counts(self):
         """The summary's line saying where the results came from and how long the run took."""

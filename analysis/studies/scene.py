@@ -454,6 +454,14 @@ class Figure:
     ylim: Optional[list] = rule(ListOf(Finite, min_length=2, max_length=2), None)
     paper: Optional[str] = rule(Text(), None)  # kind = "paper": the paper's figure, e.g. "fig03"
 
+    def pngs(self):
+        """The PNG file names this figure writes (each with an SVG twin), known before drawing."""
+        if self.kind == "paper":
+            return [f"{PAPER_FIGURES[self.paper].file}.png"]
+        if self.kind in ("limit_cycle", "continuation", "map"):
+            return [f"{self.name}_{name}.png" for name in self.series]
+        return [f"{self.name}.png"]
+
 
 @SECTION
 class Engine:
@@ -529,8 +537,14 @@ class Scene:
                 except InputError as error:
                     raise Invalid(str(error), ["series", i]) from None
         computed = Computed(self)
+        files = {}
         for i, figure in enumerate(self.figure):
             _check_figure(computed, i, figure)
+            for png in figure.pngs():  # (checked: a paper figure names one of PAPER_FIGURES)
+                if png in files:
+                    raise Invalid(f"figure {figure.name} writes {png}, as figure {files[png]} does: rename one "
+                                  "(one figure per file)", ["figure", i])
+                files[png] = figure.name
 
     def _one_fmu_plant_each(self):
         """A user's FMU named in several sections is named with the same input, output and kind in each
