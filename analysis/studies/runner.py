@@ -139,6 +139,7 @@ class SceneRun:
         self.log = RunLog(self.out / "results.csv", RUN_COLUMNS, max_rows=MAX_LOG_ROWS)
         self.written = []  # output files of this run (the manifest lists them)
         self._lock = contextlib.ExitStack()  # the folder's lock, from begin() to finish()
+        self._rejected = cache.rejected  # a cache shared by several runs counts for all of them
 
     # -- DF points ----------------------------------------------------------------------
     def settings(self, harmonics):
@@ -444,7 +445,7 @@ class SceneRun:
                 self.outcome.sections += [(title, self.out / Path(png).name, text) for title, png, text in sections]
                 self.outcome.figures += [self.out / png for png in pngs]
             self.lap("figures")  # drawing, or waiting for the drawing processes
-            self.outcome.rejected = self.cache.rejected + self.log.rejected
+            self.outcome.rejected = self.cache.rejected - self._rejected + self.log.rejected
             self.outcome.seconds = time.perf_counter() - self.started - elsewhere
             body = self.summary_body(data, cycles, studies)
             self.write_summary(body)
@@ -519,7 +520,7 @@ class SceneRun:
             files = {name: base64.b64decode(stored["files"][name], validate=True) for name in names}
         except (KeyError, TypeError, ValueError, AttributeError):  # binascii.Error is a ValueError
             self.cache.rejected += 1
-            self.outcome.rejected = self.cache.rejected
+            self.outcome.rejected = self.cache.rejected - self._rejected
             return False
         for name, data in files.items():
             ensure_folder((self.out / name).parent)
