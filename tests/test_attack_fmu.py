@@ -34,6 +34,7 @@ import json
 import math
 import os
 import pickle
+import shutil
 import subprocess
 import sys
 import time
@@ -632,3 +633,22 @@ def test_genuine_states_pass_the_new_checks(model, start):
         twin = model(instance_name="twin")
         twin._set_fmu_state(saved)
         assert twin._phase == facade.STEPPING, k
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind (.ci/run installs it)")
+def test_a_python_host_exits_without_touching_freed_memory(info, tmp_path):
+    """pythonfmu 0.7.0 releases its interpreter state twice at exit, the second time in freed memory (a
+    host aborted at exit, now and then); the shim releases it once before. valgrind sees the use after
+    free in every run where it happens, so this fails every time the shim does not."""
+    script = tmp_path / "host.py"
+    script.write_text(HOST + "for model in INFO:\n    make(model, name='exit').freeInstance()\n"
+                      "print(json.dumps(OUT))\n")
+    log = tmp_path / "valgrind.log"
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
+    env.update(ATTACK_INFO=json.dumps(info), PYTHONMALLOC="malloc")
+    done = subprocess.run(["valgrind", "--error-limit=no", f"--log-file={log}", sys.executable, str(script)],
+                          capture_output=True, text=True, timeout=600, env=env)
+    assert done.returncode == 0, done.stderr[-1500:]
+    text = log.read_text()
+    assert "ERROR SUMMARY" in text  # valgrind ran the host to its end
+    assert "finalizePythonInterpreter" not in text, text[text.find("finalizePythonInterpreter") - 300:][:2500]

@@ -434,6 +434,26 @@ static int own_path(char *path, size_t size) {
 }
 
 /* Load pythonfmu's binary (next to this one) once; on failure, `why` says why. */
+#ifndef _WIN32
+/* pythonfmu 0.7.0 (Linux) holds its interpreter state in a global shared_ptr, and releases it twice
+   at exit: once by the pointer's static destructor, then again in finalizePythonInterpreter, run
+   from the library's fini with the pointer still naming the freed block. That second release
+   writes into freed memory: a host that created an instance may abort at exit ("corrupted
+   double-linked list", 1 host run in a few hundred; valgrind shows the use after free in every
+   run). Calling finalizePythonInterpreter first, from an exit handler registered after the
+   library's own (handlers run in reverse), releases the state once while everything is alive and
+   leaves the pointer empty, so that both later releases do nothing. Registered from this shared
+   object, the handler also runs if the host unloads it before exiting. */
+static void (*release_python_state)(void);
+static void release_state(void) {
+    if (release_python_state) release_python_state();
+}
+static void release_at_exit(void *library) {
+    release_python_state = (void (*)(void))find(library, "finalizePythonInterpreter");
+    if (release_python_state) atexit(release_state);
+}
+#endif
+
 static int load_inner(char *why, size_t size) {
     if (inner_library) return 1;
     char path[PATH_MAX + 32];
@@ -457,6 +477,9 @@ static int load_inner(char *why, size_t size) {
         return 0;
     }
     inner_library = library; /* never closed: pythonfmu's interpreter thread lives in it */
+#ifndef _WIN32
+    release_at_exit(library);
+#endif
     return 1;
 }
 
