@@ -35,10 +35,10 @@ from dfwb.base.errors import InputError
 from dfwb.fmi.location import fmu_path
 from dfwb.fmi.session import FMUSession
 from dfwb.fmi.simulation import FMUError
+from dfwb.fmus.linear_system import MAX_ORDER  # the controller FMU's orders
 from dfwb.plants import plant as find_plant
 
 CONTROLLER = "LinearSystem"
-MAX_ORDER = 8
 BLOCK = 10  # periods per measurement block
 MIN_PERIODS = 30  # a settling run's first look: a transient block and two measured ones
 MAX_PERIODS = 400  # a settling run gives up after this many (predicted) periods

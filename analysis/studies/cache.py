@@ -153,9 +153,9 @@ class Cache:
         and the value's text: a reader checks all three without serialising anything again. A cache that
         cannot be written (read-only, full, a folder where an entry belongs) costs a warning, not a result.
         Within :meth:`writing`, the file is written by a background thread."""
-        body = canonical(value).encode()
-        head = json.dumps({"format": FORMAT, "key": canonical(key), "sha256": hashlib.sha256(body).hexdigest()})
-        path, data = self._path(canonical(key)), head.encode() + b"\n" + body
+        text, body = canonical(key), canonical(value).encode()
+        head = json.dumps({"format": FORMAT, "key": text, "sha256": hashlib.sha256(body).hexdigest()})
+        path, data = self._path(text), head.encode() + b"\n" + body
         if self._writer is None:
             self._warn(self._write(path, data))
         else:

@@ -474,9 +474,7 @@ class SceneRun:
         if self.scene.map or any(lc.plant not in self.fmus for lc in self.scene.limit_cycle):
             return None
         names = ["results.csv", "results.json"] + [f"traces/{t.name}.csv" for t in self.scene.trace]
-        for figure in self.scene.figure:
-            names += [f"{Path(png).stem}{suffix}" for png in figure.pngs() for suffix in (".png", ".svg")]
-        return names
+        return names + [name for figure in self.scene.figure for name in figure.files()]
 
     def store(self, fingerprint, body):
         """Put this run's outputs in the cache as one record, for a run of the same fingerprint elsewhere."""
@@ -612,7 +610,7 @@ class SceneRun:
             pngs = figure.pngs()
             job = (self.out, self.scene, figure, pngs, data, traces, cycles)
             drawn.append((pngs, draw_figure(*job) if drawing is None else drawing.submit(draw_figure, *job)))
-            self.written += [self.out / f"{Path(png).stem}{suffix}" for png in pngs for suffix in (".png", ".svg")]
+            self.written += [self.out / name for name in figure.files()]
         return drawn
 
     def counts(self):

@@ -462,6 +462,10 @@ class Figure:
             return [f"{self.name}_{name}.png" for name in self.series]
         return [f"{self.name}.png"]
 
+    def files(self):
+        """Every file this figure writes: each PNG and its SVG twin."""
+        return [f"{png[:-len('.png')]}{suffix}" for png in self.pngs() for suffix in (".png", ".svg")]
+
 
 @SECTION
 class Engine:
