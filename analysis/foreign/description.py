@@ -5,7 +5,12 @@
 describing function can use -- continuous Real inputs (the force), Real
 outputs (the position), parameters with their units, start values and
 ranges. Everything a user can get wrong is refused with one line that names
-the FMU, the reason and what the FMU does offer.
+the FMU, the reason and what the FMU does offer; so is what the standard
+forbids and dfwb would otherwise act on: a modelIdentifier that is not a
+plain file name (its binary loaded from outside the FMU), two variables of
+one name, a name with a control character (a forged line in ``dfwb info``),
+a parameter whose min exceeds its max, a count of event indicators that no
+array can hold.
 """
 
 import math
@@ -24,6 +29,7 @@ INTEGERS = {"Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "I
 BOOLEANS = {"Boolean"}
 # The platform folder of this machine's binaries, by FMI major version.
 PLATFORM = {"2": "linux64", "3": "x86_64-linux"}
+MAX_EVENT_INDICATORS = 100_000  # a large Modelica model has thousands; each is a double of every evaluation
 
 
 @dataclass(frozen=True)
@@ -114,9 +120,50 @@ def _number(text, default):
     return value if not math.isnan(value) else default
 
 
-def _unit(variable):
+def _unit(path, variable):
     unit = variable.unit or (variable.declaredType.unit if variable.declaredType is not None else None)
-    return unit or ""
+    return _name(path, f"the unit of {variable.name!r}", unit)
+
+
+def _prose(text):
+    """A description on one line: whitespace collapsed, any other unprintable character shown escaped."""
+    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in " ".join(str(text or "").split()))
+
+
+def _name(path, what, text):
+    """``text`` if it is a name that prints as one line of itself (one rule for every name ``dfwb`` shows)."""
+    text = str(text or "")
+    if not text.isprintable():
+        raise PlantError(f"{path}: {what} {text!r} is not accepted: a name is printable text (no control, format "
+                         f"or line-separating characters)")
+    return text
+
+
+def _identifier(path, kind, identifier):
+    """The modelIdentifier as a plain file name, so that its binary is the FMU's own."""
+    name = _name(path, f"the modelIdentifier of its {kind} interface", identifier)
+    if not name or name in (".", "..") or "/" in name or "\\" in name:
+        raise PlantError(f"{path}: the modelIdentifier {name!r} of its {kind} interface is not accepted: a plain "
+                         f"file name (its binary is binaries/<platform>/<modelIdentifier>.so inside the FMU)")
+    return name
+
+
+def _check_variables(path, md):
+    """Refuse what the standard forbids and dfwb would act on: two variables of one name, names that forge
+    lines, a range that is empty, more event indicators than memory holds."""
+    seen = set()
+    for v in md.modelVariables:
+        name = _name(path, "the variable name", v.name)
+        if name in seen:
+            raise PlantError(f"{path}: two variables are named {name!r} (a variable's name is unique in an FMU)")
+        seen.add(name)
+        low, high = _number(v.min, -math.inf), _number(v.max, math.inf)
+        if low > high:
+            raise PlantError(f"{path}: the variable {name!r} is declared with min = {v.min} > max = {v.max} "
+                             f"(no value is allowed)")
+    count = md.numberOfEventIndicators or 0
+    if not 0 <= count <= MAX_EVENT_INDICATORS:
+        raise PlantError(f"{path}: numberOfEventIndicators = {count} is not accepted (0 to {MAX_EVENT_INDICATORS})")
 
 
 def describe(path):
@@ -145,9 +192,11 @@ def describe(path):
     declared = [kind for kind in KINDS if interfaces[kind] is not None]
     if not declared:
         raise PlantError(f"{path}: offers neither model exchange nor co-simulation")
+    identifiers = {kind: _identifier(path, kind, interfaces[kind].modelIdentifier) for kind in declared}
+    model_name = _name(path, "the modelName", md.modelName)
+    _check_variables(path, md)
     binaries = Path(folder, "binaries", PLATFORM[major])
-    kinds = tuple(kind for kind in declared
-                  if Path(binaries, f"{interfaces[kind].modelIdentifier}.so").is_file())
+    kinds = tuple(kind for kind in declared if Path(binaries, f"{identifiers[kind]}.so").is_file())
     if not kinds:
         found = sorted(p.name for p in Path(folder, "binaries").iterdir()) if Path(folder, "binaries").is_dir() else []
         sources = " (it has sources: build its binary with fmpy.build.build_platform_binary)" \
@@ -162,13 +211,13 @@ def describe(path):
         if v.causality == "input":
             inputs[v.name] = (v.type, v.variability)
         elif v.causality == "output":
-            outputs[v.name] = (v.type, _unit(v))
+            outputs[v.name] = (v.type, _unit(path, v))
         elif v.causality == "parameter" and v.variability in ("fixed", "tunable") and \
                 v.type in REALS | INTEGERS | BOOLEANS:
             start = 1.0 if str(v.start).lower() == "true" else 0.0 if str(v.start).lower() == "false" else \
                 _number(v.start, 0.0)
-            parameters[v.name] = Parameter(v.name, v.type, start, _unit(v), _number(v.min, -math.inf),
-                                           _number(v.max, math.inf), " ".join((v.description or "").split()))
+            parameters[v.name] = Parameter(v.name, v.type, start, _unit(path, v), _number(v.min, -math.inf),
+                                           _number(v.max, math.inf), _prose(v.description))
     states = len(md.derivatives) if md.derivatives else 0
     intermediate = ()  # (fmpy does not read a variable's intermediateUpdate: the XML says it)
     if major == "3" and cs is not None and cs.providesIntermediateUpdate:
@@ -176,8 +225,8 @@ def describe(path):
                              if v.get("causality") == "input" and v.get("intermediateUpdate") == "true"
                              and v.get("name") in inputs)
     return FMUInfo(
-        path=str(path), folder=str(folder), digest=key, fmi_version=version, model_name=str(md.modelName),
-        kinds=kinds, identifiers={kind: interfaces[kind].modelIdentifier for kind in kinds},
+        path=str(path), folder=str(folder), digest=key, fmi_version=version, model_name=model_name,
+        kinds=kinds, identifiers={kind: identifiers[kind] for kind in kinds},
         can_save_state={kind: bool(interfaces[kind].canGetAndSetFMUstate) for kind in kinds},
         can_interpolate_inputs=bool(cs is not None and cs.canInterpolateInputs),
         max_output_derivative_order=int(cs.maxOutputDerivativeOrder or 0) if cs is not None else 0,
