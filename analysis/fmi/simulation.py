@@ -12,6 +12,7 @@ import ctypes
 import functools
 import hashlib
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -27,6 +28,17 @@ STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
 class FMUError(DfwbError, RuntimeError):
     """An FMU refused a call or a step; the message says which, when and why."""
+
+
+_FOLDERS = []  # the folders this process unpacked FMUs into
+
+
+@atexit.register
+def _remove_folders():
+    """Remove the unpacked FMUs when the process exits (registered first, so run last: after the release below,
+    which finds the loaded libraries by their paths)."""
+    for folder in _FOLDERS:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 @atexit.register
@@ -61,6 +73,7 @@ def release_pythonfmu_states():
 def _extract(fmu_path, digest):
     """Unzip an FMU once per process and content (fmpy would unzip at every run)."""
     target = Path(tempfile.mkdtemp(prefix=f"dfwb_{Path(fmu_path).stem}_"))
+    _FOLDERS.append(target)
     return fmpy.extract(fmu_path, unzipdir=str(target)), fmpy.read_model_description(fmu_path)
 
 
