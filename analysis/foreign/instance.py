@@ -244,8 +244,20 @@ class Instance:
             fmu.doStep(self.time, size)
         self.time += size
 
-    def save(self):
-        return self.fmu.getFMUState() if self.v3 else self.fmu.getFMUstate()
+    def save(self, into=None):
+        """The FMU's state; ``into``: a state from an earlier save, overwritten (no allocation per call)."""
+        if into is None:
+            return self.fmu.getFMUState() if self.v3 else self.fmu.getFMUstate()
+        get = self.fmu.fmi3GetFMUState if self.v3 else self.fmu.fmi2GetFMUstate
+        get(self.fmu.component, ctypes.byref(into))
+        return into
+
+    def free(self, state):
+        """Release a state from :meth:`save`."""
+        if self.v3:
+            self.fmu.freeFMUState(state)
+        else:
+            self.fmu.freeFMUstate(state)
 
     def restore(self, state, time):
         if self.v3:
