@@ -186,11 +186,15 @@ def test_a_crash_or_nan_costs_one_point_not_the_run(built, name, reason):
     assert N[1] == pytest.approx(-1.0 / 100.0, rel=1e-8)  # the next point runs (a free unit mass: -1 / w^2)
 
 
-def test_a_hang_is_cut_by_the_time_limit(built):
+def test_a_hang_is_cut_by_the_time_limit_tried_again_and_said_so(built):
     plant = dfwb.fmu_plant(built["Hang"])
-    with pytest.warns(RuntimeWarning, match="no answer within 3 s"):
+    with pytest.warns(RuntimeWarning) as caught:
         response = dfwb.describing_function(plant, [10.0, 1.0], 10.0, timeout=3)
-    assert math.isnan(complex(response.N[0]).real)
+    messages = [str(w.message) for w in caught]
+    assert any("no answer within 3 s" in m and "tried again with 6 s" in m for m in messages), messages
+    assert any("no answer within 6 s" in m and "also when tried again" in m for m in messages), messages
+    assert math.isnan(complex(response.N[0]).real) and response.N_error[0] == math.inf
+    assert "also when tried again" in response.points[0]["note"]
     assert complex(response.N[1]) == pytest.approx(-1.0 / 100.0, rel=1e-8)
 
 
@@ -540,13 +544,13 @@ def test_a_cosimulation_fmu_that_interpolates_inputs_gets_the_sine_as_lines(tmp_
         note = response.points[0]["note"]
         assert note.startswith("interpolated input" if interpolate else "held input")
         steps[interpolate] = int(note.split(", ")[1].split()[0])
-    assert steps[True] * 4 <= steps[False], steps
+    assert steps[True] * 2 <= steps[False], steps  # the held input needs 512 (its bound is tight since issue 31)
 
 
 def test_an_fmi3_cosimulation_fmu_with_intermediate_update_gets_the_sine_inside_its_steps(tmp_path):
     """FMI 3.0: an FMU whose force input has intermediateUpdate asks for it at each of its RK4 stages, and
     dfwb answers with the sine there; only the output's sampling is left to refine, so the DF converges at
-    a sixteenth of the steps per period the same FMU needs under a held input. Both within their N_error
+    half the steps per period or fewer the same FMU needs under a held input. Both within their N_error
     and 1e-6 (C FMUs compiled here, :mod:`foreign_fmi3`)."""
     import foreign_fmi3
 
@@ -561,12 +565,23 @@ def test_an_fmi3_cosimulation_fmu_with_intermediate_update_gets_the_sine_inside_
         note = response.points[0]["note"]
         assert note.startswith("the sine inside each step" if intermediate else "held input"), note
         steps[intermediate] = int(note.split(", ")[1].split()[0])
-    assert steps[True] * 16 <= steps[False], steps
+    assert steps[True] * 2 <= steps[False], steps
+
+
+def test_the_time_limit_fits_the_work(built):
+    """120 s scaled by the periods allowed, at least 10 times the slowest point so far; a given one is kept."""
+    plant = dfwb.fmu_plant(built["Relay"])
+    engine = FMUEngine(plant)
+    assert engine.limit() == 120.0 and FMUEngine(plant, max_periods=300).limit() == 240.0
+    engine.slowest = 26.0  # a point that took 26 s: the next ones may take 260 s
+    assert engine.limit() == 260.0 and engine.coarse().limit() == 120.0
+    assert FMUEngine(plant, timeout=5).limit() == 5.0
+    engine = FMUEngine(plant)
+    engine.point(1.0, 1.0)
+    assert 0.0 < engine.slowest < 60.0
 
 
 def test_the_engine_options_are_checked(built):
-
-
     plant = dfwb.fmu_plant(built["Relay"])
     assert FMUEngine(plant, jobs=1).jobs == 1 and FMUEngine(plant).jobs == (os.cpu_count() or 1)
     for options, message in (({"jobs": 0}, "jobs = 0"), ({"rtol": 1.0}, "rtol = 1.0"),

@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from dfwb.base.errors import InputError, PlantError
 from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFEngine, DFResult, check_point
-from dfwb.foreign.worker import TIMEOUT, PointFailed, borrowed
+from dfwb.foreign.worker import TIMEOUT, PointFailed, PointTimedOut, borrowed
 
 __all__ = ["FMUEngine", "RTOL", "engine_for"]
 
@@ -39,13 +39,14 @@ class FMUEngine:
     rtol : float, optional
         The relative accuracy aimed at: the integrator's tolerance (model exchange, default 1e-10),
         or the extrapolated DF's (co-simulation, default 1e-6).
-    timeout : float
-        Seconds a point may take before its worker is killed and the point skipped.
+    timeout : float, optional
+        Seconds a point may take before its worker is killed. Default: fitted to the work (:meth:`limit`).
+        A point cut by the limit is tried once more with twice the limit, with a warning saying so.
     jobs : int, optional
         Worker processes :meth:`points` may use at once (default: the machine's cores).
     """
 
-    def __init__(self, plant, harmonics=HARMONICS, max_periods=150, rtol=None, timeout=TIMEOUT, jobs=None):
+    def __init__(self, plant, harmonics=HARMONICS, max_periods=150, rtol=None, timeout=None, jobs=None):
         if not (isinstance(harmonics, int) and 1 <= harmonics <= HARMONICS):
             raise PlantError(f"harmonics = {harmonics!r} is out of range: an integer from 1 to {HARMONICS}")
         if not (isinstance(max_periods, int) and 1 <= max_periods <= MAX_PERIODS):
@@ -53,14 +54,37 @@ class FMUEngine:
         rtol = RTOL[plant.kind] if rtol is None else rtol
         if not (isinstance(rtol, (int, float)) and 1e-13 <= rtol <= 1e-2):
             raise PlantError(f"rtol = {rtol!r} is out of range: a number from 1e-13 to 0.01")
-        if not (isinstance(timeout, (int, float)) and 0.1 <= timeout <= 86400):
+        if timeout is not None and not (isinstance(timeout, (int, float)) and 0.1 <= timeout <= 86400):
             raise PlantError(f"timeout = {timeout!r} is out of range: seconds from 0.1 to 86400")
         jobs = (os.cpu_count() or 1) if jobs is None else jobs
         if not (isinstance(jobs, int) and 1 <= jobs <= 256):
             raise PlantError(f"jobs = {jobs!r} is out of range: an integer from 1 to 256")
         self.plant, self.harmonics, self.max_periods, self.jobs = plant, harmonics, max_periods, jobs
         self.rtol, self.drive = float(rtol), plant.kind
-        self.timeout = float(timeout)
+        self.fitted = timeout is None
+        self.timeout = TIMEOUT * max(1.0, max_periods / 150) if timeout is None else float(timeout)
+        self.slowest = 0.0  # seconds of the slowest point computed so far
+
+    def limit(self):
+        """Seconds the next point may take: the timeout given, or TIMEOUT scaled by the periods allowed and
+        at least 10 times the slowest point so far (a busy machine slows every point alike)."""
+        return self.timeout if not self.fitted else max(self.timeout, 10.0 * self.slowest)
+
+    def _call(self, request, what):
+        """The worker's answer; a point cut by the time limit is tried once more with twice the limit."""
+        limit = self.limit()
+        for attempt in range(2):
+            try:
+                with borrowed() as worker:
+                    started = time.perf_counter()
+                    answer = worker.call(request, what, limit)
+                self.slowest = max(self.slowest, time.perf_counter() - started)
+                return answer
+            except PointTimedOut as cut:
+                if attempt:
+                    raise PointFailed(f"{cut}, also when tried again; the point is skipped") from None
+                warnings.warn(f"{cut}; tried again with {2 * limit:g} s", RuntimeWarning, stacklevel=3)
+                limit *= 2
 
     def point(self, F, omega, params=None):
         """The DFResult at force amplitude F and frequency omega (N NaN and a note if the FMU failed)."""
@@ -71,8 +95,7 @@ class FMUEngine:
                    "output": self.plant.output, "F": float(F), "omega": float(omega), "params": params,
                    "harmonics": self.harmonics, "rtol": self.rtol, "max_periods": self.max_periods}
         try:
-            with borrowed() as worker:
-                answer = worker.call(request, f"{self.plant.name} at F = {F:g}, omega = {omega:g}", self.timeout)
+            answer = self._call(request, f"{self.plant.name} at F = {F:g}, omega = {omega:g}")
         except PointFailed as failure:
             warnings.warn(str(failure), RuntimeWarning, stacklevel=2)
             nan = complex(math.nan, math.nan)
@@ -108,7 +131,7 @@ class FMUEngine:
             with borrowed() as worker:
                 return worker.call(dict(request, starts=group[0], seeds=group[1]),
                                    f"{self.plant.name}: the closed loop's cycles",
-                                   timeout=self.timeout * max(len(group[0]) + len(group[1]), 1))
+                                   timeout=self.limit() * max(len(group[0]) + len(group[1]), 1))
 
         answers = self._spread(call, groups)
         found, by_start, by_seed = [], [None] * len(starts), [None] * len(seeds)
@@ -127,13 +150,13 @@ class FMUEngine:
                    "output": self.plant.output, "params": self.plant.check(params or {}), "F": float(F),
                    "omega": float(omega), "stop": float(stop), "step": float(step), "outputs": list(outputs)}
         with borrowed() as worker:
-            return worker.call(request, f"{self.plant.name}: a trace at F = {F:g}, omega = {omega:g}", self.timeout)
+            return worker.call(request, f"{self.plant.name}: a trace at F = {F:g}, omega = {omega:g}", self.limit())
 
     def coarse(self):
         """A looser twin for the work that only locates (a map, Newton's first steps): N alone, rtol 1000
         times looser (at most 1e-4), the same FMU, limits and workers' count."""
         return FMUEngine(self.plant, harmonics=1, max_periods=self.max_periods, rtol=min(self.rtol * 1e3, 1e-4),
-                         timeout=self.timeout, jobs=self.jobs)
+                         timeout=None if self.fitted else self.timeout, jobs=self.jobs)
 
     def points(self, pairs, params=None):
         """DFResults of several (F, omega) pairs at the same parameters, in order (see :meth:`batch`)."""
@@ -164,7 +187,7 @@ def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, 
             raise InputError("drive and samples_per_period are for dfwb's own plants: a user's FMU is driven as "
                              "its kind allows (model exchange: the exact sine; co-simulation: held and refined)")
         return FMUEngine(plant, harmonics=harmonics, max_periods=max_periods, rtol=rtol,
-                         timeout=TIMEOUT if timeout is None else timeout)
+                         timeout=timeout)
     if rtol is not None or timeout is not None:
         raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
     return DFEngine(plant, fmu_dir=fmu_dir, drive=drive, samples_per_period=samples_per_period,

@@ -25,15 +25,19 @@ import weakref
 
 from dfwb.base.errors import DfwbError
 
-__all__ = ["Worker", "PointFailed", "TIMEOUT", "borrowed"]
+__all__ = ["Worker", "PointFailed", "PointTimedOut", "TIMEOUT", "borrowed"]
 
-TIMEOUT = 120.0  # seconds a point may take by default
+TIMEOUT = 120.0  # seconds a point may take by default, at least (see dfwb.foreign.engine.FMUEngine.limit)
 _HEADER = struct.Struct("<Q")
 MAX_ANSWER = 1 << 24  # bytes: an answer is a few hundred
 
 
 class PointFailed(DfwbError, RuntimeError):
     """One point could not be computed: the FMU refused, crashed, hung or gave NaN."""
+
+
+class PointTimedOut(PointFailed):
+    """The point was cut by its time limit (its worker killed): it may only need more time."""
 
 
 def _describe_exit(code):
@@ -97,7 +101,7 @@ class Worker:
             ready, _, _ = select.select([self._answers], [], [], timeout)
             if not ready:
                 self.close()
-                raise PointFailed(f"{what}: no answer within {timeout:g} s (the FMU hangs?); the point is skipped")
+                raise PointTimedOut(f"{what}: no answer within {timeout:g} s (the FMU hangs, or the machine is busy)")
             size = _HEADER.unpack(_read_exactly(self._answers, _HEADER.size))[0]
             if size > MAX_ANSWER:
                 raise EOFError
