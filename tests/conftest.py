@@ -1,5 +1,12 @@
-"""Shared fixtures: the FMUs (plants and controller), built once per test session from the current sources."""
+"""Shared fixtures: the FMUs (plants and controller) and the C core, built once from the current sources.
 
+Every build goes into a folder of the checkout's ``build/`` keyed by its sources' hash, under a lock: the
+pytest-xdist workers (``make test`` runs two) and later sessions share it, so the first to need an FMU
+builds it and the others find it up to date.
+"""
+
+import contextlib
+import fcntl
 import os
 import shutil
 from pathlib import Path
@@ -19,6 +26,7 @@ from dfwb.build_fmus import build_all
 from dfwb.fmi.simulation import unpacked
 
 ROOT = Path(__file__).resolve().parents[1]
+BUILD = ROOT / "build"
 # The tests share one FMU folder in the checkout (built once, reused across sessions and by the
 # subprocesses they start), instead of the per-user default.
 os.environ["DFWB_FMU_DIR"] = str(ROOT / "build" / "fmus")
@@ -29,13 +37,29 @@ settings.register_profile("stress", max_examples=1000, deadline=None)
 settings.load_profile(os.environ.get("DFWB_HYPOTHESIS", "default"))
 
 
+@contextlib.contextmanager
+def _one_builder(name):
+    """Hold build/.NAME.lock while building: one worker builds, the others wait and then find it up to date."""
+    BUILD.mkdir(exist_ok=True)
+    with open(BUILD / f".{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield BUILD / name
+
+
+def _needs_cc(what):
+    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+        pytest.skip(f"no C compiler (cc) on PATH to build {what}")
+
+
 @pytest.fixture(scope="session")
 def fmus():
     """{model name: path} of every FMU the project builds, built into build/fmus if stale."""
-    paths = build_all(ROOT / "build" / "fmus", report=lambda message: None)
+    with _one_builder("fmus") as folder:
+        paths = build_all(folder, report=lambda message: None)
     return {path.stem: path for path in paths}
 
 
+WARNINGS = ("-Wall", "-Wextra", "-Werror")  # the test builds of the C sources: any warning fails them
 _KEEP_ALIVE = []  # raw instances are never freed: after a fatal status pythonfmu 0.7.0 would free twice
 
 
@@ -79,39 +103,36 @@ def private_cache(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def core(tmp_path_factory):
-    """The C core (fmus/native), compiled once per session with warnings as errors (skips without a C compiler)."""
+def core():
+    """The C core (fmus/native), compiled with warnings as errors (skips without a C compiler)."""
     from dfwb.build_fmus.core import build_core
     from dfwb.fmus.native_core import load
 
-    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
-        pytest.skip("no C compiler (cc) on PATH to build fmus/native")
-    return load(build_core(tmp_path_factory.mktemp("native_core"), extra_flags=("-Wall", "-Wextra", "-Werror")))
+    _needs_cc("fmus/native")
+    with _one_builder("test-core") as folder:
+        return load(build_core(folder, extra_flags=WARNINGS))
 
 
-@pytest.fixture(scope="session")
-def native_fmus(tmp_path_factory):
-    """{model name: path} of the native plant FMUs (C core + FMI wrapper), built once per session with warnings
-    as errors (skips without a C compiler)."""
+def _native(fmi_version):
     from dfwb.build_fmus.native import build_native
 
-    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
-        pytest.skip("no C compiler (cc) on PATH to build the native FMUs")
-    paths = build_native(tmp_path_factory.mktemp("native_fmus"), report=lambda message: None,
-                         extra_flags=("-Wall", "-Wextra", "-Werror"))
+    _needs_cc("the native FMUs")
+    with _one_builder(f"test-native-fmi{fmi_version}") as folder:
+        paths = build_native(folder, report=lambda message: None, fmi_version=fmi_version, extra_flags=WARNINGS)
     return {path.stem: path for path in paths}
 
 
 @pytest.fixture(scope="session")
-def fmi3_fmus(tmp_path_factory):
-    """{model name: path} of the native plant FMUs as FMI 3.0, built once per session with warnings as errors."""
-    from dfwb.build_fmus.native import build_native
+def native_fmus():
+    """{model name: path} of the native plant FMUs (C core + FMI wrapper), warnings as errors (skips without a C
+    compiler)."""
+    return _native(2)
 
-    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
-        pytest.skip("no C compiler (cc) on PATH to build the native FMUs")
-    paths = build_native(tmp_path_factory.mktemp("fmi3_fmus"), report=lambda message: None, fmi_version=3,
-                         extra_flags=("-Wall", "-Wextra", "-Werror"))
-    return {path.stem: path for path in paths}
+
+@pytest.fixture(scope="session")
+def fmi3_fmus():
+    """{model name: path} of the native plant FMUs as FMI 3.0, warnings as errors."""
+    return _native(3)
 
 
 @pytest.fixture
