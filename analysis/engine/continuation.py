@@ -6,8 +6,10 @@ cycle x are the section coordinates u of its state and H(u, lambda) =
 P^returns(u; lambda) - u (the return map of :mod:`dfwb.engine.periodic` at
 that parameter value); for a DF prediction x = (ln F, ln w) and H is the
 harmonic balance 1 + G(jw) N(F, w) (real and imaginary parts). The curve is
-followed by arclength in coordinates scaled by the orbit's swing and the
-parameter range, so it passes smooth folds where the parameter turns back:
+followed by arclength in coordinates scaled by the orbit's swing and by the
+parameter's own size where the branch is (:func:`parameter_scale`: never the
+range's width alone, so a range of 1 to 1e308 follows the branch a range of
+1 to 30 follows), so it passes smooth folds where the parameter turns back:
 each step predicts along the tangent (the null vector of dH, oriented as the
 last one) and corrects by Newton's method on H = 0 and the arclength
 condition, the step halved where the corrector fails and grown where it
@@ -16,7 +18,7 @@ converges at once.
 Between two accepted points of a branch of true cycles a bifurcation is
 detected and then located by walking the branch from the earlier point with
 steps halved wherever the next one is past the change, to 1e-7 of the
-parameter's range:
+parameter's scale:
 
 * **discontinuity-induced**, from the cycle's event sequence over a period
   (its signature): a stick phase or contact appearing or vanishing
@@ -55,7 +57,9 @@ REFRESHES = 2  # fresh Jacobians a corrector may take when the chord converges s
 FD = 1e-7  # finite-difference step, scaled
 DS = (1e-6, 0.02, 0.15)  # the step: smallest, first, largest (scaled arclength)
 MAX_LOCATE = 400  # steps of a bifurcation's location, at most
-LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (scaled: relative to the range)
+LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (scaled: see parameter_scale)
+RELATIVE = 30.0  # the parameter's scale is at most this many times its size where the branch is ...
+FLOOR = 1e-3  # ... or than this, near 0 (and at most the range's width)
 AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows (falls) this many times its start's goes to infinity (rest)
 MAX_POINTS = 200  # per branch
 TURN = 1e-3  # a step this small without a solution: look for the other side of a kink (see _turn)
@@ -120,6 +124,29 @@ class Bifurcation:
 
 
 # -- the two systems: H(y) = 0 for true cycles and for DF predictions ------------------------------------------------
+def parameter_scale(span, value):
+    """The parameter's unit in the scaled coordinates at ``value``: the range's width ``span``, but at most
+    RELATIVE times the value's size (FLOOR near 0). The steps, the finite differences and a bifurcation's
+    accuracy are fractions of it: were it the width of a range far wider than the branch (1 to 1e8), the first
+    step would jump over the whole branch and a finite difference would leave it."""
+    return min(span, RELATIVE * max(abs(value), FLOOR))
+
+
+class _Parameter:
+    """The parameter's scale of a system, taken where the branch is: at the first residual asked (its start),
+    then at each solution described."""
+
+    def __init__(self, span):
+        self.span, self.at = span, None
+
+    def seen(self, value, described=False):
+        if described or self.at is None:
+            self.at = float(value)
+
+    def unit(self):
+        return self.span if self.at is None else parameter_scale(self.span, self.at)
+
+
 class CycleSystem:
     """H(u, lambda) = P^returns(u) - u of the exact loop at each parameter value, scaled by the swing."""
 
@@ -127,6 +154,7 @@ class CycleSystem:
 
     def __init__(self, family, name, span, returns, swing, period, fmu_dir=None, budget=None):
         self.family, self.name, self.span, self.returns = family, name, span, returns
+        self.parameter = _Parameter(span)
         self.swing = np.asarray(swing, dtype=float)  # of the section coordinates u
         self.period, self.fmu_dir, self.budget = period, fmu_dir, budget
         self.spent = False  # the work budget ran out: every later residual is refused
@@ -144,12 +172,13 @@ class CycleSystem:
         return problem
 
     def scale(self):
-        return np.concatenate([self.swing, [self.span]])
+        return np.concatenate([self.swing, [self.parameter.unit()]])
 
     def residual(self, y):
         """H(y) scaled by the swing, and (the return time, the events fired); (None, None) where the orbit does
         not return."""
         value = float(y[-1])
+        self.parameter.seen(value)
         try:
             problem = self.problem(value)
         except DfwbError:  # a parameter value the plant or G refuses (a mass through 0, eps below 0, ...)
@@ -178,6 +207,7 @@ class CycleSystem:
         self.period = T
         swing = problem._swing(X, T)
         self.swing = np.maximum(np.array([v for i, v in enumerate(swing) if i != problem.pivot]), 1e-300)
+        self.parameter.seen(y[-1], described=True)
         return Point(parameter=float(y[-1]), omega=2.0 * math.pi / T, amplitude_x=harmonics[1], F=F,
                      stable=all(abs(m) < 1.0 for m in spectrum), multipliers=[abs(m) for m in spectrum], period=T,
                      signature=tuple(str(k) for _t, k in trace["events"]), state=X), spectrum
@@ -198,11 +228,12 @@ class PredictionSystem:
 
     def __init__(self, family, name, span, engine, F_range):
         self.family, self.name, self.span, self.engine = family, name, span, engine
+        self.parameter = _Parameter(span)
         self.log_F = (math.log(F_range[0]), math.log(F_range[1]))
         self._cache = {}
 
     def scale(self):
-        return np.array([1.0, 1.0, self.span])
+        return np.array([1.0, 1.0, self.parameter.unit()])
 
     @staticmethod
     def same_kind(a, b):
@@ -210,6 +241,7 @@ class PredictionSystem:
 
     def residual(self, y):
         u, v, value = (float(c) for c in y)
+        self.parameter.seen(value)
         if not self.log_F[0] <= u <= self.log_F[1] or not -9.0 <= v <= 11.5:
             return None, None
         try:
@@ -233,6 +265,7 @@ class PredictionSystem:
         return self._cache[value]
 
     def describe(self, y, J, N):
+        self.parameter.seen(y[2], described=True)
         F, omega = math.exp(y[0]), math.exp(y[1])
         loeb = float(J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0])
         return Point(parameter=float(y[2]), omega=omega, amplitude_x=abs(N) * F, F=F, stable=loeb > 0.0,
@@ -444,7 +477,7 @@ def _turn(system, last):
 
 
 # -- bifurcations ------------------------------------------------------------------------------------------------------
-def locate(system, a, b, differs, span):
+def locate(system, a, b, differs):
     """Follow the branch from node a towards node b until just before ``differs(y, r, extra)`` turns True.
 
     Small arclength steps, the tangent renewed at each accepted point (so the walk stays on a's side of the
@@ -470,7 +503,7 @@ def locate(system, a, b, differs, span):
             ds *= 0.5
             continue
         here, tangent = (solution[0], solution[1], solution[2], J), _tangent(J, tangent)
-    return here, after, ds * span
+    return here, after, float(ds * D[-1])
 
 
 def _side(a, value):
@@ -537,7 +570,7 @@ def _changed(before, after):
 MAX_CHANGES = 8  # changes of the event sequence located between two points of a branch, at most
 
 
-def _nonsmooth(system, a, b, span):
+def _nonsmooth(system, a, b):
     """[(Bifurcation, its two sides' Points)] where the event sequence changes between nodes a and b.
 
     Each change is located from the side before it; several may lie between two points (an impact after
@@ -549,8 +582,7 @@ def _nonsmooth(system, a, b, span):
         signature = essential(a.point.signature)
         if signature == target:
             break
-        before, after, width = locate(system, a, b, lambda y, r, T: essential(system.signature(y, T)) != signature,
-                                      span)
+        before, after, width = locate(system, a, b, lambda y, r, T: essential(system.signature(y, T)) != signature)
         value = float(before[0][-1])
         edge = _node(system, *before, a.tangent)
         far = _node(system, *after, a.tangent) if after is not None else (edge and _turn(system, edge))
@@ -570,15 +602,16 @@ def _nonsmooth(system, a, b, span):
     return found
 
 
-def bifurcations(system, nodes, span):
+def bifurcations(system, nodes, span=None):
     """The bifurcations between consecutive nodes of a branch, each located (see the module docstring):
-    [(i, Bifurcation, the located Points to insert after node i)]."""
+    [(i, Bifurcation, the located Points to insert after node i)]. ``span`` (the range's width) is not used:
+    each is located in the system's own scale, which the range only bounds."""
     found = []
     truth = system.source == "truth"
     for i, (a, b) in enumerate(zip(nodes, nodes[1:])):
         turns = a.tangent[-1] * b.tangent[-1] < 0.0
         if truth and essential(a.point.signature) != essential(b.point.signature):
-            found += [(i, bifurcation, sides) for bifurcation, sides in _nonsmooth(system, a, b, span)]
+            found += [(i, bifurcation, sides) for bifurcation, sides in _nonsmooth(system, a, b)]
             continue
         if turns:
             sign = a.tangent[-1]
@@ -587,7 +620,7 @@ def bifurcations(system, nodes, span):
                 J = _jacobian(system, y, r, extra)
                 return J is not None and _tangent(J, a.tangent)[-1] * sign < 0.0
 
-            before, after, width = locate(system, a, b, beyond, span)
+            before, after, width = locate(system, a, b, beyond)
             value = float(before[0][-1]) if after is None else 0.5 * float(before[0][-1] + after[0][-1])
             here = _measure(system, before)
             found.append((i, Bifurcation("fold", value, here.omega, here.amplitude_x, system.source,
@@ -606,7 +639,7 @@ def bifurcations(system, nodes, span):
                         n = len(y) - 1
                         return _outside(np.linalg.eigvals(J[:, :n] + np.eye(n)))[index] != outside_a[index]
 
-                    before, after, width = locate(system, a, b, crossed, span)
+                    before, after, width = locate(system, a, b, crossed)
                     value = float(before[0][-1]) if after is None else 0.5 * float(before[0][-1] + after[0][-1])
                     here = _measure(system, before)
                     found.append((i, Bifurcation(kind, value, here.omega, here.amplitude_x, system.source,
@@ -652,7 +685,10 @@ def linear_boundary(family, name, value, direction, bounds, fmu_dir=None):
 
     here = stable(value)
     edge = bounds[1] if direction > 0 else bounds[0]
-    grid = np.linspace(value, edge, 65)[1:]
+    reach = parameter_scale(abs(edge - value), value)  # evenly near the branch, then geometrically to a far edge
+    grid = np.linspace(value, value + math.copysign(reach, edge - value), 65)[1:]
+    if reach < abs(edge - value):
+        grid = np.concatenate([grid, value + np.sign(edge - value) * np.geomspace(reach, abs(edge - value), 33)[1:]])
     previous = value
     for v in grid:  # bounded: a scan, then a bisection
         state = stable(float(v))
@@ -687,7 +723,7 @@ def _assemble(source, halves, span, family, name, bounds, fmu_dir, returns=1):
     found, ends, runs = [], [], []
     for system, nodes, reason in halves:
         try:
-            located = [] if reason == SPENT else bifurcations(system, nodes, span)  # none located without work
+            located = [] if reason == SPENT else bifurcations(system, nodes)  # none located without work
         except PlantError:
             if not _spent(system):
                 raise
