@@ -149,7 +149,7 @@ def test_the_command_line_writes_the_map_and_its_json(fmus, tmp_path, capsys):
     (["--x", "Kp=1:50:inf", "--y", "Ki=0.1:25:5"], "N a whole number of cells"),
     (["--x", "Kp=1:50:nan", "--y", "Ki=0.1:25:5"], "N a whole number of cells"),
     (["--x", "Kp=-1e308:1e308:5", "--y", "Ki=0.1:25:5"], "wider than the floats"),
-    (["--x", "Fc=8:9:2", "--y", "Fs=1:2:2", "--set", "Kp=1", "Ki=1"], "the plant refuses every corner of the map"),
+    (["--x", "Fc=8:9:2", "--y", "Fs=1:2:2", "--set", "Kp=1", "Ki=1"], "at every corner of the map (Fc = 8, Fs = 1;"),
     (["--x", "Kp=1:50:5", "--y", "Ki=0.1:25:5", "--set", "Kp=3"], "Kp is an axis of the map"),
     (["--x", "Kp=1:50:5", "--y", "M=-1:25:5", "--set", "Ki=2"], "M = -1.0 is out of range"),
     (["--x", "Kp=1:50:5", "--y", "s=0:1:5"], "s is the variable of G(s)"),

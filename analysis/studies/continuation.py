@@ -44,6 +44,23 @@ def check_parameter(family, name, start, stop, plant=True):
     return name, (min(values), max(values))
 
 
+def check_somewhere(family, settings, where):
+    """Refuse a study whose loop is refused at every one of ``settings`` ({name: value} each: where it starts,
+    a map's corners) before anything runs or is written: G checked as ``dfwb limit-cycle`` checks it
+    (:meth:`LoopFamily.check`), the plant's values as the plant checks them. Where only some are refused
+    (``Kp/Ki`` at Ki = 0), the study reports them where it meets them."""
+    labels, first = [], None
+    for setting in settings:
+        try:
+            family.params(setting)
+            family.check(setting)
+            return
+        except DfwbError as error:
+            first = first or " ".join(str(error).split())
+            labels.append(", ".join(f"{name} = {value:g}" for name, value in setting.items()))
+    raise InputError(f"{first}, at {where} ({'; '.join(labels)}): the loop must be defined at one at least")
+
+
 def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
            fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None,
            timeout=None, samples=SAMPLES):
@@ -72,6 +89,8 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 10_000:
         raise InputError(f"max_points = {max_points!r}: an integer from 2 to 10000 (points per branch)")
     at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
+    check_somewhere(family, [{name: value} for value in at],
+                    "both ends of the range" if starts is None else "every start value")
     searches, notes, cycle_starts, prediction_starts, ranges = [], [], [], [], []
     foreign = getattr(family.spec, "foreign", False)
     if foreign:

@@ -42,7 +42,7 @@ from dfwb.engine.hunting import (
 from dfwb.foreign.hunting import MAP
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
-from dfwb.studies.continuation import check_parameter
+from dfwb.studies.continuation import check_parameter, check_somewhere
 from dfwb.studies.executor import Executor, engine_for
 from dfwb.studies.responses import HuntingMapResponse
 
@@ -105,20 +105,6 @@ def _axis(family, axis, label, plant):
     return name, [float(v) for v in values]
 
 
-def _some_corner(family, x_name, xs, y_name, ys):
-    """Refuse a map of two plant parameters none of whose corners the plant accepts (where only some
-    are, the cells it refuses are reported as such)."""
-    errors = []
-    for a in (xs[0], xs[-1]):
-        for b in (ys[0], ys[-1]):
-            try:
-                family.params({x_name: a, y_name: b})
-                return
-            except DfwbError as error:
-                errors.append(f"{x_name} = {a:g}, {y_name} = {b:g}: {error}")
-    raise InputError(f"the plant refuses every corner of the map ({errors[0]})")
-
-
 def _row(cell, key):
     row = {"x": repr(cell["x"]), "y": repr(cell["y"]), "cell": json.dumps(finite(cell), sort_keys=True), "key": key}
     if "error" in cell:
@@ -159,8 +145,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     family = LoopFamily(plant, G, fixed, free=tuple(n for n in names if isinstance(n, str)))
     both = all(name in family.plant_names for name in names)  # their ranges may depend on each other (Fc <= Fs)
     (x_name, xs), (y_name, ys) = _axis(family, x, "x", not both), _axis(family, y, "y", not both)
-    if both:
-        _some_corner(family, x_name, xs, y_name, ys)
+    check_somewhere(family, [{x_name: a, y_name: b} for a in (xs[0], xs[-1]) for b in (ys[0], ys[-1])],
+                    "every corner of the map")
     if len(xs) * len(ys) > MAX_CELLS:
         raise InputError(f"a map of {len(xs)} x {len(ys)} = {len(xs) * len(ys)} cells: at most {MAX_CELLS} "
                          "(fewer cells, or several maps)")
