@@ -103,6 +103,26 @@ def _integer(lo, hi):
     return convert
 
 
+def _named(what):
+    """An argparse type for an option that names something: an empty (or blank) value is refused, not read as
+    the current folder ('' is '.' to pathlib) nor as the option not given."""
+
+    def convert(text):
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"{text!r} is empty: give {what}")
+        return text
+
+    return convert
+
+
+def _folder(text):
+    """A folder option (--out, --cache, --fmus): a path, never empty."""
+    return Path(_named("a folder (. for the current one)")(text))
+
+
+_PNG = _named("a file name ending in .png")  # --plot
+
+
 def _jobs(text):
     """--jobs: an integer within the executor's bound (imported only when the option is given)."""
     from dfwb.studies.executor import MAX_JOBS
@@ -505,14 +525,14 @@ def cmd_demo(args):
 
 def cache_options(command):
     """--cache DIR and --no-cache: the content-addressed cache of computed points, shared by every command."""
-    command.add_argument("--cache", action=_Once, type=Path, metavar="DIR",
+    command.add_argument("--cache", action=_Once, type=_folder, metavar="DIR",
                          help=f"cache folder (default: {_cache_dir_help()})")
     command.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
 
 
 def fmu_folder_option(command):
     """--fmus DIR: where the FMUs are (built there if missing or stale)."""
-    command.add_argument("--fmus", action=_Once, type=Path, default=None,
+    command.add_argument("--fmus", action=_Once, type=_folder, default=None,
                          help=f"FMU folder (default: {_fmu_dir_help()})")
 
 
@@ -538,7 +558,7 @@ def parser():
     build = commands.add_parser("build",
                                 help="build the FMUs: plants, controller and exact closed loops (skips those "
                                      "whose sources are unchanged)")
-    build.add_argument("--out", action=_Once, type=Path, default=None,
+    build.add_argument("--out", action=_Once, type=_folder, default=None,
                        help=f"output folder (default: {_fmu_dir_help()}); the native plant FMUs (the kind dfwb runs by "
                             "default) go into its native/")
     build.add_argument("--force", action="store_true", help="rebuild even if up to date")
@@ -565,9 +585,9 @@ def parser():
                                          "or the path of an FMU, PATH.fmu)")
 
     def own_fmu_options(command):
-        command.add_argument("--input", action=_Once, metavar="NAME",
+        command.add_argument("--input", action=_Once, type=_named("the name of a variable"), metavar="NAME",
                              help="your FMU's continuous Real input the force enters (default: its only one)")
-        command.add_argument("--output", action=_Once, metavar="NAME",
+        command.add_argument("--output", action=_Once, type=_named("the name of a variable"), metavar="NAME",
                              help="your FMU's Real output whose DF is taken (default: its only one)")
         command.add_argument("--kind", action=_Once, choices=("model-exchange", "co-simulation"), default=None,
                              help="which interface of your FMU runs (default: model exchange if it has it)")
@@ -601,7 +621,7 @@ def parser():
     sweep = commands.add_parser("sweep", help="a resumable parallel sweep of DF points, written to a folder")
     point_options(sweep)
     sweep.add_argument("--grid", nargs="+", action="extend", metavar="NAME=V1,V2", help="plant parameters to sweep")
-    sweep.add_argument("--out", action=_Once, type=Path, required=True,
+    sweep.add_argument("--out", action=_Once, type=_folder, required=True,
                        help="result folder (resumed if it holds this sweep)")
     sweep.add_argument("--jobs", action=_Once, type=_jobs, default=None, help="worker processes (default: all cores)")
     sweep.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
@@ -642,7 +662,8 @@ def parser():
                             "DF's errors against them")
     cycle.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                        help="co-simulation steps per predicted period with --verify (default: %(default)s)")
-    cycle.add_argument("--plot", action=_Once, help="write the Nyquist (and time-response) figure to this PNG")
+    cycle.add_argument("--plot", action=_Once, type=_PNG,
+                       help="write the Nyquist (and time-response) figure to this PNG")
     cycle.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(cycle)
     cycle.set_defaults(run=cmd_limit_cycle)
@@ -650,7 +671,8 @@ def parser():
     def scene_options(command):
         command.add_argument("--jobs", action=_Once, type=_jobs, default=None,
                              help="worker processes, or Dask workers with --dask local (default: all cores)")
-        command.add_argument("--dask", action=_Once, metavar="ADDRESS|local",
+        command.add_argument("--dask", action=_Once, type=_named("a scheduler's address or local"),
+                             metavar="ADDRESS|local",
                              help="compute on a dask.distributed scheduler (tcp://host:8786), or on a LocalCluster")
         cache_options(command)
         fmu_options(command)
@@ -677,7 +699,8 @@ def parser():
                         help="points per branch, at most (default: %(default)s)")
     follow.add_argument("--samples", action=_Once, type=_integer(2, 1000), default=None,
                         help="your FMU only: the values where its true cycles are searched (default: 11)")
-    follow.add_argument("--plot", action=_Once, help="write the bifurcation diagram to this PNG")
+    follow.add_argument("--plot", action=_Once, type=_PNG,
+                        help="write the bifurcation diagram to this PNG")
     follow.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(follow)
     follow.set_defaults(run=cmd_continue)
@@ -690,7 +713,7 @@ def parser():
                          help="the horizontal axis: a parameter of G or of the plant, e.g. Kp=1:50:30")
     hunting.add_argument("--y", action=_Once, required=True, metavar="NAME=START:STOP:N",
                          help="the vertical axis, e.g. Ki=0.1:25:30")
-    hunting.add_argument("--out", action=_Once, type=Path,
+    hunting.add_argument("--out", action=_Once, type=_folder,
                          help="output folder (default: out/maps/<plant>_<x>_<y>); resumed if it holds this map")
     hunting.add_argument("--no-resume", action="store_true", help="start over instead of resuming")
     hunting.add_argument("--no-curves", action="store_true", help="skip the bifurcation curves")
@@ -706,13 +729,14 @@ def parser():
                         help="gain factors searched, LO < 1 < HI (default: 0.01 100)")
     margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=25,
                         help="gain factors scanned, log-spaced (default: %(default)s)")
-    margin.add_argument("--plot", action=_Once, help="write the plot to this PNG")
+    margin.add_argument("--plot", action=_Once, type=_PNG,
+                        help="write the plot to this PNG")
     margin.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(margin)
     margin.set_defaults(run=cmd_margin)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
-    examples.add_argument("--out", action=_Once, type=Path, default=Path("out/examples"),
+    examples.add_argument("--out", action=_Once, type=_folder, default=Path("out/examples"),
                           help="output folder (default: %(default)s)")
     examples.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
                           help="co-simulation steps per predicted period (default: %(default)s)")
@@ -721,7 +745,7 @@ def parser():
 
     bench = commands.add_parser("bench", help="run time against error of every method (Pareto plots, bench.md)")
     bench.add_argument("--quick", action="store_true", help="the quick set (about a minute on 2 cores)")
-    bench.add_argument("--out", action=_Once, type=Path, default=Path("out/bench"),
+    bench.add_argument("--out", action=_Once, type=_folder, default=Path("out/bench"),
                        help="output folder (default: %(default)s)")
     fmu_folder_option(bench)  # every kind of plant FMU is measured: no --fmu
     bench.set_defaults(run=cmd_bench)
@@ -738,20 +762,20 @@ def parser():
     run = commands.add_parser("run", help="run scene files: only what each needs, cached, resumable")
     run.add_argument("scenes", type=Path, nargs="+", action="extend", metavar="SCENE.toml",
                      help="scene file(s), e.g. scenes/fig08_backlash_nyquist_eps.toml")
-    run.add_argument("--out", action=_Once, type=Path,
+    run.add_argument("--out", action=_Once, type=_folder,
                      help="output folder (default: out/scenes/<scene>; with several scenes, "
                                               "one subfolder each)")
     scene_options(run)
     run.set_defaults(run=cmd_run)
 
     paper = commands.add_parser("paper", help="run the paper's scenes (figures 3-6, 8-12) and write report.md")
-    paper.add_argument("--out", action=_Once, type=Path, default=Path("out/paper"),
+    paper.add_argument("--out", action=_Once, type=_folder, default=Path("out/paper"),
                        help="output folder (default: %(default)s)")
     scene_options(paper)
     paper.set_defaults(run=cmd_paper)
 
     demo = commands.add_parser("demo", help="drive each FMU with a sine through fmpy and plot the response")
-    demo.add_argument("--out", action=_Once, type=Path, default=Path("out"),
+    demo.add_argument("--out", action=_Once, type=_folder, default=Path("out"),
                       help="output folder (default: %(default)s)")
     fmu_options(demo)
     demo.set_defaults(run=cmd_demo)

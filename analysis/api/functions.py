@@ -415,8 +415,8 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     from dfwb.studies.hunting import run_map
 
     flags(curves=curves, resume=resume, progress=progress)
-    if out_dir is not None and not isinstance(out_dir, (str, os.PathLike)):
-        raise InputError(f"out_dir = {_short(out_dir)} is not a folder: give a path")
+    if out_dir is not None:
+        _folder("out_dir", out_dir)
     spec = resolve_plant(plant)
     with _reporter(f"hunting map of {spec.name}", progress) as report:
         return run_map(spec, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
@@ -488,6 +488,16 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
                            rtol=rtol, timeout=timeout)
 
 
+def _folder(name, value):
+    """An output folder given to the API: a path, never empty ('' is the current folder to pathlib, as the
+    command line's --out '' would be: refused there too)."""
+    if not isinstance(value, (str, os.PathLike)):
+        raise InputError(f"{name} = {_short(value)} is not a folder: give a path")
+    if not os.fspath(value).strip():
+        raise InputError(f"{name} = {_short(value)} is empty: give a folder ('.' for the current one)")
+    return value
+
+
 def _reporter(title, enabled):
     """A progress(stage, done, total) shown as a rich display (nothing when not ``enabled``)."""
     from dfwb.studies.progress import Reporter
@@ -543,10 +553,12 @@ def run_scene(scene: Union[str, Path, Any], out_dir: Optional[Union[str, Path]] 
     paths = (str, os.PathLike)
     if not isinstance(scene, paths + (Scene,)):
         raise InputError(f"scene = {_short(scene)} is not a scene: give a path to a scene file, or a Scene")
-    if out_dir is not None and not isinstance(out_dir, paths):
-        raise InputError(f"out_dir = {_short(out_dir)} is not a folder: give a path")
+    if out_dir is not None:
+        _folder("out_dir", out_dir)
     if not isinstance(cache, paths + (bool,)):
         raise InputError(f"cache = {_short(cache)}: give True, False or a folder")
+    if not isinstance(cache, bool):
+        _folder("cache", cache)
     return run(scene, out_dir, jobs, dask, cache, None if fmu_dir is None else fmu_folder(fmu_dir), progress)
 
 
@@ -614,5 +626,5 @@ def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Opti
     """
     from dfwb.studies.sweep import run_sweep
 
-    return run_sweep(resolve_plant(plant), points, out_dir, jobs, drive, samples_per_period, fmu_dir,
-                     cache=cache, progress=progress, resume=resume, rtol=rtol, timeout=timeout)
+    return run_sweep(resolve_plant(plant), points, _folder("out_dir", out_dir), jobs, drive, samples_per_period,
+                     fmu_dir, cache=cache, progress=progress, resume=resume, rtol=rtol, timeout=timeout)
