@@ -4,7 +4,10 @@ Only numbers, the variable ``s``, named parameters, ``+ - * / **`` (integer
 powers) and parentheses are accepted: the text is parsed into Python's
 syntax tree and every node is checked against that list before anything is
 evaluated, so user text is never ``eval``-ed. A name other than ``s`` is a
-parameter of the controller (``"Kp + Ki/s"``); each needs a value.
+parameter of the controller (``"Kp + Ki/s"``); each needs a value. A name is
+what is written, character for character, here as in ``--set``, ``--x`` and
+scene files: ``PARAMETER`` (ASCII) is checked on G's text, not on the name
+Python's parser makes of it (which folds ``K𝐢`` into ``Ki``, NFKC).
 
 The arithmetic is done on plain lists of coefficients (highest power first,
 of degree at most ``MAX_DEGREE``, so a product is a short loop): a
@@ -187,8 +190,9 @@ def _evaluate(node, text, values):
 
 
 def _check_tree(tree, text):
-    """The parameters' names of a syntax tree, first appearance first; InputError for any node not allowed."""
-    names = []
+    """The parameters' names of a syntax tree parsed from ``text.strip()``, first appearance first; InputError for
+    any node not allowed, and for a name not written as ``PARAMETER`` allows."""
+    names, source = [], text.strip()
     for node in ast.walk(tree):
         if isinstance(node, (ast.Expression, ast.Load)) or type(node) in ALLOWED_OPERATORS:
             continue
@@ -199,13 +203,14 @@ def _check_tree(tree, text):
             continue
         if isinstance(node, ast.Constant) and type(node.value) in (int, float):
             continue
-        if isinstance(node, ast.Name) and PARAMETER.fullmatch(node.id):
+        written = ast.get_source_segment(source, node) if isinstance(node, ast.Name) else None
+        if written is not None and PARAMETER.fullmatch(written):
             if node.id != "s" and node.id not in names:
                 names.append(node.id)
             continue
         what = type(node).__name__
         if isinstance(node, ast.Name):
-            what = f"the name {node.id!r} (a parameter is a letter or _, then letters, digits or _)"
+            what = f"the name {written!r} (a parameter is an ASCII letter or _, then ASCII letters, digits or _)"
         elif isinstance(node, ast.Constant):
             what = f"the constant {node.value!r}"
         raise InputError(f"G(s) = {text}: {what} is not allowed (numbers, s, parameters, + - * / **, "
