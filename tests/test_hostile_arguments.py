@@ -11,6 +11,7 @@
 """
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -69,6 +70,21 @@ def test_a_g_that_is_no_controller_anywhere_is_refused_before_anything_is_writte
     line = refused(capsys, *command)
     assert message in line, line
     assert os.listdir(tmp_path) == []  # no out/maps/... written
+
+
+@pytest.mark.parametrize("section, message", [
+    ('[[continuation]]\nname = "c"\nplant = "friction"\nG = "Kp/0 + Ki/s"\nparams = {Kp = 10}\n'
+     'parameter = "Ki"\nstart = 1\nstop = 30\n', "at both ends of the range (Ki = 1; Ki = 30)"),
+    ('[[map]]\nname = "m"\nplant = "friction"\nG = "Kp/0 + Ki/s"\nx = {name = "Kp", start = 1, stop = 50, n = 2}\n'
+     'y = {name = "Ki", start = 0.1, stop = 25, n = 2}\n', "at every corner of the map (Kp = 1, Ki = 0.1; "),
+])
+def test_a_scene_whose_g_is_no_controller_anywhere_is_refused_when_read(capsys, tmp_path, monkeypatch, section,
+                                                                         message):
+    monkeypatch.chdir(tmp_path)
+    Path("scene.toml").write_text('title = "t"\n\n' + section)
+    line = refused(capsys, "run", "scene.toml", "--out", "o")
+    assert "G(s) = Kp/0 + Ki/s: division by zero" in line and message in line, line
+    assert os.listdir(tmp_path) == ["scene.toml"]  # nothing written: refused as the scene is read
 
 
 def test_a_g_refused_at_one_end_only_is_followed_from_the_other():

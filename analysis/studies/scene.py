@@ -390,7 +390,7 @@ class Continuation(_Loop):
     samples: int = rule(Integer(ge=2, le=1000), 11)  # a user's FMU: the values its true cycles are searched at
 
     def __post_init__(self):
-        from dfwb.studies.continuation import check_parameter
+        from dfwb.studies.continuation import check_parameter, check_somewhere
 
         spec = self.exact_plant("follow cycles of")
         if getattr(spec, "foreign", False) and spec.kind != "model-exchange":
@@ -398,7 +398,10 @@ class Continuation(_Loop):
                              "kind = \"model-exchange\" where the FMU offers it")
         if self.parameter in self.params:
             raise InputError(f"{self.parameter} is the parameter followed: give its range, not a value in params")
-        check_parameter(_family(self, free=(self.parameter,)), self.parameter, self.start, self.stop)
+        family = _family(self, free=(self.parameter,))
+        check_parameter(family, self.parameter, self.start, self.stop)
+        check_somewhere(family, [{self.parameter: value} for value in (self.start, self.stop)],
+                        "both ends of the range")
 
 
 @SECTION
@@ -421,7 +424,7 @@ class Map(_Loop):
     curves: bool = rule(Boolean(), True)
 
     def __post_init__(self):
-        from dfwb.studies.continuation import check_parameter
+        from dfwb.studies.continuation import check_parameter, check_somewhere
         from dfwb.studies.hunting import MAX_CELLS
 
         self.exact_plant("classify")
@@ -433,6 +436,8 @@ class Map(_Loop):
         family = _family(self, free=(self.x.name, self.y.name))
         for axis in (self.x, self.y):
             check_parameter(family, axis.name, axis.start, axis.stop)
+        check_somewhere(family, [{self.x.name: a, self.y.name: b} for a in (self.x.start, self.x.stop)
+                                 for b in (self.y.start, self.y.stop)], "every corner of the map")
         if self.x.n * self.y.n > MAX_CELLS:
             raise InputError(f"a map of {self.x.n} x {self.y.n} = {self.x.n * self.y.n} cells: at most {MAX_CELLS}")
 
