@@ -595,7 +595,9 @@ def parser():
                              help="accuracy aimed at with your FMU: the integrator's tolerance for model exchange "
                                   "(default 1e-10), the extrapolated DF's for co-simulation (default 1e-6)")
         command.add_argument("--timeout", action=_Once, type=float, default=None,
-                             help="seconds one point of your FMU may take before it is skipped (default 120)")
+                             help="seconds one point of your FMU may take; a point cut is tried once more with twice "
+                                  "the limit, then skipped (default: 120 s per 150 periods allowed, and at least 10 "
+                                  "times the slowest point so far)")
 
     def point_options(command):
         command.add_argument("plant", type=plant_argument, metavar="PLANT", help=plant_help)

@@ -105,7 +105,9 @@ def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: st
         Your FMU only: the accuracy aimed at (model exchange: the integrator's tolerance,
         default 1e-10; co-simulation: the extrapolated DF's, default 1e-6).
     timeout : float, optional, keyword-only
-        Your FMU only: seconds one point may take before it is skipped (default 120).
+        Your FMU only: seconds one point may take; a point cut is tried once more with twice the
+        limit, then skipped (default: 120 s per 150 periods allowed, and at least 10 times the
+        slowest point so far).
     **params : float
         Plant parameters, e.g. ``M=2.0``; checked against the plant's ranges.
 
