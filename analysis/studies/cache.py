@@ -26,16 +26,19 @@ True
 """
 
 import contextlib
+import errno
 import functools
 import hashlib
 import json
 import math
 import os
+import stat
+import threading
 import warnings
 from pathlib import Path
 
 from dfwb.base.errors import InputError, RunError
-from dfwb.base.files import ensure_folder, file_digest, read_bytes, user_cache_dir, write_atomic
+from dfwb.base.files import ensure_folder, file_digest, user_cache_dir, write_atomic
 
 FORMAT = 2
 MAX_ENTRY = 64 << 20  # bytes: the largest entries (a figure's PNG and SVG) are a few hundred kB
@@ -111,26 +114,35 @@ def digest(document):
 
 
 class Cache:
-    """Entries under ``directory/v<FORMAT>/<2 hex>/<sha256>.json``; counts hits, misses and rejects."""
+    """Entries under ``directory/v<FORMAT>/<2 hex>/<sha256>.json``; counts hits, misses and rejects.
+
+    A lookup is one ``open`` on a plain string path (a miss costs little more: a run from an empty cache
+    looks up every point, a scene that records N only twice). Within :meth:`writing`, an entry put is held
+    in memory until the background thread has written it, and read from there meanwhile: a lookup never
+    waits for the file system."""
 
     def __init__(self, directory=None):
         self.root = Path(directory) if directory is not None else default_dir()
         self.dir = self.root / f"v{FORMAT}"
         self.hits = self.misses = self.rejected = self.failed = 0
-        self._writer, self._pending = None, {}  # within writing(): the thread, and {path: Future} of its writes
+        self._writer = None  # within writing(): the thread that writes the entries
+        self._pending = {}  # within writing(): {name: entry bytes} put and not written yet
+        self._futures = []  # within writing(): of the writes, each giving the OSError that stopped it, or None
+        self._folders = set()  # the entries' folders this cache made or found (made once per process)
+        self._lock = threading.Lock()  # between put() and the writer's forgetting what it wrote
 
-    def _path(self, text):
-        name = hashlib.sha256(text.encode()).hexdigest()
-        return self.dir / name[:2] / f"{name}.json"
+    def _path(self, name):
+        return f"{self.dir}/{name[:2]}/{name}.json"
 
     def get(self, key):
         """The value stored under ``key``, or None (missing, corrupt or not this version's)."""
         text = canonical(key)
-        path = self._path(text)
-        if path in self._pending:
-            self._pending[path].result()  # written by the background thread: read once it is
+        name = hashlib.sha256(text.encode()).hexdigest()
+        data = self._pending.get(name)
         try:
-            head, _, body = read_bytes(path, MAX_ENTRY, "cache entry").partition(b"\n")
+            if data is None:
+                data = _read_entry(self._path(name))
+            head, _, body = data.partition(b"\n")
             entry = json.loads(head)
             valid = (isinstance(entry, dict) and entry.get("format") == FORMAT
                      and entry.get("key") == text and entry.get("sha256") == hashlib.sha256(body).hexdigest())
@@ -155,11 +167,13 @@ class Cache:
         Within :meth:`writing`, the file is written by a background thread."""
         text, body = canonical(key), canonical(value).encode()
         head = json.dumps({"format": FORMAT, "key": text, "sha256": hashlib.sha256(body).hexdigest()})
-        path, data = self._path(text), head.encode() + b"\n" + body
+        name, data = hashlib.sha256(text.encode()).hexdigest(), head.encode() + b"\n" + body
         if self._writer is None:
-            self._warn(self._write(path, data))
+            self._warn(self._write(name, data))
         else:
-            self._pending[path] = self._writer.submit(self._write, path, data)
+            with self._lock:
+                self._pending[name] = data
+            self._futures.append(self._writer.submit(self._write_pending, name, data))
 
     @contextlib.contextmanager
     def writing(self):
@@ -177,15 +191,34 @@ class Cache:
         finally:
             writer, self._writer = self._writer, None
             writer.shutdown(wait=True)
-            pending, self._pending = self._pending, {}
-            for future in pending.values():
+            futures, self._futures, self._pending = self._futures, [], {}
+            for future in futures:
                 self._warn(future.result())
 
-    def _write(self, path, data):
-        """Write one entry; the OSError that stopped it, or None."""
+    def _write_pending(self, name, data):
+        """Write a pending entry, then forget it (unless put again meanwhile: that one is written next)."""
+        error = self._write(name, data)
+        with self._lock:
+            if self._pending.get(name) is data:
+                del self._pending[name]
+        return error
+
+    def _write(self, name, data):
+        """Write one entry; the OSError that stopped it, or None. Its folder is made (a link in its place
+        replaced) the first time, and again if it has gone since."""
+        folder = f"{self.dir}/{name[:2]}"
         try:
-            ensure_folder(path.parent)
-            write_atomic(path, data)
+            for attempt in range(2):
+                if folder not in self._folders:
+                    ensure_folder(folder)
+                    self._folders.add(folder)
+                try:
+                    write_atomic(Path(folder, f"{name}.json"), data)
+                    break
+                except FileNotFoundError:
+                    self._folders.discard(folder)  # removed meanwhile: made again, once
+                    if attempt:
+                        raise
         except OSError as error:
             return error
         return None
@@ -197,6 +230,27 @@ class Cache:
                 warnings.warn(f"the cache {self.root} cannot be written ({error.filename}: "
                               f"{error.strerror or error}); results are kept, not cached", CacheWarning,
                               stacklevel=3)
+
+
+def _read_entry(path):
+    """The bytes of the entry file ``path`` (a string): a regular file of at most MAX_ENTRY bytes, read in one
+    call (its size from fstat), never a device or a FIFO (opened non-blocking) nor more than it claims."""
+    descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    try:
+        status = os.fstat(descriptor)
+        if not stat.S_ISREG(status.st_mode):
+            raise OSError(errno.EINVAL, "not a regular file (a cache entry is a file)", path)
+        if status.st_size > MAX_ENTRY:
+            raise OSError(errno.EFBIG, f"larger than {MAX_ENTRY} bytes (too large for a cache entry)", path)
+        data = os.read(descriptor, status.st_size + 1)
+        while len(data) < status.st_size:  # a short read (not on a local disk): the rest of what it claims
+            more = os.read(descriptor, status.st_size - len(data))
+            if not more:
+                break
+            data += more
+    finally:
+        os.close(descriptor)
+    return data  # at most MAX_ENTRY + 1 bytes: one more than it claimed is a changed file, which fails its checks
 
 
 class CacheWarning(UserWarning):
