@@ -35,9 +35,10 @@ test: $(VENV)/.test
 docs: $(VENV)/.docs fmus
 	$(BIN)/python -m sphinx -b html -W --keep-going -q docs docs/_build/html
 
-# The same check for CI, the hunting notebook on 3 x 3 maps instead of 12 x 12 (DFWB_HUNTING_N).
+# The same check for CI: every notebook executed afresh (no cached outputs), the hunting notebook on 3 x 3 maps
+# instead of 12 x 12 (DFWB_HUNTING_N).
 docs-check: $(VENV)/.docs fmus
-	DFWB_HUNTING_N=3 $(BIN)/python -m sphinx -b html -W --keep-going -q docs $(or $(TMPDIR),/tmp)/dfwb-docs-check
+	DFWB_HUNTING_N=3 $(BIN)/python -m sphinx -b html -W --keep-going -q -D nb_execution_mode=force docs $(or $(TMPDIR),/tmp)/dfwb-docs-check
 
 # ruff, configured in pyproject.toml ([tool.ruff]); installed with the test extras.
 lint: $(VENV)/.test

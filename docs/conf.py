@@ -6,7 +6,9 @@ myst-nb executes the example notebooks at build time, so their figures are curre
 sphinx-argparse writes the command-line reference from the parser itself (one source, no copy to go stale).
 """
 
-import shutil
+import hashlib
+import json
+import os
 from pathlib import Path
 
 import dfwb
@@ -33,9 +35,13 @@ myst_enable_extensions = ["dollarmath", "colon_fence"]
 myst_heading_anchors = 3
 suppress_warnings = ["myst.header"]  # guide pages moved from the README start at level 2 in places
 
-# The example notebooks (../examples) are copied in and executed at every build: their outputs are never stale.
-nb_execution_mode = "force"
-nb_execution_timeout = 300
+# The example notebooks (../examples) are copied in and executed, their outputs kept by jupyter-cache between
+# builds: a notebook runs again when its code or dfwb's changes (_copy_examples puts dfwb's revision into it),
+# and then its maps come from dfwb's own cache where dfwb's computing code is the same. `make docs-check` (CI)
+# executes every notebook afresh (-D nb_execution_mode=force).
+nb_execution_mode = "cache"
+nb_execution_cache_path = str(Path(__file__).resolve().parent / "_build" / ".jupyter_cache")
+nb_execution_timeout = 1200  # seconds per cell: a 12 x 12 hunting map from an empty cache on a slow 2-core machine
 nb_execution_raise_on_error = True
 nb_execution_show_tb = True
 
@@ -53,12 +59,33 @@ ROOT = Path(__file__).resolve().parent
 EXAMPLES = ROOT.parent / "examples"
 
 
+def _dfwb_revision():
+    """A hash of dfwb's sources (Python and C): the notebooks' outputs are stale when it changes."""
+    digest = hashlib.sha256()
+    for folder in (ROOT.parent / "analysis", ROOT.parent / "fmus"):
+        for path in sorted(folder.rglob("*")):
+            if path.suffix in (".py", ".c", ".h"):
+                digest.update(str(path.relative_to(ROOT.parent)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def _copy_examples(app):
-    """examples/*.ipynb into docs/examples/ (generated, ignored by git) for myst-nb to execute and render."""
+    """examples/*.ipynb into docs/examples/ (generated, ignored by git) for myst-nb to execute and render, each with
+    a hidden first cell naming dfwb's revision and the DFWB_ settings (DFWB_HUNTING_N), so that jupyter-cache
+    (which keys on the code cells) runs it again when either changes. A copy is rewritten only when it changes
+    (Sphinx then reads only changed notebooks)."""
     target = ROOT / "examples"
     target.mkdir(exist_ok=True)
+    settings = "".join(f", {name}={value}" for name, value in sorted(os.environ.items()) if name.startswith("DFWB_"))
+    stamp = {"cell_type": "code", "execution_count": None, "id": "dfwb-revision", "outputs": [],
+             "metadata": {"tags": ["remove-cell"]}, "source": f"# dfwb revision {_dfwb_revision()}{settings}"}
     for notebook in sorted(EXAMPLES.glob("*.ipynb")):
-        shutil.copyfile(notebook, target / notebook.name)
+        content = json.loads(notebook.read_text())
+        content["cells"].insert(0, stamp)
+        text = json.dumps(content, indent=1) + "\n"
+        copy = target / notebook.name
+        if not copy.exists() or copy.read_text() != text:
+            copy.write_text(text)
 
 
 def setup(app):
