@@ -80,7 +80,7 @@ class Flow:
     def rhs(self, t, z):
         y, u = self.evaluate(t, z)
         dx = self.inst.derivatives()
-        if not (math.isfinite(y) and math.isfinite(u) and np.all(np.isfinite(dx))):
+        if not (math.isfinite(y) and math.isfinite(u) and np.isfinite(dx).all()):
             raise FloatingPointError(f"{self.inst.info.path}: the output, the input or a derivative is not finite "
                                      f"(NaN or overflow) at t = {float(t)!r}")
         return np.concatenate((dx, self.rate(t, z[self.inst.nx:], y, u)))

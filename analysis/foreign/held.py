@@ -186,11 +186,18 @@ class _Held:
         self.y_scale = max(self.y_scale, abs(samples[0]))
         inside = {}  # first step of a window -> the nodes of its located jump
         saved = self.saved
+        held = None if inst.intermediate or self.interpolate else \
+            (self.F * math.sin(omega * h / 2) / (omega * h / 2)) * np.cos(omega * (t0 + np.arange(n) * h + h / 2))
         for i in range(n):
             start = t0 + i * h
             if self.locate:
                 saved[i % 2] = inst.save(saved[i % 2])
-            y = self._step(start, h)
+            if held is None:
+                y = self._step(start, h)
+            else:  # the step's mean of the sine, computed for the period at once (a held step is hot)
+                inst.set_input(held[i])
+                inst.do_step(h)
+                y = inst.output()
             if self.locate and self._jumped(samples[i], y, n):
                 back = 1 if i > 0 and i - 1 not in inside else 0  # the window: this step and the one before
                 first = i - back
