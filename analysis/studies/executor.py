@@ -6,21 +6,30 @@ record them at once. The three backends give identical results (the
 computation is deterministic; only the ``seconds`` field differs):
 
 - ``jobs=1``: this process (no start-up cost, easiest to debug);
-- default: this process first, then, once the points have taken more than
-  :data:`POOL_AFTER` seconds here, a pool of spawned local processes for the rest
-  (one engine per plant each): a spawned worker costs about a second to start,
-  more than hundreds of DF points on the native FMUs;
+- default: this process first; a pool of spawned local processes (one engine
+  per plant each) takes over only once the work left, estimated from the
+  chunks done here, exceeds :data:`POOL_WORTH` seconds: two spawned workers
+  cost about 1.5 s to start (imports), more than a thousand DF points on the
+  native FMUs, so the paper's points never pay for them;
 - ``jobs=N``: a pool of N spawned local processes from the start;
 - ``dask="local"`` starts a ``distributed.LocalCluster``; ``dask="tcp://host:8786"``
   uses a running scheduler. The FMU files are shipped to the workers (scattered
   once, written to each worker's temporary directory under their SHA-256), so
   a worker needs dfwb installed but neither the FMUs nor a build.
+
+One executor can serve several runs (``dfwb paper`` shares one between its
+scenes), so a pool, once started, is started once. On Ctrl-C the terminal
+signals every process of the group: the workers ignore SIGINT (blocked from
+before they exist until they ignore it, so none prints a traceback while it
+starts), and the run, which gets the KeyboardInterrupt, ends them.
 """
 
 import atexit
+import contextlib
 import hashlib
 import os
 import shutil
+import signal
 import tempfile
 import threading
 import time
@@ -88,6 +97,58 @@ def _remove_shipped():
         shutil.rmtree(folder, ignore_errors=True)
 
 
+@contextlib.contextmanager
+def interrupts_held():
+    """Ctrl-C (and ``kill``) held back while this (the main) thread starts processes, then delivered.
+
+    A process being started when the run stops would be left half-way, unknown to its pool, and fail with a
+    traceback once the run has gone (its pool's semaphores unlinked): here the signal waits until it has
+    started. SIGINT is also blocked in this thread, and the processes started meanwhile inherit the mask, so
+    a Ctrl-C stays pending in them until they ignore it (:func:`point_worker`; a fork server ignores it
+    once its modules are imported) instead of raising a KeyboardInterrupt while they start. The resource
+    tracker of multiprocessing is started first: starting it unblocks SIGINT in the thread that does."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()  # (it ignores Ctrl-C itself)
+    arrived = []
+    numbers = (signal.SIGINT, signal.SIGTERM)
+    handlers = {number: signal.signal(number, lambda number, frame: arrived.append(number)) for number in numbers}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        for number in arrived[:1]:  # the first is delivered as it would have been
+            if callable(handlers[number]):
+                handlers[number](number, None)
+            elif handlers[number] == signal.SIG_DFL:
+                signal.raise_signal(number)
+
+
+def point_worker(parent):
+    """A spawned worker's start: Ctrl-C is the run's to handle (it ends the workers), and the worker exits
+    when the run is gone. SIGINT arrives blocked (:func:`interrupts_held`): ignored before it is unblocked,
+    a Ctrl-C that came meanwhile is discarded."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    orphan_watch(parent)
+
+
+def stop_pool(pool, abort):
+    """Shut a process pool down: once its queue is empty, or (``abort``: an error or Ctrl-C) at once, its
+    processes ended by SIGTERM (their default action: no traceback, also from one that is starting) and
+    waited for, so none is left running, or starting, when the run has gone."""
+    if abort:  # (the pool forgets its processes when it shuts down: ended first; it then sees them gone)
+        for process in list((getattr(pool, "_processes", None) or {}).values()):
+            process.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
 def orphan_watch(parent):
     """In a worker process: exit as soon as the dfwb run (process ``parent``) is gone, even after a ``kill -9``.
 
@@ -120,8 +181,14 @@ def chunked(points, jobs, largest=16):
     return [tuple(points[i:i + size]) for i in range(0, len(points), size)]
 
 
-POOL_AFTER = 1.0
-"""Seconds of computing in this process after which the default executor starts its pool for the rest."""
+POOL_AFTER = 0.2
+"""CPU seconds of computing in this process before the default executor estimates the work left (the mean
+CPU time of a chunk so far, times the chunks left). CPU time, not wall time: a busy machine slows the points
+and the workers' start alike, and the estimate should not call for workers because others load the cores."""
+POOL_WORTH = 4.0
+"""CPU seconds of estimated work left for which the default executor starts its pool: a spawned worker takes
+0.6 to 0.8 CPU seconds to start (it imports numpy and fmpy), two take about 1.5 s of wall time on a 2-core
+machine, so a pool pays only beyond about twice that."""
 
 
 class Executor:
@@ -133,7 +200,6 @@ class Executor:
             raise InputError(f"jobs = {jobs!r} is out of range: an integer from 1 to {MAX_JOBS}")
         self.jobs = jobs or os.cpu_count() or 1
         self._local_first = jobs is None and self.jobs > 1  # the pool starts only when the work is long
-        self._local_seconds = 0.0
         if dask:
             try:
                 import distributed  # noqa: F401  (checked before anything runs)
@@ -155,12 +221,14 @@ class Executor:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, kind, *exc):
+        self.close(abort=kind is not None)
 
-    def close(self):
+    def close(self, abort=False):
+        """Stop the workers: at once on an error or interruption (``abort``: the chunks in flight are lost
+        anyway), else once their queue is empty."""
         if self._pool is not None:
-            self._pool.shutdown(cancel_futures=True)
+            stop_pool(self._pool, abort)
         if self._client is not None:
             self._client.close()
         if self._cluster is not None:
@@ -188,24 +256,27 @@ class Executor:
             for chunk in chunks:
                 yield chunk, function(chunk)
         else:
-            done = 0
-            while self._local_first and done < len(chunks) and self._local_seconds < POOL_AFTER:
-                started = time.perf_counter()
+            done, seconds = 0, 0.0  # seconds: CPU time of the chunks done here but the first (imports, engines)
+            while self._pool is None and self._local_first and done < len(chunks) and not (
+                    done > 1 and seconds >= POOL_AFTER and seconds / (done - 1) * (len(chunks) - done) > POOL_WORTH):
+                started = time.thread_time()
                 result = function(chunks[done])
-                self._local_seconds += time.perf_counter() - started
+                seconds += (time.thread_time() - started) if done else 0.0
                 yield chunks[done], result
                 done += 1
             chunks = chunks[done:]
             if not chunks:
                 return
             import concurrent.futures as futures  # a pool only when there is work for one
-            import multiprocessing
 
-            if self._pool is None:
-                self._pool = futures.ProcessPoolExecutor(min(self.jobs, len(chunks)),
-                                                         multiprocessing.get_context("spawn"),
-                                                         initializer=orphan_watch, initargs=(os.getpid(),))
-            waiting = {self._pool.submit(function, chunk): chunk for chunk in chunks}
+            with interrupts_held():
+                if self._pool is None:
+                    import multiprocessing
+
+                    self._pool = futures.ProcessPoolExecutor(self.jobs,  # spawned as chunks need them
+                                                             multiprocessing.get_context("spawn"),
+                                                             initializer=point_worker, initargs=(os.getpid(),))
+                waiting = {self._pool.submit(function, chunk): chunk for chunk in chunks}  # spawns the workers
             try:
                 for future in futures.as_completed(waiting):
                     yield waiting[future], future.result()

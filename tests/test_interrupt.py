@@ -1,0 +1,79 @@
+"""Ctrl-C: a run ends quietly, at once, with exit code 130, and leaves nothing running.
+
+A terminal's Ctrl-C sends SIGINT to every process of the foreground group: the run, its spawned point
+workers, the drawing processes and their fork server. Only the run reports it ("interrupted", exit 130);
+the others ignore it, no process prints a traceback, and every one of them is gone soon after. The
+``dfwb paper --jobs 2`` run is interrupted while its points are computed on two workers, and while its
+figures are drawn (its drawing processes were once left running, the run waiting for them at exit).
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+PAPER_FIRST = "fig06_friction_harmonics"  # the paper's first scene (harmonics first): its points come first
+
+
+def group(pgid):
+    """{pid: (state, command line)} of the live processes (not zombies) of the process group ``pgid``."""
+    found = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rpartition(")")[2].split()
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:  # gone meanwhile
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            found[int(entry.name)] = (fields[0], command)
+    return found
+
+
+def rows(path):
+    try:
+        return max(0, len(path.read_bytes().splitlines()) - 1)
+    except OSError:
+        return 0
+
+
+def reached(moment, pgid, out):
+    """Whether the run (process group ``pgid``) is at ``moment``: "points", its two spawned point workers
+    started and points coming back; "figures", drawing processes forked by the fork server (its children
+    run its command line too)."""
+    commands = [command for _, command in group(pgid).values()]
+    if moment == "points":
+        return sum("spawn_main" in command for command in commands) >= 2 and rows(out / PAPER_FIRST / "results.csv")
+    return sum("multiprocessing.forkserver" in command for command in commands) >= 2
+
+
+@pytest.mark.parametrize("moment", ["points", "figures"])
+def test_ctrl_c_ends_every_process_quietly(fmus, tmp_path, moment):
+    out = tmp_path / "paper"
+    argv = [sys.executable, "-m", "dfwb.cli", "paper", "--out", str(out), "--jobs", "2", "--quiet",
+            "--cache", str(tmp_path / "cache"), "--fmus", str(Path(fmus["FrictionMass"]).parent)]
+    run = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and run.poll() is None and not reached(moment, run.pid, out):
+            time.sleep(0.02)
+        assert run.poll() is None and reached(moment, run.pid, out), f"the run never reached its {moment}"
+        os.killpg(run.pid, signal.SIGINT)  # what a terminal's Ctrl-C does
+        _, err = run.communicate(timeout=60)
+        err = err.decode(errors="replace")
+        assert run.returncode == 130, err
+        assert "Traceback" not in err and err.strip().splitlines() == ["dfwb paper: interrupted"], err
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and group(run.pid):
+            time.sleep(0.2)
+        assert not group(run.pid), f"left running after Ctrl-C: {group(run.pid)}"
+    finally:
+        if run.poll() is None or group(run.pid):
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    assert not (out / PAPER_FIRST / "manifest.json").exists()  # an interrupted scene never looks finished
