@@ -369,13 +369,15 @@ def test_a_running_dask_scheduler_gets_the_fmus_shipped_and_gives_the_local_resu
                 process.wait(timeout=30)
 
 
-@pytest.mark.parametrize("pool_after, pooled", [(1e9, False), (0.0, True)])
-def test_the_default_executor_starts_its_pool_only_for_long_work(monkeypatch, pool_after, pooled):
-    """jobs=None: chunks run in this process until they have taken POOL_AFTER seconds, the rest in the pool;
-    the results are the same either way."""
+@pytest.mark.parametrize("pool_worth, pooled", [(1e9, False), (0.0, True)])
+def test_the_default_executor_starts_its_pool_only_for_long_work(monkeypatch, pool_worth, pooled):
+    """jobs=None: chunks run in this process until the work left, estimated from those done here (but the
+    first), exceeds POOL_WORTH CPU seconds, the rest in the pool; the results are the same either way. An
+    executor shared by several runs keeps its pool for the next."""
     from dfwb.studies import executor
 
-    monkeypatch.setattr(executor, "POOL_AFTER", pool_after)
+    monkeypatch.setattr(executor, "POOL_AFTER", 0.0)
+    monkeypatch.setattr(executor, "POOL_WORTH", pool_worth)
     path = str(fmu_path("FrictionMass"))
     chunks = [executor.Chunk("friction", path, (), ((F, 1.0, {}),)) for F in (10.0, 20.0, 30.0, 40.0)]
     with executor.Executor(jobs=None) as runner:
@@ -383,6 +385,8 @@ def test_the_default_executor_starts_its_pool_only_for_long_work(monkeypatch, po
         runner._local_first = True
         got = {chunk.points[0][0]: results for chunk, results in runner.run(chunks)}
         assert (runner._pool is not None) == pooled
+        pool = runner._pool
+        assert len(list(runner.run(chunks[:2]))) == 2 and runner._pool is pool
     with executor.Executor(jobs=1) as alone:
         expected = {chunk.points[0][0]: results for chunk, results in alone.run(chunks)}
     assert {F: [dict(r, seconds=0) for r in rows] for F, rows in got.items()} == \

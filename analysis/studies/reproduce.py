@@ -15,6 +15,7 @@ from dfwb.base.files import read_bytes, write_atomic
 from dfwb.plants.closed_forms import validity_frequencies
 from dfwb.studies.cache import open_cache
 from dfwb.studies.drawing import Drawing
+from dfwb.studies.executor import Executor
 from dfwb.studies.runner import begin_scene, phase_times
 from dfwb.studies.scene import EPS_FIG8, EPS_FIG9, FRICTION_F, load_scene, shipped_scenes
 
@@ -116,10 +117,12 @@ def run_paper(out_dir="out/paper", jobs=None, fmu_dir=None, progress=True, repor
     runs = []
     drawing = Drawing(jobs) if jobs != 1 else None  # each scene's figure drawn while the next scene computes
     cache = open_cache(cache)  # one for all the scenes: its entries are written in the background meanwhile
-    with cache.writing(), drawing or contextlib.nullcontext():
+    executor = Executor(jobs, dask)  # one for all the scenes: a pool, if any, starts once
+    with cache.writing(), drawing or contextlib.nullcontext(), executor:
         try:
             for path, scene in paper_scenes():
-                runs.append(begin_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress, drawing))
+                runs.append(begin_scene(scene, out_dir / path.stem, jobs, dask, cache, fmu_dir, progress, drawing,
+                                        executor))
             outcomes = [run.finish() for run in runs]
         finally:
             for run in runs:

@@ -772,16 +772,18 @@ def run_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=Non
     return begin_scene(scene, out_dir, jobs, dask, cache, fmu_dir, progress).finish()
 
 
-def begin_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=None, progress=True, drawing=None):
+def begin_scene(scene, out_dir=None, jobs=None, dask=None, cache=True, fmu_dir=None, progress=True, drawing=None,
+                executor=None):
     """:func:`run_scene` up to its figures, which ``drawing`` draws meanwhile: the :class:`SceneRun`, whose
-    ``finish()`` gives the Outcome (and ``close()`` gives the run up)."""
+    ``finish()`` gives the Outcome (and ``close()`` gives the run up). ``executor``: one shared by several
+    runs (its pool started once; the caller closes it), else one of ``jobs`` and ``dask`` for this run."""
     if not isinstance(scene, Scene):
         path = Path(scene)
         scene = load_scene(path)
         out_dir = out_dir or Path("out/scenes") / path.stem
     if out_dir is None:
         raise InputError("out_dir is required when the scene is not a file")
-    with Executor(jobs, dask) as executor:
+    with contextlib.nullcontext(executor) if executor is not None else Executor(jobs, dask) as executor:
         return SceneRun(scene, out_dir, executor, open_cache(cache), fmu_dir, progress).begin(drawing)
 
 
