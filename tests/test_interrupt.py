@@ -77,3 +77,16 @@ def test_ctrl_c_ends_every_process_quietly(fmus, tmp_path, moment):
             os.killpg(run.pid, signal.SIGKILL)
             run.wait()
     assert not (out / PAPER_FIRST / "manifest.json").exists()  # an interrupted scene never looks finished
+
+
+def test_a_ctrl_c_while_processes_start_is_held_then_delivered_once():
+    from dfwb.studies.executor import interrupts_held
+
+    steps = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # a KeyboardInterrupt would have come here
+            steps.append("started")
+        steps.append("not reached")
+    assert steps == ["started"] and signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -114,15 +114,17 @@ def interrupts_held():
 
     resource_tracker.ensure_running()  # (it ignores Ctrl-C itself)
     arrived = []
-    numbers = (signal.SIGINT, signal.SIGTERM)
-    handlers = {number: signal.signal(number, lambda number, frame: arrived.append(number)) for number in numbers}
+    handlers = {number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)}
+    handlers = {number: handler for number, handler in handlers.items() if handler is not None}  # None: not Python's
+    for number in handlers:
+        signal.signal(number, lambda number, frame: arrived.append(number))
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-        for number, handler in handlers.items():
-            signal.signal(number, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a SIGINT pending here trips the holding handler
+        for number in sorted(handlers, key=lambda number: number == signal.SIGINT):  # SIGINT's last (Ctrl-C)
+            signal.signal(number, handlers[number])
         for number in arrived[:1]:  # the first is delivered as it would have been
             if callable(handlers[number]):
                 handlers[number](number, None)
