@@ -89,22 +89,29 @@ def _zeros_bz2(size):
     return stream([full] * count + ([bits(bz2.compress(bytes(rest), 1)).rsplit(end, 1)[0]] if rest else []))
 
 
+# Runs a command from a small Python and writes its peak memory (kB) to argv[1]. Linux carries a process's peak
+# across fork and exec, so a command started straight from the test process (a pytest-xdist worker of a few
+# hundred MB) would report the test's peak, not its own.
+_PEAK = ("import os, sys\n"
+         "pid = os.fork()\n"
+         "if pid == 0:\n"
+         "    os.execvp(sys.argv[2], sys.argv[2:])\n"
+         "_, status, usage = os.wait4(pid, 0)\n"
+         "open(sys.argv[1], 'w').write(str(usage.ru_maxrss))\n"
+         "sys.exit(os.waitstatus_to_exitcode(status) % 256)\n")
+
+
 def _run(argv, tmp_path, timeout=60):
     """(exit code, stdout, stderr, seconds, peak memory in MB) of ``dfwb argv``, its temporary folder in
     ``tmp_path/tmp`` (which must be empty afterwards: nothing unpacked is left behind)."""
     temporary = tmp_path / "tmp"
     temporary.mkdir(exist_ok=True)
+    peak = tmp_path / "peak.txt"
     started = time.perf_counter()
-    with open(tmp_path / "out.txt", "w+") as out, open(tmp_path / "err.txt", "w+") as err:
-        process = subprocess.Popen(DFWB + argv, stdout=out, stderr=err, cwd=tmp_path,
-                                   env=dict(os.environ, TMPDIR=str(temporary)))
-        try:
-            _, status, usage = os.wait4(process.pid, 0)
-        finally:
-            process.returncode = process.poll() if process.returncode is None else process.returncode
-        out.seek(0), err.seek(0)
-        result = (os.waitstatus_to_exitcode(status), out.read(), err.read(), time.perf_counter() - started,
-                  usage.ru_maxrss / 1024)
+    done = subprocess.run([sys.executable, "-c", _PEAK, str(peak), *DFWB, *argv], capture_output=True, text=True,
+                          cwd=tmp_path, env=dict(os.environ, TMPDIR=str(temporary)), timeout=timeout)
+    result = (done.returncode, done.stdout, done.stderr, time.perf_counter() - started,
+              int(peak.read_text()) / 1024)
     assert list(temporary.iterdir()) == []
     return result
 
