@@ -308,14 +308,22 @@ def test_an_unstable_cycle_is_shot_from_the_harmonic_balance(built):
     assert np.max(np.abs(pushed.y[:, -1] - w0)) > 10 * 1e-6 * np.max(np.abs(w0))  # it leaves the cycle
 
 
-def test_a_cosimulated_loop_finds_the_true_cycle_within_its_estimated_error(built):
+SATURATING_LOOP = dict(G="10/(s*(s+1)**2)", F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5, n_omega=6, exact=True,
+                       amplitudes=[1.0])
+
+
+@pytest.fixture(scope="module")
+def saturating_loop(built):
+    """The saturation's model-exchange loop under 10/(s (s + 1)^2), searched once for the tests that check it."""
+    return dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"]), **SATURATING_LOOP)
+
+
+def test_a_cosimulated_loop_finds_the_true_cycle_within_its_estimated_error(built, saturating_loop):
     """The saturating loop below, its FMU run as co-simulation: the master holds the output over each step
     and solves G exactly, refines the step and extrapolates. The cycle agrees with the model-exchange
     one (shot, exact to 1e-9) within 1e-4 and within its own error estimates; it is stable (reached)."""
-    G = "10/(s*(s+1)**2)"
-    ranges = dict(F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5, n_omega=6, exact=True, amplitudes=[1.0])
-    [exact] = dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"]), G, **ranges).cycles
-    response = dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"], kind="co-simulation"), G, **ranges)
+    [exact] = saturating_loop.cycles
+    response = dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"], kind="co-simulation"), **SATURATING_LOOP)
     [cycle] = response.cycles
     assert cycle.stable and cycle.multipliers == [] and not exact.errors
     for name in ("period", "amplitude_x", "F"):
@@ -341,7 +349,7 @@ def test_dfwbs_backlash_fmu_as_a_black_box_cosimulation_has_the_exact_true_cycle
         assert abs(value - truth) <= min(error, 1e-5 * truth), (name, value, truth, error)
 
 
-def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built):
+def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built, saturating_loop):
     """The textbook case, a saturation under G = 10 / (s (s + 1)^2): G crosses -180 degrees at w = 1 with
     |G| = 5, so the DF predicts N(F) = 1/5 there (F from the saturation's closed form), stable by Loeb.
     The true cycle, the FMU's closed loop shot by dfwb, against the same loop written here for scipy
@@ -352,9 +360,7 @@ def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built):
     from scipy.optimize import brentq
     from scipy.signal import tf2ss
 
-    plant = dfwb.fmu_plant(built["Saturation"])
-    response = dfwb.limit_cycles(plant, "10/(s*(s+1)**2)", F_range=(0.5, 50), omega_range=(0.3, 3), n_F=5,
-                                 n_omega=6, exact=True, amplitudes=[1.0])
+    response = saturating_loop
     F = brentq(lambda F: foreign_models.saturation_df(F) - 0.2, 1.01, 100, xtol=1e-14)
     [prediction] = response.predictions
     assert prediction.omega == pytest.approx(1.0, rel=1e-7) and prediction.F == pytest.approx(F, rel=1e-7)
