@@ -189,10 +189,11 @@ def test_a_crash_or_nan_costs_one_point_not_the_run(built, name, reason):
 def test_a_hang_is_cut_by_the_time_limit_tried_again_and_said_so(built):
     plant = dfwb.fmu_plant(built["Hang"])
     with pytest.warns(RuntimeWarning) as caught:
-        response = dfwb.describing_function(plant, [10.0, 1.0], 10.0, timeout=3)
+        # 5 s: the good point's own limit too, which must hold beside a worker spinning in the hang on a busy machine
+        response = dfwb.describing_function(plant, [10.0, 1.0], 10.0, timeout=5)
     messages = [str(w.message) for w in caught]
-    assert any("no answer within 3 s" in m and "tried again with 6 s" in m for m in messages), messages
-    assert any("no answer within 6 s" in m and "also when tried again" in m for m in messages), messages
+    assert any("no answer within 5 s" in m and "tried again with 10 s" in m for m in messages), messages
+    assert any("no answer within 10 s" in m and "also when tried again" in m for m in messages), messages
     assert math.isnan(complex(response.N[0]).real) and response.N_error[0] == math.inf
     assert "also when tried again" in response.points[0]["note"]
     assert complex(response.N[1]) == pytest.approx(-1.0 / 100.0, rel=1e-8)
