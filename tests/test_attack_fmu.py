@@ -488,6 +488,7 @@ def _run_sequence(info, ops):
     return out
 
 
+@pytest.mark.slow
 @given(st.lists(st.tuples(OPS, st.integers(0, 1000), st.integers(0, 1000)), min_size=20, max_size=400))
 def test_random_call_sequences(info, ops):
     """Random FMI call sequences over up to 50 instances of every model: every status is OK or Error."""
@@ -635,6 +636,7 @@ def test_genuine_states_pass_the_new_checks(model, start):
         assert twin._phase == facade.STEPPING, k
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind (.ci/run installs it)")
 def test_a_python_host_exits_without_touching_freed_memory(info, tmp_path):
     """pythonfmu 0.7.0 releases its interpreter state twice at exit, the second time in freed memory (a

@@ -24,6 +24,7 @@ def test_every_registered_plant_has_what_the_benchmark_needs():
                 entry.check(params)
 
 
+@pytest.mark.slow
 def test_bench_measures_every_method_and_writes_its_report(fmus, tmp_path, monkeypatch):
     for name in BENCHED:  # one point per plant: its first quick one
         monkeypatch.setitem(PLANTS[name].bench, "quick", PLANTS[name].bench["quick"][:1])

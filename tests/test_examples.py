@@ -39,6 +39,7 @@ def test_an_example_uses_only_the_public_api(path):
         assert all(name == "dfwb" or not name.startswith("dfwb") for name in names), f"{path.name}: {names}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.name)
 def test_an_example_script_runs(fmus, tmp_path, path):
     env = dict(os.environ, MPLBACKEND="Agg", MPLCONFIGDIR=str(tmp_path / "mpl"))
@@ -87,6 +88,7 @@ def _hunting(hunting_map):
     return linear, hunting_map.classes("truth") == "stable", hunting_map.classes("df") == "stable"
 
 
+@pytest.mark.slow
 def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
     """examples/hunting.ipynb on 3 x 3 maps (DFWB_HUNTING_N; 12 x 12 as committed): what it says holds.
 

@@ -259,6 +259,7 @@ def test_cli_info_lists_what_the_fmu_offers(built):
 
 
 # -- limit cycles with your FMU in the loop -----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_cli_limit_cycle_of_an_fmu(built):
     result = subprocess.run(DFWB + ["limit-cycle", str(built["Relay"]), "--G", "K/(s*(s+1)**2)", "--set", "K=2",
                                     "a=0.1", "--F-range", "0.2", "20", "--omega-range", "0.3", "3", "--map-size", "5", "6",
@@ -277,6 +278,7 @@ def test_what_is_not_there_for_an_fmu_is_said_plainly(built):
         dfwb.limit_cycles(dfwb.fmu_plant(built["Relay"]), "1/s", F_range=(1, 10), omega_range=(1, 10), verify=True)
 
 
+@pytest.mark.slow
 def test_an_unstable_cycle_is_shot_from_the_harmonic_balance(built):
     """A conditionally stable loop: a saturation under G = (s + 1)^2 / s^3 is stable for small amplitudes
     (gain 1 > 1/2, Routh) and loses stability as the saturation lowers the gain, so the one cycle between,
@@ -319,6 +321,7 @@ def saturating_loop(built):
     return dfwb.limit_cycles(dfwb.fmu_plant(built["Saturation"]), **SATURATING_LOOP)
 
 
+@pytest.mark.slow
 def test_a_cosimulated_loop_finds_the_true_cycle_within_its_estimated_error(built, saturating_loop):
     """The saturating loop below, its FMU run as co-simulation: the master holds the output over each step
     and solves G exactly, refines the step and extrapolates. The cycle agrees with the model-exchange
@@ -350,6 +353,7 @@ def test_dfwbs_backlash_fmu_as_a_black_box_cosimulation_has_the_exact_true_cycle
         assert abs(value - truth) <= min(error, 1e-5 * truth), (name, value, truth, error)
 
 
+@pytest.mark.slow
 def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built, saturating_loop):
     """The textbook case, a saturation under G = 10 / (s (s + 1)^2): G crosses -180 degrees at w = 1 with
     |G| = 5, so the DF predicts N(F) = 1/5 there (F from the saturation's closed form), stable by Loeb.
@@ -392,6 +396,7 @@ def test_a_saturating_loop_its_df_prediction_and_its_true_cycle(built, saturatin
     assert np.max(np.abs(trace["y"])) == pytest.approx(1.0, abs=1e-9)  # the saturation's level
 
 
+@pytest.mark.slow
 def test_the_limit_cycle_margin_of_an_fmu_loop(built, monkeypatch):
     """The saturating loop under k 10/(s (s + 1)^2): its linear part loses stability at k = 0.2 (Routh on
     s^3 + 2 s^2 + s + 10 k), where the saturation's cycle is born, and the DF says the same (N <= 1, and
@@ -409,6 +414,7 @@ def test_the_limit_cycle_margin_of_an_fmu_loop(built, monkeypatch):
     assert m.truth.scan[0][1] == "none" and m.truth.scan[-1][1] == "stable"
 
 
+@pytest.mark.slow
 def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
     """A saturation under K (s + z) / (s (s + 1)^2): the loop's characteristic polynomial with the
     saturation's gain N is s^3 + 2 s^2 + (1 + K N) s + K N z, so the linear loop (N = 1) is unstable, and
@@ -434,6 +440,7 @@ def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
     assert large["omega"] == pytest.approx(small["omega"], rel=1e-6)
 
 
+@pytest.mark.slow
 def test_the_df_predictions_of_an_fmu_loop_are_followed_in_a_parameter(built):
     """The saturating loop under K 10/(s (s + 1)^2) for K from 0.5 to 1: G crosses -180 degrees at w = 1
     with |G| = 5 K, so the predicted cycle stays at w = 1 with N(F) = 1/(5 K): every point of the branch
@@ -452,6 +459,7 @@ def test_the_df_predictions_of_an_fmu_loop_are_followed_in_a_parameter(built):
         assert point.omega == pytest.approx(1.0, rel=1e-6) and point.F == pytest.approx(F, rel=1e-6), point
 
 
+@pytest.mark.slow
 def test_the_true_cycles_of_an_fmu_loop_are_sampled_along_a_parameter(built):
     """The saturating loop under K 10/(s (s + 1)^2) for K from 0.1 to 1: its linear loop loses stability at
     K = 0.2 (Routh), where the saturation's stable cycle is born. Searched at four values, the true cycles

@@ -73,6 +73,7 @@ def test_a_series_of_an_fmu_meets_its_closed_form_and_is_cached_and_up_to_date(f
     assert run_scene(scene, tmp_path / "third", jobs=2, cache=cache, progress=False).computed == 12
 
 
+@pytest.mark.slow
 def test_a_limit_cycle_section_of_an_fmu_gives_the_prediction_and_the_true_cycle(folder, tmp_path):
     scene = write(folder, """
 title = "a saturating loop"
@@ -201,6 +202,7 @@ series = ["branch"]
 """
 
 
+@pytest.mark.slow
 def test_a_scene_maps_and_follows_an_fmu_loop(folder, tmp_path):
     """A hunting map (against Routh: the saturating loop hunts where K (z - 2) > 2, see test_foreign) and a
     continuation of the DF's predictions of a user's FMU, declared in a scene, drawn, and up to date after."""

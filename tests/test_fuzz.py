@@ -269,6 +269,7 @@ def limit_cycle_arguments(draw, out):
     return ["limit-cycle", plant] + [word for group in groups for word in group]
 
 
+@pytest.mark.slow
 @fuzz_settings(12)
 @given(data=st.data())
 def test_limit_cycle_arguments(sandbox_factory, data):
@@ -327,6 +328,7 @@ def g_expressions(argv=False):
     return texts.filter(lambda text: "\x00" not in text) if argv else texts
 
 
+@pytest.mark.slow
 @fuzz_settings(25)
 @given(expression=g_expressions(), via_scene=st.integers(0, 2))
 def test_controller_expressions(sandbox_factory, expression, via_scene):

@@ -52,6 +52,7 @@ def test_a_map_is_the_search_cell_by_cell(small_map):
                 assert abs(1 + complex(G(1j * p["omega"])) * N) < 1e-6
 
 
+@pytest.mark.slow
 def test_static_friction_above_coulomb_hunts_for_every_stabilizing_pi_and_never_at_coulomb():
     axes = (("Kp", 2.0, 30.0, 4), ("Ki", 0.2, 12.0, 4))
     above = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, Fs=7.0)
@@ -100,6 +101,7 @@ def test_a_map_reads_its_cells_back_from_the_cache(tmp_path):
     assert again.as_dict()["cells"] == first.as_dict()["cells"]
 
 
+@pytest.mark.slow
 def test_a_killed_map_resumes_with_what_it_had(fmus, tmp_path):
     out = tmp_path / "map"
     argv = [sys.executable, "-m", "dfwb.cli", "map", "friction", "--G", PI, "--x", "Kp=5:20:3", "--y", "Ki=1:4:3",
@@ -322,6 +324,7 @@ def test_the_gain_factor_does_not_collide_with_a_plant_parameter_named_k():
     assert complex(problem.G(1j)) == pytest.approx(3.0 * complex(family.G()(1j)), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_a_map_of_two_plant_parameters_reports_the_cells_the_plant_refuses():
     """Fc and Fs over a grid where Fs < Fc at one corner: that cell says why, the others are computed."""
     m = dfwb.hunting_map("friction", PI, ("Fc", 4.0, 6.0, 2), ("Fs", 5.0, 7.0, 2), jobs=1, curves=False,

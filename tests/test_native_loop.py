@@ -234,6 +234,7 @@ def _trace(cls, b, a, kw, section, steps, stop, total):
         return "refused", type(error).__name__, str(error), budget.left
 
 
+@pytest.mark.slow
 def test_random_loops_agree(core):
     """Seeded random controllers (order 1..8), plants, starts, sections and steps: identical runs or refusals."""
     rng = random.Random(2024)
@@ -644,6 +645,7 @@ print(json.dumps(tally))
 """
 
 
+@pytest.mark.slow
 def test_state_fuzzing_never_crashes(core):
     """Fields set to extreme values, fields mixed across states (checksums made valid): refused with one line,
     or accepted as a loop whose copy, outputs and next step (within a Budget) work and whose bytes read back

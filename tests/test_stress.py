@@ -23,6 +23,7 @@ def _report(result):
     return "\n".join(lines)
 
 
+@pytest.mark.slow
 def test_quick_suite_passes(quick_result):
     """The whole quick set (~370 cases): every invariant holds on every case."""
     assert quick_result["cases"] >= 50
