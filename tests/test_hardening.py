@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
+from refusals import refused
 
 from dfwb.base import files as dfwb_files
 from dfwb.base.files import FolderBusy, file_digest, folder_lock, inside, write_atomic
@@ -44,17 +45,6 @@ name = "nyquist"
 kind = "nyquist"
 series = ["friction"]
 '''
-
-
-def refused(capsys, *argv):
-    """The one line of stderr of a refused command (exit code 2)."""
-    with pytest.raises(SystemExit) as stop:
-        main(list(argv))
-    err = capsys.readouterr().err
-    assert stop.value.code == 2, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def df_json(capsys, *argv):

@@ -14,24 +14,13 @@ import os
 from pathlib import Path
 
 import pytest
+from refusals import refused
 
 import dfwb
-from dfwb.cli import main
 
 PI = "Kp + Ki/s"
 FOLD = 24.773045  # the nonsmooth fold of the PI-controlled friction mass at Kp = 10 (tests/test_continuation.py)
 NAMES = "Kp, Ki, M, B, Fc, Fs, Dv"  # G's and the friction plant's parameters, as the refusals list them
-
-
-def refused(capsys, *argv):
-    """The one line of stderr of a refused command (exit code 2)."""
-    with pytest.raises(SystemExit) as stop:
-        main(list(argv))
-    err = capsys.readouterr().err
-    assert stop.value.code == 2, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 @pytest.mark.parametrize("hi", [1e4, 1e8, 1e308])
