@@ -77,6 +77,9 @@ class Worker:
 
     def _start(self):
         read_end, write_end = os.pipe()
+        # The child is born with SIGINT blocked (the mask crosses fork and exec) and ignores it before unblocking:
+        # a Ctrl-C reaches the whole process group, and it is the parent's to handle (it ends its workers).
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
             self._process = subprocess.Popen([sys.executable, "-m", "dfwb.foreign.worker", str(write_end)],
                                              stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
@@ -85,6 +88,7 @@ class Worker:
             os.close(read_end)
             raise
         finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
             os.close(write_end)
         self._answers = read_end
 
@@ -202,4 +206,6 @@ def _serve(answer_fd):
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # blocked since birth (Worker._start): a Ctrl-C is the parent's
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _serve(int(sys.argv[1]))
