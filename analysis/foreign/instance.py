@@ -15,6 +15,7 @@ import itertools
 import numpy as np
 
 from dfwb.fmi.simulation import FMUError
+from dfwb.foreign.description import MAX_EVENT_INDICATORS
 
 __all__ = ["Instance"]
 
@@ -163,8 +164,11 @@ class Instance:
             if self.v3:
                 fmu.enterStepMode()
             return None
-        if self.v3:
+        if self.v3:  # an FMI 3.0 FMU tells its sizes at run time: checked as its description's would be
             self.nx, self.nz = fmu.getNumberOfContinuousStates(), fmu.getNumberOfEventIndicators()
+            if not (0 <= self.nx <= MAX_EVENT_INDICATORS and 0 <= self.nz <= MAX_EVENT_INDICATORS):
+                raise FMUError(f"the FMU reports {self.nx} continuous states and {self.nz} event indicators "
+                               f"(each 0 to {MAX_EVENT_INDICATORS})")
         else:
             self.nx, self.nz = self.info.states, self.info.event_indicators
         self._x, self._dx, self._z = np.zeros(self.nx), np.zeros(self.nx), np.zeros(self.nz)
