@@ -28,10 +28,10 @@ demo: fmus
 	$(BIN)/dfwb demo --out out
 	$(BIN)/dfwb paper --out out/paper
 
-# One pytest-xdist worker per core (the FMUs are built once, under a lock, and shared), tests handed out two at a
-# time as workers free up, the slow ones first (tests/conftest.py); the slowest 15 listed at the end of every run.
+# One pytest-xdist worker per core (the FMUs are built once, under a lock, and shared), work stealing; the slowest
+# 15 tests listed at the end of every run.
 test: $(VENV)/.test
-	$(BIN)/python -m pytest -q -n auto --dist load --maxschedchunk 2 --durations=15
+	$(BIN)/python -m pytest -q -n auto --dist worksteal --durations=15
 
 # The documentation site (docs/_build/html/index.html), warnings as errors, the example notebooks executed.
 docs: $(VENV)/.docs fmus

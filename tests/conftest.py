@@ -150,9 +150,3 @@ def solver(monkeypatch):
     use(None)
     return use
 
-
-def pytest_collection_modifyitems(config, items):
-    """The tests marked slow first: `make test` hands tests out one by one as workers free up (pytest-xdist's
-    load scheduling, --maxschedchunk 2), so the long ones start at once and the short ones fill in around them,
-    instead of a long test starting last while the other worker idles."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
