@@ -149,4 +149,3 @@ def solver(monkeypatch):
 
     use(None)
     return use
-
