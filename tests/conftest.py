@@ -1,7 +1,7 @@
 """Shared fixtures: the FMUs (plants and controller) and the C core, built once from the current sources.
 
 Every build goes into a folder of the checkout's ``build/`` keyed by its sources' hash, under a lock: the
-pytest-xdist workers (``make test`` runs two) and later sessions share it, so the first to need an FMU
+pytest-xdist workers (``make test`` runs one per core) and later sessions share it, so the first to need an FMU
 builds it and the others find it up to date.
 """
 

@@ -123,8 +123,7 @@ def closed_loop_poles(num_g, den_g, num_p, den_p):
 
     On plain arrays, not poly1d: a hunting map's boundary asks this at 10^4 points, and poly1d's
     construction cost 5 times the roots themselves."""
-    as_array = (np.asarray(c, dtype=float) for c in (num_g, den_g, num_p, den_p))
-    num_g, den_g, num_p, den_p = as_array
+    num_g, den_g, num_p, den_p = (np.asarray(c, dtype=float) for c in (num_g, den_g, num_p, den_p))
     return tuple(complex(p) for p in np.roots(np.polyadd(np.convolve(den_g, den_p), np.convolve(num_g, num_p))))
 
 
