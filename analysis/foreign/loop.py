@@ -72,7 +72,8 @@ class _Loop:
             c, s = np.cos(k * omega * t), np.sin(k * omega * t)
             return np.concatenate((dw, y * c, y * s, [u * c[1], u * s[1]]))
 
-        self.flow = Flow(instance, law, rate, n + (0 if omega is None else 2 * (HARMONICS + 1) + 2))
+        self.flow = Flow(instance, law, rate, n + (0 if omega is None else 2 * (HARMONICS + 1) + 2),
+                         reads_output=D != 0.0)
 
     def atol(self, rtol):
         return self.flow.atol(rtol)
@@ -257,7 +258,8 @@ def _shoot(instance, loop, t, z, period, section, rtol, A, B, C, D):
     y, f = np.empty(TRACE + 1), np.empty(TRACE + 1)
     y[0], f[0] = measure.flow.evaluate(times[0], z_end)
     for i in range(TRACE):  # in pieces, the output and the force read at each end (the trace drawn)
-        _t, z_end, more, _ = measure.flow.run(times[i], z_end, times[i + 1], rtol / 10, measure.atol(rtol / 10))
+        _t, z_end, more, _ = measure.flow.run(times[i], z_end, times[i + 1], rtol / 10, measure.atol(rtol / 10),
+                                              first_step=times[i + 1] - times[i])
         events += more
         y[i + 1], f[i + 1] = measure.flow.evaluate(times[i + 1], z_end)
     I = z_end[instance.nx + n:]

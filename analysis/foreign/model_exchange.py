@@ -46,7 +46,8 @@ class _Period:
             out *= y
             return out
 
-        self.flow = Flow(instance, lambda t, w, y: F * math.cos(omega * t), rate, 2 * (harmonics + 1))
+        self.flow = Flow(instance, lambda t, w, y: F * math.cos(omega * t), rate, 2 * (harmonics + 1),
+                         reads_output=False)
 
     @property
     def next_event(self):

@@ -28,14 +28,15 @@ def response(instance, F, omega, params, stop, step, outputs):
 
     if instance.kind == "model-exchange":
         next_event = instance.start(params, F)
-        flow = Flow(instance, lambda t, w, y: law(t), lambda t, w, y, u: np.zeros(0), 0)
+        flow = Flow(instance, lambda t, w, y: law(t), lambda t, w, y, u: np.zeros(0), 0, reads_output=False)
         flow.next_event = next_event
         z = instance.states()
         flow.scale[:] = np.maximum(np.abs(z), 1e-300)
         flow.evaluate(0.0, z)
         values[0] = instance.read(outputs)
         for i in range(count):
-            _t, z, _events, _crossed = flow.run(times[i], z, times[i + 1], RTOL, flow.atol(RTOL))
+            _t, z, _events, _crossed = flow.run(times[i], z, times[i + 1], RTOL, flow.atol(RTOL),
+                                                first_step=times[i + 1] - times[i])
             flow.evaluate(times[i + 1], z)
             values[i + 1] = instance.read(outputs)
     else:
