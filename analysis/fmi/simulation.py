@@ -11,6 +11,7 @@ import atexit
 import ctypes
 import functools
 import hashlib
+import multiprocessing.util
 import os
 import shutil
 import tempfile
@@ -30,15 +31,18 @@ class FMUError(DfwbError, RuntimeError):
     """An FMU refused a call or a step; the message says which, when and why."""
 
 
-_FOLDERS = []  # the folders this process unpacked FMUs into
+_FOLDERS = []  # (pid, folder): the folders each process unpacked FMUs into (a forked child inherits the list)
+_HOOKED = set()  # the processes (pids) whose multiprocessing exit removes their folders too
 
 
 @atexit.register
 def _remove_folders():
     """Remove the unpacked FMUs when the process exits (registered first, so run last: after the release below,
-    which finds the loaded libraries by their paths)."""
-    for folder in _FOLDERS:
-        shutil.rmtree(folder, ignore_errors=True)
+    which finds the loaded libraries by their paths). Only this process's own: a forked child's exit leaves
+    its parent's folders, which the parent still uses."""
+    for pid, folder in _FOLDERS:
+        if pid == os.getpid():
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 @atexit.register
@@ -69,11 +73,26 @@ def release_pythonfmu_states():
             release()
 
 
+def _at_process_end():
+    """The release, then the removal, as at exit (each harmless twice)."""
+    release_pythonfmu_states()
+    _remove_folders()
+
+
 @functools.lru_cache(maxsize=None)
 def _extract(fmu_path, digest):
-    """Unzip an FMU once per process and content (fmpy would unzip at every run)."""
+    """Unzip an FMU once per process and content (fmpy would unzip at every run).
+
+    A pool's worker forked by multiprocessing (the fork and forkserver start methods) ends by ``os._exit``,
+    after multiprocessing's own exit function but without the atexit handlers: its folders are removed
+    there too (a finalizer registered in each process that unpacks: a fork drops its parent's finalizers).
+    One ended by a signal removes nothing; the local pools of :mod:`dfwb.studies.executor` have their
+    workers unpack inside a folder of the run, which the run removes."""
+    if os.getpid() not in _HOOKED:
+        _HOOKED.add(os.getpid())
+        multiprocessing.util.Finalize(None, _at_process_end, exitpriority=-100)  # last: after children are joined
     target = Path(tempfile.mkdtemp(prefix=f"dfwb_{Path(fmu_path).stem}_"))
-    _FOLDERS.append(target)
+    _FOLDERS.append((os.getpid(), target))
     return fmpy.extract(fmu_path, unzipdir=str(target)), fmpy.read_model_description(fmu_path)
 
 

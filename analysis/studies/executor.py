@@ -21,7 +21,10 @@ One executor can serve several runs (``dfwb paper`` shares one between its
 scenes), so a pool, once started, is started once. On Ctrl-C the terminal
 signals every process of the group: the workers ignore SIGINT (blocked from
 before they exist until they ignore it, so none prints a traceback while it
-starts), and the run, which gets the KeyboardInterrupt, ends them.
+starts), and the run, which gets the KeyboardInterrupt, ends them. A worker
+so ended runs no exit handler: its temporary files (the FMUs it unpacked) are
+kept in a folder of the pool's, which the run removes once its workers are
+gone.
 """
 
 import atexit
@@ -91,10 +94,16 @@ def _materialize(original, data):
     return path
 
 
+_POOL_DIRS = []  # (pid, folder): the temporary folders of this process's local pools, removed by its exit at the latest
+
+
 @atexit.register
 def _remove_shipped():
     for folder in _SHIPPED_DIR:
         shutil.rmtree(folder, ignore_errors=True)
+    for pid, folder in _POOL_DIRS:
+        if pid == os.getpid():  # (not a forked child's: its parent's pool may still run)
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 @contextlib.contextmanager
@@ -132,12 +141,16 @@ def interrupts_held():
                 signal.raise_signal(number)
 
 
-def point_worker(parent):
+def point_worker(parent, temporary=None):
     """A spawned worker's start: Ctrl-C is the run's to handle (it ends the workers), and the worker exits
     when the run is gone. SIGINT arrives blocked (:func:`interrupts_held`): ignored before it is unblocked,
-    a Ctrl-C that came meanwhile is discarded."""
+    a Ctrl-C that came meanwhile is discarded. ``temporary``: the pool's folder, where the worker (and any
+    process it starts) keeps its temporary files, such as the FMUs it unpacks: the run removes it, whole, once
+    the workers are gone, also what a worker ended by SIGTERM (no exit handler of its own runs) has left."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    if temporary is not None:
+        os.environ["TMPDIR"] = tempfile.tempdir = temporary
     orphan_watch(parent)
 
 
@@ -208,7 +221,7 @@ class Executor:
             except ImportError:
                 raise RunError("--dask needs dask.distributed: pip install -e '.[dask]'") from None
         self.dask = dask
-        self._pool = self._client = self._cluster = None
+        self._pool = self._client = self._cluster = self._temporary = None
         self._shipped = {}
 
     @property
@@ -231,11 +244,13 @@ class Executor:
         anyway), else once their queue is empty."""
         if self._pool is not None:
             stop_pool(self._pool, abort)
+        if self._temporary is not None:  # the workers are gone: what they left goes, a killed one's too
+            shutil.rmtree(self._temporary, ignore_errors=True)
         if self._client is not None:
             self._client.close()
         if self._cluster is not None:
             self._cluster.close()
-        self._pool = self._client = self._cluster = None
+        self._pool = self._client = self._cluster = self._temporary = None
 
     def run(self, chunks, function=None):
         """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest.
@@ -275,9 +290,12 @@ class Executor:
                 if self._pool is None:
                     import multiprocessing
 
+                    self._temporary = tempfile.mkdtemp(prefix="dfwb_run_")  # the workers' temporary files
+                    _POOL_DIRS.append((os.getpid(), self._temporary))
                     self._pool = futures.ProcessPoolExecutor(self.jobs,  # spawned as chunks need them
                                                              multiprocessing.get_context("spawn"),
-                                                             initializer=point_worker, initargs=(os.getpid(),))
+                                                             initializer=point_worker,
+                                                             initargs=(os.getpid(), self._temporary))
                 waiting = {self._pool.submit(function, chunk): chunk for chunk in chunks}  # spawns the workers
             try:
                 for future in futures.as_completed(waiting):
