@@ -106,13 +106,15 @@ def cycles(instance, num, den, params, starts, omega_ref, rtol=1e-9, seeds=()):
                        "cycles cannot be shot from it")
     T_ref = 2 * math.pi / omega_ref
 
+    settled = []  # (period, swing, cycle) of the cycles shot so far: a later start that settles on one is not shot
+
     def from_start(F0):
         instance.start(params, F0)
         w0 = -F0 * C / float(C @ C) if float(C @ C) > 0 else np.zeros(len(B))
         if cosimulation:
             return held_loop.settle_and_refine(instance, A, B, C, D, w0, T_ref, rtol, SETTLE)
         z = np.concatenate((instance.states(), w0))
-        return _settle_and_shoot(instance, _Loop(instance, A, B, C, D), z, T_ref, rtol, A, B, C, D)
+        return _settle_and_shoot(instance, _Loop(instance, A, B, C, D), z, T_ref, rtol, A, B, C, D, settled)
 
     runs = [(f"F0={F0:g}", lambda F0=F0: from_start(F0)) for F0 in starts]
     runs += [(f"DF F={F:.6g}, omega={omega:.6g}", lambda F=F, omega=omega: _seeded(instance, params, F, omega, rtol,
@@ -142,7 +144,10 @@ def merge(found, cycle):
         found.append(cycle)
 
 
-def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
+def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D, settled):
+    """(outcome, cycle or None) of one start: settled, its section returns followed until they repeat, shot.
+    Where the motion repeats with the period (to 1e-6) and the swing (to 1e-4) of a cycle in ``settled``
+    it is that cycle (already shot from another start); a cycle shot here is added to ``settled``."""
     flow = loop.flow
     flow.scale = np.maximum(flow.scale, np.abs(z))
     t, z, low, high = _swing(loop, 0.0, z, SETTLE * T_ref, rtol)
@@ -169,7 +174,14 @@ def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D):
         previous, period = z, t - t0
     else:
         return "not settled", None
-    return _shoot(instance, loop, t, z, period, section, rtol, A, B, C, D)
+    swing = high - low
+    for known_period, known_swing, cycle in settled:
+        if abs(period - known_period) <= 1e-6 * period and abs(swing - known_swing) <= 1e-4 * swing:
+            return "cycle", cycle
+    outcome, cycle = _shoot(instance, loop, t, z, period, section, rtol, A, B, C, D)
+    if cycle is not None:
+        settled.append((period, swing, cycle))
+    return outcome, cycle
 
 
 def _seeded(instance, params, F, omega, rtol, A, B, C, D):
