@@ -6,7 +6,6 @@ myst-nb executes the example notebooks at build time, so their figures are curre
 sphinx-argparse writes the command-line reference from the parser itself (one source, no copy to go stale).
 """
 
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -60,13 +59,11 @@ EXAMPLES = ROOT.parent / "examples"
 
 
 def _dfwb_revision():
-    """A hash of dfwb's sources (Python and C): the notebooks' outputs are stale when it changes."""
-    digest = hashlib.sha256()
-    for folder in (ROOT.parent / "analysis", ROOT.parent / "fmus"):
-        for path in sorted(folder.rglob("*")):
-            if path.suffix in (".py", ".c", ".h"):
-                digest.update(str(path.relative_to(ROOT.parent)).encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()[:16]
+    """A hash of dfwb's sources (Python and C, every subpackage): the notebooks' outputs are stale when it changes."""
+    from dfwb.studies.cache import sources_digest
+
+    return sources_digest([path for folder in (ROOT.parent / "analysis", ROOT.parent / "fmus")
+                           for path in sorted(folder.rglob("*")) if path.suffix in (".py", ".c", ".h")], ROOT.parent)
 
 
 def _copy_examples(app):

@@ -59,14 +59,18 @@ DRAWING = ("plotting",)
 PACKAGE = Path(__file__).resolve().parent.parent
 
 
+def sources_digest(paths, base):
+    """Hash of source files: each one's path relative to ``base`` and its content, in the order given."""
+    digest_ = hashlib.sha256()
+    for path in paths:
+        digest_.update(Path(path).relative_to(base).as_posix().encode() + b"\0" + Path(path).read_bytes())
+    return digest_.hexdigest()[:16]
+
+
 @functools.lru_cache(maxsize=None)
 def revision(layers, root=PACKAGE):
     """Hash of the modules of the given dfwb layers (subpackages of ``root``)."""
-    digest_ = hashlib.sha256()
-    for layer in layers:
-        for path in sorted((root / layer).glob("*.py")):
-            digest_.update(f"{layer}/{path.name}".encode() + b"\0" + path.read_bytes())
-    return digest_.hexdigest()[:16]
+    return sources_digest([path for layer in layers for path in sorted((root / layer).glob("*.py"))], root)
 
 
 def code_revision():
