@@ -109,7 +109,10 @@ def cells(engine, family, F_range, omega_range, size=MAP):
             F_grid, omega_grid = np.geomspace(*F_range, size[0]), np.geomspace(*omega_range, size[1])
             maps[key] = DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid))
         dfmap = maps[key]
-        predictions = balance(engine, G, params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid).cycles
+        # the truth alone (a margin's bisection) takes the predictions only for its starts and seeds: located
+        # on the looser twin, they need no refining on the precise DF
+        predictions = balance(engine if df else engine.coarse(), G, params, dfmap.F_grid, dfmap.omega_grid,
+                              dfmap.N_grid).cycles
         cell = {"linear": {"stable": None, "max_real_pole": None}}
         if truth:
             cell["truth"] = truth_cell(true_search(engine, G, params, predictions, None, F_range, omega_range))
