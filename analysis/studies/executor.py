@@ -33,6 +33,7 @@ import hashlib
 import os
 import shutil
 import signal
+import socket
 import tempfile
 import threading
 import time
@@ -206,6 +207,17 @@ POOL_WORTH = 4.0
 machine, so a pool pays only beyond about twice that."""
 
 
+def _probe(address):
+    """Connect once to a TCP scheduler's address (``tcp://host:port`` or ``host:port``): a refused or unknown
+    address is an OSError at once, where dask's client would retry for its whole timeout."""
+    scheme, _, rest = address.rpartition("://")
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("", "tcp") or not port.isdigit():
+        return  # another protocol (tls, ucx, ...): dask's client decides
+    with socket.create_connection((host.strip("[]") or "127.0.0.1", int(port)), timeout=5.0):
+        pass
+
+
 class Executor:
     """Runs chunks; use as a context manager. ``jobs``: workers (default: all cores, once the work has shown
     it is worth starting them)."""
@@ -316,6 +328,7 @@ class Executor:
                 self._client = Client(self._cluster)
             else:
                 try:
+                    _probe(self.dask)
                     self._client = Client(self.dask, timeout="20s")
                 except (OSError, TimeoutError, ValueError) as error:
                     raise RunError(f"cannot reach the Dask scheduler {self.dask!r}: {error}") from None
