@@ -346,3 +346,15 @@ def test_a_scenes_own_map_folder_starts_over_when_the_map_changes(tmp_path):
     again = run_map("friction", PI, *edited, out_dir=out, jobs=1, curves=False, own_folder=True)
     assert again.counts["resumed"] == 0 and again.counts["computed"] == 4
     assert json.loads((out / "map.json").read_text())["y"] == ["Ki", [1.0, 3.0]]
+
+
+def test_the_boundarys_stacked_roots_are_numpys_one_by_one():
+    """A map's boundary takes the largest real part of 6400 polynomials' roots in stacks of one degree:
+    the same numbers as np.roots one by one, with zero leading or trailing coefficients and constants."""
+    from dfwb.engine.scales import largest_real_parts
+
+    rng = np.random.default_rng(7)
+    polynomials = [rng.normal(size=rng.integers(1, 8)) for _ in range(500)]
+    polynomials += [[0.0, 0.0, 1.0, 2.0, 0.0], [1.0, 0.0, 0.0], [0.0, 3.0], [2.0], [0.0, 1.0, -1.0], [1.0, np.nan]]
+    expected = [max(np.roots(p).real) if len(np.roots(p)) else np.inf for p in polynomials[:-1]] + [np.inf]
+    assert largest_real_parts(polynomials).tolist() == expected

@@ -243,9 +243,15 @@ class LoopFamily:
         return self.linear_growth(values) < 0.0
 
     def linear_growth(self, values=None):
-        """The largest real part of the linear loop's poles at the values (< 0: stable): the roots of
-        den_G den_P + num_G num_P, without building the exact loop (a map asks it at 10^4 points)."""
-        from dfwb.engine.scales import closed_loop_poles
+        """The largest real part of the linear loop's poles at the values (< 0: stable; inf: none)."""
+        from dfwb.engine.scales import largest_real_parts
+
+        return float(largest_real_parts([self.characteristic(values)])[0])
+
+    def characteristic(self, values=None):
+        """The linear loop's characteristic polynomial at the values, den_G den_P + num_G num_P, without
+        building the exact loop (a map's boundary asks it at 6400 points)."""
+        from dfwb.engine.scales import characteristic
 
         num_g, den_g = self.coefficients(values)
         params = self.params(values)
@@ -253,8 +259,7 @@ class LoopFamily:
         if key not in self._linear:
             probe = self.spec.loop([0.0, 0.0], [1.0], **params)  # a trivial controller: only the plant is read
             self._linear[key] = probe.linear()
-        poles = closed_loop_poles(num_g, den_g, *self._linear[key])
-        return max(p.real for p in poles) if poles else math.inf
+        return characteristic(num_g, den_g, *self._linear[key])
 
     def describe(self, values=None):
         """The values as one short text: ``Kp = 10, Ki = 2, Fs = 8``."""

@@ -165,18 +165,18 @@ class Curve:
 def linear_map(family, x_name, x_range, y_name, y_range, n, fmu_dir=None):
     """The linear loop on an n x n grid: {"x", "y", "growth": rows of the largest real part of its poles
     [1/s] (< 0: stable; None where G or the plant refuses the values)}; its zero contour is the boundary."""
+    from dfwb.engine.scales import largest_real_parts
+
     xs, ys = np.linspace(*x_range, n), np.linspace(*y_range, n)
-    rows = []
+    polynomials = []
     for b in ys:
-        row = []
         for a in xs:
             try:
-                growth = family.linear_growth({x_name: float(a), y_name: float(b)})
-                row.append(growth if math.isfinite(growth) else None)
+                polynomials.append(family.characteristic({x_name: float(a), y_name: float(b)}))
             except DfwbError:  # a value the plant or G refuses: no verdict there
-                row.append(None)
-        rows.append(row)
-    return {"x": xs.tolist(), "y": ys.tolist(), "growth": rows}
+                polynomials.append([math.inf])
+    growth = [float(g) if math.isfinite(g) else None for g in largest_real_parts(polynomials)]
+    return {"x": xs.tolist(), "y": ys.tolist(), "growth": [growth[j * n:(j + 1) * n] for j in range(n)]}
 
 
 def fold_curves(family, x_name, xs, y_name, ys, grid, fmu_dir=None, engine=None, progress=None):

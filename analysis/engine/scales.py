@@ -127,6 +127,41 @@ def closed_loop_poles(num_g, den_g, num_p, den_p):
     return tuple(complex(p) for p in np.roots(np.polyadd(np.convolve(den_g, den_p), np.convolve(num_g, num_p))))
 
 
+def characteristic(num_g, den_g, num_p, den_p):
+    """den_G den_P + num_G num_P (coefficients highest power first): the linear loop's poles are its roots."""
+    num_g, den_g, num_p, den_p = (np.asarray(c, dtype=float) for c in (num_g, den_g, num_p, den_p))
+    return np.polyadd(np.convolve(den_g, den_p), np.convolve(num_g, num_p))
+
+
+def largest_real_parts(polynomials):
+    """The largest real part of each polynomial's roots (inf where it has none, or a coefficient is not finite).
+
+    The roots of polynomials of one degree come from one stacked eigenvalue call on their companion
+    matrices (as np.roots builds them): a map's boundary asks for 6400, one call each cost ten times more."""
+    growth = np.full(len(polynomials), -np.inf)
+    degrees = {}
+    for i, coefficients in enumerate(polynomials):
+        leading = np.trim_zeros(np.asarray(coefficients, dtype=float), "f")
+        core = np.trim_zeros(leading, "b")
+        if not np.isfinite(core).all():
+            growth[i] = np.inf
+            continue
+        if len(core) < len(leading):
+            growth[i] = 0.0  # roots at 0
+        if len(core) > 1:
+            degrees.setdefault(len(core) - 1, []).append((i, core))
+        elif len(core) == len(leading):
+            growth[i] = np.inf  # a constant: no roots
+    for n, members in degrees.items():
+        rows = np.array([core for _i, core in members])
+        companion = np.zeros((len(rows), n, n))
+        companion[:, 0, :] = -rows[:, 1:] / rows[:, :1]
+        companion[:, np.arange(1, n), np.arange(n - 1)] = 1.0
+        where = [i for i, _core in members]
+        growth[where] = np.maximum(growth[where], np.linalg.eigvals(companion).real.max(axis=1))
+    return growth
+
+
 def loop_scales(problem):
     """The :class:`LoopScales` of a :class:`~dfwb.engine.periodic.LoopProblem` (its plant, parameters and G).
 
