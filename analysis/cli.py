@@ -785,6 +785,14 @@ def parser():
 
 
 def main(argv=None):
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C while the parser is built or the arguments read: no traceback either
+        sys.stderr.write("dfwb: interrupted\n")
+        return 130
+
+
+def _main(argv):
     from dfwb.base.errors import DfwbError
     from dfwb.base.stop import handling_signals
 

@@ -90,3 +90,16 @@ def test_a_ctrl_c_while_processes_start_is_held_then_delivered_once():
             steps.append("started")
         steps.append("not reached")
     assert steps == ["started"] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_ctrl_c_before_the_command_runs_is_one_line(monkeypatch, capsys):
+    """Ctrl-C while the parser is built (the command's modules imported, its arguments read): exit 130 and
+    one line, as during the run."""
+    from dfwb import cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "parser", interrupted)
+    assert cli.main(["--version"]) == 130
+    assert capsys.readouterr().err == "dfwb: interrupted\n"
