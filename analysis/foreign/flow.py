@@ -55,6 +55,7 @@ class Flow:
         self.y_max = 0.0  # the largest |y| seen
         self._y = 0.0  # the last output: the first guess of the next evaluation's
         self.steps = self.evaluations = 0  # accepted integrator steps, right-hand sides evaluated
+        self.last_step = None  # the step size a run ended with: a following piece's first step
 
     def atol(self, rtol):
         """Absolute tolerances from the scales seen, so that rtol rules (1e-6 of the largest for a part at 0)."""
@@ -223,6 +224,7 @@ class Flow:
             events += 1
             if events > MAX_EVENTS:
                 raise FMUError(f"{inst.info.path}: more than {MAX_EVENTS} events in one run (chattering?)")
+        self.last_step = step
         return t, z, events, False
 
     def _clean(self, t0, z0, t1, rtol, atol):
