@@ -32,8 +32,9 @@ with its error estimate, the limit cycles the DF predicts, the true cycle
 of the closed loop (shot by Newton, its Floquet multipliers) and the DF's
 errors against it. dfwb labels forces N and positions m: read N m and rad.
 
-Run it as ``python examples/drive_train.py [OUT_DIR]`` (about 40 s on two
-cores; it needs pythonfmu3, one of the test extras: ``pip install -e
+Run it as ``python examples/drive_train.py [OUT_DIR]`` (132 s inside the test
+suite on two shared cores: each FMI call of a pythonfmu3 FMU runs Python; it
+needs pythonfmu3, one of the test extras: ``pip install -e
 '.[test]'``). It writes into OUT_DIR (default: the current folder) the FMU,
 ``DriveTrain.fmu`` (for ``dfwb info``, ``dfwb df``, ``dfwb limit-cycle``), and
 ``drive_train.png``: the Nyquist plane with the cycles, and the true cycle
