@@ -9,9 +9,11 @@ gone; a forked worker removes its own folders in multiprocessing's exit function
 """
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -84,10 +86,16 @@ if __name__ == "__main__":
 
 @pytest.mark.parametrize("method", ["fork", "forkserver"])
 def test_forked_pool_workers_remove_their_folders_and_only_theirs(fmus, tmp_path, method):
-    script, temporary = tmp_path / "forked.py", tmp_path / "tmp"
+    script = tmp_path / "forked.py"
     script.write_text(_FORKED)
-    temporary.mkdir()
-    done = subprocess.run([sys.executable, str(script), method, str(fmus["FrictionMass"]), str(fmus["StaticBacklash"])],
-                          env=dict(os.environ, TMPDIR=str(temporary)), capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr
-    assert sorted(p.name for p in temporary.iterdir()) == []
+    # a short folder: a fork server's socket lives in it, and a socket's path has at most 107 bytes (pytest's
+    # tmp_path under an xdist worker is too long for it)
+    temporary = Path(tempfile.mkdtemp(prefix="dfwb_test_"))
+    try:
+        done = subprocess.run([sys.executable, str(script), method, str(fmus["FrictionMass"]),
+                               str(fmus["StaticBacklash"])], env=dict(os.environ, TMPDIR=str(temporary)),
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        assert sorted(p.name for p in temporary.iterdir()) == []
+    finally:
+        shutil.rmtree(temporary, ignore_errors=True)
