@@ -79,6 +79,11 @@ class _Loop:
         return self.flow.atol(rtol)
 
 
+def _still(flow, low, high):
+    """Whether an output swinging between low and high is at rest: within REST of the largest output seen."""
+    return not high - low > REST * max(abs(high), abs(low), flow.y_max, 1e-300)
+
+
 def _swing(loop, t, z, duration, rtol):
     """Run ``duration`` in 96 pieces; returns (t, z, lowest y, highest y) of the outputs read at the pieces'
     ends in its last third, or in the first of its twelfths where the motion has come to rest: the output
@@ -95,8 +100,7 @@ def _swing(loop, t, z, duration, rtol):
             low, high = (y, y) if low is None else (min(low, y), max(high, y))
         if twelfth >= 8:  # the last third
             last_low, last_high = (low, high) if last_low is None else (min(last_low, low), max(last_high, high))
-        elif (not high - low > REST * max(abs(high), abs(low), flow.y_max, 1e-300)
-              and np.all(np.abs(z - begin) <= REST * np.maximum(flow.scale, 1e-300))):
+        elif _still(flow, low, high) and np.all(np.abs(z - begin) <= REST * np.maximum(flow.scale, 1e-300)):
             return t, z, low, high
     return t, z, last_low, last_high
 
@@ -161,7 +165,7 @@ def _settle_and_shoot(instance, loop, z, T_ref, rtol, A, B, C, D, settled):
     flow = loop.flow
     flow.scale = np.maximum(flow.scale, np.abs(z))
     t, z, low, high = _swing(loop, 0.0, z, SETTLE * T_ref, rtol)
-    if not high - low > REST * max(abs(high), abs(low), flow.y_max, 1e-300):
+    if _still(flow, low, high):
         return "rest", None
     middle = 0.5 * (low + high)
 
