@@ -132,6 +132,11 @@ def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
         assert linear.any() and not truth.any(), f"{name}: hunts without static friction"
         assert df.any(), f"{name}: the DF's false alarm is gone"
         assert set(namespace[name].classes("truth").ravel()) <= {"none", "diverges", "unstable", "incomplete"}
+    for row in namespace["pi_coulomb"].cells:  # under PI, every run came to rest (a PID start may creep on)
+        for cell in row:
+            if cell["linear"]["stable"]:
+                assert cell["truth"]["class"] == "none", cell
+                assert set(cell["truth"]["coverage"]["outcomes"]) == {"rest"}, cell
     assert namespace["pi_coulomb"].values["Fs"] == namespace["pid_coulomb"].values["Fs"] == 5.0  # Fc = 5 N
     assert "Fs" not in namespace["pi_map"].values and "Fs" not in namespace["pid_map"].values  # 7 N
 
