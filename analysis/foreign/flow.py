@@ -56,6 +56,7 @@ class Flow:
         self._y = 0.0  # the last output: the first guess of the next evaluation's
         self.steps = self.evaluations = 0  # accepted integrator steps, right-hand sides evaluated
         self.last_step = None  # the step size a run ended with: a following piece's first step
+        self._at = None  # (t, z) of the last evaluation, the very array: the FMU is still there
 
     def atol(self, rtol):
         """Absolute tolerances from the scales seen, so that rtol rules (1e-6 of the largest for a part at 0)."""
@@ -66,6 +67,7 @@ class Flow:
     def evaluate(self, t, z):
         """Put the FMU at (t, z) with its input; returns (y, u)."""
         inst, nx = self.inst, self.inst.nx
+        self._at = (t, z)
         w = z[nx:]
         u = self.law(t, w, self._y)
         inst.set_continuous(t, z[:nx], u)
@@ -90,13 +92,17 @@ class Flow:
         self.evaluations += 1
         y, u = self.evaluate(t, z)
         dx = self.inst.derivatives()
-        if not (math.isfinite(y) and math.isfinite(u) and np.isfinite(dx).all()):
+        if not math.isfinite(y + u + float(np.sum(dx))):  # one test for all (an overflowing sum is one too)
             raise FloatingPointError(f"{self.inst.info.path}: the output, the input or a derivative is not finite "
                                      f"(NaN or overflow) at t = {float(t)!r}")
         return np.concatenate((dx, self.rate(t, z[self.inst.nx:], y, u)))
 
     def _indicators(self, t, z):
-        self.evaluate(t, z)
+        """The event indicators at (t, z); not evaluated again where the last right-hand side was (the end of
+        an accepted step is its last stage's point: the same array)."""
+        at = self._at
+        if at is None or at[1] is not z or at[0] != t:
+            self.evaluate(t, z)
         return self.inst.indicators().copy()
 
     def _domains(self, t, z):
@@ -167,6 +173,7 @@ class Flow:
         inst = self.inst
         nx = inst.nx
         t, z = t0, np.array(z, dtype=float)
+        self._at = None  # the FMU may have been moved since
         events = 0
         level = max(self._section(section, t, z), 0.0)  # started on the section: the next crossing, not this one
         step = first_step or (end - t0) / 64  # then the last step's size, carried across events
@@ -203,8 +210,7 @@ class Flow:
                 if changed:  # integrated again up to the event: the step's stages past it saw the other domain
                     t, z, handled = past, self._clean(t_prev, z_prev, past, rtol, atol), True
                     break
-                self.evaluate(solver.t, solver.y)
-                if inst.completed_step():
+                if inst.completed_step():  # the FMU is at the step's end (its indicators were read there)
                     t, z, handled = solver.t, solver.y.copy(), True
                     break
                 self.scale = np.maximum(self.scale, np.abs(solver.y))
