@@ -107,15 +107,22 @@ class _Balance:
             columns.append((d.real, d.imag))
         return np.array(columns).T
 
-    def newton(self, u, v, bounds, max_iterations=40):
+    def newton(self, u, v, bounds, max_iterations=40, jacobian=True):
         """Refined (u, v, result, R, J) or None when it leaves the range or does not converge: steps below
-        ``tol``, or |R| within what the DF's error estimate explains (an engine that is not exact)."""
+        ``tol``, or |R| within what the DF's error estimate explains (an engine that is not exact).
+
+        A differenced J serves every step taken within one differencing step of where it was made (the
+        last steps of a refinement: a chord; it differs from the J there by no more than the differences'
+        own error), and is made afresh farther away or where a damped step with it fails. J at the answer
+        decides stability (Loeb); ``jacobian=False``: not wanted (None), as for a start refined again."""
         result = self.point(u, v)
         R = self.residual(result)
+        J = at = None
         for _ in range(max_iterations):
-            J = self.jacobian(u, v, R)
             if abs(R) <= self.noise(result):  # as close as the DF's accuracy can tell
-                return u, v, result, R, J
+                return u, v, result, R, self._answer(u, v, R, J, at, jacobian)
+            if J is None or self._far(u, v, at):
+                J, at = self.jacobian(u, v, R), (u, v)
             try:
                 step = np.linalg.solve(J, [-R.real, -R.imag])
             except np.linalg.LinAlgError:
@@ -132,11 +139,26 @@ class _Balance:
                         break
                     scale *= 0.5
                 if scale < 1e-3:
+                    break
+            if scale < 1e-3:  # no step: with a J made here, none at all; with an older one, make it here
+                if at == (u, v):
                     return None
+                J = None
+                continue
             u, v, result, R = nu, nv, trial, trial_R
             if max(abs(scale * step[0]), abs(scale * step[1])) < self.tol:
-                return u, v, result, R, self.jacobian(u, v, R)
+                return u, v, result, R, self._answer(u, v, R, J, at, jacobian)
         return None
+
+    def _far(self, u, v, at):
+        return max(abs(u - at[0]), abs(v - at[1])) > self.step
+
+    def _answer(self, u, v, R, J, at, wanted):
+        """J at the answer (u, v): None if not ``wanted``; the last one if made within one differencing step
+        from here, else differenced afresh."""
+        if not wanted:
+            return None
+        return J if J is not None and not self._far(u, v, at) else self.jacobian(u, v, R)
 
 
 def df_map(engine, params, F_grid, omega_grid, progress=None):
@@ -254,7 +276,7 @@ def balance(engine, G, params, F_grid, omega_grid, N_grid):
     for i, j in candidates(R):
         u = 0.5 * (math.log(F_grid[i]) + math.log(F_grid[i + 1]))
         v = 0.5 * (math.log(omega_grid[j]) + math.log(omega_grid[j + 1]))
-        first = rough.newton(u, v, bounds) if rough is not None else None
+        first = rough.newton(u, v, bounds, jacobian=False) if rough is not None else None
         if first is not None:
             u, v = first[0], first[1]
             if any(abs(u - math.log(c.F)) < ROUGH_TOL * 10 and abs(v - math.log(c.omega)) < ROUGH_TOL * 10
