@@ -25,7 +25,7 @@ EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --h
     "sweep": "dfwb sweep backlash --F 20 50 --omega-log 1 100 20 --grid eps=0.2,0.8 --out out/sweep --plot",
     "limit-cycle": "dfwb limit-cycle friction --G 'Kp + Ki/s' --set Kp=10 Ki=2 --exact --plot out/lc.png",
     "continue": "dfwb continue friction --G 'Kp + Ki/s' --set Kp=10 --parameter Ki=1:30 --plot out/branch.png",
-    "map": "dfwb map friction --G 'Kp + Ki/s' --x Kp=1:50:12 --y Ki=0.1:25:12 --out out/map",
+    "map": "dfwb map friction --G 'Kp + Ki/s' --x Kp=1:50:8 --y Ki=0.1:25:8 --out out/map",
     "margin": "dfwb margin friction --G '20 + 100/s + 2*s/(0.1*s+1)'",
     "examples": "dfwb examples --out out/examples",
     "bench": "dfwb bench --quick --out out/bench",
