@@ -427,9 +427,9 @@ def test_the_limit_cycle_margin_of_an_fmu_loop(built, monkeypatch):
     boundaries bisected (fewer halvings here: a test's time)."""
     from dfwb.engine import margin
 
-    monkeypatch.setattr(margin, "BISECTIONS", 5)
+    monkeypatch.setattr(margin, "BISECTIONS", 4)
     m = dfwb.limit_cycle_margin(dfwb.fmu_plant(built["Saturation"]), "10/(s*(s+1)**2)", k_range=(0.1, 2), count=3,
-                                F_range=(0.2, 50), omega_range=(0.3, 3), n_F=6, n_omega=12)
+                                F_range=(0.2, 50), omega_range=(0.3, 3), n_F=6, n_omega=8)
     for source in (m.truth, m.df):
         assert source.hunts_at(1.0) and not source.hunts_at(0.1)
         [boundary] = source.boundaries
@@ -445,7 +445,7 @@ def test_a_hunting_map_of_an_fmu_loop_meets_routh(built, tmp_path):
     DF agree with that on a 2 x 2 map; a second run resumes every cell from the folder. A map over the FMU's
     own parameter computes a DF map for each cell."""
     plant = dfwb.fmu_plant(built["Saturation"])
-    options = dict(out_dir=tmp_path / "map", F_range=(0.2, 50), omega_range=(0.1, 5), n_F=8, n_omega=16)
+    options = dict(out_dir=tmp_path / "map", F_range=(0.2, 50), omega_range=(0.1, 5), n_F=6, n_omega=10)
     m = dfwb.hunting_map(plant, "K*(s+z)/(s*(s+1)**2)", ("K", 1, 10, 2), ("z", 1, 3, 2), **options)
     expected = [["stable" if K * (z - 2) > 2 else "none" for K in (1, 10)] for z in (1, 3)]
     assert m.classes("truth").tolist() == expected and m.classes("df").tolist() == expected
