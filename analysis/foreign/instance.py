@@ -205,11 +205,12 @@ class Instance:
     def set_continuous(self, t, x, u):
         """Time, states and input for the next evaluation."""
         self.time = t
-        v = "fmi3" if self.v3 else "fmi2"
-        self._fast(v + "SetTime", self._component, t)
+        v3 = self.v3
+        self._fast("fmi3SetTime" if v3 else "fmi2SetTime", self._component, t)
         if self.nx:
             self._x[:] = x
-            self._fast(v + "SetContinuousStates", self._component, self._x_at, self.nx)
+            self._fast("fmi3SetContinuousStates" if v3 else "fmi2SetContinuousStates", self._component, self._x_at,
+                       self.nx)
         self.set_input(u)
 
     def derivatives(self):
