@@ -24,7 +24,7 @@ from dfwb.engine.periodic import TrueCycle, trace_arrays
 from dfwb.engine.transfer import num_den
 from dfwb.foreign.loop import MAX_RETURNS, SETTLE
 
-__all__ = ["study", "true_search", "cells", "classifier", "MAP"]
+__all__ = ["study", "true_search", "predictor", "cells", "classifier", "MAP"]
 
 MAP = (16, 48)  # the shared DF map's forces x frequencies: dfwb.limit_cycles' default
 
@@ -92,30 +92,43 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
     return search.CycleSearch(cycles, links, coverage, [])
 
 
-def cells(engine, family, F_range, omega_range, size=MAP):
-    """``classify_at(values, truth=True, df=True)``: the cell of ``family`` (a LoopFamily of a user's FMU) at
-    ``values`` of its free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
-    verdict unknown: None). The FMU's DF map over ``F_range`` x ``omega_range`` (``size`` points, on the
-    engine's looser twin) is computed once for each setting of the FMU's own parameters: over G's
-    parameters alone, one map serves every cell."""
+def predictor(engine, family, F_range, omega_range, size=MAP):
+    """``predict(values, precise=True)``: the DF's predictions (``Cycle``s) of ``family`` (a LoopFamily of a
+    user's FMU) at ``values`` of its free parameters, located on the FMU's DF map over ``F_range`` x
+    ``omega_range`` (``size`` points, on the engine's looser twin) and refined on the precise DF
+    (``precise=False``: on the looser twin, as starts and seeds need no more). The map is computed once for
+    each setting of the FMU's own parameters: over G's parameters alone, one map serves every value."""
     maps = {}
 
-    def classify_at(values, truth=True, df=True):
+    def predict(values, precise=True):
         G, params = family.G(values), family.params(values)
         key = tuple(sorted(params.items()))
         if key not in maps:
-            if len(maps) >= 4:  # a map over the FMU's parameters: each cell its own (a few kept)
+            if len(maps) >= 4:  # a map over the FMU's parameters: each setting its own (a few kept)
                 maps.clear()
             F_grid, omega_grid = np.geomspace(*F_range, size[0]), np.geomspace(*omega_range, size[1])
             maps[key] = DFMap(F_grid, omega_grid, df_map(engine.coarse(), params, F_grid, omega_grid))
         dfmap = maps[key]
+        return balance(engine if precise else engine.coarse(), G, params, dfmap.F_grid, dfmap.omega_grid,
+                       dfmap.N_grid).cycles
+
+    return predict
+
+
+def cells(engine, family, F_range, omega_range, size=MAP):
+    """``classify_at(values, truth=True, df=True)``: the cell of ``family`` (a LoopFamily of a user's FMU) at
+    ``values`` of its free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
+    verdict unknown: None), from the :func:`predictor`'s DF map."""
+    predict = predictor(engine, family, F_range, omega_range, size)
+
+    def classify_at(values, truth=True, df=True):
         # the truth alone (a margin's bisection) takes the predictions only for its starts and seeds: located
         # on the looser twin, they need no refining on the precise DF
-        predictions = balance(engine if df else engine.coarse(), G, params, dfmap.F_grid, dfmap.omega_grid,
-                              dfmap.N_grid).cycles
+        predictions = predict(values, precise=df)
         cell = {"linear": {"stable": None, "max_real_pole": None}}
         if truth:
-            cell["truth"] = truth_cell(true_search(engine, G, params, predictions, None, F_range, omega_range))
+            cell["truth"] = truth_cell(true_search(engine, family.G(values), family.params(values), predictions,
+                                                   None, F_range, omega_range))
         if df:
             cell["df"] = df_cell(predictions, True)
         return cell

@@ -103,13 +103,16 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                          "dfwb's own plants derive their ranges, are computed exactly and continued")
     else:
         engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
+    if foreign and "df" in sources:
+        from dfwb.foreign.hunting import predictor
+
+        predict = predictor(engine, family, *fixed[:2], fixed[2:])  # one DF map for the values that share it
     for k, value in enumerate(at):
         if foreign and "df" not in sources:
             continue
-        if foreign:  # its predictions, on its own DF map at this value (its truth is sampled below)
+        if foreign:  # its predictions, on its DF map at this value (its truth is sampled below)
             try:
-                predictions = search(family.spec.name, family.G({name: value}), family.params({name: value}),
-                                     *fixed, engine=engine).cycles
+                predictions = predict({name: value})
             except DfwbError as error:
                 notes.append(f"{name} = {value:g}: no DF search: {error}")
                 predictions = []
