@@ -38,10 +38,13 @@ Skips without mingw-w64 or Wine, unless DFWB_REQUIRE_WIN64=1 (set by .ci/run,
 which installs both), where their absence fails.
 """
 
+import fcntl
+import locale
 import os
 import re
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import fmpy
@@ -65,24 +68,39 @@ def _missing(what):
 @pytest.fixture(scope="module")
 def hosts(tmp_path_factory):
     """{(FMI version, platform): (command prefix, environment)} of the C host compiled for linux64 and for
-    Windows (run by Wine), for FMI 2.0 and 3.0."""
+    Windows (run by Wine), for FMI 2.0 and 3.0.
+
+    Made once a session: the pytest-xdist workers share one folder (their temporary folders' parent), and the
+    first to get here compiles the hosts and makes the Wine prefix (~7 s of CPU) while the other waits for it."""
     if not shutil.which(MINGW):
         _missing(f"no {MINGW} on PATH")
     wine = shutil.which("wine")
     if not wine:
         _missing("no wine on PATH")
-    folder = tmp_path_factory.mktemp("win64_hosts")
-    builds = {"linux64": (["cc", "-D_DEFAULT_SOURCE"], "fmu_host{}", ["-lm", "-ldl"]),
-              "win64": ([MINGW], "fmu_host{}.exe", [])}
-    for version in (2, 3):
-        for compiler, binary, libraries in builds.values():
-            build = subprocess.run(compiler + ["-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", f"-I{FMI_HEADERS}"]
-                                   + (["-DFMI3"] if version == 3 else []) + [str(HOST_SOURCE), "-o",
-                                   str(folder / binary.format(version))] + libraries, capture_output=True, text=True)
-            assert build.returncode == 0, f"compiling the C host failed:\n{build.stderr}"
-    prefix = folder / "wineprefix"  # a private prefix: the first run makes it (~7 s), nothing in $HOME
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "win64_hosts"
+    folder.mkdir(exist_ok=True)
+    prefix = folder / "wineprefix"  # a private prefix, nothing in $HOME
     env = {"WINEPREFIX": str(prefix), "WINEDEBUG": "-all", "HOME": str(folder), "PATH": os.environ["PATH"],
            "WINEDLLOVERRIDES": "mscoree,mshtml="}  # no Mono or Gecko installer dialogs
+    builds = {"linux64": (["cc", "-D_DEFAULT_SOURCE"], "fmu_host{}", ["-lm", "-ldl"]),
+              "win64": ([MINGW], "fmu_host{}.exe", [])}
+    with open(folder / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (folder / "ready").exists():
+            for version in (2, 3):
+                for compiler, binary, libraries in builds.values():
+                    build = subprocess.run(compiler + ["-std=c99", "-O1", "-Wall", "-Wextra", "-Werror",
+                                                       f"-I{FMI_HEADERS}"] + (["-DFMI3"] if version == 3 else [])
+                                           + [str(HOST_SOURCE), "-o", str(folder / binary.format(version))]
+                                           + libraries, capture_output=True, text=True)
+                    assert build.returncode == 0, f"compiling the C host failed:\n{build.stderr}"
+            # The prefix, made before the first run (which would make it otherwise), by a process whose output
+            # goes nowhere: the Wine services it starts keep their standard streams open.
+            boot = subprocess.run([wine, "wineboot", "--init"], env=env, stdin=subprocess.DEVNULL,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=300)
+            assert boot.returncode == 0, "wineboot --init failed"
+            (folder / "ready").touch()
     return {**{(version, "linux64"): ([str(folder / f"fmu_host{version}")], {}) for version in (2, 3)},
             **{(version, "win64"): ([wine, str(folder / f"fmu_host{version}.exe")], env) for version in (2, 3)}}
 
@@ -94,9 +112,18 @@ def _run(hosts, version, platform, directory, model, stop, step, values, outputs
     args += ["--state", repr(state_time)] if state_time is not None else []
     args += ["--guid", guid] if guid is not None else []
     args += [f"{vr}={value!r}" for vr, value in values.items()] + [str(vr) for vr in outputs]
-    run = subprocess.run(args, capture_output=True, text=True, timeout=120, env=env)
-    clean = [line.rstrip("\r") for line in run.stderr.splitlines() if "[" in line or "fmu_host" in line]
-    return run.returncode, [line.rstrip("\r") for line in run.stdout.splitlines()], clean
+    # Output into files, not pipes: the Wine services a run starts inherit its standard streams and stay until
+    # the wineserver ends, 3 s after its last client; reading pipes to their end would wait for that, every run.
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        code = subprocess.run(args, stdout=out, stderr=err, timeout=120, env=env).returncode
+        stdout, stderr = (_text(stream) for stream in (out, err))
+    clean = [line.rstrip("\r") for line in stderr.splitlines() if "[" in line or "fmu_host" in line]
+    return code, [line.rstrip("\r") for line in stdout.splitlines()], clean
+
+
+def _text(stream):
+    stream.seek(0)
+    return stream.read().decode(locale.getpreferredencoding(False))
 
 
 WINDOWS_FOLDER = {2: "win64", 3: "x86_64-windows"}
