@@ -86,15 +86,26 @@ def test_a_cached_rerun_loads_no_engine_pool_or_display(runs):
 SHIPPED = sorted((Path(__file__).resolve().parents[1] / "scenes").glob("*.toml"))
 
 
+@pytest.fixture(scope="module")
+def two_workers():
+    """One executor of 2 local worker processes for the shipped scenes' first runs: its pool starts once, not once
+    a scene (as ``dfwb paper`` shares one among its scenes)."""
+    from dfwb.studies.executor import Executor
+
+    with Executor(2) as executor:
+        yield executor
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda path: path.stem)
-def test_a_cached_rerun_of_every_shipped_scene_is_a_copy_that_loads_nothing_heavy(fmus, tmp_path, path):
+def test_a_cached_rerun_of_every_shipped_scene_is_a_copy_that_loads_nothing_heavy(fmus, two_workers, tmp_path, path):
     """Log-spaced grids, paper figures and limit cycles included: python-control, numpy and pyplot stay
     unloaded (``benchmarks/startup.py --shipped`` times the same re-runs)."""
-    from dfwb.studies.runner import run_scene
+    from dfwb.studies.runner import begin_scene
 
     folder = fmus["FrictionMass"].parent
-    first = run_scene(path, tmp_path / "first", jobs=2, cache=tmp_path / "cache", fmu_dir=folder, progress=False)
+    first = begin_scene(path, tmp_path / "first", cache=tmp_path / "cache", fmu_dir=folder, progress=False,
+                        executor=two_workers).finish()  # run_scene(path, jobs=2, ...) on the shared pool
     assert not first.copied and not first.failed
     code, modules = _run(tmp_path, path, tmp_path / "second", folder)
     assert code == 0 and sorted(name for name in NOT_NEEDED if name in modules) == []
