@@ -255,13 +255,21 @@ def reference_cycle(index):
     settling = settle(index)
     scale = settling.scale
 
+    runs = {}  # {bytes of X: the run from X}: the root's own point was run by the root finder already
+
+    def run(X):
+        key = X.tobytes()
+        if key not in runs:
+            runs[key] = loop.run(X)
+        return runs[key]
+
     def residual(v):
         u = v * scale
-        return (loop.reduce(loop.run(loop.full(u))["state"]) - u) / scale
+        return (loop.reduce(run(loop.full(u))["state"]) - u) / scale
 
     u = root(residual, settling.states[-1] / scale, method="hybr", options={"xtol": 1e-13}).x * scale
     X = loop.full(u)
-    r = loop.run(X)
+    r = run(X)
     period = r["t"]
     whole, halved = first_harmonics(loop, X, period, r["events"])
     return Cycle(omega=2.0 * math.pi / period, amplitude=whole, period=period,
@@ -270,7 +278,14 @@ def reference_cycle(index):
                  quadrature=abs(halved - whole) / whole)
 
 
-@pytest.mark.parametrize("index", range(len(LOOPS)), ids=IDS)
+@pytest.fixture(scope="module", params=range(len(LOOPS)), ids=IDS)
+def index(request):
+    """The index in LOOPS, a module-scoped parameter: pytest runs a loop's three tests one after the other, so
+    that a pytest-xdist worker that finds its reference (cached by reference_cycle) also runs the others
+    (parametrized per test, the tests of one loop were spread over the workers, each finding it again)."""
+    return request.param
+
+
 def test_reference_cycle_is_a_fixed_point(index):
     """The root finder found the section map's fixed point, to RESIDUAL, and its harmonic is well integrated."""
     cycle = reference_cycle(index)
@@ -278,7 +293,6 @@ def test_reference_cycle_is_a_fixed_point(index):
     assert cycle.quadrature < QUADRATURE, f"{IDS[index]}: the quadrature changes {cycle.quadrature:.2e}"
 
 
-@pytest.mark.parametrize("index", range(len(LOOPS)), ids=IDS)
 def test_simulation_converges_to_the_cycle(index):
     """The last settling hits approach the fixed point (until the noise): it is the stable cycle reached."""
     d = reference_cycle(index).distances
@@ -288,7 +302,6 @@ def test_simulation_converges_to_the_cycle(index):
         f"{IDS[index]}: the last hits' distances to the cycle {d[-2 * WINDOW:]} do not shrink"
 
 
-@pytest.mark.parametrize("index", range(len(LOOPS)), ids=IDS)
 def test_dfwb_finds_the_cycle(index):
     """find_cycles lists a stable cycle with the reference's omega and amplitude to AGREE."""
     plant, (G, b, a), params, _start = LOOPS[index]
