@@ -8,9 +8,12 @@ round-trips exactly in memory and as bytes, and crafted bytes are refused (or ru
 the binary links no libpython.
 """
 
+import contextlib
 import ctypes
+import io
 import math
 import random
+import shutil
 import zlib
 
 import fmpy
@@ -255,7 +258,22 @@ def test_bytes_that_are_not_a_state_are_refused_at_deserialization(native_fmus, 
     fmu.freeFMUstate(kept)
 
 
-def test_fmu_kind_and_path(monkeypatch, tmp_path):
+@pytest.fixture(scope="module")
+def built_native(tmp_path_factory):
+    """(a folder whose native/ ``dfwb build --native --out`` has just filled, what that command printed): built once
+    for the command's test and for fmu_path's, which finds them there up to date."""
+    from dfwb.cli import main
+
+    folder = tmp_path_factory.mktemp("native-build")
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        code = main(["build", "--native", "--out", str(folder / "native")])
+    return folder, code, out.getvalue()
+
+
+def test_fmu_kind_and_path(monkeypatch, built_native, fmus):
+    """fmu_path in a folder where the FMUs asked for are up to date: the native FrictionMass that
+    ``dfwb build --native`` wrote (built_native), copies of the session's pythonfmu LinearSystem and
+    FrictionMass. (fmu_path building a missing FMU: tests/test_location.py, and the build test below.)"""
     assert FMU_KINDS == ("native", "python")
     monkeypatch.delenv("DFWB_FMU", raising=False)
     assert fmu_kind() == "native"
@@ -267,10 +285,15 @@ def test_fmu_kind_and_path(monkeypatch, tmp_path):
     with pytest.raises(PlantError, match="kind = 'c' is not an FMU kind"):
         fmu_kind("c")
     monkeypatch.delenv("DFWB_FMU")
-    native = fmu_path("FrictionMass", tmp_path)
-    assert native == tmp_path / "native" / "FrictionMass.fmu"
-    assert fmu_path("LinearSystem", tmp_path) == tmp_path / "LinearSystem.fmu"  # no native twin
-    assert fmu_path("FrictionMass", tmp_path, kind="python") == tmp_path / "FrictionMass.fmu"
+    folder = built_native[0]
+    for model in ("LinearSystem", "FrictionMass"):
+        shutil.copy2(fmus[model], folder / f"{model}.fmu")
+    built = {path: path.stat().st_mtime_ns for path in folder.rglob("*.fmu")}
+    native = fmu_path("FrictionMass", folder)
+    assert native == folder / "native" / "FrictionMass.fmu"
+    assert fmu_path("LinearSystem", folder) == folder / "LinearSystem.fmu"  # no native twin
+    assert fmu_path("FrictionMass", folder, kind="python") == folder / "FrictionMass.fmu"
+    assert {path: path.stat().st_mtime_ns for path in folder.rglob("*.fmu")} == built  # found, not rebuilt
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -305,12 +328,14 @@ def test_libcosim_runs_them_as_fmpy_does(native_fmus, model, start_values):
         np.testing.assert_allclose(actual[name], expected[name], rtol=0, atol=scale, err_msg=name)
 
 
-def test_dfwb_build_native_writes_the_three_fmus(tmp_path, capsys):
+def test_dfwb_build_native_writes_the_three_fmus(built_native, capsys):
     from dfwb.cli import main
 
-    assert main(["build", "--native", "--out", str(tmp_path)]) == 0
+    folder, code, out = built_native
+    tmp_path = folder / "native"  # where the command wrote them, into a fresh folder
+    assert code == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == sorted(f"{model}.fmu" for model in MODELS)
-    assert capsys.readouterr().out.count(": built (native") == 3
+    assert out.count(": built (native") == 3
     assert main(["build", "--native", "--out", str(tmp_path)]) == 0  # up to date: nothing rebuilt
     assert capsys.readouterr().out.count(": up to date (native") == 3
     with pytest.raises(SystemExit) as stopped:
