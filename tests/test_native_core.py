@@ -103,34 +103,86 @@ class Agreement:
                 f"({100 * share:.4f} %), max relative difference {self.worst:.3g}")
 
 
-def step_both(python_class, native_class, case, agreement, where, restore=False):
-    """Run the Python and the C solver through a stress case's points (inputs set before each step); with
-    ``restore`` the C solver is replaced by one read back from its state bytes at every point."""
-    a, b = python_class(**case.params), native_class(**case.params)
-    agreement.compare(f"{where} t=0", a, b)
+class Seen:
+    """What a Python solver showed at one point of a run (t, events, the counters, output(), integrals()): it
+    stands for the solver in Agreement.compare, which reads nothing else."""
+
+    def __init__(self, solver, counters=()):
+        self.t, self.events = solver.t, solver.events
+        for name in counters:
+            setattr(self, name, getattr(solver, name))
+        self._output, self._integrals = solver.output(), list(solver.integrals())
+
+    def output(self):
+        return self._output
+
+    def integrals(self):
+        return self._integrals
+
+
+def python_run(python_class, case, counters=(), log=True):
+    """The Python oracle through a stress case's points (inputs set before each step), with ``log`` its event log
+    on: ([Seen at t = 0 and at every point], the event log). The log only records what the run does (piecewise.py
+    appends to it, nothing reads it), so one run serves the agreement, the state round trip and the event log tests."""
+    a = python_class(**case.params)
+    if log:
+        a.event_log = []
+    points = [Seen(a, counters)]
     for j, t in enumerate(case.times):
         if case.inputs is not None:
             a.set_input(case.inputs[j])
-            b.set_input(case.inputs[j])
         a.advance(t)
+        points.append(Seen(a, counters))
+    return points, a.event_log
+
+
+def python_runs(python_class, cases, counters=()):
+    """run(i): python_run of cases[i], each run once (module-scoped fixtures share them between tests)."""
+    done = {}
+
+    def run(i):
+        if i not in done:
+            done[i] = python_run(python_class, cases[i], counters)
+        return done[i]
+
+    return run
+
+
+def step_both(python_class, native_class, case, agreement, where, restore=False, python=None):
+    """Run the Python and the C solver through a stress case's points (inputs set before each step); with
+    ``restore`` the C solver is replaced by one read back from its state bytes at every point. ``python``: the
+    Python run's points (python_run), if it has been run already. (What Python showed at the last point, C solver.)"""
+    points = python_run(python_class, case, agreement.counters, log=False)[0] if python is None else python
+    b = native_class(**case.params)
+    agreement.compare(f"{where} t=0", points[0], b)
+    for j, t in enumerate(case.times):
+        if case.inputs is not None:
+            b.set_input(case.inputs[j])
         b.advance(t)
-        agreement.compare(f"{where} t={t!r}", a, b)
+        agreement.compare(f"{where} t={t!r}", points[j + 1], b)
         if restore:
             data = b.to_bytes()
             b = native_class.from_bytes(data)
             assert b.to_bytes() == data, f"{where} t={t!r}: the state read back writes other bytes"
-    return a, b
+    return points[-1], b
 
 
-def _step_both(case, core, agreement, where, restore=False):
-    return step_both(FrictionMass, core.FrictionMass, case, agreement, where, restore)
+def _step_both(case, core, agreement, where, restore=False, python=None):
+    return step_both(FrictionMass, core.FrictionMass, case, agreement, where, restore, python)
 
 
-def test_stress_cases_agree(core, friction_cases):
+@pytest.fixture(scope="module")
+def friction_runs(friction_cases):
+    """run(i): the Python oracle's run of the i-th valid friction stress case, once for the tests that compare
+    C with it (agreement, state round trip, event log)."""
+    return python_runs(FrictionMass, friction_cases[0])
+
+
+def test_stress_cases_agree(core, friction_cases, friction_runs):
     agreement = Agreement()
     total_events = 0
-    for case in friction_cases[0]:
-        a, _ = _step_both(case, core, agreement, case.note)
+    for i, case in enumerate(friction_cases[0]):
+        a, _ = _step_both(case, core, agreement, case.note, python=friction_runs(i)[0])
         total_events += a.events
     print(f"\n{agreement.summary(f'friction stress cases ({len(friction_cases[0])})')}, {total_events} events")
     assert agreement.points > 10_000 and total_events > 1000
@@ -344,29 +396,33 @@ def test_copy_continues_identically(core):
     assert native.events != clones["copy()"].events or native.output() != clones["copy()"].output()
 
 
-def test_state_round_trip_continues_identically(core, friction_cases):
+def test_state_round_trip_continues_identically(core, friction_cases, friction_runs):
     """At every point of every other friction stress case the C solver is replaced by one read back from
     its bytes: the run stays identical to Python's (no honest state is refused, nothing is lost)."""
     agreement = Agreement()
-    for case in friction_cases[0][::2]:
-        _step_both(case, core, agreement, case.note, restore=True)
+    for i in range(0, len(friction_cases[0]), 2):
+        case = friction_cases[0][i]
+        _step_both(case, core, agreement, case.note, restore=True, python=friction_runs(i)[0])
     print(f"\n{agreement.summary('friction restored from bytes at every point')}")
     assert agreement.identical == agreement.values and agreement.points > 5000
 
 
-def test_event_log_equals_python(core, friction_cases):
+def test_event_log_equals_python(core, friction_cases, friction_runs):
     """Every counted event as (t, EventKind), to the bit and in order, as FrictionMass.event_log has it."""
     logged = 0
-    for case in friction_cases[0][::3]:
-        logs = []
-        for plant in (FrictionMass(**case.params), core.FrictionMass(**case.params)):
-            plant.event_log = []
-            for j, t in enumerate(case.times):
-                if case.inputs is not None:
-                    plant.set_input(case.inputs[j])
-                plant.advance(t)
-            assert len(plant.event_log) == plant.events
-            logs.append([(_bits(t), kind) for t, kind in plant.event_log])
+    for i in range(0, len(friction_cases[0]), 3):
+        case = friction_cases[0][i]
+        points, log = friction_runs(i)  # Python's run, its event log on
+        assert len(log) == points[-1].events
+        logs = [[(_bits(t), kind) for t, kind in log]]
+        plant = core.FrictionMass(**case.params)
+        plant.event_log = []
+        for j, t in enumerate(case.times):
+            if case.inputs is not None:
+                plant.set_input(case.inputs[j])
+            plant.advance(t)
+        assert len(plant.event_log) == plant.events
+        logs.append([(_bits(t), kind) for t, kind in plant.event_log])
         assert logs[1] == logs[0], case.note
         logged += len(logs[0])
     assert logged > 200
