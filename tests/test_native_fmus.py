@@ -10,8 +10,11 @@ the binary links no libpython.
 
 import contextlib
 import ctypes
+import fcntl
 import io
+import json
 import math
+import os
 import random
 import shutil
 import zlib
@@ -260,14 +263,25 @@ def test_bytes_that_are_not_a_state_are_refused_at_deserialization(native_fmus, 
 
 @pytest.fixture(scope="module")
 def built_native(tmp_path_factory):
-    """(a folder whose native/ ``dfwb build --native --out`` has just filled, what that command printed): built once
-    for the command's test and for fmu_path's, which finds them there up to date."""
+    """(a folder whose native/ ``dfwb build --native --out`` filled, starting empty, its exit code, what it printed):
+    built once for the command's test and for fmu_path's, which finds them there up to date. Once per session:
+    pytest-xdist workers share it (the session's temporary folder, under a lock), so that the two tests need not
+    run on the same worker."""
     from dfwb.cli import main
 
-    folder = tmp_path_factory.mktemp("native-build")
-    with contextlib.redirect_stdout(io.StringIO()) as out:
-        code = main(["build", "--native", "--out", str(folder / "native")])
-    return folder, code, out.getvalue()
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the session's folder, above each worker's own
+    folder, record = root / "native-build", root / "native-build.json"
+    with open(root / "native-build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not record.exists():
+            folder.mkdir()
+            with contextlib.redirect_stdout(io.StringIO()) as out:
+                code = main(["build", "--native", "--out", str(folder / "native")])
+            record.write_text(json.dumps([code, out.getvalue()]))
+        code, out = json.loads(record.read_text())
+    return folder, code, out
 
 
 def test_fmu_kind_and_path(monkeypatch, built_native, fmus):
