@@ -46,6 +46,24 @@ def read_or_refuse(cls, data, tally, **options):
     return solver
 
 
+def counted_once(tally, attempt):
+    """``attempt(cls, data)`` that runs once per (cls, bytes): the same bytes again (a field set to the value it
+    has, the same mix drawn twice) are the same attempt, a fresh solver from them, so what its run added to
+    ``tally`` is added again without running it."""
+    seen = {}
+
+    def once(cls, data):
+        if (cls, data) not in seen:
+            before = dict(tally)
+            attempt(cls, data)
+            seen[cls, data] = {name: tally[name] - before[name] for name in tally}
+            return
+        for name, count in seen[cls, data].items():
+            tally[name] += count
+
+    return once
+
+
 # -- FMUs built with the compiled core --------------------------------------------------------------------------
 
 def has_cc():

@@ -482,7 +482,7 @@ FUZZ = r"""
 import json, math, random, struct, sys
 from array import array
 sys.path.insert(0, sys.argv[2])
-from native_fmu_helpers import HEADER, read_or_refuse, with_crc as crc
+from native_fmu_helpers import HEADER, counted_once, read_or_refuse, with_crc as crc
 from dfwb.fmus.native_core import load
 from dfwb.fmus.state import StateRefused
 from dfwb.fmus.exact import PlantError
@@ -494,18 +494,6 @@ SPECIAL = [math.nan, math.inf, -math.inf, -1.0, 0.0, -0.0, 1.0, 0.5, 2.0, 3.0, 1
            2.0 ** 63]
 INTS = [-1, 2, 3, 4, 7, 8, 11, 12, 2**31 - 1, -2**31, 2**62, -2**63]
 tally = {"flips": 0, "refused": 0, "accepted": 0, "stepped": 0, "step refused": 0}
-
-seen = {}  # {(class, bytes): what its attempt added to the tally}: the same bytes (a field set to the value it
-# has) are the same attempt, a fresh solver from them: counted again, not run again
-
-def attempt(cls, data):
-    if (cls, data) in seen:
-        for name, count in seen[cls, data].items():
-            tally[name] += count
-        return
-    before = dict(tally)
-    _attempt(cls, data)
-    seen[cls, data] = {name: tally[name] - before[name] for name in tally}
 
 def _attempt(cls, data):
     solver = read_or_refuse(cls, data, tally)
@@ -520,6 +508,8 @@ def _attempt(cls, data):
         tally["stepped"] += 1
     except (PlantError, OverflowError):
         tally["step refused"] += 1
+
+attempt = counted_once(tally, _attempt)  # the same bytes run once, counted each time
 
 for attr, entries in states.items():
     cls = getattr(core, attr)

@@ -616,7 +616,7 @@ def test_damaged_states_are_refused(core):
 FUZZ = r"""
 import json, math, random, struct, sys
 sys.path.insert(0, sys.argv[2])
-from native_fmu_helpers import HEADER, read_or_refuse, with_crc as crc
+from native_fmu_helpers import HEADER, counted_once, read_or_refuse, with_crc as crc
 from dfwb.fmus.hybrid import Budget
 from dfwb.fmus.native_core import load
 from dfwb.fmus.exact import PlantError
@@ -627,19 +627,6 @@ rng = random.Random(7)
 SPECIAL = [math.nan, math.inf, -math.inf, -1.0, 0.0, -0.0, 1.0, 0.5, 2.0, 3.0, 1e308, -1e308, 5e-324, 1e-300, 1e10]
 INTS = [-1, 1, 2, 3, 4, 5, 8, 9, 11, 101, 102, 2**31 - 1, -2**31, 2**62, -2**63]
 tally = {"refused": 0, "accepted": 0, "stepped": 0, "step refused": 0}
-
-seen = {}  # {(class, bytes): what its attempt added to the tally}: the same bytes (a field set to the value it
-# has, the same mix drawn twice) are the same attempt, a fresh loop from them with a fresh Budget: counted again,
-# not run again
-
-def attempt(cls, data):
-    if (cls, data) in seen:
-        for name, count in seen[cls, data].items():
-            tally[name] += count
-        return
-    before = dict(tally)
-    _attempt(cls, data)
-    seen[cls, data] = {name: tally[name] - before[name] for name in tally}
 
 def _attempt(cls, data):
     loop = read_or_refuse(cls, data, tally, budget=Budget(20000))
@@ -653,6 +640,8 @@ def _attempt(cls, data):
         tally["stepped"] += 1
     except (PlantError, OverflowError):
         tally["step refused"] += 1
+
+attempt = counted_once(tally, _attempt)  # the same bytes run once, counted each time
 
 for attr, entries in states.items():
     cls = getattr(core, attr)
