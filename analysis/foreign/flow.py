@@ -124,7 +124,7 @@ class Flow:
         near = (eta > 0.0) & (eta <= 2.0 * h)
         if not near.any():
             return
-        window = min(h, span)
+        window = min(h, 2.0 * span)
         dense = solver.dense_output()
         signs = values > 0.0
 
@@ -183,7 +183,7 @@ class Flow:
             solver = DOP853(self.rhs, t, z, bound, rtol=rtol, atol=atol, first_step=min(bound - t, step) or None)
             values = self._indicators(t, z)
             before = values > 0.0
-            handled = False
+            handled, natural = False, 0.0  # natural: the step the solver proposed before it was aimed
             for _ in range(MAX_STEPS):
                 if solver.status != "running":
                     break
@@ -191,7 +191,7 @@ class Flow:
                 message = solver.step()
                 if solver.status == "failed":
                     raise FMUError(f"{inst.info.path}: the integrator failed at t = {float(solver.t)!r}: {message}")
-                step = solver.h_abs
+                step = max(solver.h_abs, natural)  # an aimed step's successor may only grow tenfold
                 self.steps += 1
                 now_values = self._indicators(solver.t, solver.y)
                 now = now_values > 0.0
@@ -216,7 +216,9 @@ class Flow:
                     break
                 self.scale = np.maximum(self.scale, np.abs(solver.y))
                 self.y_max = max(self.y_max, abs(self._y))
+                natural = solver.h_abs
                 self._aim(solver, t_prev, values, now_values)
+                natural = natural if solver.h_abs < natural else 0.0
                 before, values = now, now_values
             else:
                 raise FMUError(f"{inst.info.path}: more than {MAX_STEPS} integrator steps in one run")
