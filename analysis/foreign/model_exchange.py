@@ -23,7 +23,6 @@ from dfwb.foreign.steady import Sections, ramp
 
 __all__ = ["point"]
 
-SHOOT_AFTER = 6  # periods before a slow transient is shot
 MAX_SHOTS = 4
 NOISE = 128  # ulps of the output: the rounding of a period's Fourier integrals (up to 45 seen)
 STATE_NOISE = 16  # ... and of what an orbit's rounding of the states leaves in them, per orbit
@@ -36,6 +35,7 @@ class _Period:
 
     def __init__(self, instance, F, omega, harmonics):
         self.inst, self.F, self.omega, self.K = instance, F, omega, harmonics
+        self.contraction = None  # the section map's spectral radius, where a shot has differenced it
         k = np.arange(harmonics + 1)
 
         def rate(t, w, y, u):  # y cos(k w t), y sin(k w t): a right-hand side is hot, so two ufuncs into one array
@@ -77,16 +77,20 @@ class _Period:
         return z[:nx], X, events
 
     def shoot(self, t, x, rtol, atol, saved):
-        """Newton's step on the section map from x at t (finite-difference Jacobian), or None if singular
-        or no closer to a periodic orbit than x.
+        """(state, runs): Newton's step on the section map from x at t (finite-difference Jacobian), the
+        state None if singular or no closer to a periodic orbit than x; ``runs``: the periods it ran. The
+        Jacobian's spectral radius is kept as :attr:`contraction`.
 
         ``saved``: the FMU state to restore before each trial run (None: the
         FMU has no discrete state that could change, so setting x is enough).
         """
         inst = self.inst
         next_event = self.next_event
+        runs = 0
 
         def section(s):
+            nonlocal runs
+            runs += 1
             if saved is not None:
                 inst.restore(saved, t)
             self.next_event = next_event
@@ -100,6 +104,8 @@ class _Period:
             trial = x.copy()
             trial[i] += h
             J[:, i] = (section(trial) - p0) / h
+        radius = float(np.max(np.abs(np.linalg.eigvals(J)))) if np.all(np.isfinite(J)) else math.inf
+        self.contraction = radius if math.isfinite(radius) else None
         try:
             s = x - np.linalg.solve(J - np.eye(len(x)), p0 - x)
         except np.linalg.LinAlgError:
@@ -108,14 +114,13 @@ class _Period:
             scale = np.maximum(np.abs(x), 1e-12 * float(np.max(np.abs(x), initial=0.0)) + 1e-300)
             if not np.max(np.abs(section(s) - s) / scale) < np.max(np.abs(p0 - x) / scale):
                 s = None  # e.g. a drifting state, whose multiplier 1 makes the step meaningless
+        else:
+            s = None
         if saved is not None:
             inst.restore(saved, t)
         self.next_event = next_event
-        if s is not None and np.all(np.isfinite(s)):
-            inst.set_continuous(t, s, self.F * math.cos(self.omega * t))
-            return s
-        inst.set_continuous(t, x, self.F * math.cos(self.omega * t))
-        return None
+        inst.set_continuous(t, x if s is None else s, self.F * math.cos(self.omega * t))
+        return s, runs
 
 
 def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150):
@@ -149,11 +154,11 @@ def settle(instance, F, omega, params, harmonics, rtol, max_periods):
     shots, found, t, periods = 0, None, 0.0, 0
     while periods < max_periods:
         atol = period.atol(rtol)
-        if len(sections.sections) >= SHOOT_AFTER and shots < MAX_SHOTS and len(x) and \
+        if shots < MAX_SHOTS and len(x) and _slow(sections, 10 * rtol, len(x) + 2) and \
                 (can_save or (instance.nz == 0 and period.next_event is None)):
             shots += 1
-            shot = period.shoot(t, x, rtol, atol, instance.save() if can_save else None)
-            periods += len(x) + 1
+            shot, runs = period.shoot(t, x, rtol, atol, instance.save() if can_save else None)
+            periods += runs
             if shot is not None:
                 x, sections = shot, Sections(tol=10 * rtol, output=nx)
                 continue
@@ -166,6 +171,21 @@ def settle(instance, F, omega, params, harmonics, rtol, max_periods):
             break
     orbit = found if found is not None else sections.average()
     return period, orbit, t, x, periods
+
+
+def _slow(sections, tol, cost):
+    """Whether the sections' transient, shrinking geometrically by the ratio of its last two changes, would
+    take more than ``cost`` periods more to reach ``tol``: then a shot (``cost`` periods) is quicker."""
+    s, scale = sections.sections, sections.scale
+    if len(s) < 3:
+        return False
+    scale = np.maximum(scale, 1e-6 * float(np.max(scale, initial=0.0)) + 1e-300)
+    last, before = (float(np.max(np.abs(a - b) / scale)) for a, b in ((s[-1], s[-2]), (s[-2], s[-3])))
+    if not last > tol:
+        return False
+    if not last < before:
+        return True  # not contracting: waiting may never end
+    return math.log(tol / last) / math.log(last / before) > cost
 
 
 def _final(period, orbit, t, x, rtol, harmonics):
@@ -181,7 +201,8 @@ def _final(period, orbit, t, x, rtol, harmonics):
       geometric decay's tail is not exactly geometric), rho the states' contraction over the two orbits;
     - rounding: :data:`NOISE` ulps of the output's size, and :data:`STATE_NOISE` ulps more per orbit that
       a rounding error of the states takes to decay, rho / (1 - rho) of them (rho unmeasured, its changes
-      below rounding: 0.99; no continuous state: 0). A shot orbit of Q = 50 keeps a hundred ulps.
+      below rounding: the spectral radius of a shot's Jacobian, else 0.99; no continuous state: 0). A shot
+      orbit of Q = 50 keeps a hundred ulps.
 
     An orbit that never repeated adds its spread. Measured on the tests' closed forms (saturation, relay,
     mass-spring-damper up to Q = 50, drifting mass): 1 to 10 times the true error (at least 16 ulps of N).
@@ -207,6 +228,8 @@ def _final(period, orbit, t, x, rtol, harmonics):
         rho = 0.0  # a drift's states never repeat; without continuous states nothing contracts
     elif min(steps) > NOISE * EPS:
         rho = min(steps[1] / steps[0], CONTRACTION)
+    elif period.contraction is not None:  # the states' changes are rounding: a shot's Jacobian tells it
+        rho = min(period.contraction, CONTRACTION)
     else:
         rho = CONTRACTION  # the states' changes are rounding: their contraction cannot be read
     change = max(abs(orbits[1][1] - orbits[0][1]) - noise, 0.0)
