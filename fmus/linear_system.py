@@ -137,7 +137,8 @@ class LinearSystem:
 
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end with the input held."""
-        check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        check("t_end", t_end, lambda: t_end >= self.t,
+              lambda: f"the end of a step must be >= the current time {self.t!r}")
         h = t_end - self.t
         if h > 0.0:
             Phi, Gamma = self.transition(h)

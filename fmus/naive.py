@@ -68,7 +68,8 @@ class NaivePlant:
 
     def advance(self, t_end):
         """Whole steps of dt from self.t, the last one shortened to end exactly at t_end."""
-        check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        check("t_end", t_end, lambda: t_end >= self.t,
+              lambda: f"the end of a step must be >= the current time {self.t!r}")
         t0, dt = self.t, self.dt
         span = t_end - t0
         n = math.ceil(span / dt - 1e-9) if span > 0.0 else 0  # a rounding excess is no extra step

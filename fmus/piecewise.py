@@ -36,10 +36,12 @@ def check(name, value, ok, allowed):
 
     ``ok`` is True or a function of no argument, called only once the value is
     known to be a finite number (so a condition never fails on None or text).
+    ``allowed`` is the text, or a function of no argument that makes it: a
+    check on a hot path (a step) formats its message only when it fails.
     """
     if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
             and (ok() if callable(ok) else ok)):
-        raise PlantError(f"{name} = {value!r} is out of range: {allowed}")
+        raise PlantError(f"{name} = {value!r} is out of range: {allowed() if callable(allowed) else allowed}")
 
 
 class Search:
@@ -192,12 +194,13 @@ class PiecewisePlant:
     # -- stepping ---------------------------------------------------------
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end, firing every event on the way."""
-        check("t_end", t_end, lambda: t_end >= self.t, f"the end of a step must be >= the current time {self.t!r}")
+        check("t_end", t_end, lambda: t_end >= self.t,
+              lambda: f"the end of a step must be >= the current time {self.t!r}")
         self.drive.phase(t_end, "t_end")  # bounds the search chunks (and every phase on the way)
         span = (t_end - self.t) / self.period
         check("t_end", t_end, lambda: span <= MAX_PERIODS_PER_STEP,
-              f"a step spans at most {MAX_PERIODS_PER_STEP:g} periods of the drive (2 pi/omega = {self.period!r} s), "
-              f"this one {span!r} from t = {self.t!r}: take smaller steps")
+              lambda: f"a step spans at most {MAX_PERIODS_PER_STEP:g} periods of the drive (2 pi/omega = "
+                      f"{self.period!r} s), this one {span!r} from t = {self.t!r}: take smaller steps")
         limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + span)
         fired = 0
         while True:
