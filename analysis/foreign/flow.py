@@ -196,11 +196,12 @@ class Flow:
                 now_values = self._indicators(solver.t, solver.y)
                 now = now_values > 0.0
                 changed = bool(np.any(now != before))
-                dense = solver.dense_output() if changed or section is not None else None
+                dense = solver.dense_output() if changed else None  # (3 more right-hand sides: when needed)
                 root, past = self._first_crossing(dense, t_prev, solver.t, before) if changed else (None, None)
                 if section is not None:
                     after = self._section(section, solver.t, solver.y)
                     if level < 0.0 <= after:  # the section, upwards: stop there if before any event
+                        dense = solver.dense_output() if dense is None else dense
                         crossing = brentq(lambda s: self._section(section, s, dense(s)), t_prev, solver.t,
                                           xtol=1e-15 * max(1.0, abs(solver.t)), rtol=RTOL_ROOT)
                         if root is None or crossing <= root:
