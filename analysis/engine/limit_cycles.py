@@ -128,18 +128,14 @@ class _Balance:
             except np.linalg.LinAlgError:
                 return None
             scale = 1.0
-            while True:  # damped: accept the first step that reduces |R|
+            while scale >= 1e-3:  # damped: the first step that reduces |R| (at most 10 halvings)
                 nu, nv = u + scale * step[0], v + scale * step[1]
-                if not (bounds[0] <= nu <= bounds[1] and bounds[2] <= nv <= bounds[3]):
-                    scale *= 0.5
-                else:
+                if bounds[0] <= nu <= bounds[1] and bounds[2] <= nv <= bounds[3]:
                     trial = self.point(nu, nv)
                     trial_R = self.residual(trial)
-                    if abs(trial_R) < abs(R) or scale < 1e-3:
+                    if abs(trial_R) < abs(R):
                         break
-                    scale *= 0.5
-                if scale < 1e-3:
-                    break
+                scale *= 0.5
             if scale < 1e-3:  # no step: with a J made here, none at all; with an older one, make it here
                 if at == (u, v):
                     return None

@@ -92,16 +92,15 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
     return search.CycleSearch(cycles, links, coverage, [])
 
 
-def predictor(engine, family, F_range, omega_range, size=MAP):
-    """``predict(values, precise=True)``: the DF's predictions (``Cycle``s) of ``family`` (a LoopFamily of a
-    user's FMU) at ``values`` of its free parameters, located on the FMU's DF map over ``F_range`` x
-    ``omega_range`` (``size`` points, on the engine's looser twin) and refined on the precise DF
-    (``precise=False``: on the looser twin, as starts and seeds need no more). The map is computed once for
-    each setting of the FMU's own parameters: over G's parameters alone, one map serves every value."""
+def predictor(engine, F_range, omega_range, size=MAP):
+    """``predict(G, params, precise=True)``: the DF's predictions (``Cycle``s) of a user's FMU (``engine``'s)
+    with its parameters ``params`` under G, located on the FMU's DF map over ``F_range`` x ``omega_range``
+    (``size`` points, on the engine's looser twin) and refined on the precise DF (``precise=False``: on the
+    looser twin, as starts and seeds need no more). The map is computed once for each setting of the FMU's
+    own parameters: over G's parameters alone, one map serves every value."""
     maps = {}
 
-    def predict(values, precise=True):
-        G, params = family.G(values), family.params(values)
+    def predict(G, params, precise=True):
         key = tuple(sorted(params.items()))
         if key not in maps:
             if len(maps) >= 4:  # a map over the FMU's parameters: each setting its own (a few kept)
@@ -119,16 +118,16 @@ def cells(engine, family, F_range, omega_range, size=MAP):
     """``classify_at(values, truth=True, df=True)``: the cell of ``family`` (a LoopFamily of a user's FMU) at
     ``values`` of its free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
     verdict unknown: None), from the :func:`predictor`'s DF map."""
-    predict = predictor(engine, family, F_range, omega_range, size)
+    predict = predictor(engine, F_range, omega_range, size)
 
     def classify_at(values, truth=True, df=True):
         # the truth alone (a margin's bisection) takes the predictions only for its starts and seeds: located
         # on the looser twin, they need no refining on the precise DF
-        predictions = predict(values, precise=df)
+        G, params = family.G(values), family.params(values)
+        predictions = predict(G, params, precise=df)
         cell = {"linear": {"stable": None, "max_real_pole": None}}
         if truth:
-            cell["truth"] = truth_cell(true_search(engine, family.G(values), family.params(values), predictions,
-                                                   None, F_range, omega_range))
+            cell["truth"] = truth_cell(true_search(engine, G, params, predictions, None, F_range, omega_range))
         if df:
             cell["df"] = df_cell(predictions, True)
         return cell

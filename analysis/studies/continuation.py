@@ -106,13 +106,13 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     if foreign and "df" in sources:
         from dfwb.foreign.hunting import predictor
 
-        predict = predictor(engine, family, *fixed[:2], fixed[2:])  # one DF map for the values that share it
+        predict = predictor(engine, *fixed[:2], fixed[2:])  # one DF map for the values that share it
     for k, value in enumerate(at):
         if foreign and "df" not in sources:
             continue
         if foreign:  # its predictions, on its DF map at this value (its truth is sampled below)
             try:
-                predictions = predict({name: value})
+                predictions = predict(family.G({name: value}), family.params({name: value}))
             except DfwbError as error:
                 notes.append(f"{name} = {value:g}: no DF search: {error}")
                 predictions = []
