@@ -110,9 +110,11 @@ print(json.dumps(log))
 '''
 
 
-def python_env():
-    """The environment of a subprocess: this Python, no dfwb on the path beyond what it has installed."""
-    return {key: value for key, value in os.environ.items() if key not in ("PYTHONPATH",)}
+def python_env(temporary):
+    """The environment of a subprocess: this Python, no dfwb on the path beyond what it has installed, its
+    temporary files (fmpy unpacks the FMU there and leaves it) in the folder ``temporary``."""
+    env = {key: value for key, value in os.environ.items() if key not in ("PYTHONPATH",)}
+    return dict(env, TMPDIR=str(temporary))
 
 
 @pytest.fixture(scope="module")
@@ -135,9 +137,9 @@ def boom(tmp_path_factory):
     return fmu
 
 
-def drive(fmu, bad):
+def drive(fmu, bad, temporary):
     run = subprocess.run([sys.executable, "-c", DRIVER, str(fmu), repr(bad)], capture_output=True, text=True,
-                         timeout=120, env=python_env())
+                         timeout=120, env=python_env(temporary))
     assert run.returncode == 0, f"the host died ({run.returncode}):\n{run.stdout}\n{run.stderr}"
     return [tuple(entry) for entry in json.loads(run.stdout.splitlines()[-1])], run.stdout
 
@@ -152,17 +154,17 @@ EXPECTED = [
 
 
 @pytest.mark.parametrize("bad", [float("nan"), 1e300])
-def test_every_call_after_an_error(boom, bad):
-    statuses, output = drive(boom, bad)
+def test_every_call_after_an_error(boom, bad, tmp_path):
+    statuses, output = drive(boom, bad, tmp_path)
     assert statuses == EXPECTED
     assert "is refused (100% sure)" in output  # the FMU's message, at the default logger, '%' intact
     assert "fmi2DoStep: the FMU is in the error state; call fmi2Reset" in output
     assert "fmi2DoStep: the FMU is terminated" in output
 
 
-def test_a_production_fmu_after_an_error(fmus):
+def test_a_production_fmu_after_an_error(fmus, tmp_path):
     """f = 1e300 is refused by the facade (status error), then the same sequence: exit 0."""
-    statuses, output = drive(fmus["FrictionMass"], 1e300)
+    statuses, output = drive(fmus["FrictionMass"], 1e300, tmp_path)
     expected = list(EXPECTED)
     expected[4] = ("setReal", ERROR)  # the facade refuses the value at once; the doStep after it is refused too
     assert statuses == expected
@@ -170,9 +172,9 @@ def test_a_production_fmu_after_an_error(fmus):
     assert "fmi2DoStep: the FMU is in the error state" in output
 
 
-def test_fatal_inside_is_contained(boom):
+def test_fatal_inside_is_contained(boom, tmp_path):
     """pythonfmu's fatal path (a Python exception): every later call is fmi2Fatal, no crash at exit."""
-    statuses, output = drive(boom, -1.0)
+    statuses, output = drive(boom, -1.0, tmp_path)
     assert statuses[:5] == EXPECTED[:5]
     assert statuses[5] == ("doStep", FATAL)
     assert all(status == FATAL for _name, status in statuses[6:])
@@ -201,11 +203,11 @@ print("done")
 '''
 
 
-def test_200_resets_20_processes(fmus):
+def test_200_resets_20_processes(fmus, tmp_path):
     """200 resets in one instance, in 20 fresh processes: every one exits 0."""
     for _ in range(20):
         run = subprocess.run([sys.executable, "-c", RESETS, str(fmus["FrictionMass"])], capture_output=True,
-                             text=True, timeout=300, env=python_env())
+                             text=True, timeout=300, env=python_env(tmp_path))
         assert run.returncode == 0 and run.stdout.strip() == "done", run.stderr
 
 
@@ -213,7 +215,7 @@ def test_error_message_in_fmpy_cli(boom, tmp_path):
     """fmpy's command line shows the FMU's error without --debug-logging."""
     run = subprocess.run([sys.executable, "-m", "fmpy", "simulate", str(boom), "--start-values", "f", "1e300",
                           "--stop-time", "1", "--output-file", str(tmp_path / "out.csv")],
-                         capture_output=True, text=True, timeout=120, env=python_env(), cwd=tmp_path)
+                         capture_output=True, text=True, timeout=120, env=python_env(tmp_path), cwd=tmp_path)
     assert "Boom: f = 1e+300 is refused (100% sure)" in run.stdout + run.stderr
 
 

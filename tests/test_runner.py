@@ -3,6 +3,7 @@
 import csv
 import hashlib
 import json
+import os
 import signal
 import stat
 import subprocess
@@ -160,7 +161,10 @@ def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tm
     out = tmp_path / "out"
     command = [sys.executable, "-m", "dfwb.cli", "run", str(path), "--out", str(out), "--jobs", "1", "--no-cache",
                "--quiet"]
-    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    temporary = tmp_path / "tmp"  # where the killed run unpacked its FMU: a SIGKILL leaves it, here
+    temporary.mkdir()
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               env=dict(os.environ, TMPDIR=str(temporary)))
     deadline = time.monotonic() + 120
     rows = 0
     while time.monotonic() < deadline and process.poll() is None:

@@ -152,7 +152,7 @@ def point_worker(parent, temporary=None):
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     if temporary is not None:
         os.environ["TMPDIR"] = tempfile.tempdir = temporary
-    orphan_watch(parent)
+    orphan_watch(parent, temporary)
 
 
 def stop_pool(pool, abort):
@@ -165,8 +165,10 @@ def stop_pool(pool, abort):
     pool.shutdown(wait=True, cancel_futures=True)
 
 
-def orphan_watch(parent):
-    """In a worker process: exit as soon as the dfwb run (process ``parent``) is gone, even after a ``kill -9``.
+def orphan_watch(parent, folder=None):
+    """In a worker process: exit as soon as the dfwb run (process ``parent``) is gone, even after a ``kill -9``,
+    removing the run's ``folder`` of temporary files (a run killed so cannot remove it; its workers, all
+    leaving, each try: what one has loaded stays mapped while its files go).
 
     A pool's worker is the run's child; a fork server's is the server's, and the server outlives the run
     while its children live: so a worker whose parent is not the run checks that the run still exists."""
@@ -185,6 +187,8 @@ def orphan_watch(parent):
     def watch():
         while not gone():
             time.sleep(0.5)
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
         os._exit(1)
 
     threading.Thread(target=watch, name="dfwb-orphan-watch", daemon=True).start()
