@@ -100,7 +100,10 @@ def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path):
     out = tmp_path / "killed"
     argv = [sys.executable, "-m", "dfwb.cli", "sweep", "friction", "--F", "10", "30", "50",
             "--omega-log", "0.05", "5", str(points // 3), "--out", str(out), "--jobs", "1", "--quiet"]
-    process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    temporary = tmp_path / "tmp"  # where the killed sweep unpacked its FMU: a SIGKILL leaves it, here
+    temporary.mkdir()
+    process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               env=dict(os.environ, TMPDIR=str(temporary)))
     csv_path = out / "results.csv"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
