@@ -3,9 +3,11 @@ next scene computes: the same figures as drawn in the run's process, a figure's 
 run waits for it, and the folder unlocked either way."""
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -88,7 +90,11 @@ def test_the_drawing_processes_end_when_the_run_is_killed(fmus, tmp_path):
     """kill -9 of ``dfwb paper`` skips every cleanup: its fork server and drawing processes still end."""
     command = [sys.executable, "-m", "dfwb.cli", "paper", "--quiet", "--out", str(tmp_path / "p"),
                "--cache", str(tmp_path / "c"), "--fmus", str(fmus["FrictionMass"].parent)]
-    run = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    # where the killed run unpacks its FMUs (a SIGKILL leaves them; removed below), short: the fork server's
+    # socket lives there too, and a socket's path has at most 107 bytes
+    temporary = tempfile.mkdtemp(prefix="dfwb-test-")
+    run = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                           env=dict(os.environ, TMPDIR=temporary))
     try:
         drawing = []
         for _ in range(300):  # until the fork server has forked its drawing processes (at most 30 s)
@@ -111,3 +117,4 @@ def test_the_drawing_processes_end_when_the_run_is_killed(fmus, tmp_path):
     finally:
         if run.poll() is None:
             run.kill()
+        shutil.rmtree(temporary, ignore_errors=True)

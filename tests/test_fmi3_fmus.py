@@ -66,9 +66,10 @@ def test_same_numbers_as_fmi2(native_fmus, fmi3_fmus, model, start_time):
     assert np.max(np.abs(two[outputs[0]])) > 0  # the plant moved
 
 
-def _instance(path, log, name="fmi3"):
+def _instance(path, log, folder, name="fmi3"):
+    """An instance of the FMU ``path``, unpacked into ``folder`` (fmpy's own temporary folder would stay)."""
     description = fmpy.read_model_description(str(path))
-    fmu = FMU3Slave(guid=description.guid, unzipDirectory=fmpy.extract(str(path)),
+    fmu = FMU3Slave(guid=description.guid, unzipDirectory=fmpy.extract(str(path), unzipdir=str(folder)),
                     modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
 
     def message(_env, status, _category, text):
@@ -87,9 +88,9 @@ def _run(fmu, vr, t, steps, outputs=("x1", "gap", "Ic1")):
     return rows, t
 
 
-def test_state_round_trips_exactly_and_bad_bytes_are_refused(fmi3_fmus):
+def test_state_round_trips_exactly_and_bad_bytes_are_refused(fmi3_fmus, tmp_path):
     log = []
-    fmu, vr = _instance(fmi3_fmus["TwoMassBacklash"], log)
+    fmu, vr = _instance(fmi3_fmus["TwoMassBacklash"], log, tmp_path)
     fmu.setFloat64([vr["F"], vr["omega"]], [50.0, 20.0])
     fmu.enterInitializationMode(startTime=0.0)
     fmu.exitInitializationMode()
@@ -118,9 +119,9 @@ def test_state_round_trips_exactly_and_bad_bytes_are_refused(fmi3_fmus):
     fmu.freeInstance()
 
 
-def test_time_is_the_independent_variable(fmi3_fmus):
+def test_time_is_the_independent_variable(fmi3_fmus, tmp_path):
     log = []
-    fmu, vr = _instance(fmi3_fmus["FrictionMass"], log)
+    fmu, vr = _instance(fmi3_fmus["FrictionMass"], log, tmp_path)
     fmu.enterInitializationMode(startTime=1.5)
     fmu.exitInitializationMode()
     assert fmu.getFloat64([vr["time"]]) == [1.5]
@@ -139,9 +140,9 @@ def test_time_is_the_independent_variable(fmi3_fmus):
     (lambda fmu, vr: fmu.getFloat64([vr["events"]]), "is not of type Float64"),
     (lambda fmu, vr: fmu.doStep(0.0, 0.1), "doStep called before initialisation"),
 ])
-def test_errors_are_fmi3error_with_the_message(fmi3_fmus, call, words):
+def test_errors_are_fmi3error_with_the_message(fmi3_fmus, call, words, tmp_path):
     log = []
-    fmu, vr = _instance(fmi3_fmus["TwoMassBacklash"], log)
+    fmu, vr = _instance(fmi3_fmus["TwoMassBacklash"], log, tmp_path)
     fmu.setFloat64([vr["eps"]], [1.5])
     fmu.enterInitializationMode()
     with pytest.raises(Exception) as refused:
@@ -151,10 +152,10 @@ def test_errors_are_fmi3error_with_the_message(fmi3_fmus, call, words):
     fmu.freeInstance()
 
 
-def test_event_mode_is_refused_at_instantiation(fmi3_fmus):
+def test_event_mode_is_refused_at_instantiation(fmi3_fmus, tmp_path):
     log = []
     description = fmpy.read_model_description(str(fmi3_fmus["StaticBacklash"]))
-    fmu = FMU3Slave(guid=description.guid, unzipDirectory=fmpy.extract(str(fmi3_fmus["StaticBacklash"])),
+    fmu = FMU3Slave(guid=description.guid, unzipDirectory=fmpy.extract(str(fmi3_fmus["StaticBacklash"]), unzipdir=str(tmp_path)),
                     modelIdentifier="StaticBacklash", instanceName="events")
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate(eventModeUsed=True, logMessage=lambda _e, status, _c, text: log.append((status, text)))

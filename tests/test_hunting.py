@@ -91,7 +91,10 @@ def test_a_killed_map_resumes_with_what_it_had(fmus, tmp_path):
     argv = [sys.executable, "-m", "dfwb.cli", "map", "friction", "--G", PI, "--x", "Kp=5:20:3", "--y", "Ki=1:4:3",
             "--out", str(out), "--jobs", "1", "--no-cache", "--no-curves", "--json", "--fmus",
             str(fmus["FrictionMass"].parent)]
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    temporary = tmp_path / "tmp"  # where the killed map unpacked its FMU: a SIGKILL leaves it, here
+    temporary.mkdir()
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                               env=dict(os.environ, TMPDIR=str(temporary)))
     log = out / "cells.csv"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and (not log.exists() or log.read_text().count("\n") < 3):
