@@ -104,8 +104,7 @@ class _Period:
             trial = x.copy()
             trial[i] += h
             J[:, i] = (section(trial) - p0) / h
-        radius = float(np.max(np.abs(np.linalg.eigvals(J)))) if np.all(np.isfinite(J)) else math.inf
-        self.contraction = radius if math.isfinite(radius) else None
+        self.contraction = float(np.max(np.abs(np.linalg.eigvals(J)))) if np.all(np.isfinite(J)) else None
         try:
             s = x - np.linalg.solve(J - np.eye(len(x)), p0 - x)
         except np.linalg.LinAlgError:
@@ -176,11 +175,9 @@ def settle(instance, F, omega, params, harmonics, rtol, max_periods):
 def _slow(sections, tol, cost):
     """Whether the sections' transient, shrinking geometrically by the ratio of its last two changes, would
     take more than ``cost`` periods more to reach ``tol``: then a shot (``cost`` periods) is quicker."""
-    s, scale = sections.sections, sections.scale
-    if len(s) < 3:
+    if len(sections.sections) < 3:
         return False
-    scale = np.maximum(scale, 1e-6 * float(np.max(scale, initial=0.0)) + 1e-300)
-    last, before = (float(np.max(np.abs(a - b) / scale)) for a, b in ((s[-1], s[-2]), (s[-2], s[-3])))
+    last, before = sections.change(0), sections.change(1)
     if not last > tol:
         return False
     if not last < before:

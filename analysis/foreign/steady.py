@@ -62,10 +62,19 @@ class Sections:
             del self.sections[0], self.spectra[0]
         return self._repeating()
 
+    def _floor(self):
+        """Each component's scale, at least 1e-6 of the largest (a component that stays near 0)."""
+        return np.maximum(self.scale, 1e-6 * float(np.max(self.scale, initial=0.0)))
+
     def _close(self, a, b):
-        """Equal to tol of each component's scale (at least 1e-6 of the largest: a component that stays near 0)."""
-        scale = np.maximum(self.scale, 1e-6 * float(np.max(self.scale, initial=0.0)))
-        return bool(np.all(np.abs(a - b) <= self.tol * scale))
+        """Equal to tol of each component's scale."""
+        return bool(np.all(np.abs(a - b) <= self.tol * self._floor()))
+
+    def change(self, back=0):
+        """The largest change of a component, relative to its scale, over the period ``back`` periods before
+        the last (0: the last period's)."""
+        a, b = self.sections[-1 - back], self.sections[-2 - back]
+        return float(np.max(np.abs(a - b) / np.maximum(self._floor(), 1e-300)))
 
     def _repeating(self):
         s, X = self.sections, self.spectra
