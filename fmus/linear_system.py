@@ -17,7 +17,7 @@ Python runtime): scaling and squaring around a Taylor polynomial.
 
 import math
 
-from .piecewise import PlantError, check
+from .piecewise import PlantError, check, check_step_end
 
 MAX_ORDER = 8
 TAYLOR_RADIUS = 0.5  # the scaled matrix has a 1-norm <= this
@@ -137,8 +137,7 @@ class LinearSystem:
 
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end with the input held."""
-        check("t_end", t_end, lambda: t_end >= self.t,
-              lambda: f"the end of a step must be >= the current time {self.t!r}")
+        check_step_end(t_end, self.t)
         h = t_end - self.t
         if h > 0.0:
             Phi, Gamma = self.transition(h)

@@ -33,7 +33,7 @@ from .backlash import TwoMassBacklash as _ExactTwoMassBacklash
 from .contract import BacklashOutput, FrictionOutput, StaticBacklashOutput
 from .exact import Drive
 from .friction import FrictionMass as _ExactFrictionMass
-from .piecewise import PlantError, check
+from .piecewise import PlantError, check, check_step_end
 from .static_backlash import StaticBacklash as _ExactStaticBacklash
 
 DEFAULT_DT = 1e-3
@@ -68,8 +68,7 @@ class NaivePlant:
 
     def advance(self, t_end):
         """Whole steps of dt from self.t, the last one shortened to end exactly at t_end."""
-        check("t_end", t_end, lambda: t_end >= self.t,
-              lambda: f"the end of a step must be >= the current time {self.t!r}")
+        check_step_end(t_end, self.t)
         t0, dt = self.t, self.dt
         span = t_end - t0
         n = math.ceil(span / dt - 1e-9) if span > 0.0 else 0  # a rounding excess is no extra step

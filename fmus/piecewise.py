@@ -44,6 +44,11 @@ def check(name, value, ok, allowed):
         raise PlantError(f"{name} = {value!r} is out of range: {allowed() if callable(allowed) else allowed}")
 
 
+def check_step_end(t_end, now):
+    """PlantError unless ``t_end`` is a finite time >= ``now``, the solver's current time (a step's end)."""
+    check("t_end", t_end, lambda: t_end >= now, lambda: f"the end of a step must be >= the current time {now!r}")
+
+
 class Search:
     """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from; ``kind``: its EventKind.
 
@@ -194,8 +199,7 @@ class PiecewisePlant:
     # -- stepping ---------------------------------------------------------
     def advance(self, t_end):
         """Integrate exactly from self.t to t_end, firing every event on the way."""
-        check("t_end", t_end, lambda: t_end >= self.t,
-              lambda: f"the end of a step must be >= the current time {self.t!r}")
+        check_step_end(t_end, self.t)
         self.drive.phase(t_end, "t_end")  # bounds the search chunks (and every phase on the way)
         span = (t_end - self.t) / self.period
         check("t_end", t_end, lambda: span <= MAX_PERIODS_PER_STEP,
