@@ -9,6 +9,7 @@ import contextlib
 import fcntl
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -100,6 +101,16 @@ def raw_fmu(fmus):
 def private_cache(tmp_path_factory):
     """Tests never read or fill the user's cache ($XDG_CACHE_HOME/dfwb): each session gets its own."""
     os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("xdg-cache"))
+
+
+@pytest.fixture
+def killed_run_tmpdir():
+    """A folder for the TMPDIR of a run the test kills with SIGKILL, removed after the test: what the run
+    unpacked stays there, not in the machine's temporary folder. Short, under the machine's: a fork server's
+    socket lives there too, and a socket's path has at most 107 bytes (an xdist worker's tmp_path is longer)."""
+    folder = Path(tempfile.mkdtemp(prefix="dfwb-test-"))
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

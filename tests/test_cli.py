@@ -93,17 +93,15 @@ def test_a_different_sweep_is_not_mixed_into_a_folder(fmus, tmp_path):
         run_sweep("friction", grid([10.0], [2.0]), tmp_path, jobs=1, progress=False)
 
 
-def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path):
+def test_killed_sweep_resumes_where_it_stopped(fmus, tmp_path, killed_run_tmpdir):
     """SIGKILL in the middle of a sweep: every finished point survives; the rerun completes it. Enough points
     that the sweep outlasts the poll (a native friction point takes about 0.1 ms)."""
     points = 1500
     out = tmp_path / "killed"
     argv = [sys.executable, "-m", "dfwb.cli", "sweep", "friction", "--F", "10", "30", "50",
             "--omega-log", "0.05", "5", str(points // 3), "--out", str(out), "--jobs", "1", "--quiet"]
-    temporary = tmp_path / "tmp"  # where the killed sweep unpacked its FMU: a SIGKILL leaves it, here
-    temporary.mkdir()
     process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               env=dict(os.environ, TMPDIR=str(temporary)))
+                               env=dict(os.environ, TMPDIR=str(killed_run_tmpdir)))
     csv_path = out / "results.csv"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:

@@ -3,11 +3,9 @@ next scene computes: the same figures as drawn in the run's process, a figure's 
 run waits for it, and the folder unlocked either way."""
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -86,15 +84,12 @@ def _alive(pid):
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
-def test_the_drawing_processes_end_when_the_run_is_killed(fmus, tmp_path):
+def test_the_drawing_processes_end_when_the_run_is_killed(fmus, tmp_path, killed_run_tmpdir):
     """kill -9 of ``dfwb paper`` skips every cleanup: its fork server and drawing processes still end."""
     command = [sys.executable, "-m", "dfwb.cli", "paper", "--quiet", "--out", str(tmp_path / "p"),
                "--cache", str(tmp_path / "c"), "--fmus", str(fmus["FrictionMass"].parent)]
-    # where the killed run unpacks its FMUs (a SIGKILL leaves them; removed below), short: the fork server's
-    # socket lives there too, and a socket's path has at most 107 bytes
-    temporary = tempfile.mkdtemp(prefix="dfwb-test-")
     run = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                           env=dict(os.environ, TMPDIR=temporary))
+                           env=dict(os.environ, TMPDIR=str(killed_run_tmpdir)))
     try:
         drawing = []
         for _ in range(300):  # until the fork server has forked its drawing processes (at most 30 s)
@@ -117,4 +112,3 @@ def test_the_drawing_processes_end_when_the_run_is_killed(fmus, tmp_path):
     finally:
         if run.poll() is None:
             run.kill()
-        shutil.rmtree(temporary, ignore_errors=True)

@@ -155,8 +155,9 @@ def test_errors_are_fmi3error_with_the_message(fmi3_fmus, call, words, tmp_path)
 def test_event_mode_is_refused_at_instantiation(fmi3_fmus, tmp_path):
     log = []
     description = fmpy.read_model_description(str(fmi3_fmus["StaticBacklash"]))
-    fmu = FMU3Slave(guid=description.guid, unzipDirectory=fmpy.extract(str(fmi3_fmus["StaticBacklash"]), unzipdir=str(tmp_path)),
-                    modelIdentifier="StaticBacklash", instanceName="events")
+    folder = fmpy.extract(str(fmi3_fmus["StaticBacklash"]), unzipdir=str(tmp_path))
+    fmu = FMU3Slave(guid=description.guid, unzipDirectory=folder, modelIdentifier="StaticBacklash",
+                    instanceName="events")
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate(eventModeUsed=True, logMessage=lambda _e, status, _c, text: log.append((status, text)))
     assert log and b"no Event Mode" in log[0][1]

@@ -415,14 +415,12 @@ def _alive(pid):
         return False
 
 
-def test_workers_exit_when_their_parent_is_killed(fmus, tmp_path):
+def test_workers_exit_when_their_parent_is_killed(fmus, tmp_path, killed_run_tmpdir):
     # 60,000 points: the workers are still busy when the parent dies (a native friction point takes ~0.1 ms)
     argv = [sys.executable, "-m", "dfwb.cli", "sweep", "friction", "--F", "10", "30", "50", "--omega-log", "0.05",
             "5", "20000", "--out", str(tmp_path / "o"), "--jobs", "2", "--quiet", "--fmus", str(Path(fmus["FrictionMass"]).parent)]
-    temporary = tmp_path / "tmp"  # the run's temporary files: its workers remove them when it has been killed
-    temporary.mkdir()
     process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                               env=dict(os.environ, TMPDIR=str(temporary)))
+                               env=dict(os.environ, TMPDIR=str(killed_run_tmpdir)))
     deadline = time.monotonic() + 90
     children = []
     while time.monotonic() < deadline and len(children) < 3:  # the resource tracker and two workers
@@ -439,7 +437,7 @@ def test_workers_exit_when_their_parent_is_killed(fmus, tmp_path):
     for pid in left:
         os.kill(pid, signal.SIGKILL)
     assert not left, "orphans left running"
-    assert [path.name for path in temporary.glob("dfwb_*")] == []  # the pool's folder went with its workers
+    assert [path.name for path in killed_run_tmpdir.glob("dfwb_*")] == []  # the pool's folder went with its workers
 
 
 def test_sigterm_during_a_step_reads_interrupted(fmus, tmp_path):

@@ -86,15 +86,13 @@ def test_a_map_reads_its_cells_back_from_the_cache(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_killed_map_resumes_with_what_it_had(fmus, tmp_path):
+def test_a_killed_map_resumes_with_what_it_had(fmus, tmp_path, killed_run_tmpdir):
     out = tmp_path / "map"
     argv = [sys.executable, "-m", "dfwb.cli", "map", "friction", "--G", PI, "--x", "Kp=5:20:3", "--y", "Ki=1:4:3",
             "--out", str(out), "--jobs", "1", "--no-cache", "--no-curves", "--json", "--fmus",
             str(fmus["FrictionMass"].parent)]
-    temporary = tmp_path / "tmp"  # where the killed map unpacked its FMU: a SIGKILL leaves it, here
-    temporary.mkdir()
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
-                               env=dict(os.environ, TMPDIR=str(temporary)))
+                               env=dict(os.environ, TMPDIR=str(killed_run_tmpdir)))
     log = out / "cells.csv"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and (not log.exists() or log.read_text().count("\n") < 3):

@@ -151,7 +151,7 @@ def test_no_cache_writes_no_cache(fmus, tmp_path, monkeypatch):
     assert len(df_entries(tmp_path / "xdg" / "dfwb")) == 12
 
 
-def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tmp_path):
+def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tmp_path, killed_run_tmpdir):
     """A run killed half way keeps the points it wrote and a rerun computes only the rest. Enough points
     that the run lasts well over the 50 ms poll (a native backlash point takes a fraction of a ms)."""
     points = 1500
@@ -161,10 +161,8 @@ def test_an_interrupted_run_loses_only_the_points_in_flight_and_resumes(fmus, tm
     out = tmp_path / "out"
     command = [sys.executable, "-m", "dfwb.cli", "run", str(path), "--out", str(out), "--jobs", "1", "--no-cache",
                "--quiet"]
-    temporary = tmp_path / "tmp"  # where the killed run unpacked its FMU: a SIGKILL leaves it, here
-    temporary.mkdir()
     process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               env=dict(os.environ, TMPDIR=str(temporary)))
+                               env=dict(os.environ, TMPDIR=str(killed_run_tmpdir)))
     deadline = time.monotonic() + 120
     rows = 0
     while time.monotonic() < deadline and process.poll() is None:
