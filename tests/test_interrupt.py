@@ -115,3 +115,45 @@ def test_a_ctrl_c_before_the_command_runs_is_one_line(monkeypatch, capsys):
     monkeypatch.setattr(cli, "parser", interrupted)
     assert cli.main(["--version"]) == 130
     assert capsys.readouterr().err == "dfwb: interrupted\n"
+
+
+_GIVEN_UP = """
+import sys, threading, time
+from dfwb.studies import executor
+
+reported = []
+threading.excepthook = lambda failure: reported.append(failure.exc_type.__name__)
+
+
+def chunk_work(chunk):
+    time.sleep(0.05 if chunk == 0 else 60)
+    return executor.code_revision(), [chunk]
+
+
+def stop_late(pool, abort, stop=executor.stop_pool):  # the race's other side, made sure: the pool's thread
+    for process in list(pool._processes.values()):  # sees its processes gone before it is told to shut down
+        process.terminate()
+    time.sleep(1)
+    stop(pool, abort)
+
+
+if __name__ == "__main__":
+    executor.stop_pool = stop_late
+    with executor.Executor(2) as run:
+        chunks = run.run(range(8), chunk_work)
+        next(chunks)
+        chunks.close()  # the rest given up, as on Ctrl-C or an error
+        outlived = run._pool is not None
+    assert not reported, reported
+    assert not outlived, "the pool outlived the run that gave up its chunks"
+"""
+
+
+def test_chunks_given_up_end_the_pool_without_a_traceback(tmp_path):
+    """A run that stops early (Ctrl-C, an error) gives up its waiting chunks. Cancelled from the run's thread,
+    a waiting chunk's Future met the pool's own thread, which marks every waiting Future failed once a
+    process is gone: CPython 3.11 raises InvalidStateError there, and its traceback once broke a Ctrl-C."""
+    script = tmp_path / "given_up.py"
+    script.write_text(_GIVEN_UP)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr

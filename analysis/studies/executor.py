@@ -269,7 +269,7 @@ class Executor:
         self._pool = self._client = self._cluster = self._temporary = None
 
     def run(self, chunks, function=None):
-        """Yield (chunk, results) as chunks finish; on an error or interruption, cancel the rest.
+        """Yield (chunk, results) as chunks finish; on an error or interruption, the rest are given up (the pool ends).
 
         ``function(chunk, fmu_data=None)`` computes a chunk and returns (code revision, results): DF points
         (:func:`compute`) by default; a module-level function, so that workers can import it."""
@@ -313,12 +313,14 @@ class Executor:
                                                              initializer=point_worker,
                                                              initargs=(os.getpid(), self._temporary))
                 waiting = {self._pool.submit(function, chunk): chunk for chunk in chunks}  # spawns the workers
+            finished = False
             try:
                 for future in futures.as_completed(waiting):
                     yield waiting[future], future.result()
+                finished = True
             finally:
-                for future in waiting:
-                    future.cancel()
+                if not finished:  # the rest given up: the pool ends, its own thread cancelling what waits (a
+                    self.close(abort=True)  # Future cancelled here may meet a broken pool: InvalidStateError, 3.11)
 
     # -- Dask ------------------------------------------------------------------------
     def client(self):
