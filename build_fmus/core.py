@@ -28,7 +28,7 @@ from pathlib import Path
 
 from .errors import BuildError
 
-__all__ = ["build_core", "sources", "compiler", "win64_compiler", "NATIVE_DIR", "FLAGS", "WIN64_CC",
+__all__ = ["build_core", "build_library", "sources", "compiler", "win64_compiler", "NATIVE_DIR", "FLAGS", "WIN64_CC",
            "CoreBuildError"]
 
 # dfwb.fmus's native/ folder: ../fmus next to this package, in a checkout and in an installed wheel alike
@@ -85,11 +85,16 @@ def build_core(out_dir, extra_flags=()):
     ``dfwb.build_fmus.BuildError``, hence a ``DfwbError``) with a one-line
     message when no compiler is found or the compilation fails.
     """
+    return build_library(out_dir, sources(), PREFIX, extra_flags, "the C core")
+
+
+def build_library(out_dir, files, prefix, extra_flags=(), what="the C library"):
+    """Compile the C ``files`` (with their headers) into ``out_dir/<prefix><hash>.so`` as :func:`build_core`
+    does the core (the same flags, reuse and atomic rename); its path. ``what`` names it in errors."""
     out_dir = Path(out_dir)
-    files = sources()
     cc = compiler()
     flags = list(FLAGS) + [str(flag) for flag in extra_flags]
-    target = out_dir / f"{PREFIX}{_digest(cc + flags + list(LIBS), files)}.so"
+    target = out_dir / f"{prefix}{_digest(cc + flags + list(LIBS), files)}.so"
     if target.is_file():
         return target
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -100,11 +105,11 @@ def build_core(out_dir, extra_flags=()):
         try:
             run = subprocess.run(command, capture_output=True, text=True, cwd=files[0].parent)
         except OSError as error:
-            raise CoreBuildError(f"compiling the C core failed: {' '.join(cc)}: {error}") from None
+            raise CoreBuildError(f"compiling {what} failed: {' '.join(cc)}: {error}") from None
         if run.returncode != 0:
             lines = [line.strip() for line in run.stderr.splitlines() if line.strip()]
             first = next((line for line in lines if "error" in line), lines[0] if lines else "no message")
-            raise CoreBuildError(f"compiling the C core failed (exit {run.returncode}, "
+            raise CoreBuildError(f"compiling {what} failed (exit {run.returncode}, "
                                  f"{len(lines)} lines of diagnostics): {first}")
         os.chmod(temporary, 0o755)
         os.replace(temporary, target)

@@ -5,8 +5,9 @@ Fourier integrals of a DF point, or a controller's states in a closed loop).
 The input is a law ``u = law(t, w, y)``, evaluated exactly at every
 right-hand side: a sine, or ``-G`` of the output. When the output depends on
 the input directly (feedthrough) and the law on the output, the algebraic
-loop is solved by fixed-point iteration (bounded). The integrator is
-scipy's DOP853, stepped by hand: after each accepted step the event
+loop is solved by a fixed-point round and secant steps (bounded). The integrator is
+scipy's DOP853 (or, for a :class:`~dfwb.foreign.native_flow.Drive`, the same
+method in C: :mod:`dfwb.foreign.native_flow`), stepped by hand: after each accepted step the event
 indicators are compared with the step's start; a change of domain is
 located on the dense output (brentq) and the FMU, put just past it, handles
 the event; time events and ``completedIntegratorStep`` requests likewise.
@@ -21,12 +22,15 @@ from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
 from dfwb.fmi.simulation import FMUError
+from dfwb.foreign.native_flow import Stepper
 
 __all__ = ["Flow", "MAX_STEPS", "MAX_EVENTS"]
 
 MAX_STEPS = 200_000  # integrator steps per run
 MAX_EVENTS = 10_000  # events per run
-MAX_ALGEBRAIC = 50  # fixed-point rounds of an algebraic loop through a feedthrough
+MAX_ALGEBRAIC = 50  # rounds of an algebraic loop through a feedthrough
+ALGEBRAIC_ULPS = 4  # ... solved when the law's force and the one the output came from differ by this much
+EPS = np.finfo(float).eps
 RTOL_ROOT = 4 * np.finfo(float).eps  # brentq's finest
 _SUM = np.add.reduce  # np.sum without its Python wrapper: a right-hand side is hot
 
@@ -46,10 +50,15 @@ class Flow:
     reads_output : bool
         Whether the law reads y (then an output that depends on the input directly is an algebraic loop,
         solved at every evaluation); a law that does not is evaluated once.
+    drive : Drive, optional
+        Instead of the four above: a law and rates that C evaluates too (:mod:`dfwb.foreign.native_flow`),
+        so that the steps run in C where the library and the FMU allow.
     """
 
-    def __init__(self, instance, law, rate, extra, reads_output=True):
-        self.inst, self.law, self.rate, self.extra = instance, law, rate, extra
+    def __init__(self, instance, law=None, rate=None, extra=0, reads_output=True, drive=None):
+        if drive is not None:  # a law C knows: stepped in C where it can be (dfwb.foreign.native_flow)
+            law, rate, extra, reads_output = drive.law, drive.rate, drive.extra, drive.reads_output
+        self.inst, self.law, self.rate, self.extra, self.drive = instance, law, rate, extra, drive
         self.reads_output = reads_output
         self.next_event = None
         self.scale = np.zeros(instance.nx + extra)  # the largest |z_i| seen
@@ -58,6 +67,7 @@ class Flow:
         self.steps = self.evaluations = 0  # accepted integrator steps, right-hand sides evaluated
         self.last_step = None  # the step size a run ended with: a following piece's first step
         self._at = None  # (t, z) of the last evaluation, the very array: the FMU is still there
+        self.native = None  # the drive's model in C (dfwb.foreign.native_flow), made on the first step there
 
     def atol(self, rtol):
         """Absolute tolerances from the scales seen, so that rtol rules (1e-6 of the largest for a part at 0)."""
@@ -73,21 +83,28 @@ class Flow:
         u = self.law(t, w, self._y)
         inst.set_continuous(t, z[:nx], u)
         y = inst.output()
-        if not self.reads_output:
-            self._y = y
-            return y, u
-        for _ in range(MAX_ALGEBRAIC):
-            following = self.law(t, w, y)
-            if following == u:
-                break
-            u = following
-            inst.set_input(u)
-            y = inst.output()
-        else:
-            raise FMUError(f"{inst.info.path}: the algebraic loop through the output at t = {float(t)!r} does not "
-                           f"converge in {MAX_ALGEBRAIC} rounds (the output depends on the input directly)")
+        if self.reads_output:
+            u, y = self._algebraic(t, w, u, y)
         self._y = y
         return y, u
+
+    def _algebraic(self, t, w, u, y):
+        """(u, y(u)) with u = law(t, w, y(u)) to :data:`ALGEBRAIC_ULPS`: a fixed-point round, then secant steps
+        on law - u (a loop of slope -1/2 took some 50 rounds to repeat exactly, where a secant step solves a
+        linear stretch at once). Bounded by :data:`MAX_ALGEBRAIC` rounds."""
+        inst, before = self.inst, None
+        for _ in range(MAX_ALGEBRAIC):
+            following = self.law(t, w, y)
+            g = following - u
+            if abs(g) <= ALGEBRAIC_ULPS * EPS * max(abs(u), abs(following)):
+                return u, y
+            ahead = following if before is None or g == before[1] else u - g * (u - before[0]) / (g - before[1])
+            before = (u, g)
+            u = ahead
+            inst.set_input(u)
+            y = inst.output()
+        raise FMUError(f"{inst.info.path}: the algebraic loop through the output at t = {float(t)!r} does not "
+                       f"converge in {MAX_ALGEBRAIC} rounds (the output depends on the input directly)")
 
     def rhs(self, t, z):
         self.evaluations += 1
@@ -180,7 +197,7 @@ class Flow:
         step = first_step or (end - t0) / 64  # then the last step's size, carried across events
         while t < end:
             bound = end if self.next_event is None or self.next_event >= end else max(self.next_event, t)
-            solver = DOP853(self.rhs, t, z, bound, rtol=rtol, atol=atol, first_step=min(bound - t, step) or None)
+            solver = self._solver(t, z, bound, rtol, atol, min(bound - t, step) or None)
             values = self._indicators(t, z)
             before = values > 0.0
             handled, natural = False, 0.0  # natural: the step the solver proposed before it was aimed
@@ -210,7 +227,7 @@ class Flow:
                             return crossing, z, events, True
                     level = after
                 if changed:  # integrated again up to the event: the step's stages past it saw the other domain
-                    t, z, handled = past, self._clean(t_prev, z_prev, past, rtol, atol), True
+                    (t, z), handled = self._past(t_prev, z_prev, root, past, solver.t, before, rtol, atol), True
                     break
                 if inst.completed_step():  # the FMU is at the step's end (its indicators were read there)
                     t, z, handled = solver.t, solver.y.copy(), True
@@ -237,13 +254,25 @@ class Flow:
         self.last_step = step
         return t, z, events, False
 
+    def _past(self, t0, z0, root, past, t1, before, rtol, atol):
+        """(t, z) just past the event at ``root``, integrated cleanly from (t0, z0): where the domains have
+        changed for the clean state too (the dense output's point may be a rounding short of it; the FMU
+        would then handle an event before it, and meet it again two ulps on)."""
+        z = self._clean(t0, z0, past, rtol, atol)
+        for _ in range(8):
+            if past >= t1 or np.any(self._domains(past, z) != before):
+                break
+            past = min(past + max(past - root, abs(past) * 2.2e-16, 1e-300), t1)
+            z = self._clean(t0, z0, past, rtol, atol)
+        return past, z
+
     def _clean(self, t0, z0, t1, rtol, atol):
         """The state at t1 integrated from z0 at t0 inside one domain: a step across an event mixes both
         sides in its stages, so its dense output is no better than the jump times the step (a kink's error
         varied a thousandfold with where it fell in the step); this run ends at the event."""
         if not t1 > t0:
             return z0
-        solver = DOP853(self.rhs, t0, z0, t1, rtol=rtol, atol=atol, first_step=t1 - t0)
+        solver = self._solver(t0, z0, t1, rtol, atol, t1 - t0)
         for _ in range(MAX_STEPS):
             if solver.status != "running":
                 break
@@ -252,6 +281,13 @@ class Flow:
                 raise FMUError(f"{self.inst.info.path}: the integrator failed at t = {float(solver.t)!r}: {message}")
             self.steps += 1
         return solver.y.copy()
+
+    def _solver(self, t0, z, bound, rtol, atol, first_step):
+        """DOP853 from z at t0 towards ``bound``: stepped in C where the drive allows, else scipy's."""
+        stepper = Stepper.for_flow(self, t0, z, bound, rtol, atol, first_step)
+        if stepper is not None:
+            return stepper
+        return DOP853(self.rhs, t0, z, bound, rtol=rtol, atol=atol, first_step=first_step)
 
     def _section(self, section, t, z):
         if section is None:

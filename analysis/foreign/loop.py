@@ -24,6 +24,7 @@ import numpy as np
 from dfwb.fmi.simulation import FMUError
 from dfwb.foreign import held_loop, model_exchange
 from dfwb.foreign.flow import Flow
+from dfwb.foreign.native_flow import Drive
 
 __all__ = ["cycles", "realization", "merge"]
 
@@ -59,21 +60,8 @@ class _Loop:
 
     def __init__(self, instance, A, B, C, D, omega=None):
         self.inst, self.n = instance, len(B)
-        k = np.arange(HARMONICS + 1)
-        n = self.n
-
-        def law(t, w, y):
-            return -(float(C @ w[:n]) + D * y)
-
-        def rate(t, w, y, u):
-            dw = A @ w[:n] + B * y
-            if omega is None:
-                return dw
-            c, s = np.cos(k * omega * t), np.sin(k * omega * t)
-            return np.concatenate((dw, y * c, y * s, [u * c[1], u * s[1]]))
-
-        self.flow = Flow(instance, law, rate, n + (0 if omega is None else 2 * (HARMONICS + 1) + 2),
-                         reads_output=D != 0.0)
+        self.flow = Flow(instance, drive=Drive(A=A, B=B, C=C, D=D, K=-1 if omega is None else HARMONICS,
+                                               omega=omega or 0.0, u_integrals=omega is not None))
 
     def atol(self, rtol):
         return self.flow.atol(rtol)
