@@ -225,7 +225,8 @@ def cmd_build(args):
         if args.naive:
             raise InputError("--native and --naive: the naive twins exist only as pythonfmu FMUs")
         default = fmu_folder() / (NATIVE_FMI3_FOLDER if args.fmi_version == 3 else NATIVE_FOLDER)
-        build_native(args.out if args.out is not None else default, force=args.force, fmi_version=args.fmi_version)
+        build_native(args.out if args.out is not None else default, force=args.force, fmi_version=args.fmi_version,
+                     reuse=default)  # built there already: copied
         return 0
     if args.fmi_version == 3:
         raise InputError("--fmi-version 3 needs --native: the FMI 3.0 FMUs are the native plant FMUs")

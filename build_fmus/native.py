@@ -27,6 +27,7 @@ FMU whose recorded hash matches is not rebuilt (as for the pythonfmu FMUs).
 import functools
 import hashlib
 import os
+import shutil
 import subprocess
 import tempfile
 import uuid
@@ -276,7 +277,8 @@ def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linu
     return dest
 
 
-def build_native(out_dir, models=None, force=False, report=print, extra_flags=(), targets=None, fmi_version=2):
+def build_native(out_dir, models=None, force=False, report=print, extra_flags=(), targets=None, fmi_version=2,
+                 reuse=None):
     """Build the native FMI ``fmi_version`` (2 or 3) FMUs of ``models`` (default :func:`native_models`) into
     ``out_dir``; their paths.
 
@@ -284,6 +286,8 @@ def build_native(out_dir, models=None, force=False, report=print, extra_flags=()
     is kept (``force`` rebuilds it), ``report`` gets one line per FMU.
     ``extra_flags`` go to the compiler (and into the hash), e.g. ``("-Wall", "-Werror")``.
     ``targets``: the platforms to build binaries for (default :func:`platforms`: all this machine can).
+    ``reuse``: a folder of FMUs built before (dfwb's own): one there with the same recorded hash (the same
+    sources, flags, platforms and FMI version) is copied instead of compiled again (not with ``force``).
     """
     fmi_version = _version(fmi_version)
     targets = tuple(platforms() if targets is None else targets)
@@ -294,8 +298,14 @@ def build_native(out_dir, models=None, force=False, report=print, extra_flags=()
     for model in native_models() if models is None else models:
         path = out_dir / f"{model.__name__}.fmu"
         digest = native_hash(model, extra_flags, targets, fmi_version)
+        built = None if reuse is None or force else Path(reuse) / path.name
         if not force and recorded_hash(path) == digest:
             report(f"{path}: up to date ({what})")
+        elif built is not None and built.resolve() != path.resolve() and recorded_hash(built) == digest:
+            partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+            shutil.copyfile(built, partial)
+            partial.replace(path)
+            report(f"{path}: copied from {built.parent}, built there from the same sources ({what})")
         else:
             build_one_native(model, out_dir, digest, extra_flags, targets, fmi_version)
             report(f"{path}: built ({what})")

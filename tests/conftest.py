@@ -24,6 +24,7 @@ from fmpy.fmi2 import (
 from hypothesis import settings
 
 from dfwb.build_fmus import build_all
+from dfwb.fmi.location import NATIVE_FMI3_FOLDER, NATIVE_FOLDER
 from dfwb.fmi.simulation import unpacked
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -47,16 +48,26 @@ def _one_builder(name):
         yield BUILD / name
 
 
+def _has_cc():
+    return any(shutil.which(name) for name in ("cc", "gcc", "clang"))
+
+
 def _needs_cc(what):
-    if not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+    if not _has_cc():
         pytest.skip(f"no C compiler (cc) on PATH to build {what}")
 
 
 @pytest.fixture(scope="session")
 def fmus():
-    """{model name: path} of every FMU the project builds, built into build/fmus if stale."""
+    """{model name: path} of every FMU the project builds, built into build/fmus if stale; with a C compiler
+    the native plant FMUs (FMI 2.0) too, into its native/, where the runs of the default FMU kind find them
+    (built here once, not by every worker that runs a plant first)."""
     with _one_builder("fmus") as folder:
         paths = build_all(folder, report=lambda message: None)
+        if _has_cc():
+            from dfwb.build_fmus.native import build_native
+
+            build_native(folder / NATIVE_FOLDER, report=lambda message: None)
     return {path.stem: path for path in paths}
 
 
@@ -124,26 +135,29 @@ def core():
         return load(build_core(folder, extra_flags=WARNINGS))
 
 
-def _native(fmi_version):
+def _native(fmi_version, fmus):
+    """{model name: path} of the native plant FMUs of FMI ``fmi_version`` that dfwb runs: the FMU folder's
+    (FMI 2.0: built with ``fmus``; FMI 3.0: built here, once). Their sources compile without a warning:
+    tests/test_native_fmus.py builds one of them with :data:`WARNINGS`."""
     from dfwb.build_fmus.native import build_native
 
     _needs_cc("the native FMUs")
-    with _one_builder(f"test-native-fmi{fmi_version}") as folder:
-        paths = build_native(folder, report=lambda message: None, fmi_version=fmi_version, extra_flags=WARNINGS)
+    folder = fmus["FrictionMass"].parent / (NATIVE_FOLDER if fmi_version == 2 else NATIVE_FMI3_FOLDER)
+    with _one_builder(f"native-fmi{fmi_version}"):
+        paths = build_native(folder, report=lambda message: None, fmi_version=fmi_version)
     return {path.stem: path for path in paths}
 
 
 @pytest.fixture(scope="session")
-def native_fmus():
-    """{model name: path} of the native plant FMUs (C core + FMI wrapper), warnings as errors (skips without a C
-    compiler)."""
-    return _native(2)
+def native_fmus(fmus):
+    """{model name: path} of the native plant FMUs (C core + FMI wrapper) (skips without a C compiler)."""
+    return _native(2, fmus)
 
 
 @pytest.fixture(scope="session")
-def fmi3_fmus():
-    """{model name: path} of the native plant FMUs as FMI 3.0, warnings as errors."""
-    return _native(3)
+def fmi3_fmus(fmus):
+    """{model name: path} of the native plant FMUs as FMI 3.0."""
+    return _native(3, fmus)
 
 
 @pytest.fixture

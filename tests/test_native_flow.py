@@ -8,6 +8,8 @@ states, an algebraic loop through a feedthrough, a Poincare section). The FMUs r
 """
 
 import math
+import os
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -136,3 +138,11 @@ def test_the_stepper_compiles_without_a_warning(tmp_path):
 
     path = build_library(tmp_path, [native_flow.SOURCE], "libdfwb_flow-", extra_flags=("-Wall", "-Wextra", "-Werror"))
     assert path.is_file() and path.name.startswith("libdfwb_flow-")
+
+
+def test_a_bad_choice_is_one_line_before_any_point(built, tmp_path):
+    run = subprocess.run([sys.executable, "-m", "dfwb.cli", "df", str(built["Saturation"]), "--input", "u",
+                          "--output", "y", "--F", "1", "--omega", "1"], capture_output=True, text=True, cwd=tmp_path,
+                         env=dict(os.environ, DFWB_FOREIGN_FLOW="fortran"), timeout=120)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "DFWB_FOREIGN_FLOW = 'fortran' is not allowed: native or python" in run.stderr

@@ -22,7 +22,7 @@ import zlib
 import fmpy
 import numpy as np
 import pytest
-from conftest import new_instance
+from conftest import WARNINGS, new_instance
 from fmpy.validation import validate_fmu
 
 from dfwb.fmi.location import FMU_KINDS, fmu_kind, fmu_path
@@ -262,9 +262,10 @@ def test_bytes_that_are_not_a_state_are_refused_at_deserialization(native_fmus, 
 
 
 @pytest.fixture(scope="module")
-def built_native(tmp_path_factory):
+def built_native(tmp_path_factory, fmus):
     """(a folder whose native/ ``dfwb build --native --out`` filled, starting empty, its exit code, what it printed):
-    built once for the command's test and for fmu_path's, which finds them there up to date. Once per session:
+    copied from the FMU folder (``fmus`` built them there), once for the command's test and for fmu_path's,
+    which finds them there up to date. Once per session:
     pytest-xdist workers share it (the session's temporary folder, under a lock), so that the two tests need not
     run on the same worker."""
     from dfwb.cli import main
@@ -342,16 +343,34 @@ def test_libcosim_runs_them_as_fmpy_does(native_fmus, model, start_values):
         np.testing.assert_allclose(actual[name], expected[name], rtol=0, atol=scale, err_msg=name)
 
 
-def test_dfwb_build_native_writes_the_three_fmus(built_native, capsys):
+def test_dfwb_build_native_writes_the_three_fmus(built_native, native_fmus, capsys):
     from dfwb.cli import main
 
     folder, code, out = built_native
     tmp_path = folder / "native"  # where the command wrote them, into a fresh folder
     assert code == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == sorted(f"{model}.fmu" for model in MODELS)
-    assert out.count(": built (native") == 3
+    # the FMU folder holds them built from the same sources (the fmus fixture): copied, not compiled again
+    assert out.count(": copied from ") == 3, out
+    for model in MODELS:
+        assert (tmp_path / f"{model}.fmu").read_bytes() == native_fmus[model].read_bytes()
     assert main(["build", "--native", "--out", str(tmp_path)]) == 0  # up to date: nothing rebuilt
     assert capsys.readouterr().out.count(": up to date (native") == 3
     with pytest.raises(SystemExit) as stopped:
         main(["build", "--native", "--naive", "--out", str(tmp_path)])
     assert stopped.value.code == 2 and "--native and --naive" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_the_native_fmus_compile_without_a_warning(tmp_path, fmi_version):
+    """Every model on this machine's platform, and one for win64 where mingw is here, with -Wall -Wextra
+    -Werror: the FMUs dfwb runs are built without them (the same sources, other flags)."""
+    from dfwb.build_fmus.native import build_native, native_models, platforms
+
+    paths = build_native(tmp_path / "linux64", report=lambda message: None, fmi_version=fmi_version,
+                         extra_flags=WARNINGS, targets=("linux64",))
+    assert sorted(path.stem for path in paths) == sorted(MODELS)
+    if "win64" in platforms():
+        [path] = build_native(tmp_path / "win64", native_models()[:1], report=lambda message: None,
+                              fmi_version=fmi_version, extra_flags=WARNINGS, targets=("win64",))
+        assert path.is_file()

@@ -19,6 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from dfwb.base.errors import InputError, PlantError
 from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFEngine, DFResult, check_point
+from dfwb.foreign import native_flow
 from dfwb.foreign.worker import TIMEOUT, PointFailed, PointTimedOut, borrowed
 
 __all__ = ["FMUEngine", "RTOL", "engine_for"]
@@ -59,6 +60,7 @@ class FMUEngine:
         jobs = (os.cpu_count() or 1) if jobs is None else jobs
         if not (isinstance(jobs, int) and 1 <= jobs <= 256):
             raise PlantError(f"jobs = {jobs!r} is out of range: an integer from 1 to 256")
+        native_flow.choice()  # a DFWB_FOREIGN_FLOW its workers would refuse at every point: refused here, once
         self.plant, self.harmonics, self.max_periods, self.jobs = plant, harmonics, max_periods, jobs
         self.rtol, self.drive = float(rtol), plant.kind
         self.fitted = timeout is None

@@ -25,7 +25,7 @@
 /* results */
 enum { FLOW_OK = 0, FLOW_FMI = 1, FLOW_NOT_FINITE = 2, FLOW_ALGEBRAIC = 3, FLOW_TOO_SMALL = 4 };
 /* the FMU's functions, in calls[] */
-enum { SET_TIME, SET_STATES, SET_REAL, GET_REAL, GET_DERIVATIVES, GET_INDICATORS, CALLS };
+enum { SET_TIME, SET_STATES, SET_REAL, GET_REAL, GET_DERIVATIVES, CALLS };
 
 typedef int (*set_time_f)(void *, double);
 typedef int (*set_states_f)(void *, const double *, size_t);
@@ -158,12 +158,6 @@ FLOW_API int dfwb_flow_rhs(flow_model *m, double t, const double *z, double *dz)
         }
     }
     return FLOW_OK;
-}
-
-FLOW_API int dfwb_flow_indicators(flow_model *m, double *values)
-{
-    int status = m->nz ? ((get_array_f)m->calls[GET_INDICATORS])(m->component, values, (size_t)m->nz) : 0;
-    return status > 1 ? failed(m, GET_INDICATORS, status) : FLOW_OK;
 }
 
 /* z = y + h sum_{j<s} a_j K_j, scipy's order: the sum, then times h, then added */

@@ -26,21 +26,20 @@ import numpy as np
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.fmi.simulation import FMUError
 
-__all__ = ["Drive", "Stepper", "library", "CHOICES"]
+__all__ = ["Drive", "Stepper", "choice", "library", "CHOICES"]
 
 SOURCE = Path(__file__).with_name("flow.c")
 CHOICES = ("native", "python")  # DFWB_FOREIGN_FLOW
 OK, FMI, NOT_FINITE, ALGEBRAIC, TOO_SMALL = range(5)
-_CALLS = {False: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2SetReal", "fmi2GetReal", "fmi2GetDerivatives",
-                  "fmi2GetEventIndicators"),
+_CALLS = {False: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2SetReal", "fmi2GetReal", "fmi2GetDerivatives"),
           True: ("fmi3SetTime", "fmi3SetContinuousStates", "fmi3SetFloat64", "fmi3GetFloat64",
-                 "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators")}
+                 "fmi3GetContinuousStateDerivatives")}  # flow.c's calls[], in its order
 _P = ctypes.POINTER(ctypes.c_double)
 _int, _double = ctypes.c_int, ctypes.c_double
 
 
 class _Model(ctypes.Structure):
-    _fields_ = [("component", ctypes.c_void_p), ("calls", ctypes.c_void_p * 6),
+    _fields_ = [("component", ctypes.c_void_p), ("calls", ctypes.c_void_p * 5),
                 *((name, _int) for name in ("v3", "nx", "nz", "n", "K", "u_integrals", "reads_output",
                                             "max_algebraic")),
                 ("input", ctypes.c_uint), ("output", ctypes.c_uint),
@@ -87,13 +86,18 @@ class Drive:
 _LIBRARY = {}
 
 
+def choice():
+    """``DFWB_FOREIGN_FLOW``: "native" (the default) or "python"; InputError otherwise."""
+    chosen = os.environ.get("DFWB_FOREIGN_FLOW") or "native"
+    if chosen not in CHOICES:
+        raise InputError(f"DFWB_FOREIGN_FLOW = {chosen!r} is not allowed: {' or '.join(CHOICES)}")
+    return chosen
+
+
 def library():
     """The compiled ``flow.c`` (a ctypes library), or None: ``DFWB_FOREIGN_FLOW=python``, or it cannot be built
     or loaded (a warning; scipy's DOP853 then runs). Once per process."""
-    choice = os.environ.get("DFWB_FOREIGN_FLOW") or "native"
-    if choice not in CHOICES:
-        raise InputError(f"DFWB_FOREIGN_FLOW = {choice!r} is not allowed: {' or '.join(CHOICES)}")
-    if choice == "python":
+    if choice() == "python":
         return None
     if "lib" not in _LIBRARY:
         from dfwb.build_fmus.core import build_library
