@@ -38,7 +38,7 @@ typedef struct {
     void *calls[CALLS];
     int v3, nx, nz, n, K, u_integrals, reads_output, max_algebraic;
     unsigned int input, output;
-    double F, omega_f, D, omega;
+    double F, omega_f, D, omega, algebraic_tolerance; /* the last: ALGEBRAIC_ULPS ulps, relative */
     const double *A, *B, *C; /* n x n (rows), n, n */
     /* out: the last evaluation's output and input, counts, what failed */
     double y, u, at; /* at: the time of the last evaluation */
@@ -55,8 +55,6 @@ typedef struct {
 } flow_stepper;
 
 #define STAGES 12
-#define ALGEBRAIC_ULPS 4.0
-#define EPS 2.220446049250313e-16
 #define STAGES_EXTENDED 16
 
 static int failed(flow_model *m, int call, int status)
@@ -105,7 +103,7 @@ static int evaluate(flow_model *m, double t, const double *z)
         int round = 0, secant = 0;
         for (; round < m->max_algebraic; round++) {
             double following = law(m, t, w, y), g = following - u, ahead;
-            if (fabs(g) <= ALGEBRAIC_ULPS * EPS * fmax(fabs(u), fabs(following)))
+            if (fabs(g) <= m->algebraic_tolerance * fmax(fabs(u), fabs(following)))
                 break;
             ahead = !secant || g == g_before ? following : u - g * (u - u_before) / (g - g_before);
             u_before = u;

@@ -22,14 +22,12 @@ from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
 from dfwb.fmi.simulation import FMUError
-from dfwb.foreign.native_flow import Stepper
+from dfwb.foreign.native_flow import ALGEBRAIC_ULPS, MAX_ALGEBRAIC, Stepper, not_finite, unsolved
 
 __all__ = ["Flow", "MAX_STEPS", "MAX_EVENTS"]
 
 MAX_STEPS = 200_000  # integrator steps per run
 MAX_EVENTS = 10_000  # events per run
-MAX_ALGEBRAIC = 50  # rounds of an algebraic loop through a feedthrough
-ALGEBRAIC_ULPS = 4  # ... solved when the law's force and the one the output came from differ by this much
 EPS = np.finfo(float).eps
 RTOL_ROOT = 4 * np.finfo(float).eps  # brentq's finest
 _SUM = np.add.reduce  # np.sum without its Python wrapper: a right-hand side is hot
@@ -89,9 +87,9 @@ class Flow:
         return y, u
 
     def _algebraic(self, t, w, u, y):
-        """(u, y(u)) with u = law(t, w, y(u)) to :data:`ALGEBRAIC_ULPS`: a fixed-point round, then secant steps
-        on law - u (a loop of slope -1/2 took some 50 rounds to repeat exactly, where a secant step solves a
-        linear stretch at once). Bounded by :data:`MAX_ALGEBRAIC` rounds."""
+        """(u, y(u)) with u = law(t, w, y(u)) to ALGEBRAIC_ULPS ulps: a fixed-point round, then secant steps on
+        law - u (a loop of slope -1/2 took some 50 rounds to repeat exactly, where a secant step solves a linear
+        stretch at once). Bounded by MAX_ALGEBRAIC rounds (both in :mod:`dfwb.foreign.native_flow`)."""
         inst, before = self.inst, None
         for _ in range(MAX_ALGEBRAIC):
             following = self.law(t, w, y)
@@ -103,16 +101,14 @@ class Flow:
             u = ahead
             inst.set_input(u)
             y = inst.output()
-        raise FMUError(f"{inst.info.path}: the algebraic loop through the output at t = {float(t)!r} does not "
-                       f"converge in {MAX_ALGEBRAIC} rounds (the output depends on the input directly)")
+        raise unsolved(inst.info.path, t)
 
     def rhs(self, t, z):
         self.evaluations += 1
         y, u = self.evaluate(t, z)
         dx = self.inst.derivatives()
         if not math.isfinite(y + u + float(_SUM(dx))):  # one test for all (an overflowing sum is one too)
-            raise FloatingPointError(f"{self.inst.info.path}: the output, the input or a derivative is not finite "
-                                     f"(NaN or overflow) at t = {float(t)!r}")
+            raise not_finite(self.inst.info.path, t)
         return np.concatenate((dx, self.rate(t, z[self.inst.nx:], y, u)))
 
     def _indicators(self, t, z):

@@ -26,9 +26,12 @@ import numpy as np
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.fmi.simulation import FMUError
 
-__all__ = ["Drive", "Stepper", "choice", "library", "CHOICES"]
+__all__ = ["Drive", "Stepper", "choice", "library", "not_finite", "unsolved", "CHOICES", "MAX_ALGEBRAIC",
+           "ALGEBRAIC_ULPS"]
 
 SOURCE = Path(__file__).with_name("flow.c")
+MAX_ALGEBRAIC = 50  # rounds of an algebraic loop through a feedthrough (dfwb.foreign.flow.Flow._algebraic)
+ALGEBRAIC_ULPS = 4.0  # ... solved when the law's force and the one the output came from differ by this much
 CHOICES = ("native", "python")  # DFWB_FOREIGN_FLOW
 OK, FMI, NOT_FINITE, ALGEBRAIC, TOO_SMALL = range(5)
 _CALLS = {False: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2SetReal", "fmi2GetReal", "fmi2GetDerivatives"),
@@ -43,7 +46,7 @@ class _Model(ctypes.Structure):
                 *((name, _int) for name in ("v3", "nx", "nz", "n", "K", "u_integrals", "reads_output",
                                             "max_algebraic")),
                 ("input", ctypes.c_uint), ("output", ctypes.c_uint),
-                *((name, _double) for name in ("F", "omega_f", "D", "omega")),
+                *((name, _double) for name in ("F", "omega_f", "D", "omega", "algebraic_tolerance")),
                 ("A", _P), ("B", _P), ("C", _P), ("y", _double), ("u", _double), ("at", _double),
                 ("evaluations", ctypes.c_longlong), ("failed_call", _int), ("fmi_status", _int)]
 
@@ -81,6 +84,18 @@ class Drive:
             if self.u_integrals:
                 parts.append([u * np.cos(phase[1]), u * np.sin(phase[1])])
         return np.concatenate(parts)
+
+
+def not_finite(path, t):
+    """The error of a right-hand side that is not finite at t."""
+    return FloatingPointError(f"{path}: the output, the input or a derivative is not finite (NaN or overflow) at "
+                              f"t = {float(t)!r}")
+
+
+def unsolved(path, t):
+    """The error of an algebraic loop not solved in :data:`MAX_ALGEBRAIC` rounds at t."""
+    return FMUError(f"{path}: the algebraic loop through the output at t = {float(t)!r} does not converge in "
+                    f"{MAX_ALGEBRAIC} rounds (the output depends on the input directly)")
 
 
 _LIBRARY = {}
@@ -132,7 +147,6 @@ class Stepper:
     stand in."""
 
     _TABLES = None
-    MAX_ALGEBRAIC = 50
 
     def __init__(self, lib, flow, model, t0, z, t_bound, rtol, atol, first_step):
         n = len(z)
@@ -165,8 +179,9 @@ class Stepper:
             model = _Model(component=inst._component.value if hasattr(inst._component, "value")
                            else inst._component, v3=int(inst.v3), nx=inst.nx, nz=inst.nz, n=drive.n, K=drive.K,
                            u_integrals=int(drive.u_integrals), reads_output=int(flow.reads_output),
-                           max_algebraic=cls.MAX_ALGEBRAIC, input=inst._input[0], output=inst._output[0],
+                           max_algebraic=MAX_ALGEBRAIC, input=inst._input[0], output=inst._output[0],
                            F=drive.F, omega_f=drive.omega_f, D=drive.D, omega=drive.omega,
+                           algebraic_tolerance=ALGEBRAIC_ULPS * np.finfo(float).eps,
                            A=drive.A.ctypes.data_as(_P), B=drive.B.ctypes.data_as(_P), C=drive.C.ctypes.data_as(_P))
             for i, call in enumerate(calls):
                 model.calls[i] = ctypes.cast(call, ctypes.c_void_p).value
@@ -200,11 +215,9 @@ class Stepper:
 
             raise FMICallException(function=_CALLS[flow.inst.v3][model.failed_call], status=model.fmi_status)
         if code == NOT_FINITE:
-            raise FloatingPointError(f"{path}: the output, the input or a derivative is not finite (NaN or overflow) "
-                                     f"at t = {model.at!r}")
+            raise not_finite(path, model.at)
         if code == ALGEBRAIC:
-            raise FMUError(f"{path}: the algebraic loop through the output at t = {model.at!r} does not converge in "
-                           f"{self.MAX_ALGEBRAIC} rounds (the output depends on the input directly)")
+            raise unsolved(path, model.at)
         raise FMUError(f"{path}: the model-exchange stepper returned {code}")
 
     def step(self):
