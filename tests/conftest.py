@@ -24,8 +24,10 @@ from fmpy.fmi2 import (
 from hypothesis import settings
 
 from dfwb.build_fmus import build_all
+from dfwb.build_fmus.builder import build
 from dfwb.fmi.location import NATIVE_FMI3_FOLDER, NATIVE_FOLDER
 from dfwb.fmi.simulation import unpacked
+from dfwb.fmus.loop_facade import LOOPS
 
 ROOT = Path(__file__).resolve().parents[1]
 BUILD = ROOT / "build"
@@ -59,11 +61,17 @@ def _needs_cc(what):
 
 @pytest.fixture(scope="session")
 def fmus():
-    """{model name: path} of every FMU the project builds, built into build/fmus if stale; with a C compiler
+    """{model name: path} of every FMU the project builds (:func:`project_fmus`)."""
+    return project_fmus()
+
+
+def project_fmus():
+    """{model name: path} of every FMU the project builds (the plants, their naive twins, LinearSystem, the
+    exact closed loops), built into build/fmus if stale; with a C compiler
     the native plant FMUs (FMI 2.0) too, into its native/, where the runs of the default FMU kind find them
     (built here once, not by every worker that runs a plant first)."""
     with _one_builder("fmus") as folder:
-        paths = build_all(folder, report=lambda message: None)
+        paths = build_all(folder, report=lambda message: None) + build(folder, LOOPS, report=lambda message: None)
         if _has_cc():
             from dfwb.build_fmus.native import build_native
 
@@ -135,7 +143,7 @@ def core():
         return load(build_core(folder, extra_flags=WARNINGS))
 
 
-def _native(fmi_version, fmus):
+def native_of(fmi_version, fmus):
     """{model name: path} of the native plant FMUs of FMI ``fmi_version`` that dfwb runs: the FMU folder's
     (FMI 2.0: built with ``fmus``; FMI 3.0: built here, once). Their sources compile without a warning:
     tests/test_native_fmus.py builds one of them with :data:`WARNINGS`."""
@@ -151,13 +159,13 @@ def _native(fmi_version, fmus):
 @pytest.fixture(scope="session")
 def native_fmus(fmus):
     """{model name: path} of the native plant FMUs (C core + FMI wrapper) (skips without a C compiler)."""
-    return _native(2, fmus)
+    return native_of(2, fmus)
 
 
 @pytest.fixture(scope="session")
 def fmi3_fmus(fmus):
     """{model name: path} of the native plant FMUs as FMI 3.0."""
-    return _native(3, fmus)
+    return native_of(3, fmus)
 
 
 @pytest.fixture
