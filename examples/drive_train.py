@@ -32,7 +32,7 @@ with its error estimate, the limit cycles the DF predicts, the true cycle
 of the closed loop (shot by Newton, its Floquet multipliers) and the DF's
 errors against it. dfwb labels forces N and positions m: read N m and rad.
 
-Run it as ``python examples/drive_train.py [OUT_DIR]`` (91 s inside the test
+Run it as ``python examples/drive_train.py [OUT_DIR]`` (30 s inside the test
 suite on two shared cores: each FMI call of a pythonfmu3 FMU runs Python; it
 needs pythonfmu3, one of the test extras: ``pip install -e
 '.[test]'``). It writes into OUT_DIR (default: the current folder) the FMU,
