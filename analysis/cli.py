@@ -17,6 +17,7 @@ import warnings
 from pathlib import Path
 
 from dfwb.base.errors import InputError, RunError
+from dfwb.base.grids import DF_MAP_SIZE
 
 EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --help
     "build": "dfwb build --native --fmi-version 3 --out out/fmus",
@@ -656,9 +657,9 @@ def parser():
                        help="force amplitudes searched [N] (default: derived from the plant and G)")
     cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
                        help="frequencies searched [rad/s] (default: derived from the plant and G)")
-    cycle.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=[16, 48],
-                       metavar=("N_F", "N_OMEGA"), help="the DF map's points in F and in omega, where the "
-                                                        "candidates are located (default: 16 48)")
+    cycle.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=list(DF_MAP_SIZE),
+                       metavar=("N_F", "N_OMEGA"), help="the DF map's points in F and in omega, where the candidates "
+                                                        f"are located (default: {DF_MAP_SIZE[0]} {DF_MAP_SIZE[1]})")
     cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
     cycle.add_argument("--exact", action="store_true",
                        help="find the true cycles of the exact closed loop (shooting, Floquet stability) and the "
@@ -688,7 +689,7 @@ def parser():
                              help="your FMU only: the frequencies of its DF map [rad/s]")
         command.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
                              metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
-                                                              "(default: 16 48)")
+                                                              f"(default: {DF_MAP_SIZE[0]} {DF_MAP_SIZE[1]})")
 
     follow = commands.add_parser("continue", help="follow limit cycles in one parameter of G or of the plant: "
                                                  "branches, bifurcations, the diagram")

@@ -619,6 +619,19 @@ def test_the_time_limit_fits_the_work(built):
     assert 0.0 < engine.slowest < 60.0
 
 
+@pytest.mark.parametrize("call, named", [
+    (lambda: dfwb.describing_function("friction", 10.0, 1.0, rtol=1e-8, timeout=3.0), "rtol, timeout"),
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", timeout=5.0), "timeout"),
+    (lambda: dfwb.limit_cycle_margin("friction", "10 + 2/s", n_F=10), "n_F"),
+    (lambda: dfwb.hunting_map("friction", "Kp + Ki/s", ("Kp", 1, 2, 2), ("Ki", 1, 2, 2), omega_range=(1, 2)),
+     "omega_range"),
+    (lambda: dfwb.continuation("friction", "Kp + 2/s", "Kp", 5, 10, samples=5), "samples"),
+])
+def test_an_option_only_a_users_fmu_takes_is_named_when_given_to_dfwbs_own_plant(call, named):
+    with pytest.raises(dfwb.InputError, match=f"^{named}: for a user's FMU only \\(dfwb's own plants "):
+        call()
+
+
 def test_the_engine_options_are_checked(built):
     plant = dfwb.fmu_plant(built["Relay"])
     assert FMUEngine(plant, jobs=1).jobs == 1 and FMUEngine(plant).jobs == (os.cpu_count() or 1)
@@ -626,7 +639,7 @@ def test_the_engine_options_are_checked(built):
                              ({"timeout": 0.0}, "timeout = 0.0"), ({"harmonics": 11}, "harmonics = 11")):
         with pytest.raises(PlantError, match=re.escape(message)):
             FMUEngine(plant, **options)
-    with pytest.raises(dfwb.DfwbError, match="rtol and timeout are for a user's FMU"):
+    with pytest.raises(dfwb.DfwbError, match=r"rtol: for a user's FMU only \(dfwb's own plants are computed exactly\)"):
         dfwb.describing_function("friction", 10.0, 1.0, rtol=1e-8)
     with pytest.raises(dfwb.DfwbError, match="drive and samples_per_period are for dfwb's own plants"):
         dfwb.describing_function(plant, 1.0, 1.0, drive="input")

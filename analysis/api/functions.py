@@ -15,7 +15,8 @@ from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import InputError, fmu_only
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.base.values import flags, reals
 from dfwb.base.values import integer as _integer
 from dfwb.base.values import short as _short
@@ -192,7 +193,7 @@ def transfer_function(G: Any):
 
 
 def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
-                 n_F: int = 16, n_omega: int = 48, exact: bool = False, verify: bool = False,
+                 n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], exact: bool = False, verify: bool = False,
                  samples_per_period: int = 512, amplitudes: Optional[Sequence[float]] = None,
                  fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                  rtol: Optional[float] = None, timeout: Optional[float] = None,
@@ -274,8 +275,8 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     flags(exact=exact, verify=verify, progress=progress)
     spec = resolve_plant(plant)
     engine = engine_for(spec, rtol=rtol, timeout=timeout) if getattr(spec, "foreign", False) else None
-    if engine is None and (rtol, timeout) != (None, None):
-        raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
+    if engine is None:
+        fmu_only({"rtol": (rtol, None), "timeout": (timeout, None)}, "dfwb's own plants are computed exactly")
     with _reporter(f"limit cycles of {spec.name}", progress) as report:
         return analyse(spec, G, params, F_range=F_range, omega_range=omega_range, n_F=n_F, n_omega=n_omega,
                        exact=exact, verify=verify, samples_per_period=samples_per_period, amplitudes=amplitudes,
@@ -286,7 +287,8 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
                  sources: Union[str, Sequence[str]] = ("truth", "df"), max_points: int = 200,
                  starts: Optional[Sequence[float]] = None, fmu_dir: Optional[Union[str, Path]] = None,
                  progress: bool = False, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
-                 n_F: int = 16, n_omega: int = 48, rtol: Optional[float] = None, timeout: Optional[float] = None,
+                 n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None,
+                 timeout: Optional[float] = None,
                  samples: int = 11, **params: float) -> ContinuationResponse:
     """Limit cycles followed in one parameter, with their bifurcations: which values make the loop hunt.
 
@@ -356,8 +358,8 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
                 jobs: Optional[int] = None, dask: Optional[str] = None, cache: Union[bool, str, Path] = False,
                 amplitudes: Optional[int] = None, curves: bool = True, resume: bool = True,
                 fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
-                F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None, n_F: int = 16,
-                n_omega: int = 48, rtol: Optional[float] = None, timeout: Optional[float] = None,
+                F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None, n_F: int = DF_MAP_SIZE[0],
+                n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None, timeout: Optional[float] = None,
                 **params: float) -> HuntingMapResponse:
     """Which settings of two parameters make the machine hunt: a map, by the truth and by the DF.
 
@@ -430,7 +432,7 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
 def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: int = SCAN, df: bool = True,
                        fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                        F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
-                       n_F: int = 16, n_omega: int = 48, rtol: Optional[float] = None,
+                       n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None,
                        timeout: Optional[float] = None, **params: float) -> MarginResponse:
     """The limit-cycle margin of a controller: the gain factors k for which k G makes the machine hunt.
 

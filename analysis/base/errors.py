@@ -8,7 +8,7 @@ layer, because they travel inside the FMUs without the rest of dfwb.
 
 from dfwb.fmus.exact import DfwbError, PlantError
 
-__all__ = ["DfwbError", "PlantError", "InputError", "RunError"]
+__all__ = ["DfwbError", "PlantError", "InputError", "RunError", "fmu_only"]
 
 # DfwbError and PlantError are documented here, where the public API takes them from: their module
 # (dfwb.fmus.exact) is bundled into the FMUs, whose hash covers its text, so a longer docstring there
@@ -88,3 +88,13 @@ class RunError(DfwbError, RuntimeError):
     ...
     dfwb.base.errors.RunError: --out ....txt is a file, not a folder
     """
+
+
+def fmu_only(given, own="dfwb's own plants derive their ranges and are computed exactly"):
+    """Refuse, in one line, the options only a user's FMU takes when dfwb's own plant was given them: ``given``
+    maps each option's name to (value, default); the ones away from their defaults are named, then ``own``
+    (why dfwb's plants need none)."""
+    named = [name for name, (value, default) in given.items()
+             if value is not default and (default is None or value != default)]
+    if named:
+        raise InputError(f"{', '.join(named)}: for a user's FMU only ({own})")

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine
 from dfwb.engine.transfer import check_transfer_function
 from dfwb.fmus.piecewise import PlantError
@@ -207,7 +208,8 @@ class Search:
     N_grid: np.ndarray
 
 
-def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
+def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=DF_MAP_SIZE[0],
+            n_omega=DF_MAP_SIZE[1],
             engine=None, progress=None):
     """Every limit cycle of ``plant`` under the controller ``G`` in the given ranges.
 
@@ -215,7 +217,8 @@ def predict(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0
     return search(plant, G, params, F_range, omega_range, n_F, n_omega, engine, progress).cycles
 
 
-def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=16, n_omega=48,
+def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0), n_F=DF_MAP_SIZE[0],
+           n_omega=DF_MAP_SIZE[1],
            engine=None, progress=None):
     """The limit cycles and the DF map they were found on.
 

@@ -17,7 +17,7 @@ import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
-from dfwb.base.errors import InputError, PlantError
+from dfwb.base.errors import InputError, PlantError, fmu_only
 from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFEngine, DFResult, check_point
 from dfwb.foreign import native_flow
 from dfwb.foreign.worker import TIMEOUT, PointFailed, PointTimedOut, borrowed
@@ -190,8 +190,7 @@ def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, 
                              "its kind allows (model exchange: the exact sine; co-simulation: held and refined)")
         return FMUEngine(plant, harmonics=harmonics, max_periods=max_periods, rtol=rtol,
                          timeout=timeout)
-    if rtol is not None or timeout is not None:
-        raise InputError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
+    fmu_only({"rtol": (rtol, None), "timeout": (timeout, None)}, "dfwb's own plants are computed exactly")
     return DFEngine(plant, fmu_dir=fmu_dir, drive=drive, samples_per_period=samples_per_period,
                     max_periods=max_periods, harmonics=harmonics)
 

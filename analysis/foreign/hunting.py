@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from dfwb.base.errors import InputError
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine import cycles as search
 from dfwb.engine.hunting import DFMap, df_cell, truth_cell
 from dfwb.engine.limit_cycles import balance, df_map
@@ -24,9 +25,8 @@ from dfwb.engine.periodic import TrueCycle, trace_arrays
 from dfwb.engine.transfer import num_den
 from dfwb.foreign.loop import MAX_RETURNS, SETTLE
 
-__all__ = ["study", "true_search", "predictor", "cells", "classifier", "MAP"]
+__all__ = ["study", "true_search", "predictor", "cells", "classifier"]
 
-MAP = (16, 48)  # the shared DF map's forces x frequencies: dfwb.limit_cycles' default
 
 
 def study(spec, F_range, omega_range, size, rtol, timeout):
@@ -92,7 +92,7 @@ def true_search(engine, G, params, predictions, amplitudes, F_range, omega_range
     return search.CycleSearch(cycles, links, coverage, [])
 
 
-def predictor(engine, F_range, omega_range, size=MAP):
+def predictor(engine, F_range, omega_range, size=DF_MAP_SIZE):
     """``predict(G, params, precise=True)``: the DF's predictions (``Cycle``s) of a user's FMU (``engine``'s)
     with its parameters ``params`` under G, located on the FMU's DF map over ``F_range`` x ``omega_range``
     (``size`` points, on the engine's looser twin) and refined on the precise DF (``precise=False``: on the
@@ -114,7 +114,7 @@ def predictor(engine, F_range, omega_range, size=MAP):
     return predict
 
 
-def cells(engine, family, F_range, omega_range, size=MAP):
+def cells(engine, family, F_range, omega_range, size=DF_MAP_SIZE):
     """``classify_at(values, truth=True, df=True)``: the cell of ``family`` (a LoopFamily of a user's FMU) at
     ``values`` of its free parameters, shaped as :func:`dfwb.engine.hunting.classify` gives it (its linear
     verdict unknown: None), from the :func:`predictor`'s DF map."""
@@ -135,7 +135,7 @@ def cells(engine, family, F_range, omega_range, size=MAP):
     return classify_at
 
 
-def classifier(engine, F_range, omega_range, size=MAP):
+def classifier(engine, F_range, omega_range, size=DF_MAP_SIZE):
     """A ``classifier(scaled, ks)`` for :func:`~dfwb.engine.margin.margins` with a user's FMU (see :func:`cells`):
     the gain factor k is the scaled family's one value."""
     def make(scaled, ks):

@@ -10,10 +10,10 @@ prediction that lies on a branch already followed is not followed again.
 
 import math
 
-from dfwb.base.errors import DfwbError, InputError
+from dfwb.base.errors import DfwbError, InputError, fmu_only
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily, number
-from dfwb.foreign.hunting import MAP
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.responses import ContinuationResponse
 
@@ -62,8 +62,8 @@ def check_somewhere(family, settings, where):
 
 
 def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
-           fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None,
-           timeout=None, samples=SAMPLES):
+           fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
+           rtol=None, timeout=None, samples=SAMPLES):
     """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.
 
     ``values``: G's and the plant's other parameters; ``starts``: parameter values where cycles and
@@ -98,10 +98,11 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         if isinstance(samples, bool) or not isinstance(samples, int) or not 2 <= samples <= 1000:
             raise InputError(f"samples = {samples!r}: the values where a user's FMU's cycles are searched, 2 to "
                              "1000")
-    elif (F_range, omega_range, rtol, timeout, n_F, n_omega, samples) != (None, None, None, None, *MAP, SAMPLES):
-        raise InputError("F_range, omega_range, n_F, n_omega, rtol, timeout and samples are for a user's FMU: "
-                         "dfwb's own plants derive their ranges, are computed exactly and continued")
     else:
+        fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
+                      n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None),
+                      samples=(samples, SAMPLES)),
+                 "dfwb's own plants derive their ranges, are computed exactly and continued")
         engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
     if foreign and "df" in sources:
         from dfwb.foreign.hunting import predictor

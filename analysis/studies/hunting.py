@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dfwb.base.errors import DfwbError, InputError
+from dfwb.base.errors import DfwbError, InputError, fmu_only
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.base.runlog import RunLog
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.hunting import (
@@ -39,7 +40,6 @@ from dfwb.engine.hunting import (
     linear_map,
     valid_cell,
 )
-from dfwb.foreign.hunting import MAP
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
 from dfwb.studies.continuation import check_parameter, check_somewhere
@@ -121,7 +121,7 @@ def _row(cell, key):
 
 def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, cache=False, fmu_dir=None,
             amplitudes=None, curves=True, resume=True, progress=None, own_folder=False, F_range=None,
-            omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None, timeout=None):
+            omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1], rtol=None, timeout=None):
     """The hunting map of ``plant`` under ``G`` over the axes ``x`` and ``y`` (each (NAME, START, STOP, N)).
 
     Returns a :class:`~dfwb.studies.responses.HuntingMapResponse`; see :func:`dfwb.hunting_map`.
@@ -161,10 +161,9 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
         classify_at, own = _foreign_cells(family, (x_name, y_name), F_range, omega_range, (n_F, n_omega), rtol,
                                           timeout)
         fmu, revision, engine, curves = spec.name, spec.info.digest, None, False
-    elif (F_range, omega_range, rtol, timeout, n_F, n_omega) != (None, None, None, None, *MAP):
-        raise InputError("F_range, omega_range, n_F, n_omega, rtol and timeout are for a user's FMU: dfwb's own "
-                         "plants derive their ranges and are computed exactly")
     else:
+        fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
+                      n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None)))
         fmu = str(fmu_path(spec, fmu_dir))
         engine, revision, own = engine_for(spec.name, fmu, ()), fmu_revision(fmu), None
     if not foreign and x_name not in family.plant_names and y_name not in family.plant_names:

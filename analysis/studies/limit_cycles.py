@@ -20,6 +20,7 @@ given (a scene's reads its points from the run and the cache).
 import math
 
 from dfwb.base.errors import InputError
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
 from dfwb.engine.transfer import num_den
@@ -29,7 +30,8 @@ from dfwb.studies.cache import code_revision, finite, fmu_revision, solver_revis
 from dfwb.studies.responses import LimitCycleResponse
 
 
-def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=16, n_omega=48, exact=False, verify=False,
+def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
+            exact=False, verify=False,
             samples_per_period=512, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None):
     """The limit cycles of ``plant`` under ``G``: :class:`~dfwb.studies.responses.LimitCycleResponse`.
 

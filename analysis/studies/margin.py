@@ -2,18 +2,19 @@
 :func:`gain_margin`): the gain factors k for which k G hunts, by the truth and by the DF
 (:mod:`dfwb.engine.margin`), for dfwb's own plants and for a user's FMU (:mod:`dfwb.foreign.hunting`)."""
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import InputError, fmu_only
+from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.margin import K_RANGE, SCAN, margins
-from dfwb.foreign.hunting import MAP, classifier, study
+from dfwb.foreign.hunting import classifier, study
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.continuation import _text
 from dfwb.studies.responses import MarginResponse
 
 
 def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, fmu_dir=None, progress=None,
-                F_range=None, omega_range=None, n_F=MAP[0], n_omega=MAP[1], rtol=None, timeout=None):
+                F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1], rtol=None, timeout=None):
     """The :class:`~dfwb.studies.responses.MarginResponse` of ``plant`` under k ``G`` for k in ``k_range``.
 
     ``plant``: a registered plant, or a user's FMU (an FMUPlant or an .fmu path), which needs ``F_range``
@@ -30,9 +31,8 @@ def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, 
         found = margins(family, k_range, count, None, engine if df else None, report,
                         classifier=classifier(engine, F, omega, (n_F, n_omega)))
     else:
-        if (F_range, omega_range, rtol, timeout, n_F, n_omega) != (None, None, None, None, *MAP):
-            raise InputError("F_range, omega_range, n_F, n_omega, rtol and timeout are for a user's FMU: dfwb's "
-                             "own plants derive their ranges and are computed exactly")
+        fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
+                      n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None)))
         engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if df else None
         found = margins(family, k_range, count, fmu_dir, engine, report)
     return MarginResponse(plant=family.spec.name, G=_text(G), values=family.merged(),

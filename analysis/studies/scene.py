@@ -40,9 +40,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Optional
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import InputError, fmu_only
 from dfwb.base.files import read_bytes
-from dfwb.base.grids import log_grid
+from dfwb.base.grids import DF_MAP_SIZE, log_grid
 from dfwb.base.schema import (
     Boolean,
     Checked,
@@ -291,10 +291,9 @@ def _no_fmu_keys(section):
     """A section of dfwb's own plant given a user's FMU's keys (away from their defaults): refused, never
     ignored."""
     defaults = {f.name: f.default for f in fields(section)}
-    given = [key for key in ("F_range", "omega_range", "n_F", "n_omega", "samples")
-             if key in defaults and getattr(section, key) != defaults[key]]
-    if given:
-        raise InputError(f"{', '.join(given)}: for a user's FMU only (dfwb's own plants derive their ranges)")
+    fmu_only({key: (getattr(section, key), defaults[key]) for key in ("F_range", "omega_range", "n_F", "n_omega",
+                                                                      "samples") if key in defaults},
+             "dfwb's own plants derive their ranges")
 
 
 def _controller(section):
@@ -335,8 +334,8 @@ class _Loop:
     den: Optional[list] = rule(ListOf(Finite), None)
     F_range: Optional[list] = rule(ForceRange, None)  # None: derived (a user's FMU: required)
     omega_range: Optional[list] = rule(FrequencyRange, None)
-    n_F: int = rule(MapSide, 16)
-    n_omega: int = rule(MapSide, 48)
+    n_F: int = rule(MapSide, DF_MAP_SIZE[0])
+    n_omega: int = rule(MapSide, DF_MAP_SIZE[1])
 
     def controller(self):
         """G as given: the expression (with parameters), or (num, den)."""

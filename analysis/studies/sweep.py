@@ -37,7 +37,7 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from dfwb.base.errors import RunError
+from dfwb.base.errors import RunError, fmu_only
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
 from dfwb.engine.describing import COLUMNS, DRIVES, HARMONICS, check_point, from_row, to_row
@@ -232,8 +232,8 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
 
         engine = engine_for(spec, drive=drive, samples_per_period=samples_per_period, rtol=rtol, timeout=timeout)
         engine.jobs = jobs or engine.jobs
-    elif rtol is not None or timeout is not None:
-        raise PlantError("rtol and timeout are for a user's FMU: dfwb's own plants are computed exactly")
+    else:
+        fmu_only({"rtol": (rtol, None), "timeout": (timeout, None)}, "dfwb's own plants are computed exactly")
     definition = {"plant": plant, "drive": drive,
                   "samples_per_period": samples_per_period if drive == "input" else None,
                   "points": [[F, omega, params] for F, omega, params in points]}
