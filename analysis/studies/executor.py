@@ -58,8 +58,9 @@ class Chunk:
     points: tuple
 
 
-def engine_for(plant, fmu, settings, fmu_data=None):
-    """This worker thread's DF engine of a plant FMU (built once; shipped FMU bytes written locally first)."""
+def cached_engine(plant, fmu, settings, fmu_data=None):
+    """This thread's DF engine of a plant FMU, made once per thread, plant, settings and FMU (shipped FMU bytes
+    written locally first). Not :func:`dfwb.foreign.engine.engine_for`, which chooses the engine of a plant."""
     from dfwb.engine.describing import DFEngine  # the engine (fmpy, numpy) loads where points are computed
 
     path = _materialize(fmu, fmu_data) if fmu_data is not None else fmu
@@ -72,7 +73,7 @@ def engine_for(plant, fmu, settings, fmu_data=None):
 def compute(chunk, fmu_data=None):
     """(code revision, the as_dict() of every point of a chunk); ``fmu_data``: the FMU's bytes, shipped to a
     remote worker. The revision lets the client refuse results of a worker that runs other code."""
-    engine = engine_for(chunk.plant, chunk.fmu, chunk.settings, fmu_data)
+    engine = cached_engine(chunk.plant, chunk.fmu, chunk.settings, fmu_data)
     return code_revision(), [engine.point(F, omega, params).as_dict() for F, omega, params in chunk.points]
 
 

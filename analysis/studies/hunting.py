@@ -43,7 +43,7 @@ from dfwb.engine.hunting import (
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
 from dfwb.studies.continuation import check_parameter, check_somewhere
-from dfwb.studies.executor import Executor, engine_for
+from dfwb.studies.executor import Executor, cached_engine
 from dfwb.studies.responses import HuntingMapResponse
 
 MAX_CELLS = 10_000  # a 100 x 100 map: tens of minutes on two cores
@@ -71,7 +71,7 @@ class MapChunk:
 
 def compute_cells(chunk, fmu_data=None):
     """(code revision, the classified cells) of a chunk; a cell that cannot be computed says why."""
-    engine = engine_for(chunk.plant, chunk.fmu, (), fmu_data)
+    engine = cached_engine(chunk.plant, chunk.fmu, (), fmu_data)
     G = chunk.G if not isinstance(chunk.G, tuple) else (list(chunk.G[0]), list(chunk.G[1]))
     family = LoopFamily(chunk.plant, G, dict(chunk.values), free=chunk.axes)
     dfmap = None
@@ -165,7 +165,7 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
         fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
                       n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None)))
         fmu = str(fmu_path(spec, fmu_dir))
-        engine, revision, own = engine_for(spec.name, fmu, ()), fmu_revision(fmu), None
+        engine, revision, own = cached_engine(spec.name, fmu, ()), fmu_revision(fmu), None
     if not foreign and x_name not in family.plant_names and y_name not in family.plant_names:
         # one DF map serves every cell
         try:
