@@ -169,11 +169,11 @@ def sample_cells(response, side):
     from dfwb.engine.family import LoopFamily
     from dfwb.engine.hunting import MAP_AMPLITUDES, classify, df_map_for
     from dfwb.fmi.location import fmu_path
-    from dfwb.studies.executor import engine_for
+    from dfwb.studies.executor import cached_engine
 
     xs, ys = response.xs, response.ys
     family = LoopFamily(PLANT, G, {}, free=(response.x, response.y))
-    engine = engine_for(family.spec.name, str(fmu_path(family.spec, None)), ())
+    engine = cached_engine(family.spec.name, str(fmu_path(family.spec, None)), ())
     corners = [family.problem({response.x: a, response.y: b}) for a in (xs[0], xs[-1]) for b in (ys[0], ys[-1])]
     started = time.perf_counter()
     dfmap = df_map_for(corners, engine)
