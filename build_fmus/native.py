@@ -27,7 +27,6 @@ FMU whose recorded hash matches is not rebuilt (as for the pythonfmu FMUs).
 import functools
 import hashlib
 import os
-import shutil
 import subprocess
 import tempfile
 import uuid
@@ -37,6 +36,7 @@ from pathlib import Path
 
 import pythonfmu
 
+from dfwb.base.files import write_atomic
 from dfwb.fmus import facade
 
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
@@ -302,9 +302,7 @@ def build_native(out_dir, models=None, force=False, report=print, extra_flags=()
         if not force and recorded_hash(path) == digest:
             report(f"{path}: up to date ({what})")
         elif built is not None and built.resolve() != path.resolve() and recorded_hash(built) == digest:
-            partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-            shutil.copyfile(built, partial)
-            partial.replace(path)
+            write_atomic(path, built.read_bytes())
             report(f"{path}: copied from {built.parent}, built there from the same sources ({what})")
         else:
             build_one_native(model, out_dir, digest, extra_flags, targets, fmi_version)
