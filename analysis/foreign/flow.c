@@ -36,7 +36,7 @@ typedef int (*real3_f)(void *, const unsigned int *, size_t, double *, size_t);
 typedef struct {
     void *component;
     void *calls[CALLS];
-    int v3, nx, nz, n, K, u_integrals, reads_output, max_algebraic;
+    int v3, nx, n, K, u_integrals, reads_output, max_algebraic;
     unsigned int input, output;
     double F, omega_f, D, omega, algebraic_tolerance; /* the last: ALGEBRAIC_ULPS ulps, relative */
     const double *A, *B, *C; /* n x n (rows), n, n */

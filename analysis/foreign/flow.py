@@ -5,9 +5,10 @@ Fourier integrals of a DF point, or a controller's states in a closed loop).
 The input is a law ``u = law(t, w, y)``, evaluated exactly at every
 right-hand side: a sine, or ``-G`` of the output. When the output depends on
 the input directly (feedthrough) and the law on the output, the algebraic
-loop is solved by a fixed-point round and secant steps (bounded). The integrator is
-scipy's DOP853 (or, for a :class:`~dfwb.foreign.native_flow.Drive`, the same
-method in C: :mod:`dfwb.foreign.native_flow`), stepped by hand: after each accepted step the event
+loop is solved by a fixed-point round and secant steps (bounded). The
+integrator is scipy's DOP853 (or, for a
+:class:`~dfwb.foreign.native_flow.Drive`, the same method in C:
+:mod:`dfwb.foreign.native_flow`), stepped by hand: after each accepted step the event
 indicators are compared with the step's start; a change of domain is
 located on the dense output (brentq) and the FMU, put just past it, handles
 the event; time events and ``completedIntegratorStep`` requests likewise.
@@ -22,13 +23,12 @@ from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
 from dfwb.fmi.simulation import FMUError
-from dfwb.foreign.native_flow import ALGEBRAIC_ULPS, MAX_ALGEBRAIC, Stepper, not_finite, unsolved
+from dfwb.foreign.native_flow import ALGEBRAIC_TOLERANCE, MAX_ALGEBRAIC, Stepper, not_finite, unsolved
 
 __all__ = ["Flow", "MAX_STEPS", "MAX_EVENTS"]
 
 MAX_STEPS = 200_000  # integrator steps per run
 MAX_EVENTS = 10_000  # events per run
-EPS = np.finfo(float).eps
 RTOL_ROOT = 4 * np.finfo(float).eps  # brentq's finest
 _SUM = np.add.reduce  # np.sum without its Python wrapper: a right-hand side is hot
 
@@ -94,7 +94,7 @@ class Flow:
         for _ in range(MAX_ALGEBRAIC):
             following = self.law(t, w, y)
             g = following - u
-            if abs(g) <= ALGEBRAIC_ULPS * EPS * max(abs(u), abs(following)):
+            if abs(g) <= ALGEBRAIC_TOLERANCE * max(abs(u), abs(following)):
                 return u, y
             ahead = following if before is None or g == before[1] else u - g * (u - before[0]) / (g - before[1])
             before = (u, g)

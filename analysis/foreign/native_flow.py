@@ -27,11 +27,12 @@ from dfwb.base.errors import DfwbError, InputError
 from dfwb.fmi.simulation import FMUError
 
 __all__ = ["Drive", "Stepper", "choice", "library", "not_finite", "unsolved", "CHOICES", "MAX_ALGEBRAIC",
-           "ALGEBRAIC_ULPS"]
+           "ALGEBRAIC_ULPS", "ALGEBRAIC_TOLERANCE"]
 
 SOURCE = Path(__file__).with_name("flow.c")
 MAX_ALGEBRAIC = 50  # rounds of an algebraic loop through a feedthrough (dfwb.foreign.flow.Flow._algebraic)
 ALGEBRAIC_ULPS = 4.0  # ... solved when the law's force and the one the output came from differ by this much
+ALGEBRAIC_TOLERANCE = ALGEBRAIC_ULPS * np.finfo(float).eps  # (relative)
 CHOICES = ("native", "python")  # DFWB_FOREIGN_FLOW
 OK, FMI, NOT_FINITE, ALGEBRAIC, TOO_SMALL = range(5)
 _CALLS = {False: ("fmi2SetTime", "fmi2SetContinuousStates", "fmi2SetReal", "fmi2GetReal", "fmi2GetDerivatives"),
@@ -43,7 +44,7 @@ _int, _double = ctypes.c_int, ctypes.c_double
 
 class _Model(ctypes.Structure):
     _fields_ = [("component", ctypes.c_void_p), ("calls", ctypes.c_void_p * 5),
-                *((name, _int) for name in ("v3", "nx", "nz", "n", "K", "u_integrals", "reads_output",
+                *((name, _int) for name in ("v3", "nx", "n", "K", "u_integrals", "reads_output",
                                             "max_algebraic")),
                 ("input", ctypes.c_uint), ("output", ctypes.c_uint),
                 *((name, _double) for name in ("F", "omega_f", "D", "omega", "algebraic_tolerance")),
@@ -73,17 +74,17 @@ class Drive:
         self.reads_output = self.D != 0.0
         self._k = np.arange(self.K + 1)
 
-    def law(self, t, w, y):
-        return self.F * math.cos(self.omega_f * t) - (float(self.C @ w[:self.n]) + self.D * y)
+    def law(self, t, w, y):  # (C w is 0.0 without a controller: flow.c's sum, no empty product made here)
+        return self.F * math.cos(self.omega_f * t) - ((float(self.C @ w[:self.n]) if self.n else 0.0) + self.D * y)
 
     def rate(self, t, w, y, u):
-        parts = [self.A @ w[:self.n] + self.B * y]
+        parts = [self.A @ w[:self.n] + self.B * y] if self.n else []
         if self.K >= 0:
             phase = self._k * (self.omega * t)
             parts += [y * np.cos(phase), y * np.sin(phase)]
             if self.u_integrals:
                 parts.append([u * np.cos(phase[1]), u * np.sin(phase[1])])
-        return np.concatenate(parts)
+        return np.concatenate(parts) if parts else np.zeros(0)
 
 
 def not_finite(path, t):
@@ -177,11 +178,11 @@ class Stepper:
         model = flow.native
         if model is None:
             model = _Model(component=inst._component.value if hasattr(inst._component, "value")
-                           else inst._component, v3=int(inst.v3), nx=inst.nx, nz=inst.nz, n=drive.n, K=drive.K,
+                           else inst._component, v3=int(inst.v3), nx=inst.nx, n=drive.n, K=drive.K,
                            u_integrals=int(drive.u_integrals), reads_output=int(flow.reads_output),
                            max_algebraic=MAX_ALGEBRAIC, input=inst._input[0], output=inst._output[0],
                            F=drive.F, omega_f=drive.omega_f, D=drive.D, omega=drive.omega,
-                           algebraic_tolerance=ALGEBRAIC_ULPS * np.finfo(float).eps,
+                           algebraic_tolerance=ALGEBRAIC_TOLERANCE,
                            A=drive.A.ctypes.data_as(_P), B=drive.B.ctypes.data_as(_P), C=drive.C.ctypes.data_as(_P))
             for i, call in enumerate(calls):
                 model.calls[i] = ctypes.cast(call, ctypes.c_void_p).value
