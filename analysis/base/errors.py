@@ -90,7 +90,10 @@ class RunError(DfwbError, RuntimeError):
     """
 
 
-def fmu_only(given, own="dfwb's own plants derive their ranges and are computed exactly"):
+OWN_PLANTS = "dfwb's own plants derive their ranges and are computed exactly"  # fmu_only's reason, by default
+
+
+def fmu_only(given, own=OWN_PLANTS):
     """Refuse, in one line, the options only a user's FMU takes when dfwb's own plant was given them: ``given``
     maps each option's name to (value, default); the ones away from their defaults are named, then ``own``
     (why dfwb's plants need none)."""

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import OWN_PLANTS, InputError, fmu_only
 from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine import cycles as search
 from dfwb.engine.hunting import DFMap, df_cell, truth_cell
@@ -25,8 +25,16 @@ from dfwb.engine.periodic import TrueCycle, trace_arrays
 from dfwb.engine.transfer import num_den
 from dfwb.foreign.loop import MAX_RETURNS, SETTLE
 
-__all__ = ["study", "true_search", "predictor", "cells", "classifier"]
+__all__ = ["study", "no_fmu_options", "true_search", "predictor", "cells", "classifier"]
 
+
+
+def no_fmu_options(F_range, omega_range, size, rtol, timeout, own=OWN_PLANTS, **more):
+    """:func:`study`'s options given to dfwb's own plant: refused in one line naming them (``more``: other
+    such options, each ``(value, default)``; ``own``: why the plant needs none)."""
+    given = dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(size[0], DF_MAP_SIZE[0]),
+                 n_omega=(size[1], DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None), **more)
+    fmu_only(given, own)
 
 
 def study(spec, F_range, omega_range, size, rtol, timeout):

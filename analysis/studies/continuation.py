@@ -10,10 +10,11 @@ prediction that lies on a branch already followed is not followed again.
 
 import math
 
-from dfwb.base.errors import DfwbError, InputError, fmu_only
+from dfwb.base.errors import DfwbError, InputError
 from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily, number
+from dfwb.foreign.hunting import no_fmu_options
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.responses import ContinuationResponse
 
@@ -99,10 +100,8 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
             raise InputError(f"samples = {samples!r}: the values where a user's FMU's cycles are searched, 2 to "
                              "1000")
     else:
-        fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
-                      n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None),
-                      samples=(samples, SAMPLES)),
-                 "dfwb's own plants derive their ranges, are computed exactly and continued")
+        no_fmu_options(F_range, omega_range, (n_F, n_omega), rtol, timeout, samples=(samples, SAMPLES),
+                       own="dfwb's own plants derive their ranges, are computed exactly and continued")
         engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
     if foreign and "df" in sources:
         from dfwb.foreign.hunting import predictor

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dfwb.base.errors import DfwbError, InputError, fmu_only
+from dfwb.base.errors import DfwbError, InputError
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.base.runlog import RunLog
@@ -40,6 +40,7 @@ from dfwb.engine.hunting import (
     linear_map,
     valid_cell,
 )
+from dfwb.foreign.hunting import no_fmu_options
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
 from dfwb.studies.continuation import check_parameter, check_somewhere
@@ -162,8 +163,7 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
                                           timeout)
         fmu, revision, engine, curves = spec.name, spec.info.digest, None, False
     else:
-        fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
-                      n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None)))
+        no_fmu_options(F_range, omega_range, (n_F, n_omega), rtol, timeout)
         fmu = str(fmu_path(spec, fmu_dir))
         engine, revision, own = cached_engine(spec.name, fmu, ()), fmu_revision(fmu), None
     if not foreign and x_name not in family.plant_names and y_name not in family.plant_names:

@@ -2,12 +2,12 @@
 :func:`gain_margin`): the gain factors k for which k G hunts, by the truth and by the DF
 (:mod:`dfwb.engine.margin`), for dfwb's own plants and for a user's FMU (:mod:`dfwb.foreign.hunting`)."""
 
-from dfwb.base.errors import InputError, fmu_only
+from dfwb.base.errors import InputError
 from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.margin import K_RANGE, SCAN, margins
-from dfwb.foreign.hunting import classifier, study
+from dfwb.foreign.hunting import classifier, no_fmu_options, study
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.continuation import _text
 from dfwb.studies.responses import MarginResponse
@@ -31,8 +31,7 @@ def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, 
         found = margins(family, k_range, count, None, engine if df else None, report,
                         classifier=classifier(engine, F, omega, (n_F, n_omega)))
     else:
-        fmu_only(dict(F_range=(F_range, None), omega_range=(omega_range, None), n_F=(n_F, DF_MAP_SIZE[0]),
-                      n_omega=(n_omega, DF_MAP_SIZE[1]), rtol=(rtol, None), timeout=(timeout, None)))
+        no_fmu_options(F_range, omega_range, (n_F, n_omega), rtol, timeout)
         engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if df else None
         found = margins(family, k_range, count, fmu_dir, engine, report)
     return MarginResponse(plant=family.spec.name, G=_text(G), values=family.merged(),
