@@ -27,6 +27,7 @@ FMU whose recorded hash matches is not rebuilt (as for the pythonfmu FMUs).
 import functools
 import hashlib
 import os
+import shutil
 import subprocess
 import tempfile
 import uuid
@@ -36,7 +37,6 @@ from pathlib import Path
 
 import pythonfmu
 
-from dfwb.base.files import write_atomic
 from dfwb.fmus import facade
 
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
@@ -302,7 +302,12 @@ def build_native(out_dir, models=None, force=False, report=print, extra_flags=()
         if not force and recorded_hash(path) == digest:
             report(f"{path}: up to date ({what})")
         elif built is not None and built.resolve() != path.resolve() and recorded_hash(built) == digest:
-            write_atomic(path, built.read_bytes())
+            partial = path.with_name(f".{path.name}.{os.getpid()}.partial")  # as the builds write theirs
+            try:
+                shutil.copyfile(built, partial)
+                partial.replace(path)
+            finally:
+                partial.unlink(missing_ok=True)  # a copy that failed half way
             report(f"{path}: copied from {built.parent}, built there from the same sources ({what})")
         else:
             build_one_native(model, out_dir, digest, extra_flags, targets, fmi_version)
