@@ -37,7 +37,8 @@ from pathlib import Path
 
 import pythonfmu
 
-from dfwb.fmus import facade
+from dfwb.fmus import backlash, contract, facade, friction, static_backlash, table
+from dfwb.fmus.contract import BacklashOutput, FrictionOutput, StaticBacklashOutput
 
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
 from .errors import BuildError
@@ -62,18 +63,12 @@ FMI_VERSIONS = (2, 3)
 WIN64_FLAGS = ("-O2", "-std=c99", "-shared", "-ffp-contract=off", "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc",
                "-s")
 
-# Per plant: the core's plant kind, its parameter order (dfwb_core.h) and the order of dfwb_*_output's array.
+# Per plant: the core's plant kind, its parameter order (the plant's table, fmus/table.py) and the order of
+# dfwb_*_output's array (the fields of its solver's output).
 KINDS = {
-    "FrictionMass": ("DFWB_PLANT_FRICTION",
-                     ("M", "B", "Fc", "Fs", "Dv", "F", "omega", "phi", "x0", "v0", "f", "harmonics"),
-                     ("x", "v", "Ff", "mode")),
-    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH",
-                        ("M1", "M2", "h", "eps", "F", "omega", "phi", "x1_0", "v1_0", "v2_0", "gap0", "f",
-                         "harmonics"),
-                        ("x1", "v1", "x2", "v2", "gap")),
-    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH",
-                       ("M", "k", "h", "F", "omega", "phi", "x0", "v0", "f", "harmonics"),
-                       ("x", "v", "y")),
+    "FrictionMass": ("DFWB_PLANT_FRICTION", friction.TABLE.core_order, FrictionOutput._fields),
+    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH", backlash.TABLE.core_order, BacklashOutput._fields),
+    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH", static_backlash.TABLE.core_order, StaticBacklashOutput._fields),
 }
 COUNTERS = {"events": "ROLE_EVENTS", "contact": "ROLE_CONTACT", "impacts": "ROLE_IMPACTS",
             "engaged": "ROLE_ENGAGED"}
@@ -127,7 +122,8 @@ def _static_digest():
     """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
     digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
     wrappers = sorted(FMU_SOURCES.glob("*.[ch]"))
-    for path in wrappers + [Path(facade.__file__), BUILDER, Path(__file__)] + sources():
+    tables = [Path(module.__file__) for module in (friction, backlash, static_backlash, table, contract)]
+    for path in wrappers + [Path(facade.__file__), BUILDER, Path(__file__)] + tables + sources():
         digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 

@@ -18,6 +18,7 @@ drifted far or their masses differ by orders of magnitude.
 from .contract import BacklashOutput, EventKind
 from .exact import Motion
 from .piecewise import PiecewisePlant, PositionSearch, Search, VelocitySearch, check
+from .table import MASS, POSITION, VELOCITY, Parameter, PlantTable
 
 MIN_CLEARANCE = 1e-290  # m: the Zeno tolerance 1e-12 h stays a normal float
 FREE, LOWER, UPPER = 0, 1, 2  # the ``contact`` output: free, at gap 0, at gap h
@@ -26,6 +27,23 @@ WALL = {EventKind.WALL_LOWER: LOWER, EventKind.WALL_UPPER: UPPER}  # the event o
 
 
 GAP0_FMU = ", or -1 in an FMU (h/2)"  # an FMU's start value -1 stands for h/2 (its facades map it)
+
+
+TABLE = PlantTable(
+    constants=(
+        Parameter("M1", 1.0, "kg", "mass 1, the output side (> 0)", (0.0, None), MASS),
+        Parameter("M2", 1.0, "kg", "mass 2, driven by the force (> 0)", (0.0, None), MASS),
+        Parameter("h", 0.1, "m", "clearance (> 0)", (0.0, None), (1e-9, 1e3)),
+        Parameter("eps", 0.5, None, "coefficient of restitution, in [0, 1]", (0.0, 1.0)),
+    ),
+    initial=(
+        Parameter("x1_0", 0.0, "m", "initial position of M1", accepted=POSITION),
+        Parameter("v1_0", 0.0, "m/s", "initial velocity of M1", accepted=VELOCITY),
+        Parameter("v2_0", 0.0, "m/s", "initial velocity of M2", accepted=VELOCITY),
+        Parameter("gap0", None, "m", "initial gap x2 - x1, in [0, h]; -1 (default): h/2", (-1.0, None), start=-1.0),
+    ),
+)
+DEFAULT = TABLE.default  # the keyword defaults below
 
 
 def check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0=None):
@@ -45,8 +63,8 @@ def check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0=None):
 class TwoMassBacklash(PiecewisePlant):
     """Exact solver of the two-mass backlash; the output is x1."""
 
-    def __init__(self, M1=1.0, M2=1.0, h=0.1, eps=0.5, F=0.0, omega=1.0, phi=0.0,
-                 x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, f=0.0, harmonics=10):
+    def __init__(self, M1=DEFAULT.M1, M2=DEFAULT.M2, h=DEFAULT.h, eps=DEFAULT.eps, F=0.0, omega=1.0, phi=0.0,
+                 x1_0=DEFAULT.x1_0, v1_0=DEFAULT.v1_0, v2_0=DEFAULT.v2_0, gap0=DEFAULT.gap0, f=0.0, harmonics=10):
         gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
         super().__init__(F, omega, phi, f, harmonics)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps

@@ -37,23 +37,23 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 
 from . import native_core as _native_core
 from . import state as _state
+from . import table as _table
+from .backlash import TABLE as _BACKLASH
 from .backlash import TwoMassBacklash as _TwoMassBacklash
 from .contract import EventKind
 from .exact import PHASE_LIMIT, Drive, Motion
+from .friction import TABLE as _FRICTION
 from .friction import FrictionMass as _FrictionMass
 from .linear_system import MAX_ORDER as _MAX_ORDER
 from .linear_system import LinearSystem as _LinearSystem
 from .piecewise import SEARCH_CLASSES, PlantError, check
+from .static_backlash import TABLE as _STATIC_BACKLASH
 from .static_backlash import StaticBacklash as _StaticBacklash
 
 MAX_HARMONIC = 10
 STATE_BASE_CLASSES = (Drive, Motion, EventKind) + SEARCH_CLASSES
 """Classes any solver's state may hold (with the solver's own classes): what a serialized state may name."""
-EXCITATION = (
-    ("F", 0.0, "N", "amplitude of the built-in excitation F cos(omega t + phi)"),
-    ("omega", 1.0, "rad/s", "angular frequency of the built-in excitation (> 0)"),
-    ("phi", 0.0, "rad", "phase of the built-in excitation"),
-)
+EXCITATION = tuple((p.name, p.default, p.unit, p.description) for p in _table.EXCITATION)
 
 
 NATIVE_CORE_FILE = "libdfwb_core.so"
@@ -674,6 +674,8 @@ class PlantFMU(TableFMU):
     """Common facade: parameters, the input f, outputs and Fourier integrals."""
 
     solver_class = None
+    table = None
+    """The plant's :class:`~.table.PlantTable`: ``parameters`` and ``ranges`` are read from it (None: declared)."""
     parameters = ()  # (name, default, unit, description)
     outputs = ()  # (name, unit, description, is_integer)
     output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
@@ -681,6 +683,8 @@ class PlantFMU(TableFMU):
     piecewise_solver = True  # a PiecewisePlant: its piece start and searched time are checked too
 
     def __init_subclass__(cls, **kwargs):
+        if "table" in cls.__dict__ and cls.table is not None:  # first: TableFMU lays the variables out from them
+            cls.parameters, cls.ranges = cls.table.fmu_parameters(), cls.table.bounds()
         super().__init_subclass__(**kwargs)
         if cls.solver_class is not None:
             FACADES.append(cls)
@@ -835,17 +839,8 @@ class FrictionMass(PlantFMU):
     solver_class = _FrictionMass
     native_solver = "FrictionMass"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "B", "Fc", "Fs", "Dv", "edge_force")
-    ranges = {"M": (0.0, None), "B": (0.0, None), "Fc": (0.0, None), "Fs": (0.0, None), "Dv": (0.0, None)}
+    table = _FRICTION
     feedthrough = {"Ff": "dependent", "mode": "dependent"}  # stuck: Ff = u; a new f can break away at once
-    parameters = (
-        ("M", 1.0, "kg", "mass (> 0)"),
-        ("B", 0.5, "N.s/m", "viscous friction coefficient (>= 0)"),
-        ("Fc", 5.0, "N", "Coulomb friction force (>= 0)"),
-        ("Fs", 7.0, "N", "static friction force (>= Fc)"),
-        ("Dv", 0.0, "m/s", "Karnopp velocity band (0: exact stick at v = 0)"),
-        ("x0", 0.0, "m", "initial position"),
-        ("v0", 0.0, "m/s", "initial velocity"),
-    )
     outputs = (
         ("x", "m", "position", False),
         ("v", "m/s", "velocity", False),
@@ -864,17 +859,7 @@ class TwoMassBacklash(PlantFMU):
     native_solver = "TwoMassBacklash"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M1", "M2", "h", "eps", "total", "r1", "r2", "tol_h")
     output_signal = ("x1", "m")
-    ranges = {"M1": (0.0, None), "M2": (0.0, None), "h": (0.0, None), "eps": (0.0, 1.0), "gap0": (-1.0, None)}
-    parameters = (
-        ("M1", 1.0, "kg", "mass 1, the output side (> 0)"),
-        ("M2", 1.0, "kg", "mass 2, driven by the force (> 0)"),
-        ("h", 0.1, "m", "clearance (> 0)"),
-        ("eps", 0.5, None, "coefficient of restitution, in [0, 1]"),
-        ("x1_0", 0.0, "m", "initial position of M1"),
-        ("v1_0", 0.0, "m/s", "initial velocity of M1"),
-        ("v2_0", 0.0, "m/s", "initial velocity of M2"),
-        ("gap0", -1.0, "m", "initial gap x2 - x1, in [0, h]; -1 (default): h/2"),
-    )
+    table = _BACKLASH
     outputs = (
         ("x1", "m", "position of M1", False),
         ("v1", "m/s", "velocity of M1", False),
@@ -902,14 +887,7 @@ class StaticBacklash(PlantFMU):
     native_solver = "StaticBacklash"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "k", "h")
     output_signal = ("y", "m")
-    ranges = {"M": (0.0, None), "k": (0.0, None), "h": (0.0, None)}
-    parameters = (
-        ("M", 2.0, "kg", "mass (> 0)"),
-        ("k", 1.0, None, "slope of the backlash element (> 0)"),
-        ("h", 0.1, "m", "total width of the dead band (> 0)"),
-        ("x0", 0.0, "m", "initial position"),
-        ("v0", 0.0, "m/s", "initial velocity"),
-    )
+    table = _STATIC_BACKLASH
     outputs = (
         ("x", "m", "position of the mass (backlash input)", False),
         ("v", "m/s", "velocity of the mass", False),

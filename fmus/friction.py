@@ -16,6 +16,22 @@ stops (v reaching the band) are first zeros of the closed-form velocity.
 from .contract import EventKind, FrictionOutput
 from .exact import Motion
 from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, check
+from .table import FORCE, MASS, POSITION, VELOCITY, Parameter, PlantTable
+
+TABLE = PlantTable(
+    constants=(
+        Parameter("M", 1.0, "kg", "mass (> 0)", (0.0, None), MASS),
+        Parameter("B", 0.5, "N.s/m", "viscous friction coefficient (>= 0)", (0.0, None), (0.0, 1e9)),
+        Parameter("Fc", 5.0, "N", "Coulomb friction force (>= 0)", (0.0, None), FORCE),
+        Parameter("Fs", 7.0, "N", "static friction force (>= Fc)", (0.0, None), FORCE),
+        Parameter("Dv", 0.0, "m/s", "Karnopp velocity band (0: exact stick at v = 0)", (0.0, None), (0.0, 1e3)),
+    ),
+    initial=(
+        Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
+        Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
+    ),
+)
+DEFAULT = TABLE.default  # the keyword defaults below
 
 HOLD, SLIDE, PUSH = "hold", "slide", "push"
 
@@ -37,8 +53,8 @@ def check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=False):
 class FrictionMass(PiecewisePlant):
     """Exact solver of the friction mass; the output is the position x."""
 
-    def __init__(self, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, F=0.0, omega=1.0, phi=0.0,
-                 x0=0.0, v0=0.0, f=0.0, harmonics=10):
+    def __init__(self, M=DEFAULT.M, B=DEFAULT.B, Fc=DEFAULT.Fc, Fs=DEFAULT.Fs, Dv=DEFAULT.Dv, F=0.0, omega=1.0, phi=0.0,
+                 x0=DEFAULT.x0, v0=DEFAULT.v0, f=0.0, harmonics=10):
         check_friction(M, B, Fc, Fs, Dv, x0, v0)
         super().__init__(F, omega, phi, f, harmonics)
         self.M, self.B, self.Fc, self.Fs, self.Dv = M, B, Fc, Fs, Dv

@@ -23,13 +23,18 @@ loop an affine system X' = A X + c, integrated exactly by
 Plain Python only: this module runs inside the FMUs.
 """
 
+from .backlash import TABLE as BACKLASH
 from .backlash import TwoMassBacklash, check_backlash
 from .contract import EventKind
+from .friction import TABLE as FRICTION
 from .friction import FrictionMass, check_friction
 from .hybrid import HybridSolver
 from .linear_system import LinearSystem
 from .piecewise import check
+from .static_backlash import TABLE as STATIC_BACKLASH
 from .static_backlash import StaticBacklash, check_static_backlash
+
+_fr, _bl, _sb = FRICTION.default, BACKLASH.default, STATIC_BACKLASH.default  # the plants' defaults (fmus/table.py)
 
 STICK = ("stick", 0)
 FREE = ("free", 0)
@@ -192,8 +197,8 @@ class FrictionLoop(FeedbackLoop):
     def coordinates_of(output):
         return [output.x, output.v]
 
-    def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
-                 section=None, modes=None, budget=None):
+    def __init__(self, b, a, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, x0=_fr.x0, v0=_fr.v0, z0=None,
+                 state=None, section=None, modes=None, budget=None):
         check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=True)
         self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
         self.sticks = 0
@@ -260,8 +265,8 @@ class BacklashLoop(FeedbackLoop):
     def coordinates_of(output):
         return [output.x1, output.v1, output.gap, output.v2 - output.v1]
 
-    def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
-                 state=None, section=None, modes=None, budget=None):
+    def __init__(self, b, a, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, x1_0=_bl.x1_0, v1_0=_bl.v1_0, v2_0=_bl.v2_0,
+                 gap0=_bl.gap0, z0=None, state=None, section=None, modes=None, budget=None):
         gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
         self.r2 = M2 / (M1 + M2)
@@ -350,8 +355,8 @@ class StaticBacklashLoop(FeedbackLoop):
         q[2] += d
         return q
 
-    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None,
-                 budget=None):
+    def __init__(self, b, a, M=_sb.M, k=_sb.k, h=_sb.h, x0=_sb.x0, v0=_sb.v0, z0=None, state=None, section=None,
+                 modes=None, budget=None):
         check_static_backlash(M, k, h, x0, v0)
         self.M, self.k, self.h = M, k, h
         self.engagements = 0

@@ -29,12 +29,17 @@ Plain Python (``math``, ``cmath``) only: this module runs inside the FMUs.
 import cmath
 import math
 
+from . import backlash as _backlash
+from . import friction as _friction
+from . import static_backlash as _static_backlash
 from .backlash import TwoMassBacklash as _ExactTwoMassBacklash
 from .contract import BacklashOutput, FrictionOutput, StaticBacklashOutput
 from .exact import Drive
 from .friction import FrictionMass as _ExactFrictionMass
 from .piecewise import PlantError, check, check_step_end
 from .static_backlash import StaticBacklash as _ExactStaticBacklash
+
+_fr, _bl, _sb = _friction.TABLE.default, _backlash.TABLE.default, _static_backlash.TABLE.default  # the defaults
 
 DEFAULT_DT = 1e-3
 MAX_STEPS_PER_ADVANCE = 100_000_000  # a step that would take longer than hours is refused, not run
@@ -111,8 +116,8 @@ class NaiveFrictionMass(NaivePlant):
     velocity, or a fixed step would jump across v = 0 and never stick.
     """
 
-    def __init__(self, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, F=0.0, omega=1.0, phi=0.0,
-                 x0=0.0, v0=0.0, f=0.0, harmonics=10, dt=DEFAULT_DT):
+    def __init__(self, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, F=0.0, omega=1.0, phi=0.0,
+                 x0=_fr.x0, v0=_fr.v0, f=0.0, harmonics=10, dt=DEFAULT_DT):
         _ExactFrictionMass(M=M, B=B, Fc=Fc, Fs=Fs, Dv=Dv, F=F, omega=omega, phi=phi,
                            x0=x0, v0=v0, f=f, harmonics=harmonics)  # its own validation
         check_dt(dt)
@@ -163,8 +168,8 @@ class NaiveTwoMassBacklash(NaivePlant):
     counts the impacts and the changes of ``contact``.
     """
 
-    def __init__(self, M1=1.0, M2=1.0, h=0.1, eps=0.5, F=0.0, omega=1.0, phi=0.0,
-                 x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, f=0.0, harmonics=10, dt=DEFAULT_DT):
+    def __init__(self, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, F=0.0, omega=1.0, phi=0.0,
+                 x1_0=_bl.x1_0, v1_0=_bl.v1_0, v2_0=_bl.v2_0, gap0=_bl.gap0, f=0.0, harmonics=10, dt=DEFAULT_DT):
         _ExactTwoMassBacklash(M1=M1, M2=M2, h=h, eps=eps, F=F, omega=omega, phi=phi, x1_0=x1_0,
                               v1_0=v1_0, v2_0=v2_0, gap0=gap0, f=f, harmonics=harmonics)  # its own validation
         check_dt(dt)
@@ -231,7 +236,7 @@ class NaiveStaticBacklash(NaivePlant):
     in that step, 0 otherwise. ``events`` counts the changes of ``engaged``.
     """
 
-    def __init__(self, M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0, phi=0.0, x0=0.0, v0=0.0,
+    def __init__(self, M=_sb.M, k=_sb.k, h=_sb.h, F=0.0, omega=1.0, phi=0.0, x0=_sb.x0, v0=_sb.v0,
                  f=0.0, harmonics=10, dt=DEFAULT_DT):
         _ExactStaticBacklash(M=M, k=k, h=h, F=F, omega=omega, phi=phi, x0=x0, v0=v0,
                              f=f, harmonics=harmonics)  # its own validation

@@ -56,6 +56,9 @@ from pathlib import Path
 
 from . import loops as _loops
 from .backlash import GAP0_FMU
+from .backlash import TABLE as _BACKLASH
+from .friction import TABLE as _FRICTION
+from .static_backlash import TABLE as _STATIC_BACKLASH
 from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
 from .exact import DfwbError, Diverged, Drive, PlantError
 from .state import StateRefused
@@ -66,10 +69,10 @@ __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", 
            "LOOP_PARAMETERS"]
 
 ABI = 5  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
-PARAMETERS = ("M", "B", "Fc", "Fs", "Dv", "F", "omega", "phi", "x0", "v0", "f", "harmonics")
-BACKLASH_PARAMETERS = ("M1", "M2", "h", "eps", "F", "omega", "phi", "x1_0", "v1_0", "v2_0", "gap0", "f",
-                       "harmonics")
-STATIC_BACKLASH_PARAMETERS = ("M", "k", "h", "F", "omega", "phi", "x0", "v0", "f", "harmonics")
+# the parameters of dfwb_*_new in their C order (fmus/table.py)
+PARAMETERS, BACKLASH_PARAMETERS, STATIC_BACKLASH_PARAMETERS = (_FRICTION.core_order, _BACKLASH.core_order,
+                                                               _STATIC_BACKLASH.core_order)
+_fr, _bl, _sb = _FRICTION.default, _BACKLASH.default, _STATIC_BACKLASH.default  # the keyword defaults below
 ERRLEN = 1024
 LOG_CAPACITY = 1 << 20  # events one step may record (16 bytes each in C, allocated as they come)
 
@@ -487,8 +490,8 @@ class NativeFrictionMass(_NativeSolver):
     _plant = "friction"
     _output_type = FrictionOutput
 
-    def __init__(self, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, F=0.0, omega=1.0, phi=0.0,
-                 x0=0.0, v0=0.0, f=0.0, harmonics=10, *, core=None):
+    def __init__(self, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, F=0.0, omega=1.0, phi=0.0,
+                 x0=_fr.x0, v0=_fr.v0, f=0.0, harmonics=10, *, core=None):
         values = (M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics)
         tails = () if type(Fc) is float else ((f"Fc = {_c_repr(Fc)} (N)", f"Fc = {Fc!r} (N)"),)
         self._create(core, values, dict(zip(PARAMETERS, values)), tails)
@@ -509,8 +512,8 @@ class NativeTwoMassBacklash(_NativeSolver):
     _plant = "backlash"
     _output_type = BacklashOutput
 
-    def __init__(self, M1=1.0, M2=1.0, h=0.1, eps=0.5, F=0.0, omega=1.0, phi=0.0,
-                 x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, f=0.0, harmonics=10, *, core=None):
+    def __init__(self, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, F=0.0, omega=1.0, phi=0.0,
+                 x1_0=_bl.x1_0, v1_0=_bl.v1_0, v2_0=_bl.v2_0, gap0=_bl.gap0, f=0.0, harmonics=10, *, core=None):
         originals = dict(M1=M1, M2=M2, h=h, eps=eps, F=F, omega=omega, phi=phi, x1_0=x1_0, v1_0=v1_0,
                          v2_0=v2_0, gap0=gap0, f=f, harmonics=harmonics)
         if gap0 is None:
@@ -537,8 +540,8 @@ class NativeStaticBacklash(_NativeSolver):
     _plant = "static_backlash"
     _output_type = StaticBacklashOutput
 
-    def __init__(self, M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0, phi=0.0, x0=0.0, v0=0.0, f=0.0, harmonics=10,
-                 *, core=None):
+    def __init__(self, M=_sb.M, k=_sb.k, h=_sb.h, F=0.0, omega=1.0, phi=0.0, x0=_sb.x0, v0=_sb.v0, f=0.0,
+                 harmonics=10, *, core=None):
         values = (M, k, h, F, omega, phi, x0, v0, f, harmonics)
         self._create(core, values, dict(zip(STATIC_BACKLASH_PARAMETERS, values)))
 
@@ -551,9 +554,9 @@ class NativeStaticBacklash(_NativeSolver):
 # -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------
 # plant -> (DFWB_PLANT_*, NativeCore attribute, the Python class, parameters in the C order)
 _LOOPS = {
-    "friction": (1, "FrictionLoop", _loops.FrictionLoop, ("M", "B", "Fc", "Fs", "Dv", "x0", "v0")),
-    "backlash": (2, "BacklashLoop", _loops.BacklashLoop, ("M1", "M2", "h", "eps", "x1_0", "v1_0", "v2_0", "gap0")),
-    "static_backlash": (3, "StaticBacklashLoop", _loops.StaticBacklashLoop, ("M", "k", "h", "x0", "v0")),
+    "friction": (1, "FrictionLoop", _loops.FrictionLoop, _FRICTION.loop_order),
+    "backlash": (2, "BacklashLoop", _loops.BacklashLoop, _BACKLASH.loop_order),
+    "static_backlash": (3, "StaticBacklashLoop", _loops.StaticBacklashLoop, _STATIC_BACKLASH.loop_order),
 }
 LOOP_PARAMETERS = {plant: names for plant, (_kind, _attr, _cls, names) in _LOOPS.items()}
 
@@ -840,8 +843,8 @@ class NativeFrictionLoop(_NativeLoop):
     _counter = "sticks"
     _constant_names = ("M", "B", "Fc", "Fs")
 
-    def __init__(self, b, a, M=1.0, B=0.5, Fc=5.0, Fs=7.0, Dv=0.0, x0=0.0, v0=0.0, z0=None, state=None,
-                 section=None, modes=None, budget=None, *, core=None):
+    def __init__(self, b, a, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, x0=_fr.x0, v0=_fr.v0, z0=None,
+                 state=None, section=None, modes=None, budget=None, *, core=None):
         tails = () if type(Fc) is float else ((f"Fc = {_c_repr(Fc)} (N)", f"Fc = {Fc!r} (N)"),)
         self._create(core, b, a, (M, B, Fc, Fs, Dv, x0, v0), z0, state, section, modes, budget, tails)
         self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
@@ -860,8 +863,9 @@ class NativeBacklashLoop(_NativeLoop):
     _counter = "impacts"
     _constant_names = ("M1", "M2", "h", "eps", "r2", "tol_h")
 
-    def __init__(self, b, a, M1=1.0, M2=1.0, h=0.1, eps=0.5, x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, z0=None,
-                 state=None, section=None, modes=None, budget=None, *, core=None):
+    def __init__(self, b, a, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, x1_0=_bl.x1_0, v1_0=_bl.v1_0,
+                 v2_0=_bl.v2_0, gap0=_bl.gap0, z0=None, state=None, section=None, modes=None, budget=None, *,
+                 core=None):
         if gap0 is None:
             gap0 = 0.5 * _as_double(h)  # as Python: 0.5 * h (h is checked first)
         tails = _clearance_tails(h)
@@ -884,8 +888,8 @@ class NativeStaticBacklashLoop(_NativeLoop):
     _counter = "engagements"
     _constant_names = ("M", "k", "h")
 
-    def __init__(self, b, a, M=2.0, k=1.0, h=0.1, x0=0.0, v0=0.0, z0=None, state=None, section=None, modes=None,
-                 budget=None, *, core=None):
+    def __init__(self, b, a, M=_sb.M, k=_sb.k, h=_sb.h, x0=_sb.x0, v0=_sb.v0, z0=None, state=None, section=None,
+                 modes=None, budget=None, *, core=None):
         self._create(core, b, a, (M, k, h, x0, v0), z0, state, section, modes, budget)
         self.M, self.k, self.h = M, k, h
 

@@ -10,9 +10,24 @@ of the closed-form velocity. The output is y; it starts centred, y = k x0.
 from .contract import EventKind, StaticBacklashOutput
 from .exact import Motion
 from .piecewise import EdgeSearch, PiecewisePlant, Search, VelocitySearch, check
+from .table import MASS, POSITION, VELOCITY, Parameter, PlantTable
 
 ENGAGE = {1: EventKind.ENGAGE_UP, -1: EventKind.ENGAGE_DOWN}  # the edge x reaches -> the event
 EDGE = {kind: s for s, kind in ENGAGE.items()}
+
+
+TABLE = PlantTable(
+    constants=(
+        Parameter("M", 2.0, "kg", "mass (> 0)", (0.0, None), MASS),
+        Parameter("k", 1.0, None, "slope of the backlash element (> 0)", (0.0, None), (1e-6, 1e6)),
+        Parameter("h", 0.1, "m", "total width of the dead band (> 0)", (0.0, None), (1e-9, 1e3)),
+    ),
+    initial=(
+        Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
+        Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
+    ),
+)
+DEFAULT = TABLE.default  # the keyword defaults below
 
 
 def check_static_backlash(M, k, h, x0, v0):
@@ -27,7 +42,7 @@ def check_static_backlash(M, k, h, x0, v0):
 class StaticBacklash(PiecewisePlant):
     """Exact solver of mass + backlash; the output is the backlash output y."""
 
-    def __init__(self, M=2.0, k=1.0, h=0.1, F=0.0, omega=1.0, phi=0.0, x0=0.0, v0=0.0,
+    def __init__(self, M=DEFAULT.M, k=DEFAULT.k, h=DEFAULT.h, F=0.0, omega=1.0, phi=0.0, x0=DEFAULT.x0, v0=DEFAULT.v0,
                  f=0.0, harmonics=10):
         check_static_backlash(M, k, h, x0, v0)
         super().__init__(F, omega, phi, f, harmonics)

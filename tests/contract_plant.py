@@ -2,9 +2,9 @@
 
     M x'' + B x' + K x = u(t),   u = f + F cos(omega t + phi),   output x
 
-Its whole definition is here: the solver (its own closed form, not
-``dfwb.fmus.exact.Motion``), the FMU facade and the registry entry
-(:func:`entry`). docs/adding-a-plant.md walks through it.
+Its whole definition is here: its parameters' table, the solver (its own
+closed form, not ``dfwb.fmus.exact.Motion``), the FMU facade and the
+registry entry (:func:`entry`). docs/adding-a-plant.md walks through it.
 
 The solver: between input changes x is a sum of exponentials, x(s) = Re sum_i
 a_i exp(l_i (s - t0)) with l_i the roots of M l^2 + B l + K (the transient),
@@ -20,6 +20,20 @@ from typing import NamedTuple
 
 from dfwb.fmus.facade import PlantFMU
 from dfwb.fmus.piecewise import check
+from dfwb.fmus.table import MASS, POSITION, VELOCITY, Parameter, PlantTable
+
+TABLE = PlantTable(
+    constants=(
+        Parameter("M", 1.0, "kg", "mass (> 0)", (0.0, None), MASS),
+        Parameter("B", 0.5, "N.s/m", "viscous damping (> 0)", (0.0, None), (1e-6, 1e9)),
+        Parameter("K", 4.0, "N/m", "spring stiffness (> 0, not critical damping)", (0.0, None), (1e-6, 1e9)),
+    ),
+    initial=(
+        Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
+        Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
+    ),
+)
+DEFAULT = TABLE.default
 
 
 class Output(NamedTuple):
@@ -40,7 +54,8 @@ def _integral(mu, tau):
 class MassSpringDamperSolver:
     """Exact solver of M x'' + B x' + K x = u (B > 0, not critically damped); implements dfwb.fmus.Solver."""
 
-    def __init__(self, M=1.0, B=0.5, K=4.0, x0=0.0, v0=0.0, F=0.0, omega=1.0, phi=0.0, f=0.0, harmonics=10):
+    def __init__(self, M=DEFAULT.M, B=DEFAULT.B, K=DEFAULT.K, x0=DEFAULT.x0, v0=DEFAULT.v0, F=0.0, omega=1.0,
+                 phi=0.0, f=0.0, harmonics=10):
         check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
         check("B", B, lambda: B > 0.0, "B must be > 0 (N.s/m)")
         check("K", K, lambda: K > 0.0 and abs(B * B - 4.0 * M * K) > 1e-9 * B * B,
@@ -109,13 +124,7 @@ class MassSpringDamper(PlantFMU):
     """Mass on a spring with viscous damping (exact closed form), force input f."""
 
     solver_class = MassSpringDamperSolver
-    parameters = (
-        ("M", 1.0, "kg", "mass (> 0)"),
-        ("B", 0.5, "N.s/m", "viscous damping (> 0)"),
-        ("K", 4.0, "N/m", "spring stiffness (> 0, not critical damping)"),
-        ("x0", 0.0, "m", "initial position"),
-        ("v0", 0.0, "m/s", "initial velocity"),
-    )
+    table = TABLE
     outputs = (
         ("x", "m", "position", False),
         ("v", "m/s", "velocity", False),
@@ -127,7 +136,7 @@ class MassSpringDamper(PlantFMU):
 
 def linear_df(omega, params):
     """The exact DF: the transfer function 1 / (K - M w^2 + j B w) (the plant is linear)."""
-    p = dict({name: default for name, default, *_ in MassSpringDamper.parameters}, **params)
+    p = dict(TABLE.defaults, **params)
     return 1.0 / complex(p["K"] - p["M"] * omega * omega, p["B"] * omega)
 
 
@@ -139,7 +148,6 @@ def entry():
         "mass-spring-damper", MassSpringDamper, output="x", section=("x", "v"), modes=(),
         initial={"x": "x0", "v": "v0"}, shifts={}, position="x0",
         summary="mass on a spring with viscous damping (linear, exact closed form)",
-        ranges={"B": (1e-6, 1e9, "N.s/m"), "K": (1e-6, 1e9, "N/m")},
         linear=({}, linear_df),
         demo=Demo({"F": 10.0, "omega": 1.0}, 4 * math.pi, 64, (("x", "position x [m]"),)),
     )

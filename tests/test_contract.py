@@ -27,7 +27,6 @@ from dfwb.fmi.location import fmu_path
 from dfwb.fmi.simulation import simulate
 from dfwb.fmus import PlantError, Solver
 from dfwb.plants import names, plant, register, unregister
-from dfwb.plants.registry import RANGES
 
 EXTRA = contract_plant.entry()
 NAMES = tuple(dict.fromkeys(names() + (EXTRA.name,)))  # the registered plants, the extra one included
@@ -118,7 +117,7 @@ def test_c_bad_parameters_are_refused_by_name(name):
     assert entry.check({}) == {}
     for parameter in entry.defaults():
         bad = [math.nan, math.inf]
-        limits = entry.ranges.get(parameter, RANGES.get(parameter))
+        limits = entry.limits(parameter)
         if limits is not None:
             bad += list(_outside(*limits[:2]))
         for value in bad:

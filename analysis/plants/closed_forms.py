@@ -17,9 +17,13 @@ Examples
 import numpy as np
 
 from dfwb.base.errors import InputError
+from dfwb.fmus.backlash import TABLE as BACKLASH
+from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH
+
+_bl, _sb = BACKLASH.default, STATIC_BACKLASH.default  # the plants' defaults
 
 
-def backlash_df(X, k=1.0, h=0.1):
+def backlash_df(X, k=_sb.k, h=_sb.h):
     """Describing function N(X) of the backlash element (Phillips and Harbor; eq. 6-7).
 
     Slope ``k``, total dead band ``h`` (play +-h/2), input amplitude ``X``;
@@ -48,7 +52,7 @@ def backlash_df(X, k=1.0, h=0.1):
     return N[()] if N.ndim == 0 else N
 
 
-def static_backlash_plant_df(F, omega, M=2.0, k=1.0, h=0.1):
+def static_backlash_plant_df(F, omega, M=_sb.M, k=_sb.k, h=_sb.h):
     """DF of the static-backlash plant: a mass M driven by F cos(w t), then the backlash.
 
     ``N_total = G_lin(jw) N(X)`` with ``G_lin = 1/(M s^2)`` and ``X = F/(M w^2)``,
@@ -59,7 +63,7 @@ def static_backlash_plant_df(F, omega, M=2.0, k=1.0, h=0.1):
     return -backlash_df(X, k, h) / (M * omega ** 2)
 
 
-def validity_frequencies(F, M2=1.0, h=0.1, eps=0.5):
+def validity_frequencies(F, M2=_bl.M2, h=_bl.h, eps=_bl.eps):
     """The dynamic backlash's frequencies quoted by the paper (output within the clearance).
 
     ``w_C = [(2F/(M2 h))^2 (1 - eps)^5]^(1/4) < w < w_L = 2 (F/(M2 h))^(1/2)``,

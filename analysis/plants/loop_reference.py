@@ -67,19 +67,17 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from dfwb.base.errors import RunError
+from dfwb.fmus.backlash import TABLE as BACKLASH
 from dfwb.fmus.exact import PlantError
+from dfwb.fmus.friction import TABLE as FRICTION
 from dfwb.fmus.linear_system import LinearSystem
+from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH
 
 __all__ = ["closed_loop_reference", "PLANTS", "DEFAULTS", "ZENO"]
 
 PLANTS = ("friction", "backlash", "static-backlash")
-# the plants' parameters and their defaults (those of dfwb.fmus.loops and docs/models.md)
-DEFAULTS = {
-    "friction": {"M": 1.0, "B": 0.5, "Fc": 5.0, "Fs": 7.0, "Dv": 0.0, "x0": 0.0, "v0": 0.0},
-    "backlash": {"M1": 1.0, "M2": 1.0, "h": 0.1, "eps": 0.5, "x1_0": 0.0, "v1_0": 0.0, "v2_0": 0.0,
-                 "gap0": None},
-    "static-backlash": {"M": 2.0, "k": 1.0, "h": 0.1, "x0": 0.0, "v0": 0.0},
-}
+# the plants' parameters and their defaults (their tables, fmus/table.py)
+DEFAULTS = {"friction": FRICTION.defaults, "backlash": BACKLASH.defaults, "static-backlash": STATIC_BACKLASH.defaults}
 COORDINATES = {"friction": ("x", "v"), "backlash": ("x1", "v1", "gap", "w"), "static-backlash": ("x", "v", "y")}
 ZENO = 1e-12  # contact once the next bounce would rise no more than ZENO * h
 MAX_EVENTS = 100_000

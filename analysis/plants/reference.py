@@ -33,8 +33,12 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from dfwb.base.errors import InputError, RunError
+from dfwb.fmus.backlash import TABLE as BACKLASH
+from dfwb.fmus.friction import TABLE as FRICTION
+from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH
 
 NH = 11  # harmonics k = 0..10
+_fr, _bl, _sb = FRICTION.default, BACKLASH.default, STATIC_BACKLASH.default  # the plants' defaults
 PLANTS = ("friction", "backlash")  # the plants describing_function_reference simulates
 _K = np.arange(NH, dtype=float)
 _MAX_EVENTS = 200000  # per period; a guard against an event loop that makes no progress
@@ -437,7 +441,7 @@ def _run(sim, periods):
     return out
 
 
-def friction_response(F, omega, periods, M=1.0, B=0.5, Fc=5.0, Fs=7.0, method="DOP853", rtol=1e-12,
+def friction_response(F, omega, periods, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, method="DOP853", rtol=1e-12,
                       atol=None, dense_per_period=0):
     """Simulate the friction mass from rest for ``periods`` periods of ``F cos(omega t)``.
 
@@ -469,7 +473,7 @@ def friction_response(F, omega, periods, M=1.0, B=0.5, Fc=5.0, Fs=7.0, method="D
     return _run(sim, periods)
 
 
-def backlash_response(F, omega, periods, M1=1.0, M2=1.0, h=0.1, eps=0.5, method="DOP853", rtol=1e-12,
+def backlash_response(F, omega, periods, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, method="DOP853", rtol=1e-12,
                       atol=None, dense_per_period=0, zeno=1e-12):
     """Simulate the two-mass backlash from x1 = 0, x2 = h/2 at rest for ``periods`` periods.
 
@@ -518,16 +522,17 @@ def describing_function_reference(plant, F, omega, max_periods=400, average_peri
     rtol = params.get("rtol", 1e-12)
     tol = max(1e-10, 10.0 * rtol) if periodic_tol is None else periodic_tol
     if plant == "friction":
-        sim = _FrictionRun(F, omega, params.get("M", 1.0), params.get("B", 0.5), params.get("Fc", 5.0),
-                           params.get("Fs", 7.0), params.get("method", "DOP853"), rtol, params.get("atol"), 0)
+        p = dict(FRICTION.defaults, **params)
+        sim = _FrictionRun(F, omega, p["M"], p["B"], p["Fc"], p["Fs"], p.get("method", "DOP853"), rtol,
+                           p.get("atol"), 0)
         unknown = set(params) - {"M", "B", "Fc", "Fs", "method", "rtol", "atol"}
 
         def scale_of(vmax):
             return np.array([vmax])
     elif plant == "backlash":
-        sim = _BacklashRun(F, omega, params.get("M1", 1.0), params.get("M2", 1.0), params.get("h", 0.1),
-                           params.get("eps", 0.5), params.get("method", "DOP853"), rtol, params.get("atol"), 0,
-                           params.get("zeno", 1e-12))
+        p = dict(BACKLASH.defaults, **params)
+        sim = _BacklashRun(F, omega, p["M1"], p["M2"], p["h"], p["eps"], p.get("method", "DOP853"), rtol,
+                           p.get("atol"), 0, p.get("zeno", 1e-12))
         unknown = set(params) - {"M1", "M2", "h", "eps", "method", "rtol", "atol", "zeno"}
 
         def scale_of(vmax):
@@ -557,7 +562,7 @@ def describing_function_reference(plant, F, omega, max_periods=400, average_peri
                 periods=max_periods, X=Xa, nfev=sim.nfev)
 
 
-def static_backlash_scipy(F, omega, method, rtol, M=2.0, k=1.0, h=0.1, samples=2048):
+def static_backlash_scipy(F, omega, method, rtol, M=_sb.M, k=_sb.k, h=_sb.h, samples=2048):
     """N of the static backlash plant the way a user would write it (the benchmark's rival).
 
     The mass ODE by ``solve_ivp`` (``method``, ``rtol``) over two periods from

@@ -29,7 +29,10 @@ import re
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional
 
+from dfwb.fmus.backlash import TABLE as BACKLASH_TABLE
+from dfwb.fmus.friction import TABLE as FRICTION_TABLE
 from dfwb.fmus.piecewise import PlantError, check
+from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH_TABLE
 
 __all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "PLANTS", "RANGES", "check_range"]
 
@@ -38,23 +41,15 @@ RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
 _CHECKED = {}  # (plant, model, parameter items) -> validated parameters: sweeps repeat the same sets
 MAX_CHECKED = 4096  # parameter sets remembered
 
-# The parameter ranges the engine accepts: (low, high, unit). Masses, clearances, slopes,
-# forces and velocities: the edges ``dfwb stress`` covers and the engine computes (the
-# solvers accept more). Positions only translate the plant, which the engine removes
-# (Plant.at_origin): their bound merely keeps the mean and k x0 far from overflow.
-# eps and gap0 keep the solver's own ranges ([0, 1] and [0, h]). A plant adds its own
-# parameters' ranges in its entry (:attr:`Plant.ranges`).
-MASS = (1e-6, 1e6, "kg")
-FORCE = (0.0, 1e9, "N")
-VELOCITY = (-1e6, 1e6, "m/s")
-POSITION = (-1e30, 1e30, "m")
-RANGES = {
-    "M": MASS, "M1": MASS, "M2": MASS,
-    "B": (0.0, 1e9, "N.s/m"), "Fc": FORCE, "Fs": FORCE, "Dv": (0.0, 1e3, "m/s"),
-    "h": (1e-9, 1e3, "m"), "k": (1e-6, 1e6, ""),
-    "x0": POSITION, "x1_0": POSITION,
-    "v0": VELOCITY, "v1_0": VELOCITY, "v2_0": VELOCITY,
-}
+# The parameter ranges the engine accepts, (low, high, unit) by name: each plant's table states them
+# (fmus/table.py: the edges ``dfwb stress`` covers and the engine computes; the solvers accept more).
+# Parameters without one (eps, gap0) keep the solver's own ranges. A plant added outside dfwb states its
+# own in its entry (:attr:`Plant.ranges`).
+RANGES = {}
+for _table in (FRICTION_TABLE, BACKLASH_TABLE, STATIC_BACKLASH_TABLE):
+    for _name, _accepted in _table.accepted().items():
+        if RANGES.setdefault(_name, _accepted) != _accepted:  # one name, one range: scenes and --set share them
+            raise ValueError(f"the plants' tables give {_name} two ranges: {RANGES[_name]} and {_accepted}")
 
 
 def check_range(name, value, low, high, unit=""):
@@ -266,12 +261,19 @@ class Plant:
                 values[name] = float(value)
             except (TypeError, ValueError, OverflowError):
                 raise PlantError(f"{name} = {value!r} is not a number") from None
-            limits = self.ranges.get(name, RANGES.get(name))
+            limits = self.limits(name)
             if limits is not None:
                 check_range(name, values[name], *limits)
         kwargs = dict(self.defaults(), **values)
         self.model.solver_class(F=1.0, omega=1.0, **self.model.solver_kwargs(kwargs))  # the solver's own range checks
         return values
+
+    def limits(self, name):
+        """(low, high, unit) the engine accepts for parameter ``name``: the entry's :attr:`ranges`, else its
+        model's table's (:class:`dfwb.fmus.table.PlantTable`), else :data:`RANGES`; None: the solver's check."""
+        table = getattr(self.model, "table", None)
+        accepted = table.accepted() if table is not None else {}
+        return self.ranges.get(name, accepted.get(name, RANGES.get(name)))
 
     def checked(self, params):
         """:meth:`check`, done once per distinct parameter set in a process."""

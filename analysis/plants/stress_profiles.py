@@ -10,6 +10,9 @@ parameters. The suite that runs them is :mod:`dfwb.verify.stress`.
 
 import math
 
+from dfwb.fmus.backlash import TABLE as BACKLASH_TABLE
+from dfwb.fmus.friction import TABLE as FRICTION_TABLE
+from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH_TABLE
 from dfwb.plants.stress_kit import (
     EPS,
     TWO_PI,
@@ -116,10 +119,10 @@ class FrictionObserver(StressObserver):
     """Stick, slide and (without Coulomb friction) momentum at every point."""
 
     def setup(self):
-        p = self.case.params
-        self.M, self.B = p.get("M", 1.0), p.get("B", 0.5)
-        self.Fc, self.Fs, self.Dv = p.get("Fc", 5.0), p.get("Fs", 7.0), p.get("Dv", 0.0)
-        self.x0, self.v0 = p.get("x0", 0.0), p.get("v0", 0.0)
+        p = dict(FRICTION_TABLE.defaults, **self.case.params)
+        self.M, self.B = p["M"], p["B"]
+        self.Fc, self.Fs, self.Dv = p["Fc"], p["Fs"], p["Dv"]
+        self.x0, self.v0 = p["x0"], p["v0"]
         # |u| never exceeds Fs and the mass starts at rest: it must never move
         self.stays_stuck = self.v0 == 0.0 and abs(self.F) + self.f_max <= self.Fs
         self.linear = self.Fc == 0.0 and self.Fs == 0.0
@@ -173,16 +176,17 @@ def _friction_held(rng, scale, w, F):
 
 
 def _friction_bounds(p, F, f_max, dy_max):
-    return dy_max, (f_max + abs(F) + p.get("Fc", 5.0) + p.get("B", 0.5) * dy_max) / p.get("M", 1.0)
+    p = dict(FRICTION_TABLE.defaults, **p)
+    return dy_max, (f_max + abs(F) + p["Fc"] + p["B"] * dy_max) / p["M"]
 
 
 def _friction_balances(case, out, n, sums):
-    p = case.params
-    M, B = p.get("M", 1.0), p.get("B", 0.5)
-    v0 = p.get("v0", 0.0)
+    p = dict(FRICTION_TABLE.defaults, **case.params)
+    M, B = p["M"], p["B"]
+    v0 = p["v0"]
     ke0, ke = 0.5 * M * v0 ** 2, 0.5 * M * out[1] ** 2
     scale = max(ke0, ke) + sums["abs_work"]
-    linear_free = p.get("Fc", 5.0) == 0.0 and p.get("Fs", 7.0) == 0.0 and B == 0.0
+    linear_free = p["Fc"] == 0.0 and p["Fs"] == 0.0 and B == 0.0
     energy = energy_balance(ke - ke0, sums["work"], 1e-10 * scale + 8.0 * EPS * n * scale, equal=linear_free)
     dp = M * (out[1] - v0)
     scale = sums["abs_impulse"] + M * (abs(v0) + abs(out[1]))
@@ -306,11 +310,11 @@ class BacklashObserver(StressObserver):
     """The gap, contact, momentum and (free elastic flight) kinetic energy at every point."""
 
     def setup(self):
-        p = self.case.params
-        self.M1, self.M2, self.h = p.get("M1", 1.0), p.get("M2", 1.0), p.get("h", 0.1)
-        self.eps = p.get("eps", 0.5)
-        self.p0 = self.M1 * p.get("v1_0", 0.0) + self.M2 * p.get("v2_0", 0.0)
-        self.ke0 = 0.5 * self.M1 * p.get("v1_0", 0.0) ** 2 + 0.5 * self.M2 * p.get("v2_0", 0.0) ** 2
+        p = dict(BACKLASH_TABLE.defaults, **self.case.params)
+        self.M1, self.M2, self.h = p["M1"], p["M2"], p["h"]
+        self.eps = p["eps"]
+        self.p0 = self.M1 * p["v1_0"] + self.M2 * p["v2_0"]
+        self.ke0 = 0.5 * self.M1 * p["v1_0"] ** 2 + 0.5 * self.M2 * p["v2_0"] ** 2
         self.free_elastic = (self.eps == 1.0 and self.F == 0.0 and self.f_max == 0.0)
 
     def sample(self, plant, t, f, values):
@@ -353,18 +357,19 @@ def _backlash_held(rng, scale, w, F):
 
 
 def _backlash_bounds(p, F, f_max, dy_max):
-    return dy_max, (f_max + abs(F)) / (p.get("M1", 1.0) + p.get("M2", 1.0))
+    p = dict(BACKLASH_TABLE.defaults, **p)
+    return dy_max, (f_max + abs(F)) / (p["M1"] + p["M2"])
 
 
 def _backlash_balances(case, out, n, sums):
-    p = case.params
+    p = dict(BACKLASH_TABLE.defaults, **case.params)
     F = p.get("F", 0.0)
-    M1, M2 = p.get("M1", 1.0), p.get("M2", 1.0)
-    ke0 = 0.5 * M1 * p.get("v1_0", 0.0) ** 2 + 0.5 * M2 * p.get("v2_0", 0.0) ** 2
+    M1, M2 = p["M1"], p["M2"]
+    ke0 = 0.5 * M1 * p["v1_0"] ** 2 + 0.5 * M2 * p["v2_0"] ** 2
     ke = 0.5 * M1 * out[1] ** 2 + 0.5 * M2 * out[3] ** 2
-    eps = p.get("eps", 0.5)
+    eps = p["eps"]
     umax = abs(F) + sums["f_max"]
-    zeno_cut = n * 1e-12 * p.get("h", 0.1) * umax  # the contact rule drops < tol_h |u| per entry
+    zeno_cut = n * 1e-12 * p["h"] * umax  # the contact rule drops < tol_h |u| per entry
     scale = max(ke0, ke) + sums["abs_work"]
     tol = 1e-10 * scale + 8.0 * EPS * n * scale + zeno_cut
     return [energy_balance(ke - ke0, sums["work"], tol, equal=eps == 1.0)]
@@ -444,9 +449,9 @@ class StaticBacklashObserver(StressObserver):
     """The play operator, the engaged direction and momentum at every point."""
 
     def setup(self):
-        p = self.case.params
-        self.M, self.k, self.h = p.get("M", 2.0), p.get("k", 1.0), p.get("h", 0.1)
-        self.v0 = p.get("v0", 0.0)
+        p = dict(STATIC_BACKLASH_TABLE.defaults, **self.case.params)
+        self.M, self.k, self.h = p["M"], p["k"], p["h"]
+        self.v0 = p["v0"]
 
     def sample(self, plant, t, f, values):
         x, v, y = values
@@ -471,13 +476,14 @@ def _static_held(rng, scale, w, F):
 
 
 def _static_bounds(p, F, f_max, dy_max):
-    return dy_max * p.get("k", 1.0), p.get("k", 1.0) * (f_max + abs(F)) / p.get("M", 2.0)
+    p = dict(STATIC_BACKLASH_TABLE.defaults, **p)
+    return dy_max * p["k"], p["k"] * (f_max + abs(F)) / p["M"]
 
 
 def _static_balances(case, out, n, sums):
-    p = case.params
-    M = p.get("M", 2.0)
-    ke0, ke = 0.5 * M * p.get("v0", 0.0) ** 2, 0.5 * M * out[1] ** 2
+    p = dict(STATIC_BACKLASH_TABLE.defaults, **case.params)
+    M = p["M"]
+    ke0, ke = 0.5 * M * p["v0"] ** 2, 0.5 * M * out[1] ** 2
     scale = max(ke0, ke) + sums["abs_work"]
     return [energy_balance(ke - ke0, sums["work"], 1e-10 * scale + 8.0 * EPS * n * scale, equal=True)]
 

@@ -289,9 +289,11 @@ int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash *
     if (out == NULL || params == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_new: NULL params or out");
     *out = NULL;
-    M1 = params[0], M2 = params[1], h = params[2], eps = params[3], F = params[4], omega = params[5];
-    phi = params[6], x1_0 = params[7], v1_0 = params[8], v2_0 = params[9], gap0 = params[10], f = params[11];
-    harmonics = params[12];
+    M1 = params[DFWB_BACKLASH_M1], M2 = params[DFWB_BACKLASH_M2], h = params[DFWB_BACKLASH_h];
+    eps = params[DFWB_BACKLASH_eps], F = params[DFWB_BACKLASH_F], omega = params[DFWB_BACKLASH_omega];
+    phi = params[DFWB_BACKLASH_phi], x1_0 = params[DFWB_BACKLASH_x1_0], v1_0 = params[DFWB_BACKLASH_v1_0];
+    v2_0 = params[DFWB_BACKLASH_v2_0], gap0 = params[DFWB_BACKLASH_gap0], f = params[DFWB_BACKLASH_f];
+    harmonics = params[DFWB_BACKLASH_harmonics];
     if ((rc = dfwb_backlash_check(&err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK
         || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
         || (rc = dfwb_plant_alloc(&BACKLASH, &plant, &err)) != DFWB_OK)

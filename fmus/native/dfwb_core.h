@@ -43,25 +43,14 @@
  *   otherwise (or when either is NULL). An importer restoring a state checks it against a new instance
  *   made from the state's parameter values.
  *
- * Parameters of dfwb_friction_new (in this order; the defaults of the Python
- * FrictionMass are M=1, B=0.5, Fc=5, Fs=7, Dv=0, F=0, omega=1, phi=0,
- * x0=0, v0=0, f=0, harmonics=10):
- *   M > 0 (kg), B >= 0 (N.s/m), Fc >= 0 (N), Fs >= Fc (N), Dv >= 0 (m/s),
- *   F finite (N), omega > 0 (rad/s), |phi| <= 1e10 (rad), x0, v0, f finite,
- *   harmonics an integer in 0..10 (passed as a double).
- * They are checked in that order of the Python constructor (M, B, Fc, Fs,
- * Dv, x0, v0, F, omega, phi, f, harmonics): the first refused one is named.
- *
- * Parameters of dfwb_backlash_new (Python TwoMassBacklash: M1=1, M2=1, h=0.1, eps=0.5, F=0, omega=1,
- * phi=0, x1_0=0, v1_0=0, v2_0=0, gap0=None, f=0, harmonics=10):
- *   {M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics}: M1, M2 > 0 (kg),
- *   h >= 1e-290 (m), eps in [0, 1], gap0 in [0, h] (Python's gap0=None is h/2: pass 0.5 * h),
- *   the rest as above; checked in the order M1, M2, h, eps, gap0, x1_0, v1_0, v2_0, F, omega, phi, f,
- *   harmonics.
- * Parameters of dfwb_static_backlash_new (Python StaticBacklash: M=2, k=1, h=0.1, F=0, omega=1, phi=0,
- * x0=0, v0=0, f=0, harmonics=10):
- *   {M, k, h, F, omega, phi, x0, v0, f, harmonics}: M, k, h > 0; checked in the order M, k, h, x0, v0,
- *   F, omega, phi, f, harmonics.
+ * Parameters of dfwb_friction_new, dfwb_backlash_new, dfwb_static_backlash_new and dfwb_loop_new: in the
+ * orders of dfwb_parameters.h (DFWB_FRICTION_Fc is Fc's index, ...), written from the plants' tables
+ * (fmus/table.py, where their defaults, units and ranges live). Ranges: friction M > 0 (kg), B >= 0 (N.s/m),
+ * Fc >= 0 (N), Fs >= Fc (N), Dv >= 0 (m/s); backlash M1, M2 > 0 (kg), h >= 1e-290 (m), eps in [0, 1],
+ * gap0 in [0, h] (Python's gap0=None is h/2: pass 0.5 * h); static backlash M, k, h > 0; everywhere
+ * F finite (N), omega > 0 (rad/s), |phi| <= 1e10 (rad), initial values and f finite, harmonics an integer
+ * in 0..10 (passed as a double). They are checked in the order of the Python constructor (the plant's
+ * constants, its initial values, then F, omega, phi, f, harmonics): the first refused one is named.
  *
  * The exact closed loops (ABI 4; ports of fmus/loops.py and fmus/hybrid.py, the Python oracles): a plant
  * in feedback with a proper linear controller, f = -G(s) y, G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1)
@@ -76,6 +65,8 @@
 #define DFWB_CORE_H
 
 #include <stddef.h>
+
+#include "dfwb_parameters.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -138,9 +129,6 @@ extern "C" {
 /* Modes reported by dfwb_friction_output (out[3]): 0 stick or inside the band, +1/-1 sliding. */
 
 #define DFWB_HARMONICS_MAX 10
-#define DFWB_FRICTION_PARAMS 12
-#define DFWB_BACKLASH_PARAMS 13
-#define DFWB_STATIC_BACKLASH_PARAMS 10
 
 typedef struct dfwb_friction dfwb_friction;
 typedef struct dfwb_backlash dfwb_backlash;
@@ -149,7 +137,7 @@ typedef struct dfwb_static_backlash dfwb_static_backlash;
 /* DFWB_CORE_ABI of the compiled library. */
 DFWB_API int dfwb_core_abi_version(void);
 
-/* A new solver at t = 0 from params[12] = {M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics}.
+/* A new solver at t = 0 from params[DFWB_FRICTION_PARAMS] (dfwb_parameters.h).
  * On success *out is the instance (free it with dfwb_friction_free); on refusal *out is NULL. */
 DFWB_API int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction **out,
                                char *err, size_t errlen);
@@ -206,7 +194,7 @@ DFWB_API int dfwb_friction_from_bytes(const unsigned char *buf, size_t len, dfwb
                                       size_t errlen);
 
 /* -- the two-mass backlash (TwoMassBacklash) ------------------------------------------------ */
-/* params[13] = {M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics}. */
+/* params[DFWB_BACKLASH_PARAMS] (dfwb_parameters.h). */
 DFWB_API int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *err,
                                size_t errlen);
 DFWB_API int dfwb_backlash_set_input(dfwb_backlash *p, double f, char *err, size_t errlen);
@@ -237,7 +225,7 @@ DFWB_API int dfwb_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb
                                       size_t errlen);
 
 /* -- the static backlash (StaticBacklash) ------------------------------------------------------ */
-/* params[10] = {M, k, h, F, omega, phi, x0, v0, f, harmonics}. */
+/* params[DFWB_STATIC_BACKLASH_PARAMS] (dfwb_parameters.h). */
 DFWB_API int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], dfwb_static_backlash **out,
                                       char *err, size_t errlen);
 DFWB_API int dfwb_static_backlash_set_input(dfwb_static_backlash *p, double f, char *err, size_t errlen);
@@ -269,9 +257,7 @@ DFWB_API int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t le
 /* -- the exact closed loops (FrictionLoop, BacklashLoop, StaticBacklashLoop of fmus/loops.py) ------ */
 #define DFWB_LOOP_MAX_ORDER 8
 #define DFWB_LOOP_MAX_STATE 12               /* 4 plant coordinates + 8 controller states */
-#define DFWB_LOOP_FRICTION_PARAMS 7          /* {M, B, Fc, Fs, Dv, x0, v0} */
-#define DFWB_LOOP_BACKLASH_PARAMS 8          /* {M1, M2, h, eps, x1_0, v1_0, v2_0, gap0} */
-#define DFWB_LOOP_STATIC_BACKLASH_PARAMS 5   /* {M, k, h, x0, v0} */
+/* DFWB_LOOP_*_PARAMS: dfwb_parameters.h */
 
 /* Mode keys (dfwb_loop_mode): the Python key tuples in comments. */
 #define DFWB_LOOP_STICK 0          /* friction ("stick", 0) */
@@ -286,9 +272,8 @@ DFWB_API int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t le
 typedef struct dfwb_loop dfwb_loop;
 
 /* A new loop at t = 0 (the Python constructors: FrictionLoop(b, a, M, B, Fc, Fs, Dv, x0, v0, z0, state,
- * section), ...). plant: DFWB_PLANT_*; params[nparams]: the plant's parameters in the order of the
- * DFWB_LOOP_*_PARAMS comments (the Python defaults: friction 1, 0.5, 5, 7, 0, 0, 0; backlash 1, 1, 0.1,
- * 0.5, 0, 0, 0, h/2 - Python's gap0=None is 0.5 * h; static 2, 1, 0.1, 0, 0); b[nb] = {b0..bn},
+ * section), ...). plant: DFWB_PLANT_*; params[nparams]: the plant's parameters in the order of
+ * dfwb_parameters.h (DFWB_LOOP_*_PARAMS of them; Python's gap0=None is 0.5 * h); b[nb] = {b0..bn},
  * a[na] = {a1..an}; z0[nz0] the controller's initial state (NULL: zeros); state[nstate] the whole loop
  * state (NULL: from the parameters and z0; given, it supersedes them); section (NULL: none) watches the
  * output y rising through *section (dfwb_loop_crossings_read). Checked in Python's order and refused

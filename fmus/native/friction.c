@@ -266,8 +266,10 @@ int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction *
     if (out == NULL || params == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_friction_new: NULL params or out");
     *out = NULL;
-    M = params[0], B = params[1], Fc = params[2], Fs = params[3], Dv = params[4], F = params[5];
-    omega = params[6], phi = params[7], x0 = params[8], v0 = params[9], f = params[10], harmonics = params[11];
+    M = params[DFWB_FRICTION_M], B = params[DFWB_FRICTION_B], Fc = params[DFWB_FRICTION_Fc];
+    Fs = params[DFWB_FRICTION_Fs], Dv = params[DFWB_FRICTION_Dv], F = params[DFWB_FRICTION_F];
+    omega = params[DFWB_FRICTION_omega], phi = params[DFWB_FRICTION_phi], x0 = params[DFWB_FRICTION_x0];
+    v0 = params[DFWB_FRICTION_v0], f = params[DFWB_FRICTION_f], harmonics = params[DFWB_FRICTION_harmonics];
     /* FrictionMass, then PiecewisePlant: the order of the Python constructor */
     if ((rc = dfwb_friction_check(&err, M, B, Fc, Fs, Dv, x0, v0, 0)) != DFWB_OK
         || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK

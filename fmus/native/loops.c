@@ -317,20 +317,25 @@ static int check_count(dfwb_err *err, const char *name, size_t value, int ok, co
 static int check_plant(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 {
     int rc;
-    if (L->plant == DFWB_PLANT_FRICTION) { /* {M, B, Fc, Fs, Dv, x0, v0} */
-        if ((rc = dfwb_friction_check(err, v[0], v[1], v[2], v[3], v[4], v[5], v[6], 1)) != DFWB_OK)
+    if (L->plant == DFWB_PLANT_FRICTION) {
+        const double M = v[DFWB_FRICTION_LOOP_M], B = v[DFWB_FRICTION_LOOP_B], Fc = v[DFWB_FRICTION_LOOP_Fc];
+        const double Fs = v[DFWB_FRICTION_LOOP_Fs], x0 = v[DFWB_FRICTION_LOOP_x0], v0 = v[DFWB_FRICTION_LOOP_v0];
+        if ((rc = dfwb_friction_check(err, M, B, Fc, Fs, v[DFWB_FRICTION_LOOP_Dv], x0, v0, 1)) != DFWB_OK)
             return rc;
-        L->par[0] = v[0]; /* M, B, Fc, Fs */
-        L->par[1] = v[1];
-        L->par[2] = v[2];
-        L->par[3] = v[3];
-        q0[0] = v[5];
-        q0[1] = v[6];
+        L->par[0] = M;
+        L->par[1] = B;
+        L->par[2] = Fc;
+        L->par[3] = Fs;
+        q0[0] = x0;
+        q0[1] = v0;
         return DFWB_OK;
     }
-    if (L->plant == DFWB_PLANT_BACKLASH) { /* {M1, M2, h, eps, x1_0, v1_0, v2_0, gap0} */
-        const double M1 = v[0], M2 = v[1], h = v[2], eps = v[3], gap0 = v[7];
-        if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, v[4], v[5], v[6], gap0)) != DFWB_OK)
+    if (L->plant == DFWB_PLANT_BACKLASH) {
+        const double M1 = v[DFWB_BACKLASH_LOOP_M1], M2 = v[DFWB_BACKLASH_LOOP_M2], h = v[DFWB_BACKLASH_LOOP_h];
+        const double eps = v[DFWB_BACKLASH_LOOP_eps], gap0 = v[DFWB_BACKLASH_LOOP_gap0];
+        const double x1_0 = v[DFWB_BACKLASH_LOOP_x1_0], v1_0 = v[DFWB_BACKLASH_LOOP_v1_0];
+        const double v2_0 = v[DFWB_BACKLASH_LOOP_v2_0];
+        if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK)
             return rc;
         L->par[0] = M1;
         L->par[1] = M2;
@@ -338,21 +343,24 @@ static int check_plant(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
         L->par[3] = eps;
         L->par[4] = M2 / (M1 + M2);
         L->par[5] = 1e-12 * h;
-        q0[0] = v[4];
-        q0[1] = v[5];
+        q0[0] = x1_0;
+        q0[1] = v1_0;
         q0[2] = gap0;
-        q0[3] = v[6] - v[5];
+        q0[3] = v2_0 - v1_0;
         return DFWB_OK;
     }
-    { /* {M, k, h, x0, v0} */
-        if ((rc = dfwb_static_backlash_check(err, v[0], v[1], v[2], v[3], v[4])) != DFWB_OK)
+    {
+        const double M = v[DFWB_STATIC_BACKLASH_LOOP_M], k = v[DFWB_STATIC_BACKLASH_LOOP_k];
+        const double h = v[DFWB_STATIC_BACKLASH_LOOP_h], x0 = v[DFWB_STATIC_BACKLASH_LOOP_x0];
+        const double v0 = v[DFWB_STATIC_BACKLASH_LOOP_v0];
+        if ((rc = dfwb_static_backlash_check(err, M, k, h, x0, v0)) != DFWB_OK)
             return rc;
-        L->par[0] = v[0]; /* M, k, h */
-        L->par[1] = v[1];
-        L->par[2] = v[2];
-        q0[0] = v[3];
-        q0[1] = v[4];
-        q0[2] = v[1] * v[3]; /* k x0 */
+        L->par[0] = M;
+        L->par[1] = k;
+        L->par[2] = h;
+        q0[0] = x0;
+        q0[1] = v0;
+        q0[2] = k * x0;
         return DFWB_OK;
     }
 }

@@ -226,8 +226,11 @@ int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], d
     if (out == NULL || params == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_new: NULL params or out");
     *out = NULL;
-    M = params[0], k = params[1], h = params[2], F = params[3], omega = params[4], phi = params[5];
-    x0 = params[6], v0 = params[7], f = params[8], harmonics = params[9];
+    M = params[DFWB_STATIC_BACKLASH_M], k = params[DFWB_STATIC_BACKLASH_k], h = params[DFWB_STATIC_BACKLASH_h];
+    F = params[DFWB_STATIC_BACKLASH_F], omega = params[DFWB_STATIC_BACKLASH_omega];
+    phi = params[DFWB_STATIC_BACKLASH_phi], x0 = params[DFWB_STATIC_BACKLASH_x0];
+    v0 = params[DFWB_STATIC_BACKLASH_v0], f = params[DFWB_STATIC_BACKLASH_f];
+    harmonics = params[DFWB_STATIC_BACKLASH_harmonics];
     if ((rc = dfwb_static_backlash_check(&err, M, k, h, x0, v0)) != DFWB_OK
         || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
         || (rc = dfwb_plant_alloc(&STATIC_BACKLASH, &plant, &err)) != DFWB_OK)

@@ -1,0 +1,113 @@
+"""A plant's parameters, described once: what every layer of dfwb reads instead of repeating them.
+
+A plant's model module declares one :class:`PlantTable`: its constants
+(masses, frictions, clearances) and its initial values, each a
+:class:`Parameter` with its default, unit, description and bounds. From it
+come the solver's and the closed loop's keyword defaults, the FMU's
+parameters and their ranges (pythonfmu and native), the C core's parameter
+orders and the engine's accepted ranges. A default written anywhere else is
+a copy that can drift; ``tests/test_table.py`` holds every constructor to it.
+
+The C core's orders follow one rule: a plant solver takes the constants,
+the excitation ``F, omega, phi``, the initial values, then ``f, harmonics``;
+a closed loop takes the constants and the initial values.
+
+Plain Python only: this module runs inside the FMUs.
+
+Examples
+--------
+>>> from dfwb.fmus.friction import TABLE
+>>> TABLE.defaults["Fs"], TABLE.default.Fc
+(7.0, 5.0)
+>>> TABLE.core_order
+('M', 'B', 'Fc', 'Fs', 'Dv', 'F', 'omega', 'phi', 'x0', 'v0', 'f', 'harmonics')
+>>> TABLE.loop_order
+('M', 'B', 'Fc', 'Fs', 'Dv', 'x0', 'v0')
+"""
+
+from typing import NamedTuple, Optional
+
+__all__ = ["Parameter", "PlantTable", "EXCITATION", "EXCITATION_NAMES", "INPUT_NAMES", "MASS", "FORCE", "VELOCITY",
+           "POSITION"]
+
+EXCITATION_NAMES = ("F", "omega", "phi")
+"""The built-in excitation F cos(omega t + phi), between the constants and the initial values in the C order."""
+INPUT_NAMES = ("f", "harmonics")
+"""The input at t = 0 and the number of harmonics: last in the C order."""
+
+
+class Parameter(NamedTuple):
+    """One parameter of a plant.
+
+    ``bounds`` are the (min, max) the FMU's model description states (None:
+    unbounded on that side; the solver's own check decides, with its
+    message). ``accepted`` is the (low, high) the describing-function engine
+    accepts (None: the solver's check alone), the edges ``dfwb stress``
+    covers. ``start`` is the FMU's start value when the default is not a
+    number (gap0: None in Python, -1 in an FMU, both meaning h/2).
+    """
+
+    name: str
+    default: Optional[float]
+    unit: Optional[str]
+    description: str
+    bounds: tuple = (None, None)
+    accepted: Optional[tuple] = None
+    start: Optional[float] = None
+
+    @property
+    def fmu_start(self):
+        """The FMU variable's start value."""
+        return self.default if self.start is None else self.start
+
+
+# The ranges the engine accepts for the common kinds of parameter: the edges ``dfwb stress`` covers and the
+# engine computes (the solvers accept more). Positions only translate a plant, which the engine removes: their
+# bound merely keeps the mean far from overflow.
+MASS = (1e-6, 1e6)
+FORCE = (0.0, 1e9)
+VELOCITY = (-1e6, 1e6)
+POSITION = (-1e30, 1e30)
+
+EXCITATION = (
+    Parameter("F", 0.0, "N", "amplitude of the built-in excitation F cos(omega t + phi)"),
+    Parameter("omega", 1.0, "rad/s", "angular frequency of the built-in excitation (> 0)"),
+    Parameter("phi", 0.0, "rad", "phase of the built-in excitation"),
+)
+
+
+class _Defaults:
+    """The defaults as attributes (``TABLE.default.M``), for keyword defaults in signatures."""
+
+    def __init__(self, parameters):
+        self.__dict__.update((p.name, p.default) for p in parameters)
+
+
+class PlantTable:
+    """A plant's parameters: ``constants`` then ``initial`` values (tuples of :class:`Parameter`)."""
+
+    def __init__(self, constants, initial):
+        self.constants, self.initial = tuple(constants), tuple(initial)
+        self.parameters = self.constants + self.initial
+        names = [p.name for p in self.parameters + EXCITATION] + list(INPUT_NAMES)
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            raise ValueError(f"parameters {repeated} are declared twice")
+        self.names = tuple(p.name for p in self.parameters)
+        self.defaults = {p.name: p.default for p in self.parameters}
+        self.default = _Defaults(self.parameters)
+        self.core_order = (tuple(p.name for p in self.constants) + EXCITATION_NAMES
+                           + tuple(p.name for p in self.initial) + INPUT_NAMES)
+        self.loop_order = self.names
+
+    def fmu_parameters(self):
+        """((name, start, unit, description)) of the FMU facade, in its variables' order."""
+        return tuple((p.name, p.fmu_start, p.unit, p.description) for p in self.parameters)
+
+    def bounds(self):
+        """{name: (min, max)} stated in the model description (parameters with a bound only)."""
+        return {p.name: p.bounds for p in self.parameters if p.bounds != (None, None)}
+
+    def accepted(self):
+        """{name: (low, high, unit)} the engine accepts (parameters with such a range only)."""
+        return {p.name: p.accepted + (p.unit or "",) for p in self.parameters if p.accepted is not None}

@@ -1,0 +1,101 @@
+"""The plants' tables (fmus/table.py): every default, order and range is read from them, never copied."""
+
+import doctest
+import inspect
+
+import pytest
+
+from dfwb.build_fmus import parameters
+from dfwb.fmus import backlash, facade, friction, loops, naive, native_core, static_backlash
+from dfwb.fmus.table import EXCITATION_NAMES, INPUT_NAMES, Parameter, PlantTable
+from dfwb.plants import closed_forms, loop_reference, reference
+from dfwb.plants.registry import RANGES
+
+TABLES = {"friction": friction.TABLE, "backlash": backlash.TABLE, "static-backlash": static_backlash.TABLE}
+# every class or function that takes a plant's parameters as keywords with defaults, by plant
+TAKERS = {
+    "friction": (friction.FrictionMass, naive.NaiveFrictionMass, loops.FrictionLoop, native_core.NativeFrictionMass,
+                 native_core.NativeFrictionLoop, reference.friction_response),
+    "backlash": (backlash.TwoMassBacklash, naive.NaiveTwoMassBacklash, loops.BacklashLoop,
+                 native_core.NativeTwoMassBacklash, native_core.NativeBacklashLoop, reference.backlash_response,
+                 closed_forms.validity_frequencies),
+    "static-backlash": (static_backlash.StaticBacklash, naive.NaiveStaticBacklash, loops.StaticBacklashLoop,
+                        native_core.NativeStaticBacklash, native_core.NativeStaticBacklashLoop,
+                        reference.static_backlash_scipy, closed_forms.static_backlash_plant_df,
+                        closed_forms.backlash_df),
+}
+FACADES = {"friction": facade.FrictionMass, "backlash": facade.TwoMassBacklash,
+           "static-backlash": facade.StaticBacklash}
+
+
+def _defaults(function):
+    return {name: p.default for name, p in inspect.signature(function).parameters.items()
+            if p.default is not inspect.Parameter.empty}
+
+
+@pytest.mark.parametrize("plant", TAKERS)
+def test_every_constructor_takes_the_tables_defaults(plant):
+    """A default typed again somewhere would drift: each taker's keyword defaults are the table's, the same
+    object (a float equal by accident would pass ==, not is)."""
+    table = TABLES[plant]
+    for taker in TAKERS[plant]:
+        defaults = _defaults(taker)
+        shared = [name for name in table.names if name in defaults]
+        assert shared, taker
+        for name in shared:
+            assert defaults[name] is table.defaults[name], (taker, name)
+
+
+@pytest.mark.parametrize("plant", TABLES)
+def test_the_facade_and_the_orders_come_from_the_table(plant):
+    table, model = TABLES[plant], FACADES[plant]
+    assert [row[0] for row in model.parameters] == list(table.names)
+    assert {row[0]: row[1] for row in model.parameters} == {p.name: p.fmu_start for p in table.parameters}
+    assert model.ranges == table.bounds()
+    loop = {"friction": loops.FrictionLoop, "backlash": loops.BacklashLoop,
+            "static-backlash": loops.StaticBacklashLoop}[plant]
+    signature = list(inspect.signature(loop).parameters)
+    assert tuple(name for name in signature if name in table.names) == table.loop_order
+    solver = list(inspect.signature(model.solver_class).parameters)
+    assert tuple(solver) == table.core_order  # the C order is the Python constructor's
+    assert loop_reference.DEFAULTS[plant] is table.defaults
+
+
+def test_the_engine_ranges_are_the_tables():
+    for table in TABLES.values():
+        for name, accepted in table.accepted().items():
+            assert RANGES[name] == accepted
+
+
+def test_the_generated_header_is_current():
+    """fmus/native/dfwb_parameters.h is what the tables write; else run `python -m dfwb.build_fmus.parameters`."""
+    assert parameters.HEADER.read_text() == parameters.header_text()
+
+
+def test_the_core_reads_parameters_in_the_tables_order(core):
+    """A parameter moved in a table moves in the C core too: a value put at the table's index for M is the
+    one the core refuses by name."""
+    for name, table, cls in (("friction", friction.TABLE, native_core.NativeFrictionMass),
+                             ("static-backlash", static_backlash.TABLE, native_core.NativeStaticBacklash)):
+        solver = getattr(core, cls.__name__[len("Native"):])
+        with pytest.raises(facade.PlantError, match=r"^M = -1\.0 is out of range"):
+            solver(M=-1.0)
+        for parameter in table.initial:
+            with pytest.raises(facade.PlantError, match=rf"^{parameter.name} = inf is out of range"):
+                solver(**{parameter.name: float("inf")})
+
+
+def test_a_table_refuses_a_name_twice():
+    with pytest.raises(ValueError, match=r"\['M'\] are declared twice"):
+        PlantTable([Parameter("M", 1.0, "kg", "mass")], [Parameter("M", 0.0, "m", "again")])
+    with pytest.raises(ValueError, match=r"\['F'\] are declared twice"):
+        PlantTable([Parameter("F", 1.0, "N", "a force named like the excitation's")], [])
+    assert EXCITATION_NAMES == ("F", "omega", "phi") and INPUT_NAMES == ("f", "harmonics")
+
+
+def test_the_modules_example_runs():
+    """fmus/ is not a doctest path (it is bundled into the FMUs): its example runs here."""
+    from dfwb.fmus import table
+
+    result = doctest.testmod(table)
+    assert result.attempted > 0 and result.failed == 0
