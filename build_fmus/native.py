@@ -63,15 +63,15 @@ FMI_VERSIONS = (2, 3)
 WIN64_FLAGS = ("-O2", "-std=c99", "-shared", "-ffp-contract=off", "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc",
                "-s")
 
-# Per plant: the core's plant kind, its parameter order (the plant's table, fmus/table.py) and the order of
-# dfwb_*_output's array (the fields of its solver's output).
+# Per plant: the core's plant kind, its parameter order (the plant's table, fmus/table.py), the order of
+# dfwb_plant_output's array (the fields of its solver's output) and its counters (dfwb_plant_counter's order).
 KINDS = {
-    "FrictionMass": ("DFWB_PLANT_FRICTION", friction.TABLE.core_order, FrictionOutput._fields),
-    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH", backlash.TABLE.core_order, BacklashOutput._fields),
-    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH", static_backlash.TABLE.core_order, StaticBacklashOutput._fields),
+    "FrictionMass": ("DFWB_PLANT_FRICTION", friction.TABLE.core_order, FrictionOutput._fields, ()),
+    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH", backlash.TABLE.core_order, BacklashOutput._fields,
+                        ("contact", "impacts")),
+    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH", static_backlash.TABLE.core_order, StaticBacklashOutput._fields,
+                       ("engaged",)),
 }
-COUNTERS = {"events": "ROLE_EVENTS", "contact": "ROLE_CONTACT", "impacts": "ROLE_IMPACTS",
-            "engaged": "ROLE_ENGAGED"}
 COSIMULATION = {
     "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
     "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
@@ -179,7 +179,7 @@ def _c_string(text):
 def model_header(model, root):
     """dfwb_model.h for ``model`` from its FMI 2.0 or 3.0 model description ``root``: its kind, GUID (or
     instantiationToken) and every variable's name, type, role and start value."""
-    kind, parameters, outputs = KINDS[model.__name__]
+    kind, parameters, outputs, counters = KINDS[model.__name__]
     index = {name: i for i, name in enumerate(parameters)}
     rows, vr_of = [], {}
     fmi3 = root.get("fmiVersion") == "3.0"
@@ -199,14 +199,17 @@ def model_header(model, root):
             role, position = "ROLE_INPUT", index[name]
         elif name in outputs:
             role, position = "ROLE_OUTPUT", outputs.index(name)
-        elif name in COUNTERS:
-            role, position = COUNTERS[name], 0
+        elif name == "events":
+            role, position = "ROLE_EVENTS", 0
+        elif name in counters:
+            role, position = "ROLE_COUNTER", counters.index(name)
         elif name[:2] in ("Ic", "Is") and name[2:].isdigit():
             role, position = ("ROLE_COSINE" if name[1] == "c" else "ROLE_SINE"), int(name[2:])
         else:
             raise BuildError(f"{model.__name__}: the native wrapper knows no role for the variable {name!r}")
         rows.append(f"    {{{_c_string(name)}, {integer}, {role}, {position}, {start!r}}},")
     defines = {"DFWB_MODEL_NAME": _c_string(model.__name__), "DFWB_MODEL_KIND": kind,
+               "DFWB_MODEL_PARAMS": len(parameters), "DFWB_MODEL_OUTPUTS": len(outputs),
                "DFWB_MODEL_GUID": _c_string(root.get("instantiationToken" if fmi3 else "guid")),
                "DFWB_MODEL_INPUT_PARAMETER": index["f"], "DFWB_MODEL_PHI_PARAMETER": index["phi"],
                "DFWB_MODEL_OMEGA_PARAMETER": index["omega"], "DFWB_MODEL_OMEGA_VR": vr_of["omega"]}

@@ -68,7 +68,7 @@ __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", 
            "EVENT_KINDS", "NativeFrictionLoop", "NativeBacklashLoop", "NativeStaticBacklashLoop", "NativeMode",
            "LOOP_PARAMETERS"]
 
-ABI = 5  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 6  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 # the parameters of dfwb_*_new in their C order (fmus/table.py)
 PARAMETERS, BACKLASH_PARAMETERS, STATIC_BACKLASH_PARAMETERS = (_FRICTION.core_order, _BACKLASH.core_order,
                                                                _STATIC_BACKLASH.core_order)
@@ -84,11 +84,11 @@ EVENT_KINDS = (None, EventKind.BREAK_UP, EventKind.BREAK_DOWN, EventKind.RELEASE
                EventKind.WALL_LOWER, EventKind.WALL_UPPER, EventKind.APEX, EventKind.ENGAGE_UP,
                EventKind.ENGAGE_DOWN, EventKind.REVERSE)
 
-# plant -> (C prefix, NativeCore attribute, output length, extra counters {name: restype})
+# plant -> (DFWB_PLANT_*, NativeCore attribute, its parameters (the C order), its outputs, its counters)
 _PLANTS = {
-    "friction": ("dfwb_friction", "FrictionMass", 4, {}),
-    "backlash": ("dfwb_backlash", "TwoMassBacklash", 5, {"contact": ctypes.c_int, "impacts": ctypes.c_longlong}),
-    "static_backlash": ("dfwb_static_backlash", "StaticBacklash", 3, {"engaged": ctypes.c_int}),
+    "friction": (1, "FrictionMass", PARAMETERS, FrictionOutput._fields, ()),
+    "backlash": (2, "TwoMassBacklash", BACKLASH_PARAMETERS, BacklashOutput._fields, ("contact", "impacts")),
+    "static_backlash": (3, "StaticBacklash", STATIC_BACKLASH_PARAMETERS, StaticBacklashOutput._fields, ("engaged",)),
 }
 
 
@@ -125,8 +125,8 @@ def _signatures():
 
 
 class _Functions:
-    """The C functions of one prefix (``new``, ``advance``, ... without it), typed, and the size of a state:
-    a core missing one is refused when loaded, not at the first call."""
+    """The C functions of one prefix (``new``, ``advance``, ... without it), typed: a core missing one is refused
+    when loaded, not at the first call."""
 
     def __init__(self, lib, prefix, path, table):
         self.prefix = prefix
@@ -137,20 +137,20 @@ class _Functions:
                 raise CoreError(f"the C core {path} has no function {prefix}_{name}") from None
             function.restype, function.argtypes = restype, argtypes
             setattr(self, name, function)
-        size = ctypes.c_size_t()
-        self.to_bytes(None, None, 0, ctypes.byref(size), None, 0)
-        self.state_size = size.value
 
 
-class _Api(_Functions):
-    """One plant's C functions (``dfwb_friction_*``, ...)."""
+class _PlantApi(_Functions):
+    """The plants' C functions (``dfwb_plant_*``: one API, the instance knows its kind), and each kind's state
+    size; a core whose plants have other parameters, outputs or counters than this binding's is refused."""
 
-    def __init__(self, lib, prefix, path, counters):
+    def __init__(self, lib, path):
         c_double, c_int, c_void_p, c_char_p, c_size_t = (ctypes.c_double, ctypes.c_int, ctypes.c_void_p,
                                                          ctypes.c_char_p, ctypes.c_size_t)
-        p_double = ctypes.POINTER(c_double)
+        p_double, p_size = ctypes.POINTER(c_double), ctypes.POINTER(c_size_t)
         table = {
-            "new": (c_int, [p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+            "new": (c_int, [c_int, p_double, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+            "shape": (c_int, [c_int, p_size, p_size, p_size]),
+            "state_size": (c_size_t, [c_int]),
             "set_input": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
             "advance": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
             "output": (None, [c_void_p, p_double]),
@@ -158,10 +158,20 @@ class _Api(_Functions):
             "harmonics": (c_int, [c_void_p]),
             "period": (c_double, [c_void_p]),
             "drive": (None, [c_void_p, p_double]),
-            "from_bytes": (c_int, [c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+            "counter": (ctypes.c_longlong, [c_void_p, c_size_t]),
+            "from_bytes": (c_int, [c_int, c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
         }
-        table.update({name: (restype, [c_void_p]) for name, restype in counters.items()})
-        super().__init__(lib, prefix, path, table)
+        super().__init__(lib, "dfwb_plant", path, table)
+        self.state_sizes = {}
+        for plant, (kind, _attr, parameters, outputs, counters) in _PLANTS.items():
+            shape = [c_size_t() for _ in range(3)]
+            if self.shape(kind, *map(ctypes.byref, shape)) != OK:
+                raise CoreError(f"the C core {path} has no plant of kind {kind} ({plant}): rebuild it")
+            expected = (len(parameters), len(outputs), len(counters))
+            if tuple(n.value for n in shape) != expected:
+                raise CoreError(f"the C core {path}'s {plant} has (parameters, outputs, counters) = "
+                                f"{tuple(n.value for n in shape)}, this binding's {expected}: rebuild it")
+            self.state_sizes[kind] = self.state_size(kind)
 
 
 class NativeCore:
@@ -184,8 +194,7 @@ class NativeCore:
         if abi != ABI:
             raise CoreError(f"the C core {self.path} speaks ABI {abi}, this binding {ABI}: rebuild it")
         self.lib = lib
-        self.api = {plant: _Api(lib, prefix, self.path, counters)
-                    for plant, (prefix, _attr, _n, counters) in _PLANTS.items()}
+        self.api = _PlantApi(lib, self.path)
         for cls in (NativeFrictionMass, NativeTwoMassBacklash, NativeStaticBacklash):
             attr = _PLANTS[cls._plant][1]
             setattr(self, attr, type(cls.__name__, (cls,), {"core": self, "__module__": __name__}))
@@ -297,6 +306,7 @@ class _Native:
 
     def _setup(self, core, handle):
         self._core, self._api, self._handle = core, self._functions(core), handle
+        self._state_bytes = self._state_size()
         self._err = ctypes.create_string_buffer(ERRLEN)
         self._event_log = None
         self.event_log_dropped = 0
@@ -304,6 +314,10 @@ class _Native:
     def _shared(self):
         """The arguments of ``_setup`` after the handle that a copy takes from its original."""
         return ()
+
+    def _state_size(self):
+        """The bytes of this instance's state."""
+        raise NotImplementedError
 
     @property
     def t(self):
@@ -376,10 +390,9 @@ class _Native:
 
     def to_bytes(self):
         """The state as bytes (not in it: the event log, a loop's crossings): see ``from_bytes``."""
-        api = self._api
-        size = ctypes.c_size_t(api.state_size)
-        buf = ctypes.create_string_buffer(api.state_size)
-        code = api.to_bytes(self._handle, buf, api.state_size, ctypes.byref(size), self._err, ERRLEN)
+        size = ctypes.c_size_t(self._state_bytes)
+        buf = ctypes.create_string_buffer(self._state_bytes)
+        code = self._api.to_bytes(self._handle, buf, self._state_bytes, ctypes.byref(size), self._err, ERRLEN)
         if code != OK:
             _raise(code, self._err)
         return buf.raw[:size.value]
@@ -414,18 +427,23 @@ class _NativeSolver(_Native):
 
     @classmethod
     def _functions(cls, core):
-        return core.api[cls._plant]
+        return core.api
+
+    def _state_size(self):
+        return self._api.state_sizes[_PLANTS[self._plant][0]]
 
     def _create(self, core, values, originals, tails=()):
         self._handle = None
         core = self._bound_core(core)
         params = (ctypes.c_double * len(values))(*(_as_double(v) for v in values))
-        self._setup(core, _new(self._functions(core).new, params, originals=originals, tails=tails))
+        kind = _PLANTS[self._plant][0]
+        self._setup(core, _new(self._functions(core).new, kind, params, len(values), originals=originals,
+                               tails=tails))
 
     def _setup(self, core, handle):
         super()._setup(core, handle)
         self.harmonics = self._api.harmonics(handle)
-        self._out = (ctypes.c_double * _PLANTS[self._plant][2])()
+        self._out = (ctypes.c_double * len(_PLANTS[self._plant][3]))()
         self._re = (ctypes.c_double * (self.harmonics + 1))()
         self._im = (ctypes.c_double * (self.harmonics + 1))()
 
@@ -473,7 +491,7 @@ class _NativeSolver(_Native):
     @classmethod
     def from_bytes(cls, data, *, core=None):
         """A solver from the bytes of :meth:`to_bytes` (StateRefused, one line, for anything else)."""
-        core, handle = cls._from_state(data, core)
+        core, handle = cls._from_state(data, core, _PLANTS[cls._plant][0])
         solver = object.__new__(cls)
         solver._setup(core, handle)
         return solver
@@ -525,12 +543,12 @@ class NativeTwoMassBacklash(_NativeSolver):
     @property
     def contact(self):
         """0 free, 1 riding at gap 0, 2 riding at gap h."""
-        return self._api.contact(self._handle)
+        return self._api.counter(self._handle, 0)
 
     @property
     def impacts(self):
         """Impacts so far."""
-        return self._api.impacts(self._handle)
+        return self._api.counter(self._handle, 1)
 
 
 class NativeStaticBacklash(_NativeSolver):
@@ -548,7 +566,7 @@ class NativeStaticBacklash(_NativeSolver):
     @property
     def engaged(self):
         """0 free, +1/-1 dragging y at the upper/lower edge of the play."""
-        return self._api.engaged(self._handle)
+        return self._api.counter(self._handle, 0)
 
 
 # -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------
@@ -599,6 +617,9 @@ class _LoopApi(_Functions):
             "from_bytes": (c_int, [c_int, c_char_p, c_size_t, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
         }
         super().__init__(lib, "dfwb_loop", path, table)
+        size = ctypes.c_size_t()
+        self.to_bytes(None, None, 0, ctypes.byref(size), None, 0)
+        self.state_size = size.value
 
 
 def _doubles(values):
@@ -627,6 +648,9 @@ class _NativeLoop(_Native):
     @classmethod
     def _functions(cls, core):
         return core.loop_api
+
+    def _state_size(self):
+        return self._api.state_size
 
     def _create(self, core, b, a, values, z0, state, section, modes, budget, tails=()):
         self._handle = None

@@ -314,8 +314,7 @@ def test_same_parameters(core, plant):
     others.append(core.StaticBacklash() if plant == "backlash" else core.TwoMassBacklash())
     for other in others:
         assert a.same_parameters(other) is False
-    api = core.api[cls._plant]
-    assert api.same_parameters(None, a._handle) == 0 == api.same_parameters(a._handle, None)
+    assert core.api.same_parameters(None, a._handle) == 0 == core.api.same_parameters(a._handle, None)
 
 
 # -- copies ------------------------------------------------------------------------------
@@ -434,9 +433,8 @@ def _states(core):
 def test_state_refusals(core):
     states = _states(core)
     sizes = {attr: len(s[0]) for attr, s in states.items()}
-    assert sizes == {attr: core.api[plant].state_size
-                     for attr, plant in (("FrictionMass", "friction"), ("TwoMassBacklash", "backlash"),
-                                         ("StaticBacklash", "static_backlash"))}
+    assert sizes == {attr: core.api.state_sizes[kind]
+                     for attr, kind in (("FrictionMass", 1), ("TwoMassBacklash", 2), ("StaticBacklash", 3))}
     data = states["TwoMassBacklash"][3]
     cls = core.TwoMassBacklash
     assert cls.from_bytes(bytearray(data)).to_bytes() == data == cls.from_bytes(memoryview(data)).to_bytes()
@@ -589,3 +587,36 @@ def test_time_per_event(core):
         lines.append(f"  {plant:>15}: {events} events, Python {1e6 * per_python:6.1f} us, C {1e6 * per_native:5.2f} us "
                      f"per event ({per_python / per_native:.0f}x)")
     print("\none step of 100 periods (F=50, omega=20), median per event:\n" + "\n".join(lines))
+
+
+def test_one_api_for_every_plant(core):
+    """ABI 6: dfwb_plant_* serve every plant; a kind, a parameter count or a counter the core does not know is
+    refused, never read out of bounds."""
+    import ctypes
+
+    api = core.api
+    err = ctypes.create_string_buffer(256)
+    handle = ctypes.c_void_p()
+    params = (ctypes.c_double * 13)(*([1.0] * 13))
+    for kind, n in ((99, 12), (0, 12), (1, 13), (2, 12), (3, 0)):
+        assert api.new(kind, params, n, ctypes.byref(handle), err, 256) == 5  # DFWB_E_ARGUMENT
+        assert not handle.value
+        assert err.value.decode().startswith("dfwb_plant_new: "), err.value
+    assert b"unknown plant kind 99" in (api.new(99, params, 12, ctypes.byref(handle), err, 256) and err.value)
+    assert api.shape(99, None, None, None) == 5 and api.state_size(99) == 0
+    assert api.from_bytes(99, b"x", 1, ctypes.byref(handle), err, 256) == 5 and not handle.value
+    shapes = {}
+    for kind in (1, 2, 3):
+        sizes = [ctypes.c_size_t() for _ in range(3)]
+        assert api.shape(kind, *map(ctypes.byref, sizes)) == 0
+        shapes[kind] = tuple(size.value for size in sizes)
+    assert shapes == {1: (12, 4, 0), 2: (13, 5, 2), 3: (10, 3, 1)}
+    friction, backlash = core.FrictionMass(), core.TwoMassBacklash(F=50.0, omega=20.0)
+    backlash.advance(1.0)
+    lib = ctypes.CDLL(str(core.path))
+    kind_of = lib.dfwb_plant_kind
+    kind_of.restype, kind_of.argtypes = ctypes.c_int, [ctypes.c_void_p]
+    assert (kind_of(friction._handle), kind_of(backlash._handle), kind_of(None)) == (1, 2, 0)
+    assert api.counter(friction._handle, 0) == -1 and api.counter(backlash._handle, 2) == -1
+    assert api.counter(backlash._handle, 1) == backlash.impacts > 0 and api.counter(None, 0) == -1
+    assert api.same_parameters(friction._handle, backlash._handle) == 0

@@ -458,8 +458,7 @@ def test_same_parameters(core):
     assert not core.FrictionMass(F=10.0).same_parameters(core.FrictionMass(F=-10.0))  # stored as a phase shift
     for other in (FrictionMass(**params), None, "a", core.TwoMassBacklash(), core.StaticBacklash()):
         assert a.same_parameters(other) is False
-    assert core.api["friction"].same_parameters(None, a._handle) == 0 == core.api["friction"].same_parameters(
-        a._handle, None)
+    assert core.api.same_parameters(None, a._handle) == 0 == core.api.same_parameters(a._handle, None)
 
 
 # -- the binding -------------------------------------------------------------------------

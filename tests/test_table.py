@@ -99,3 +99,36 @@ def test_the_modules_example_runs():
 
     result = doctest.testmod(table)
     assert result.attempted > 0 and result.failed == 0
+
+
+def _docs_rows():
+    """{parameter: (default, unit)} of the parameter tables of docs/models.md (rows naming several parameters
+    split: "`x0`, `v0` | 0, 0 | m, m/s")."""
+    from pathlib import Path
+    import re
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "models.md").read_text()
+    sections = {}
+    for heading, body in re.findall(r"^## (\d\. .*?)\n(.*?)(?=^## |\Z)", text, re.MULTILINE | re.DOTALL):
+        for table in re.findall(r"\| parameter \| default \| unit \| meaning \|\n\|---.*?\n((?:\|.*\n)+)", body):
+            rows = {}
+            for row in table.splitlines():
+                names, defaults, units = (cell.strip() for cell in row.strip("|").split("|")[:3])
+                names = re.findall(r"`(\w+)`", names)
+                defaults, units = defaults.split(", "), units.split(", ")
+                for i, name in enumerate(names):
+                    rows[name] = (defaults[min(i, len(defaults) - 1)], units[min(i, len(units) - 1)])
+            sections.setdefault(heading, []).append(rows)
+    return [rows for tables in sections.values() for rows in tables]
+
+
+def test_the_docs_tables_state_the_tables_defaults_and_units():
+    """docs/models.md's parameter tables are written by hand: each states its plant's defaults and units."""
+    documented = _docs_rows()
+    for plant, table in TABLES.items():
+        names = set(table.names)
+        (rows,) = [rows for rows in documented if set(rows) == names]  # exactly one docs table per plant
+        for parameter in table.parameters:
+            default, unit = rows[parameter.name]
+            assert float(default) == parameter.fmu_start, (plant, parameter.name)
+            assert unit == (parameter.unit or "-"), (plant, parameter.name)

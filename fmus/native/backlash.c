@@ -22,6 +22,8 @@
 
 enum { FREE = 0, LOWER = 1, UPPER = 2 }; /* the contact output: free, at gap 0, at gap h */
 
+typedef struct dfwb_backlash dfwb_backlash;
+
 struct dfwb_backlash {
     dfwb_pw pw; /* first: the piece machinery (its output is x1) */
     double M1, M2, h, eps, total, r1, r2, tol_h;
@@ -251,11 +253,6 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-static const dfwb_backlash zero_state = {0}; /* the state's size is counted on it */
-
-static const dfwb_plant_class BACKLASH = {DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state,
-                                          offsetof(dfwb_backlash, gap), fire, restart, state_io, validate};
-
 int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
                         double v2_0, double gap0)
 {
@@ -277,28 +274,21 @@ int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double ep
     return dfwb_check(err, "v2_0", v2_0, 1, "v2_0 must be a finite number");
 }
 
-/* -- API ------------------------------------------------------------------------------------ */
-int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *errbuf, size_t errlen)
+/* -- the class ------------------------------------------------------------------------------------ */
+/* TwoMassBacklash.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */
+static int init(void *plant, const double *params, dfwb_err *err)
 {
-    dfwb_err err;
-    dfwb_backlash *p;
-    void *plant;
-    double M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics;
+    dfwb_backlash *p = (dfwb_backlash *)plant;
+    const double M1 = params[DFWB_BACKLASH_M1], M2 = params[DFWB_BACKLASH_M2], h = params[DFWB_BACKLASH_h];
+    const double eps = params[DFWB_BACKLASH_eps], F = params[DFWB_BACKLASH_F];
+    const double omega = params[DFWB_BACKLASH_omega], phi = params[DFWB_BACKLASH_phi];
+    const double x1_0 = params[DFWB_BACKLASH_x1_0], v1_0 = params[DFWB_BACKLASH_v1_0];
+    const double v2_0 = params[DFWB_BACKLASH_v2_0], gap0 = params[DFWB_BACKLASH_gap0], f = params[DFWB_BACKLASH_f];
+    const double harmonics = params[DFWB_BACKLASH_harmonics];
     int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL || params == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_backlash_new: NULL params or out");
-    *out = NULL;
-    M1 = params[DFWB_BACKLASH_M1], M2 = params[DFWB_BACKLASH_M2], h = params[DFWB_BACKLASH_h];
-    eps = params[DFWB_BACKLASH_eps], F = params[DFWB_BACKLASH_F], omega = params[DFWB_BACKLASH_omega];
-    phi = params[DFWB_BACKLASH_phi], x1_0 = params[DFWB_BACKLASH_x1_0], v1_0 = params[DFWB_BACKLASH_v1_0];
-    v2_0 = params[DFWB_BACKLASH_v2_0], gap0 = params[DFWB_BACKLASH_gap0], f = params[DFWB_BACKLASH_f];
-    harmonics = params[DFWB_BACKLASH_harmonics];
-    if ((rc = dfwb_backlash_check(&err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK
-        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
-        || (rc = dfwb_plant_alloc(&BACKLASH, &plant, &err)) != DFWB_OK)
+    if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK
+        || (rc = dfwb_check_drive(err, F, omega, phi, f, harmonics)) != DFWB_OK)
         return rc;
-    p = (dfwb_backlash *)plant;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
     p->M1 = M1, p->M2 = M2, p->h = h, p->eps = eps;
     p->total = M1 + M2;
@@ -309,27 +299,15 @@ int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash *
     p->contact = FREE;
     p->departing = 0;
     centre(p, 0.0, x1_0 + p->r2 * gap0, p->r1 * v1_0 + p->r2 * v2_0);
-    rc = dfwb_plant_created(&p->pw, dfwb_err_finish(&err, start(p, 0.0, gap0, v2_0 - v1_0, &err)), &plant);
-    *out = (dfwb_backlash *)plant;
-    return rc;
+    return dfwb_err_finish(err, start(p, 0.0, gap0, v2_0 - v1_0, err));
 }
 
-int dfwb_backlash_set_input(dfwb_backlash *p, double f, char *errbuf, size_t errlen)
+/* {x1, v1, x2, v2, gap} */
+static void output(const void *plant, double *out)
 {
-    return dfwb_plant_set_input(&BACKLASH, DFWB_PW(p), f, errbuf, errlen);
-}
-
-int dfwb_backlash_advance(dfwb_backlash *p, double t_end, char *errbuf, size_t errlen)
-{
-    return dfwb_plant_advance(&BACKLASH, DFWB_PW(p), t_end, errbuf, errlen);
-}
-
-void dfwb_backlash_output(const dfwb_backlash *p, double out[5])
-{
+    const dfwb_backlash *p = (const dfwb_backlash *)plant;
     double x1, v1, g, w, x_cm, v_cm;
-    const double t = p == NULL ? 0.0 : p->pw.t;
-    if (p == NULL || out == NULL)
-        return;
+    const double t = p->pw.t;
     dfwb_motion_state(&p->pw.output, t, &x1, &v1);
     relative(p, t, &g, &w);
     out[0] = x1;
@@ -345,66 +323,24 @@ void dfwb_backlash_output(const dfwb_backlash *p, double out[5])
     out[3] = v_cm + p->r1 * w;
 }
 
-int dfwb_backlash_integrals(const dfwb_backlash *p, double *re, double *im, char *errbuf, size_t errlen)
+/* 0 contact (0 free, 1 at gap 0, 2 at gap h), 1 impacts */
+static long long counter(const void *plant, size_t i)
 {
-    return dfwb_plant_integrals(&BACKLASH, DFWB_PW(p), re, im, errbuf, errlen);
+    const dfwb_backlash *p = (const dfwb_backlash *)plant;
+    return i == 0 ? (long long)p->contact : p->impacts;
 }
 
-double dfwb_backlash_time(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.t; }
-
-long long dfwb_backlash_events(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.events; }
-
-int dfwb_backlash_harmonics(const dfwb_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
-
-double dfwb_backlash_period(const dfwb_backlash *p) { return p == NULL ? NAN : p->pw.period; }
-
-void dfwb_backlash_drive(const dfwb_backlash *p, double out[4])
+static int same(const void *one, const void *other)
 {
-    if (p != NULL && out != NULL)
-        dfwb_drive_values(&p->pw.drive, out);
+    const dfwb_backlash *a = (const dfwb_backlash *)one, *b = (const dfwb_backlash *)other;
+    return dfwb_same_double(a->M1, b->M1) && dfwb_same_double(a->M2, b->M2) && dfwb_same_double(a->h, b->h)
+           && dfwb_same_double(a->eps, b->eps) && dfwb_same_double(a->total, b->total)
+           && dfwb_same_double(a->r1, b->r1) && dfwb_same_double(a->r2, b->r2)
+           && dfwb_same_double(a->tol_h, b->tol_h);
 }
 
-int dfwb_backlash_contact(const dfwb_backlash *p) { return p == NULL ? -1 : p->contact; }
+static const dfwb_backlash zero_state = {0}; /* the state's size is counted on it */
 
-long long dfwb_backlash_impacts(const dfwb_backlash *p) { return p == NULL ? -1 : p->impacts; }
-
-int dfwb_backlash_same_parameters(const dfwb_backlash *a, const dfwb_backlash *b)
-{
-    if (a == NULL || b == NULL)
-        return 0;
-    return dfwb_pw_same_parameters(&a->pw, &b->pw) && dfwb_same_double(a->M1, b->M1)
-           && dfwb_same_double(a->M2, b->M2) && dfwb_same_double(a->h, b->h) && dfwb_same_double(a->eps, b->eps)
-           && dfwb_same_double(a->total, b->total) && dfwb_same_double(a->r1, b->r1)
-           && dfwb_same_double(a->r2, b->r2) && dfwb_same_double(a->tol_h, b->tol_h);
-}
-
-dfwb_backlash *dfwb_backlash_copy(const dfwb_backlash *p)
-{
-    return (dfwb_backlash *)dfwb_plant_copy(&BACKLASH, DFWB_PW(p));
-}
-
-void dfwb_backlash_free(dfwb_backlash *p) { dfwb_plant_free(DFWB_PW(p)); }
-
-void dfwb_backlash_log(dfwb_backlash *p, size_t capacity) { dfwb_plant_log(DFWB_PW(p), capacity); }
-
-size_t dfwb_backlash_log_read(dfwb_backlash *p, double *t, int *kind, size_t max)
-{
-    return dfwb_plant_log_read(DFWB_PW(p), t, kind, max);
-}
-
-unsigned long long dfwb_backlash_log_dropped(const dfwb_backlash *p) { return dfwb_plant_log_dropped(DFWB_PW(p)); }
-
-int dfwb_backlash_to_bytes(const dfwb_backlash *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
-                           size_t errlen)
-{
-    return dfwb_plant_to_bytes(&BACKLASH, DFWB_PW(p), buf, buflen, size, errbuf, errlen);
-}
-
-int dfwb_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_backlash **out, char *errbuf, size_t errlen)
-{
-    void *plant = NULL;
-    const int rc = dfwb_plant_from_bytes(&BACKLASH, buf, len, out == NULL ? NULL : &plant, errbuf, errlen);
-    if (out != NULL)
-        *out = (dfwb_backlash *)plant;
-    return rc;
-}
+const dfwb_plant_class dfwb_backlash_class = {
+    DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state, offsetof(dfwb_backlash, gap), fire, restart,
+    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same};

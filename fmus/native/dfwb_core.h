@@ -25,7 +25,9 @@
  * - No exit, abort or output. Memory: malloc/realloc/free only, owned by the instance.
  * - After a refusal of set_input or advance the instance is valid but its
  *   state is unspecified (as in Python, where the step stops half way):
- *   an importer restores a copy (dfwb_*_copy, dfwb_*_from_bytes) or starts anew.
+ *   an importer restores a copy (dfwb_plant_copy, dfwb_plant_from_bytes) or starts anew.
+ * - One API for every plant (ABI 6): dfwb_plant_new(kind, ...) makes any plant's solver, the other
+ *   dfwb_plant_* functions take the instance, whose kind it knows; the loops have dfwb_loop_*.
  * - Event log: off by default; dfwb_*_log(p, capacity) records (t, DFWB_EVENT_*) of every counted
  *   event (what PiecewisePlant.event_log records), at most capacity entries held (then counted in
  *   dfwb_*_log_dropped); dfwb_*_log_read moves them out. The log never changes the solution.
@@ -43,8 +45,8 @@
  *   otherwise (or when either is NULL). An importer restoring a state checks it against a new instance
  *   made from the state's parameter values.
  *
- * Parameters of dfwb_friction_new, dfwb_backlash_new, dfwb_static_backlash_new and dfwb_loop_new: in the
- * orders of dfwb_parameters.h (DFWB_FRICTION_Fc is Fc's index, ...), written from the plants' tables
+ * Parameters of dfwb_plant_new and dfwb_loop_new: in the orders of dfwb_parameters.h
+ * (DFWB_FRICTION_Fc is Fc's index, ...), written from the plants' tables
  * (fmus/table.py, where their defaults, units and ranges live). Ranges: friction M > 0 (kg), B >= 0 (N.s/m),
  * Fc >= 0 (N), Fs >= Fc (N), Dv >= 0 (m/s); backlash M1, M2 > 0 (kg), h >= 1e-290 (m), eps in [0, 1],
  * gap0 in [0, h] (Python's gap0=None is h/2: pass 0.5 * h); static backlash M, k, h > 0; everywhere
@@ -91,7 +93,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 5
+#define DFWB_CORE_ABI 6
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -126,133 +128,86 @@ extern "C" {
 #define DFWB_EVENT_ENGAGE_DOWN 10 /* "engage-" */
 #define DFWB_EVENT_REVERSE 11     /* "reverse" */
 
-/* Modes reported by dfwb_friction_output (out[3]): 0 stick or inside the band, +1/-1 sliding. */
-
 #define DFWB_HARMONICS_MAX 10
 
-typedef struct dfwb_friction dfwb_friction;
-typedef struct dfwb_backlash dfwb_backlash;
-typedef struct dfwb_static_backlash dfwb_static_backlash;
+/* An instance of any plant (its kind: dfwb_plant_kind). */
+typedef struct dfwb_plant dfwb_plant;
 
 /* DFWB_CORE_ABI of the compiled library. */
 DFWB_API int dfwb_core_abi_version(void);
 
-/* A new solver at t = 0 from params[DFWB_FRICTION_PARAMS] (dfwb_parameters.h).
- * On success *out is the instance (free it with dfwb_friction_free); on refusal *out is NULL. */
-DFWB_API int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction **out,
-                               char *err, size_t errlen);
+/* A plant kind's shape: *nparams the length of dfwb_plant_new's array (DFWB_*_PARAMS of dfwb_parameters.h),
+ * *noutputs of dfwb_plant_output's, *ncounters the counters of dfwb_plant_counter. DFWB_E_ARGUMENT for a
+ * kind the core does not know (the arguments untouched); NULL pointers are skipped. */
+DFWB_API int dfwb_plant_shape(int kind, size_t *nparams, size_t *noutputs, size_t *ncounters);
+
+/* A new solver of plant kind (DFWB_PLANT_*) at t = 0 from params[nparams], in the order of dfwb_parameters.h.
+ * On success *out is the instance (free it with dfwb_plant_free); on refusal *out is NULL. */
+DFWB_API int dfwb_plant_new(int kind, const double *params, size_t nparams, dfwb_plant **out, char *err,
+                            size_t errlen);
+
+/* The instance's plant kind (DFWB_PLANT_*; 0 for NULL). */
+DFWB_API int dfwb_plant_kind(const dfwb_plant *p);
 
 /* Set the input force f (finite), held until the next call. */
-DFWB_API int dfwb_friction_set_input(dfwb_friction *p, double f, char *err, size_t errlen);
+DFWB_API int dfwb_plant_set_input(dfwb_plant *p, double f, char *err, size_t errlen);
 
 /* Integrate exactly from the current time to t_end (>= the current time, phase within 1e10 rad),
  * firing every event on the way; then the current time is t_end. */
-DFWB_API int dfwb_friction_advance(dfwb_friction *p, double t_end, char *err, size_t errlen);
+DFWB_API int dfwb_plant_advance(dfwb_plant *p, double t_end, char *err, size_t errlen);
 
-/* out[4] = {x, v, Ff, mode} at the current time. */
-DFWB_API void dfwb_friction_output(const dfwb_friction *p, double out[4]);
+/* out[noutputs] at the current time: friction {x, v, Ff, mode} (mode 0 stick or inside the band, +1/-1
+ * sliding); backlash {x1, v1, x2, v2, gap}; static backlash {x, v, y}. */
+DFWB_API void dfwb_plant_output(const dfwb_plant *p, double *out);
 
-/* The running integrals I_k(t) = int_0^t x(s) exp(-i k omega s) ds, k = 0..harmonics, into
- * re[0..harmonics] and im[0..harmonics] (arrays of harmonics + 1 doubles; at most 11). */
-DFWB_API int dfwb_friction_integrals(const dfwb_friction *p, double *re, double *im, char *err, size_t errlen);
+/* The running integrals I_k(t) = int_0^t y(s) exp(-i k omega s) ds of the output y (friction x, backlash x1,
+ * static backlash y), k = 0..harmonics, into re[0..harmonics] and im[0..harmonics] (at most 11 each). */
+DFWB_API int dfwb_plant_integrals(const dfwb_plant *p, double *re, double *im, char *err, size_t errlen);
 
 /* The current time (s), the events counted so far, the number of harmonics (0..10). */
-DFWB_API double dfwb_friction_time(const dfwb_friction *p);
-DFWB_API long long dfwb_friction_events(const dfwb_friction *p);
-DFWB_API int dfwb_friction_harmonics(const dfwb_friction *p);
+DFWB_API double dfwb_plant_time(const dfwb_plant *p);
+DFWB_API long long dfwb_plant_events(const dfwb_plant *p);
+DFWB_API int dfwb_plant_harmonics(const dfwb_plant *p);
 /* The drive's period 2 pi / omega (s) and out[4] = {f, F, omega, phi} of u = f + F cos(omega t + phi)
  * (F >= 0: a negative amplitude is stored as a phase shift of pi, as the Python Drive does). */
-DFWB_API double dfwb_friction_period(const dfwb_friction *p);
-DFWB_API void dfwb_friction_drive(const dfwb_friction *p, double out[4]);
+DFWB_API double dfwb_plant_period(const dfwb_plant *p);
+DFWB_API void dfwb_plant_drive(const dfwb_plant *p, double out[4]);
 
-/* 1 when a and b have bit-identical fixed parameters (M, B, Fc, Fs, Dv and the friction just outside the
- * band Fc + B Dv; the drive's F, omega, phi; the period; the harmonics), compared as bits (-0.0 != 0.0);
- * 0 otherwise or when either is NULL. The input f, the time and the motion are not compared. */
-DFWB_API int dfwb_friction_same_parameters(const dfwb_friction *a, const dfwb_friction *b);
+/* The plant's i-th counter (the FMU's integer outputs beyond events): backlash 0 contact (0 free, 1 at
+ * gap 0, 2 at gap h), 1 impacts so far; static backlash 0 engaged (0 free, +1/-1 at the upper/lower edge of
+ * the play); friction none. -1 for NULL or an i out of range. */
+DFWB_API long long dfwb_plant_counter(const dfwb_plant *p, size_t i);
+
+/* 1 when a and b are plants of one kind with bit-identical fixed parameters - the plant's constants and
+ * what is derived from them (friction M, B, Fc, Fs, Dv, Fc + B Dv; backlash M1, M2, h, eps, M1 + M2,
+ * M1 / (M1 + M2), M2 / (M1 + M2), 1e-12 h; static backlash M, k, h), the drive's F, omega, phi, the period,
+ * the harmonics - compared as bits (-0.0 != 0.0); 0 otherwise or when either is NULL. */
+DFWB_API int dfwb_plant_same_parameters(const dfwb_plant *a, const dfwb_plant *b);
 
 /* An independent exact copy (for an FMU state; its event log copied too), or NULL when out of memory. */
-DFWB_API dfwb_friction *dfwb_friction_copy(const dfwb_friction *p);
+DFWB_API dfwb_plant *dfwb_plant_copy(const dfwb_plant *p);
 
 /* Free an instance (NULL is ignored). */
-DFWB_API void dfwb_friction_free(dfwb_friction *p);
+DFWB_API void dfwb_plant_free(dfwb_plant *p);
 
 /* The event log: capacity > 0 enables it (room for that many entries, grown on demand), 0 disables it
  * and drops its entries. read moves up to max entries, oldest first, into t[] and kind[] (DFWB_EVENT_*)
  * and returns how many; with t or kind NULL or max 0 it returns the number pending. dropped: events not
  * recorded since the log was enabled (it was full, or out of memory). */
-DFWB_API void dfwb_friction_log(dfwb_friction *p, size_t capacity);
-DFWB_API size_t dfwb_friction_log_read(dfwb_friction *p, double *t, int *kind, size_t max);
-DFWB_API unsigned long long dfwb_friction_log_dropped(const dfwb_friction *p);
+DFWB_API void dfwb_plant_log(dfwb_plant *p, size_t capacity);
+DFWB_API size_t dfwb_plant_log_read(dfwb_plant *p, double *t, int *kind, size_t max);
+DFWB_API unsigned long long dfwb_plant_log_dropped(const dfwb_plant *p);
 
+/* The bytes of a state of plant kind (every state of a kind has the same size); 0 for an unknown kind. */
+DFWB_API size_t dfwb_plant_state_size(int kind);
 /* The state as bytes: *size = the bytes it takes; written into buf when buf is not NULL (a buffer
- * smaller than *size: DFWB_E_ARGUMENT). With buf NULL it is a size query (p may be NULL): every state
- * of a plant kind has the same size. */
-DFWB_API int dfwb_friction_to_bytes(const dfwb_friction *p, unsigned char *buf, size_t buflen, size_t *size,
-                                    char *err, size_t errlen);
-/* A new instance from bytes of dfwb_friction_to_bytes (DFWB_E_STATE when they are not a valid state). */
-DFWB_API int dfwb_friction_from_bytes(const unsigned char *buf, size_t len, dfwb_friction **out, char *err,
-                                      size_t errlen);
-
-/* -- the two-mass backlash (TwoMassBacklash) ------------------------------------------------ */
-/* params[DFWB_BACKLASH_PARAMS] (dfwb_parameters.h). */
-DFWB_API int dfwb_backlash_new(const double params[DFWB_BACKLASH_PARAMS], dfwb_backlash **out, char *err,
-                               size_t errlen);
-DFWB_API int dfwb_backlash_set_input(dfwb_backlash *p, double f, char *err, size_t errlen);
-DFWB_API int dfwb_backlash_advance(dfwb_backlash *p, double t_end, char *err, size_t errlen);
-/* out[5] = {x1, v1, x2, v2, gap} at the current time. */
-DFWB_API void dfwb_backlash_output(const dfwb_backlash *p, double out[5]);
-/* Running integrals of x1 (as dfwb_friction_integrals). */
-DFWB_API int dfwb_backlash_integrals(const dfwb_backlash *p, double *re, double *im, char *err, size_t errlen);
-DFWB_API double dfwb_backlash_time(const dfwb_backlash *p);
-DFWB_API long long dfwb_backlash_events(const dfwb_backlash *p);
-DFWB_API int dfwb_backlash_harmonics(const dfwb_backlash *p);
-DFWB_API double dfwb_backlash_period(const dfwb_backlash *p);
-DFWB_API void dfwb_backlash_drive(const dfwb_backlash *p, double out[4]);
-/* The FMU's counters: contact 0 free, 1 at gap 0, 2 at gap h; impacts so far. */
-DFWB_API int dfwb_backlash_contact(const dfwb_backlash *p);
-DFWB_API long long dfwb_backlash_impacts(const dfwb_backlash *p);
-/* As dfwb_friction_same_parameters: M1, M2, h, eps, the derived M1 + M2, M1 / (M1 + M2), M2 / (M1 + M2),
- * 1e-12 h; the drive's F, omega, phi; the period; the harmonics. */
-DFWB_API int dfwb_backlash_same_parameters(const dfwb_backlash *a, const dfwb_backlash *b);
-DFWB_API dfwb_backlash *dfwb_backlash_copy(const dfwb_backlash *p);
-DFWB_API void dfwb_backlash_free(dfwb_backlash *p);
-DFWB_API void dfwb_backlash_log(dfwb_backlash *p, size_t capacity);
-DFWB_API size_t dfwb_backlash_log_read(dfwb_backlash *p, double *t, int *kind, size_t max);
-DFWB_API unsigned long long dfwb_backlash_log_dropped(const dfwb_backlash *p);
-DFWB_API int dfwb_backlash_to_bytes(const dfwb_backlash *p, unsigned char *buf, size_t buflen, size_t *size,
-                                    char *err, size_t errlen);
-DFWB_API int dfwb_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_backlash **out, char *err,
-                                      size_t errlen);
-
-/* -- the static backlash (StaticBacklash) ------------------------------------------------------ */
-/* params[DFWB_STATIC_BACKLASH_PARAMS] (dfwb_parameters.h). */
-DFWB_API int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], dfwb_static_backlash **out,
-                                      char *err, size_t errlen);
-DFWB_API int dfwb_static_backlash_set_input(dfwb_static_backlash *p, double f, char *err, size_t errlen);
-DFWB_API int dfwb_static_backlash_advance(dfwb_static_backlash *p, double t_end, char *err, size_t errlen);
-/* out[3] = {x, v, y} at the current time. */
-DFWB_API void dfwb_static_backlash_output(const dfwb_static_backlash *p, double out[3]);
-/* Running integrals of y (as dfwb_friction_integrals). */
-DFWB_API int dfwb_static_backlash_integrals(const dfwb_static_backlash *p, double *re, double *im, char *err,
-                                            size_t errlen);
-DFWB_API double dfwb_static_backlash_time(const dfwb_static_backlash *p);
-DFWB_API long long dfwb_static_backlash_events(const dfwb_static_backlash *p);
-DFWB_API int dfwb_static_backlash_harmonics(const dfwb_static_backlash *p);
-DFWB_API double dfwb_static_backlash_period(const dfwb_static_backlash *p);
-DFWB_API void dfwb_static_backlash_drive(const dfwb_static_backlash *p, double out[4]);
-/* The FMU's counter: 0 free, +1/-1 engaged at the upper/lower edge of the play. */
-DFWB_API int dfwb_static_backlash_engaged(const dfwb_static_backlash *p);
-/* As dfwb_friction_same_parameters: M, k, h; the drive's F, omega, phi; the period; the harmonics. */
-DFWB_API int dfwb_static_backlash_same_parameters(const dfwb_static_backlash *a, const dfwb_static_backlash *b);
-DFWB_API dfwb_static_backlash *dfwb_static_backlash_copy(const dfwb_static_backlash *p);
-DFWB_API void dfwb_static_backlash_free(dfwb_static_backlash *p);
-DFWB_API void dfwb_static_backlash_log(dfwb_static_backlash *p, size_t capacity);
-DFWB_API size_t dfwb_static_backlash_log_read(dfwb_static_backlash *p, double *t, int *kind, size_t max);
-DFWB_API unsigned long long dfwb_static_backlash_log_dropped(const dfwb_static_backlash *p);
-DFWB_API int dfwb_static_backlash_to_bytes(const dfwb_static_backlash *p, unsigned char *buf, size_t buflen,
-                                           size_t *size, char *err, size_t errlen);
-DFWB_API int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_static_backlash **out,
-                                             char *err, size_t errlen);
+ * smaller than *size: DFWB_E_ARGUMENT). */
+DFWB_API int dfwb_plant_to_bytes(const dfwb_plant *p, unsigned char *buf, size_t buflen, size_t *size, char *err,
+                                 size_t errlen);
+/* A new instance of plant kind from bytes of dfwb_plant_to_bytes (DFWB_E_STATE when they are not a valid
+ * state of that kind). */
+DFWB_API int dfwb_plant_from_bytes(int kind, const unsigned char *buf, size_t len, dfwb_plant **out, char *err,
+                                   size_t errlen);
 
 /* -- the exact closed loops (FrictionLoop, BacklashLoop, StaticBacklashLoop of fmus/loops.py) ------ */
 #define DFWB_LOOP_MAX_ORDER 8
@@ -345,7 +300,7 @@ DFWB_API int dfwb_loop_section(const dfwb_loop *p, double *level);
  * controller's coefficients b and a, the section (none, or its level); 0 otherwise or when either is NULL. */
 DFWB_API int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b);
 
-/* The loop's state as bytes (as dfwb_friction_to_bytes; header kind DFWB_STATE_*_LOOP, one size for every
+/* The loop's state as bytes (as dfwb_plant_to_bytes; header kind DFWB_STATE_*_LOOP, one size for every
  * loop of a plant): its parameters and controller coefficients, the section, the time, the counts, the
  * current mode, the modes built, the chunk (its start, its state, the search flags, a pending event).
  * Not in it: the section's crossings not read yet and the event log. from_bytes(plant, ...) makes a loop of
@@ -358,7 +313,7 @@ DFWB_API int dfwb_loop_to_bytes(const dfwb_loop *p, unsigned char *buf, size_t b
 DFWB_API int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_loop **out, char *err,
                                   size_t errlen);
 
-/* The event log of the loop's events (not the section's crossings), as dfwb_friction_log. */
+/* The event log of the loop's events (not the section's crossings), as dfwb_plant_log. */
 DFWB_API void dfwb_loop_log(dfwb_loop *p, size_t capacity);
 DFWB_API size_t dfwb_loop_log_read(dfwb_loop *p, double *t, int *kind, size_t max);
 DFWB_API unsigned long long dfwb_loop_log_dropped(const dfwb_loop *p);

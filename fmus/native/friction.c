@@ -27,6 +27,8 @@ enum {
     BAND = DFWB_EVENT_BAND
 };
 
+typedef struct dfwb_friction dfwb_friction;
+
 struct dfwb_friction {
     dfwb_pw pw; /* first: the piece machinery (its output, x, is also the searches' subject) */
     double M, B, Fc, Fs, Dv, edge_force;
@@ -225,11 +227,6 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-static const dfwb_friction zero_state = {0}; /* the state's size is counted on it */
-
-static const dfwb_plant_class FRICTION = {DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state,
-                                          offsetof(dfwb_friction, pw.output), fire, restart, state_io, validate};
-
 int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
                         int exact_stick)
 {
@@ -254,53 +251,33 @@ int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs,
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
-/* -- API ------------------------------------------------------------------------------------ */
-int dfwb_friction_new(const double params[DFWB_FRICTION_PARAMS], dfwb_friction **out, char *errbuf, size_t errlen)
+/* -- the class ------------------------------------------------------------------------------------ */
+/* FrictionMass.__init__, then PiecewisePlant's: the order of the Python constructor */
+static int init(void *plant, const double *params, dfwb_err *err)
 {
-    dfwb_err err;
-    dfwb_friction *p;
-    void *plant;
-    double M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics;
+    dfwb_friction *p = (dfwb_friction *)plant;
+    const double M = params[DFWB_FRICTION_M], B = params[DFWB_FRICTION_B], Fc = params[DFWB_FRICTION_Fc];
+    const double Fs = params[DFWB_FRICTION_Fs], Dv = params[DFWB_FRICTION_Dv], F = params[DFWB_FRICTION_F];
+    const double omega = params[DFWB_FRICTION_omega], phi = params[DFWB_FRICTION_phi];
+    const double x0 = params[DFWB_FRICTION_x0], v0 = params[DFWB_FRICTION_v0], f = params[DFWB_FRICTION_f];
+    const double harmonics = params[DFWB_FRICTION_harmonics];
     int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL || params == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_friction_new: NULL params or out");
-    *out = NULL;
-    M = params[DFWB_FRICTION_M], B = params[DFWB_FRICTION_B], Fc = params[DFWB_FRICTION_Fc];
-    Fs = params[DFWB_FRICTION_Fs], Dv = params[DFWB_FRICTION_Dv], F = params[DFWB_FRICTION_F];
-    omega = params[DFWB_FRICTION_omega], phi = params[DFWB_FRICTION_phi], x0 = params[DFWB_FRICTION_x0];
-    v0 = params[DFWB_FRICTION_v0], f = params[DFWB_FRICTION_f], harmonics = params[DFWB_FRICTION_harmonics];
-    /* FrictionMass, then PiecewisePlant: the order of the Python constructor */
-    if ((rc = dfwb_friction_check(&err, M, B, Fc, Fs, Dv, x0, v0, 0)) != DFWB_OK
-        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
-        || (rc = dfwb_plant_alloc(&FRICTION, &plant, &err)) != DFWB_OK)
+    if ((rc = dfwb_friction_check(err, M, B, Fc, Fs, Dv, x0, v0, 0)) != DFWB_OK
+        || (rc = dfwb_check_drive(err, F, omega, phi, f, harmonics)) != DFWB_OK)
         return rc;
-    p = (dfwb_friction *)plant;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
     p->M = M, p->B = B, p->Fc = Fc, p->Fs = Fs, p->Dv = Dv;
     p->edge_force = Fc + B * Dv; /* friction just outside the band */
     p->mode = HOLD;
     p->direction = 0;
-    rc = dfwb_plant_created(&p->pw, dfwb_err_finish(&err, start(p, 0.0, x0, v0, 0, &err)), &plant);
-    *out = (dfwb_friction *)plant;
-    return rc;
+    return dfwb_err_finish(err, start(p, 0.0, x0, v0, 0, err));
 }
 
-int dfwb_friction_set_input(dfwb_friction *p, double f, char *errbuf, size_t errlen)
+/* {x, v, Ff, mode} */
+static void output(const void *plant, double *out)
 {
-    return dfwb_plant_set_input(&FRICTION, DFWB_PW(p), f, errbuf, errlen);
-}
-
-int dfwb_friction_advance(dfwb_friction *p, double t_end, char *errbuf, size_t errlen)
-{
-    return dfwb_plant_advance(&FRICTION, DFWB_PW(p), t_end, errbuf, errlen);
-}
-
-void dfwb_friction_output(const dfwb_friction *p, double out[4])
-{
+    const dfwb_friction *p = (const dfwb_friction *)plant;
     double x, v, acc;
-    if (p == NULL || out == NULL)
-        return;
     dfwb_motion_state(&p->pw.output, p->pw.t, &x, &v);
     acc = dfwb_motion_acceleration(&p->pw.output, p->pw.t, v);
     out[0] = x;
@@ -309,61 +286,16 @@ void dfwb_friction_output(const dfwb_friction *p, double out[4])
     out[3] = p->mode == SLIDE ? (double)p->direction : 0.0;
 }
 
-int dfwb_friction_integrals(const dfwb_friction *p, double *re, double *im, char *errbuf, size_t errlen)
+static int same(const void *one, const void *other)
 {
-    return dfwb_plant_integrals(&FRICTION, DFWB_PW(p), re, im, errbuf, errlen);
-}
-
-double dfwb_friction_time(const dfwb_friction *p) { return p == NULL ? NAN : p->pw.t; }
-
-long long dfwb_friction_events(const dfwb_friction *p) { return p == NULL ? -1 : p->pw.events; }
-
-int dfwb_friction_harmonics(const dfwb_friction *p) { return p == NULL ? -1 : p->pw.harmonics; }
-
-double dfwb_friction_period(const dfwb_friction *p) { return p == NULL ? NAN : p->pw.period; }
-
-void dfwb_friction_drive(const dfwb_friction *p, double out[4])
-{
-    if (p != NULL && out != NULL)
-        dfwb_drive_values(&p->pw.drive, out);
-}
-
-int dfwb_friction_same_parameters(const dfwb_friction *a, const dfwb_friction *b)
-{
-    if (a == NULL || b == NULL)
-        return 0;
-    return dfwb_pw_same_parameters(&a->pw, &b->pw) && dfwb_same_double(a->M, b->M) && dfwb_same_double(a->B, b->B)
-           && dfwb_same_double(a->Fc, b->Fc) && dfwb_same_double(a->Fs, b->Fs) && dfwb_same_double(a->Dv, b->Dv)
+    const dfwb_friction *a = (const dfwb_friction *)one, *b = (const dfwb_friction *)other;
+    return dfwb_same_double(a->M, b->M) && dfwb_same_double(a->B, b->B) && dfwb_same_double(a->Fc, b->Fc)
+           && dfwb_same_double(a->Fs, b->Fs) && dfwb_same_double(a->Dv, b->Dv)
            && dfwb_same_double(a->edge_force, b->edge_force);
 }
 
-dfwb_friction *dfwb_friction_copy(const dfwb_friction *p)
-{
-    return (dfwb_friction *)dfwb_plant_copy(&FRICTION, DFWB_PW(p));
-}
+static const dfwb_friction zero_state = {0}; /* the state's size is counted on it */
 
-void dfwb_friction_free(dfwb_friction *p) { dfwb_plant_free(DFWB_PW(p)); }
-
-void dfwb_friction_log(dfwb_friction *p, size_t capacity) { dfwb_plant_log(DFWB_PW(p), capacity); }
-
-size_t dfwb_friction_log_read(dfwb_friction *p, double *t, int *kind, size_t max)
-{
-    return dfwb_plant_log_read(DFWB_PW(p), t, kind, max);
-}
-
-unsigned long long dfwb_friction_log_dropped(const dfwb_friction *p) { return dfwb_plant_log_dropped(DFWB_PW(p)); }
-
-int dfwb_friction_to_bytes(const dfwb_friction *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
-                           size_t errlen)
-{
-    return dfwb_plant_to_bytes(&FRICTION, DFWB_PW(p), buf, buflen, size, errbuf, errlen);
-}
-
-int dfwb_friction_from_bytes(const unsigned char *buf, size_t len, dfwb_friction **out, char *errbuf, size_t errlen)
-{
-    void *plant = NULL;
-    const int rc = dfwb_plant_from_bytes(&FRICTION, buf, len, out == NULL ? NULL : &plant, errbuf, errlen);
-    if (out != NULL)
-        *out = (dfwb_friction *)plant;
-    return rc;
-}
+const dfwb_plant_class dfwb_friction_class = {
+    DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state, offsetof(dfwb_friction, pw.output), fire, restart,
+    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same};

@@ -835,98 +835,179 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
 /* -- what every plant's API does alike ----------------------------------------------------------- */
 int dfwb_core_abi_version(void) { return DFWB_CORE_ABI; }
 
-int dfwb_plant_alloc(const dfwb_plant_class *cls, void **out, dfwb_err *err)
+/* The class of a plant kind, NULL for a kind the core does not know. */
+static const dfwb_plant_class *class_of(int kind)
+{
+    switch (kind) {
+    case DFWB_PLANT_FRICTION: return &dfwb_friction_class;
+    case DFWB_PLANT_BACKLASH: return &dfwb_backlash_class;
+    case DFWB_PLANT_STATIC_BACKLASH: return &dfwb_static_backlash_class;
+    default: return NULL;
+    }
+}
+
+int dfwb_plant_shape(int kind, size_t *nparams, size_t *noutputs, size_t *ncounters)
+{
+    const dfwb_plant_class *cls = class_of(kind);
+    if (cls == NULL)
+        return DFWB_E_ARGUMENT;
+    if (nparams != NULL)
+        *nparams = cls->nparams;
+    if (noutputs != NULL)
+        *noutputs = cls->noutputs;
+    if (ncounters != NULL)
+        *ncounters = cls->ncounters;
+    return DFWB_OK;
+}
+
+/* A zeroed instance of cls (DFWB_E_MEMORY, *out NULL, when out of memory). */
+static int plant_alloc(const dfwb_plant_class *cls, dfwb_plant **out, dfwb_err *err)
 {
     *out = calloc(1, cls->size);
     if (*out == NULL)
         return dfwb_fail(err, DFWB_E_MEMORY, "out of memory (a %s)", dfwb_plant_name(cls->kind));
+    (*out)->pw.cls = cls;
     return DFWB_OK;
 }
 
-int dfwb_plant_created(dfwb_pw *pw, int rc, void **out)
+/* The end of making a plant: rc OK gives *out = p, else p is freed (*out NULL). */
+static int plant_created(dfwb_plant *p, int rc, dfwb_plant **out)
 {
     if (rc != DFWB_OK) {
-        dfwb_plant_free(pw);
+        dfwb_plant_free(p);
         *out = NULL;
         return rc;
     }
-    *out = pw; /* the plant: pw is its first member */
+    *out = p;
     return DFWB_OK;
 }
 
-static const dfwb_motion *subject_of(const dfwb_plant_class *cls, const dfwb_pw *pw)
+int dfwb_plant_new(int kind, const double *params, size_t nparams, dfwb_plant **out, char *errbuf, size_t errlen)
 {
-    return (const dfwb_motion *)(const void *)((const char *)pw + cls->subject);
+    const dfwb_plant_class *cls = class_of(kind);
+    dfwb_plant *p;
+    dfwb_err err;
+    int rc;
+    dfwb_err_init(&err, errbuf, errlen);
+    if (out == NULL || params == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_new: NULL params or out");
+    *out = NULL;
+    if (cls == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_new: unknown plant kind %d", kind);
+    if (nparams != cls->nparams)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_new: a %s takes %lu parameters, not %lu",
+                         dfwb_plant_name(kind), (unsigned long)cls->nparams, (unsigned long)nparams);
+    if ((rc = plant_alloc(cls, &p, &err)) != DFWB_OK)
+        return rc;
+    return plant_created(p, cls->init(p, params, &err), out);
 }
 
-int dfwb_plant_set_input(const dfwb_plant_class *cls, dfwb_pw *pw, double f, char *errbuf, size_t errlen)
+int dfwb_plant_kind(const dfwb_plant *p) { return p == NULL ? 0 : p->pw.cls->kind; }
+
+static const dfwb_motion *subject_of(const dfwb_pw *pw)
+{
+    return (const dfwb_motion *)(const void *)((const char *)pw + pw->cls->subject);
+}
+
+int dfwb_plant_set_input(dfwb_plant *p, double f, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_err_init(&err, errbuf, errlen);
-    if (pw == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_set_input: NULL instance", dfwb_plant_name(cls->kind));
-    return dfwb_err_finish(&err, dfwb_pw_set_input(pw, f, cls->restart, pw, &err));
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_set_input: NULL instance");
+    return dfwb_err_finish(&err, dfwb_pw_set_input(&p->pw, f, p->pw.cls->restart, p, &err));
 }
 
-int dfwb_plant_advance(const dfwb_plant_class *cls, dfwb_pw *pw, double t_end, char *errbuf, size_t errlen)
+int dfwb_plant_advance(dfwb_plant *p, double t_end, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_err_init(&err, errbuf, errlen);
-    if (pw == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_advance: NULL instance", dfwb_plant_name(cls->kind));
-    return dfwb_err_finish(&err, dfwb_pw_advance(pw, t_end, subject_of(cls, pw), cls->fire, pw, &err));
+    if (p == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_advance: NULL instance");
+    return dfwb_err_finish(&err, dfwb_pw_advance(&p->pw, t_end, subject_of(&p->pw), p->pw.cls->fire, p, &err));
 }
 
-int dfwb_plant_integrals(const dfwb_plant_class *cls, const dfwb_pw *pw, double *re, double *im, char *errbuf,
-                         size_t errlen)
+void dfwb_plant_output(const dfwb_plant *p, double *out)
+{
+    if (p != NULL && out != NULL)
+        p->pw.cls->output(p, out);
+}
+
+int dfwb_plant_integrals(const dfwb_plant *p, double *re, double *im, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_err_init(&err, errbuf, errlen);
-    if (pw == NULL || re == NULL || im == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_integrals: NULL instance or array", dfwb_plant_name(cls->kind));
-    dfwb_pw_integrals(pw, re, im, &err);
+    if (p == NULL || re == NULL || im == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_integrals: NULL instance or array");
+    dfwb_pw_integrals(&p->pw, re, im, &err);
     return dfwb_err_finish(&err, DFWB_OK);
 }
 
-void *dfwb_plant_copy(const dfwb_plant_class *cls, const dfwb_pw *pw)
+double dfwb_plant_time(const dfwb_plant *p) { return p == NULL ? NAN : p->pw.t; }
+
+long long dfwb_plant_events(const dfwb_plant *p) { return p == NULL ? -1 : p->pw.events; }
+
+int dfwb_plant_harmonics(const dfwb_plant *p) { return p == NULL ? -1 : p->pw.harmonics; }
+
+double dfwb_plant_period(const dfwb_plant *p) { return p == NULL ? NAN : p->pw.period; }
+
+void dfwb_plant_drive(const dfwb_plant *p, double out[4])
 {
-    dfwb_pw *copy;
-    if (pw == NULL)
+    if (p != NULL && out != NULL)
+        dfwb_drive_values(&p->pw.drive, out);
+}
+
+long long dfwb_plant_counter(const dfwb_plant *p, size_t i)
+{
+    return p == NULL || i >= p->pw.cls->ncounters ? -1 : p->pw.cls->counter(p, i);
+}
+
+int dfwb_plant_same_parameters(const dfwb_plant *a, const dfwb_plant *b)
+{
+    if (a == NULL || b == NULL || a->pw.cls != b->pw.cls)
+        return 0;
+    return dfwb_pw_same_parameters(&a->pw, &b->pw) && a->pw.cls->same(a, b);
+}
+
+dfwb_plant *dfwb_plant_copy(const dfwb_plant *p)
+{
+    dfwb_plant *copy;
+    if (p == NULL)
         return NULL;
-    copy = (dfwb_pw *)malloc(cls->size);
+    copy = (dfwb_plant *)malloc(p->pw.cls->size);
     if (copy == NULL)
         return NULL;
-    memcpy(copy, pw, cls->size); /* the whole plant: pw is its first member */
-    copy->stack.data = NULL;      /* a workspace of its own */
-    copy->stack.cap = 0;
-    if (!dfwb_log_copy(&copy->log, &pw->log)) {
+    memcpy(copy, p, p->pw.cls->size); /* the whole plant: pw is its first member */
+    copy->pw.stack.data = NULL;        /* a workspace of its own */
+    copy->pw.stack.cap = 0;
+    if (!dfwb_log_copy(&copy->pw.log, &p->pw.log)) {
         free(copy);
         return NULL;
     }
     return copy;
 }
 
-void dfwb_plant_free(dfwb_pw *pw)
+void dfwb_plant_free(dfwb_plant *p)
 {
-    if (pw == NULL)
+    if (p == NULL)
         return;
-    dfwb_stack_free(&pw->stack);
-    dfwb_log_free(&pw->log);
-    free(pw); /* the plant */
+    dfwb_stack_free(&p->pw.stack);
+    dfwb_log_free(&p->pw.log);
+    free(p);
 }
 
-void dfwb_plant_log(dfwb_pw *pw, size_t capacity)
+void dfwb_plant_log(dfwb_plant *p, size_t capacity)
 {
-    if (pw != NULL)
-        dfwb_log_enable(&pw->log, capacity);
+    if (p != NULL)
+        dfwb_log_enable(&p->pw.log, capacity);
 }
 
-size_t dfwb_plant_log_read(dfwb_pw *pw, double *t, int *kind, size_t max)
+size_t dfwb_plant_log_read(dfwb_plant *p, double *t, int *kind, size_t max)
 {
-    return pw == NULL ? 0 : dfwb_log_read(&pw->log, t, kind, max);
+    return p == NULL ? 0 : dfwb_log_read(&p->pw.log, t, kind, max);
 }
 
-unsigned long long dfwb_plant_log_dropped(const dfwb_pw *pw) { return pw == NULL ? 0 : pw->log.dropped; }
+unsigned long long dfwb_plant_log_dropped(const dfwb_plant *p) { return p == NULL ? 0 : p->pw.log.dropped; }
 
 /* The payload's bytes: the plant's fields counted on its zeroed instance (writing nothing, changing nothing). */
 static size_t payload_size(const dfwb_plant_class *cls)
@@ -937,56 +1018,62 @@ static size_t payload_size(const dfwb_plant_class *cls)
     return io.pos;
 }
 
-int dfwb_plant_to_bytes(const dfwb_plant_class *cls, const dfwb_pw *pw, unsigned char *buf, size_t buflen,
-                        size_t *size, char *errbuf, size_t errlen)
+size_t dfwb_plant_state_size(int kind)
+{
+    const dfwb_plant_class *cls = class_of(kind);
+    return cls == NULL ? 0 : DFWB_STATE_HEADER + payload_size(cls);
+}
+
+int dfwb_plant_to_bytes(const dfwb_plant *p, unsigned char *buf, size_t buflen, size_t *size, char *errbuf,
+                        size_t errlen)
 {
     dfwb_err err;
     dfwb_io io;
-    const char *name = dfwb_plant_name(cls->kind);
-    const size_t payload = payload_size(cls), needed = DFWB_STATE_HEADER + payload;
+    size_t payload;
     int rc;
     dfwb_err_init(&err, errbuf, errlen);
-    if (size == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_to_bytes: NULL size", name);
-    *size = needed;
-    if (buf == NULL) /* a size query (pw may be NULL) */
+    if (p == NULL || size == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_to_bytes: NULL instance or size");
+    payload = payload_size(p->pw.cls);
+    *size = DFWB_STATE_HEADER + payload;
+    if (buf == NULL) /* a size query */
         return DFWB_OK;
-    if (pw == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_to_bytes: NULL instance", name);
-    rc = dfwb_state_buffer(needed, buflen, &err);
+    rc = dfwb_state_buffer(*size, buflen, &err);
     if (rc != DFWB_OK)
         return rc;
     dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
-    cls->io(&io, (void *)pw); /* writing reads the plant only */
-    dfwb_state_header(buf, cls->kind, payload);
+    p->pw.cls->io(&io, (void *)p); /* writing reads the plant only */
+    dfwb_state_header(buf, p->pw.cls->kind, payload);
     return DFWB_OK;
 }
 
-int dfwb_plant_from_bytes(const dfwb_plant_class *cls, const unsigned char *buf, size_t len, void **out,
-                          char *errbuf, size_t errlen)
+int dfwb_plant_from_bytes(int kind, const unsigned char *buf, size_t len, dfwb_plant **out, char *errbuf,
+                          size_t errlen)
 {
+    const dfwb_plant_class *cls = class_of(kind);
     dfwb_err err;
     dfwb_io io;
-    dfwb_pw *pw;
-    void *plant;
-    const size_t payload = payload_size(cls);
+    dfwb_plant *p;
+    size_t payload;
     int rc;
     dfwb_err_init(&err, errbuf, errlen);
     if (out == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "%s_from_bytes: NULL out", dfwb_plant_name(cls->kind));
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_from_bytes: NULL out");
     *out = NULL;
+    if (cls == NULL)
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_plant_from_bytes: unknown plant kind %d", kind);
+    payload = payload_size(cls);
     rc = dfwb_state_open(buf, len, cls->kind, payload, &err);
     if (rc != DFWB_OK)
         return rc;
-    rc = dfwb_plant_alloc(cls, &plant, &err);
+    rc = plant_alloc(cls, &p, &err);
     if (rc != DFWB_OK)
         return rc;
-    pw = (dfwb_pw *)plant;
     dfwb_io_reader(&io, buf + DFWB_STATE_HEADER, payload);
-    cls->io(&io, plant);
+    cls->io(&io, p);
     if (io.bad_int)
         rc = dfwb_fail(&err, DFWB_E_STATE, "the state holds an integer field out of range");
-    else if ((rc = dfwb_pw_validate(pw, &err)) == DFWB_OK)
-        rc = cls->validate(plant, &err);
-    return dfwb_plant_created(pw, rc, out);
+    else if ((rc = dfwb_pw_validate(&p->pw, &err)) == DFWB_OK)
+        rc = cls->validate(p, &err);
+    return plant_created(p, rc, out);
 }

@@ -127,7 +127,10 @@ typedef struct {
     int kind;
 } dfwb_search;
 
+typedef struct dfwb_plant_class dfwb_plant_class;
+
 typedef struct {
+    const dfwb_plant_class *cls; /* the plant's class (not state: set when the instance is made) */
     dfwb_drive drive;
     double period;
     int harmonics;
@@ -179,8 +182,8 @@ void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw);
  * checks its kinds. *pw is then usable (P recomputed, no workspace, log off). */
 int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err);
 
-/* -- a plant: a struct whose first member is its dfwb_pw, and what every plant's API does alike ------- */
-typedef struct {
+/* -- a plant: a struct whose first member is its dfwb_pw, and its class ------------------------------ */
+struct dfwb_plant_class {
     int kind;              /* DFWB_PLANT_*: its states' header, its name in messages */
     size_t size;           /* sizeof the plant's struct */
     const void *zero;      /* a zeroed instance (static const): the state's size is counted on it */
@@ -192,22 +195,25 @@ typedef struct {
     /* The plant's own checks of a state read into it (after dfwb_pw_validate): DFWB_E_STATE when refused;
      * then it is usable (derived constants computed, every motion's P recomputed). */
     int (*validate)(void *plant, dfwb_err *err);
-} dfwb_plant_class;
+    size_t nparams;        /* the length of dfwb_plant_new's array (dfwb_parameters.h) */
+    size_t noutputs;       /* the length of dfwb_plant_output's array */
+    size_t ncounters;      /* the plant's counters beyond events (dfwb_plant_counter) */
+    /* Make the zeroed plant (its pw.cls set) the one at t = 0 from params[nparams], checked in its Python
+     * constructor's order; on refusal dfwb_plant_new frees it. */
+    int (*init)(void *plant, const double *params, dfwb_err *err);
+    void (*output)(const void *plant, double *out);
+    long long (*counter)(const void *plant, size_t i);
+    /* The plant's own fixed parameters (and what is derived from them) of a and b have the same bits. */
+    int (*same)(const void *a, const void *b);
+};
 
-/* The pw of a plant pointer p, NULL when p is. */
-#define DFWB_PW(p) ((p) == NULL ? NULL : &(p)->pw)
+/* The public dfwb_plant is any plant's struct, seen through its first member. */
+struct dfwb_plant {
+    dfwb_pw pw;
+};
 
-/* A new zeroed instance (DFWB_E_MEMORY, *out NULL, when out of memory); the caller then initialises its pw. */
-int dfwb_plant_alloc(const dfwb_plant_class *cls, void **out, dfwb_err *err);
-/* The end of dfwb_*_new: rc (of dfwb_err_finish) OK gives *out = the plant, else it is freed (*out NULL). */
-int dfwb_plant_created(dfwb_pw *pw, int rc, void **out);
-/* The API functions (a NULL pw: the NULL instance of the call; named after cls->kind in messages). */
-int dfwb_plant_set_input(const dfwb_plant_class *cls, dfwb_pw *pw, double f, char *errbuf, size_t errlen);
-int dfwb_plant_advance(const dfwb_plant_class *cls, dfwb_pw *pw, double t_end, char *errbuf, size_t errlen);
-int dfwb_plant_integrals(const dfwb_plant_class *cls, const dfwb_pw *pw, double *re, double *im, char *errbuf,
-                         size_t errlen);
-void *dfwb_plant_copy(const dfwb_plant_class *cls, const dfwb_pw *pw); /* NULL when pw is or out of memory */
-void dfwb_plant_free(dfwb_pw *pw);
+/* The classes of the core's plants (each plant's file defines its own). */
+extern const dfwb_plant_class dfwb_friction_class, dfwb_backlash_class, dfwb_static_backlash_class;
 
 /* Each plant's parameter checks, in its Python check_*'s order: shared by the plant and its closed loop (the
  * loop's friction needs exact stick, Dv = 0). gap0 is given (the caller's None is h/2). */
@@ -216,12 +222,5 @@ int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs,
 int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
                         double v2_0, double gap0);
 int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, double x0, double v0);
-void dfwb_plant_log(dfwb_pw *pw, size_t capacity);
-size_t dfwb_plant_log_read(dfwb_pw *pw, double *t, int *kind, size_t max);
-unsigned long long dfwb_plant_log_dropped(const dfwb_pw *pw);
-int dfwb_plant_to_bytes(const dfwb_plant_class *cls, const dfwb_pw *pw, unsigned char *buf, size_t buflen,
-                        size_t *size, char *errbuf, size_t errlen);
-int dfwb_plant_from_bytes(const dfwb_plant_class *cls, const unsigned char *buf, size_t len, void **out,
-                          char *errbuf, size_t errlen);
 
 #endif /* DFWB_PLANT_H */

@@ -15,6 +15,8 @@
 #include "exact.h"
 #include "plant.h"
 
+typedef struct dfwb_static_backlash dfwb_static_backlash;
+
 struct dfwb_static_backlash {
     dfwb_pw pw; /* first: the piece machinery (its output is y) */
     double M, k, h;
@@ -196,12 +198,6 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-static const dfwb_static_backlash zero_state = {0}; /* the state's size is counted on it */
-
-static const dfwb_plant_class STATIC_BACKLASH = {DFWB_PLANT_STATIC_BACKLASH, sizeof(dfwb_static_backlash),
-                                                 &zero_state, offsetof(dfwb_static_backlash, mass), fire, restart,
-                                                 state_io, validate};
-
 int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, double x0, double v0)
 {
     int rc;
@@ -213,52 +209,31 @@ int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, doub
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
-/* -- API ------------------------------------------------------------------------------------ */
-int dfwb_static_backlash_new(const double params[DFWB_STATIC_BACKLASH_PARAMS], dfwb_static_backlash **out,
-                             char *errbuf, size_t errlen)
+/* -- the class ------------------------------------------------------------------------------------ */
+/* StaticBacklash.__init__, then PiecewisePlant's: the order of the Python constructor */
+static int init(void *plant, const double *params, dfwb_err *err)
 {
-    dfwb_err err;
-    dfwb_static_backlash *p;
-    void *plant;
-    double M, k, h, F, omega, phi, x0, v0, f, harmonics;
+    dfwb_static_backlash *p = (dfwb_static_backlash *)plant;
+    const double M = params[DFWB_STATIC_BACKLASH_M], k = params[DFWB_STATIC_BACKLASH_k];
+    const double h = params[DFWB_STATIC_BACKLASH_h], F = params[DFWB_STATIC_BACKLASH_F];
+    const double omega = params[DFWB_STATIC_BACKLASH_omega], phi = params[DFWB_STATIC_BACKLASH_phi];
+    const double x0 = params[DFWB_STATIC_BACKLASH_x0], v0 = params[DFWB_STATIC_BACKLASH_v0];
+    const double f = params[DFWB_STATIC_BACKLASH_f], harmonics = params[DFWB_STATIC_BACKLASH_harmonics];
     int rc;
-    dfwb_err_init(&err, errbuf, errlen);
-    if (out == NULL || params == NULL)
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_static_backlash_new: NULL params or out");
-    *out = NULL;
-    M = params[DFWB_STATIC_BACKLASH_M], k = params[DFWB_STATIC_BACKLASH_k], h = params[DFWB_STATIC_BACKLASH_h];
-    F = params[DFWB_STATIC_BACKLASH_F], omega = params[DFWB_STATIC_BACKLASH_omega];
-    phi = params[DFWB_STATIC_BACKLASH_phi], x0 = params[DFWB_STATIC_BACKLASH_x0];
-    v0 = params[DFWB_STATIC_BACKLASH_v0], f = params[DFWB_STATIC_BACKLASH_f];
-    harmonics = params[DFWB_STATIC_BACKLASH_harmonics];
-    if ((rc = dfwb_static_backlash_check(&err, M, k, h, x0, v0)) != DFWB_OK
-        || (rc = dfwb_check_drive(&err, F, omega, phi, f, harmonics)) != DFWB_OK
-        || (rc = dfwb_plant_alloc(&STATIC_BACKLASH, &plant, &err)) != DFWB_OK)
+    if ((rc = dfwb_static_backlash_check(err, M, k, h, x0, v0)) != DFWB_OK
+        || (rc = dfwb_check_drive(err, F, omega, phi, f, harmonics)) != DFWB_OK)
         return rc;
-    p = (dfwb_static_backlash *)plant;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
     p->M = M, p->k = k, p->h = h;
     p->engaged = 0;
-    rc = dfwb_plant_created(&p->pw, dfwb_err_finish(&err, free_play(p, 0.0, x0, v0, k * x0, 0, &err)), &plant);
-    *out = (dfwb_static_backlash *)plant;
-    return rc;
+    return dfwb_err_finish(err, free_play(p, 0.0, x0, v0, k * x0, 0, err));
 }
 
-int dfwb_static_backlash_set_input(dfwb_static_backlash *p, double f, char *errbuf, size_t errlen)
+/* {x, v, y} */
+static void output(const void *plant, double *out)
 {
-    return dfwb_plant_set_input(&STATIC_BACKLASH, DFWB_PW(p), f, errbuf, errlen);
-}
-
-int dfwb_static_backlash_advance(dfwb_static_backlash *p, double t_end, char *errbuf, size_t errlen)
-{
-    return dfwb_plant_advance(&STATIC_BACKLASH, DFWB_PW(p), t_end, errbuf, errlen);
-}
-
-void dfwb_static_backlash_output(const dfwb_static_backlash *p, double out[3])
-{
+    const dfwb_static_backlash *p = (const dfwb_static_backlash *)plant;
     double x, v, y, w;
-    if (p == NULL || out == NULL)
-        return;
     dfwb_motion_state(&p->mass, p->pw.t, &x, &v);
     dfwb_motion_state(&p->pw.output, p->pw.t, &y, &w);
     out[0] = x;
@@ -266,67 +241,21 @@ void dfwb_static_backlash_output(const dfwb_static_backlash *p, double out[3])
     out[2] = y;
 }
 
-int dfwb_static_backlash_integrals(const dfwb_static_backlash *p, double *re, double *im, char *errbuf,
-                                   size_t errlen)
+/* 0 engaged (0 free, +1/-1 at the upper/lower edge of the play) */
+static long long counter(const void *plant, size_t i)
 {
-    return dfwb_plant_integrals(&STATIC_BACKLASH, DFWB_PW(p), re, im, errbuf, errlen);
+    (void)i;
+    return ((const dfwb_static_backlash *)plant)->engaged;
 }
 
-double dfwb_static_backlash_time(const dfwb_static_backlash *p) { return p == NULL ? NAN : p->pw.t; }
-
-long long dfwb_static_backlash_events(const dfwb_static_backlash *p) { return p == NULL ? -1 : p->pw.events; }
-
-int dfwb_static_backlash_harmonics(const dfwb_static_backlash *p) { return p == NULL ? -1 : p->pw.harmonics; }
-
-double dfwb_static_backlash_period(const dfwb_static_backlash *p) { return p == NULL ? NAN : p->pw.period; }
-
-void dfwb_static_backlash_drive(const dfwb_static_backlash *p, double out[4])
+static int same(const void *one, const void *other)
 {
-    if (p != NULL && out != NULL)
-        dfwb_drive_values(&p->pw.drive, out);
+    const dfwb_static_backlash *a = (const dfwb_static_backlash *)one, *b = (const dfwb_static_backlash *)other;
+    return dfwb_same_double(a->M, b->M) && dfwb_same_double(a->k, b->k) && dfwb_same_double(a->h, b->h);
 }
 
-int dfwb_static_backlash_engaged(const dfwb_static_backlash *p) { return p == NULL ? 0 : p->engaged; }
+static const dfwb_static_backlash zero_state = {0}; /* the state's size is counted on it */
 
-int dfwb_static_backlash_same_parameters(const dfwb_static_backlash *a, const dfwb_static_backlash *b)
-{
-    if (a == NULL || b == NULL)
-        return 0;
-    return dfwb_pw_same_parameters(&a->pw, &b->pw) && dfwb_same_double(a->M, b->M) && dfwb_same_double(a->k, b->k)
-           && dfwb_same_double(a->h, b->h);
-}
-
-dfwb_static_backlash *dfwb_static_backlash_copy(const dfwb_static_backlash *p)
-{
-    return (dfwb_static_backlash *)dfwb_plant_copy(&STATIC_BACKLASH, DFWB_PW(p));
-}
-
-void dfwb_static_backlash_free(dfwb_static_backlash *p) { dfwb_plant_free(DFWB_PW(p)); }
-
-void dfwb_static_backlash_log(dfwb_static_backlash *p, size_t capacity) { dfwb_plant_log(DFWB_PW(p), capacity); }
-
-size_t dfwb_static_backlash_log_read(dfwb_static_backlash *p, double *t, int *kind, size_t max)
-{
-    return dfwb_plant_log_read(DFWB_PW(p), t, kind, max);
-}
-
-unsigned long long dfwb_static_backlash_log_dropped(const dfwb_static_backlash *p)
-{
-    return dfwb_plant_log_dropped(DFWB_PW(p));
-}
-
-int dfwb_static_backlash_to_bytes(const dfwb_static_backlash *p, unsigned char *buf, size_t buflen,
-                                  size_t *size, char *errbuf, size_t errlen)
-{
-    return dfwb_plant_to_bytes(&STATIC_BACKLASH, DFWB_PW(p), buf, buflen, size, errbuf, errlen);
-}
-
-int dfwb_static_backlash_from_bytes(const unsigned char *buf, size_t len, dfwb_static_backlash **out,
-                                    char *errbuf, size_t errlen)
-{
-    void *plant = NULL;
-    const int rc = dfwb_plant_from_bytes(&STATIC_BACKLASH, buf, len, out == NULL ? NULL : &plant, errbuf, errlen);
-    if (out != NULL)
-        *out = (dfwb_static_backlash *)plant;
-    return rc;
-}
+const dfwb_plant_class dfwb_static_backlash_class = {
+    DFWB_PLANT_STATIC_BACKLASH, sizeof(dfwb_static_backlash), &zero_state, offsetof(dfwb_static_backlash, mass),
+    fire, restart, state_io, validate, DFWB_STATIC_BACKLASH_PARAMS, 3, 1, init, output, counter, same};

@@ -21,7 +21,7 @@
      restores it (the outputs are the state's own: 0 for a state before initialisation); a state handle
      of another FMU (a tag of the GUID marks this model's) is refused, never read as this model's; a
      serialized state ("DFWBFMUS", a version, the plant kind, the model's GUID, the facade's values, the
-     solver's checked bytes of dfwb_*_to_bytes) is accepted only by this model of the same build, and only
+     solver's checked bytes of dfwb_plant_to_bytes) is accepted only by this model of the same build, and only
      when every field is valid and the solver's fixed parameters are those its parameter values make
      (dfwb_*_same_parameters) at the state's time.
 
@@ -52,11 +52,9 @@
 enum {
     ROLE_PARAMETER = 1, /* index: the core parameter it sets */
     ROLE_INPUT,         /* the input force f */
-    ROLE_OUTPUT,        /* index: into dfwb_*_output's array */
+    ROLE_OUTPUT,        /* index: into dfwb_plant_output's array */
     ROLE_EVENTS,
-    ROLE_CONTACT,
-    ROLE_IMPACTS,
-    ROLE_ENGAGED,
+    ROLE_COUNTER, /* index: the plant's counter (dfwb_plant_counter) */
     ROLE_COSINE, /* index: k of Ick */
     ROLE_SINE,   /* index: k of Isk */
     ROLE_TIME    /* the independent variable (FMI 3.0 declares it) */
@@ -72,24 +70,9 @@ typedef struct {
 
 #include "dfwb_model.h" /* DFWB_MODEL_NAME, _KIND, _GUID, _VARIABLES[], _NVARS, _INPUT_PARAMETER, ... */
 
-#if DFWB_MODEL_KIND == DFWB_PLANT_FRICTION
-typedef dfwb_friction plant;
-#define CORE(name) dfwb_friction_##name
-#define NPARAMS DFWB_FRICTION_PARAMS
-#define NOUT 4
-#elif DFWB_MODEL_KIND == DFWB_PLANT_BACKLASH
-typedef dfwb_backlash plant;
-#define CORE(name) dfwb_backlash_##name
-#define NPARAMS DFWB_BACKLASH_PARAMS
-#define NOUT 5
-#elif DFWB_MODEL_KIND == DFWB_PLANT_STATIC_BACKLASH
-typedef dfwb_static_backlash plant;
-#define CORE(name) dfwb_static_backlash_##name
-#define NPARAMS DFWB_STATIC_BACKLASH_PARAMS
-#define NOUT 3
-#else
-#error "dfwb_model.h: unknown DFWB_MODEL_KIND"
-#endif
+typedef dfwb_plant plant;
+#define NPARAMS DFWB_MODEL_PARAMS /* dfwb_model.h: the plant's shape (dfwb_plant_shape) */
+#define NOUT DFWB_MODEL_OUTPUTS
 
 #define NVARS (sizeof DFWB_MODEL_VARIABLES / sizeof DFWB_MODEL_VARIABLES[0])
 #define NK (DFWB_HARMONICS_MAX + 1)
@@ -238,7 +221,7 @@ static int new_solver(const facade *f, plant **out, char *err, size_t errlen)
     double params[NPARAMS];
     int rc;
     core_parameters(f, params);
-    rc = CORE(new)(params, out, err, errlen);
+    rc = dfwb_plant_new(DFWB_MODEL_KIND, params, NPARAMS, out, err, errlen);
     if (rc != DFWB_OK && err) integer_values(f, err);
     return rc;
 }
@@ -249,7 +232,7 @@ static void set_rotation(instance *c)
     int k;
     c->rotated = c->solver != NULL && c->f.start != 0.0;
     if (!c->rotated) return;
-    for (k = 0; k <= CORE(harmonics)(c->solver); k++) {
+    for (k = 0; k <= dfwb_plant_harmonics(c->solver); k++) {
         dfwb_cx z = dfwb_cx_make(-0.0, -1.0);
         z = dfwb_cx_mul(z, dfwb_cx_real((double)k));
         z = dfwb_cx_mul(z, dfwb_cx_real(c->f.values[DFWB_MODEL_OMEGA_VR]));
@@ -265,20 +248,14 @@ static void refresh(instance *c)
     size_t i;
     int overflow = 0;
     if (c->frozen) return;
-    CORE(output)(c->solver, state);
+    dfwb_plant_output(c->solver, state);
     for (i = 0; i < NVARS; i++) {
         const model_variable *v = &DFWB_MODEL_VARIABLES[i];
         double value = 0.0;
         switch (v->role) {
         case ROLE_OUTPUT: value = state[v->index]; break;
-        case ROLE_EVENTS: value = (double)CORE(events)(c->solver); break;
-#if DFWB_MODEL_KIND == DFWB_PLANT_BACKLASH
-        case ROLE_CONTACT: value = dfwb_backlash_contact(c->solver); break;
-        case ROLE_IMPACTS: value = (double)dfwb_backlash_impacts(c->solver); break;
-#endif
-#if DFWB_MODEL_KIND == DFWB_PLANT_STATIC_BACKLASH
-        case ROLE_ENGAGED: value = dfwb_static_backlash_engaged(c->solver); break;
-#endif
+        case ROLE_EVENTS: value = (double)dfwb_plant_events(c->solver); break;
+        case ROLE_COUNTER: value = (double)dfwb_plant_counter(c->solver, (size_t)v->index); break;
         default: continue;
         }
         fresh[i] = value;
@@ -302,8 +279,8 @@ static int fourier(instance *c)
     char err[MESSAGE];
     int k, n;
     if (c->fourier_known || !c->solver) return 1;
-    n = CORE(harmonics)(c->solver);
-    if (CORE(integrals)(c->solver, re, im, err, sizeof err) != DFWB_OK) {
+    n = dfwb_plant_harmonics(c->solver);
+    if (dfwb_plant_integrals(c->solver, re, im, err, sizeof err) != DFWB_OK) {
         refuse(c, "getReal failed: %s", err);
         return 0;
     }
@@ -371,7 +348,7 @@ plant_fmu *plant_fmu_new(const char *name, int logging, const plant_host *host)
 void plant_fmu_free(plant_fmu *c)
 {
     if (!c) return;
-    CORE(free)(c->solver);
+    dfwb_plant_free(c->solver);
     c->host.release(c->name);
     c->host.release(c);
 }
@@ -382,7 +359,7 @@ void plant_fmu_logging(plant_fmu *c, int on) { c->logging = on; }
 
 int plant_fmu_reset(plant_fmu *c)
 {
-    CORE(free)(c->solver);
+    dfwb_plant_free(c->solver);
     c->solver = NULL;
     defaults(c);
     return PLANT_OK;
@@ -424,7 +401,7 @@ int plant_fmu_exit_initialization(plant_fmu *c)
     set_rotation(c);
     refresh(c);
     if (c->overflow) {
-        CORE(free)(c->solver);
+        dfwb_plant_free(c->solver);
         c->solver = NULL;
         return refuse(c, "invalid parameters: the outputs at the start overflow a float (a force or a mass "
                          "out of scale)");
@@ -447,8 +424,8 @@ int plant_fmu_step(plant_fmu *c, double t, double h)
     if (!(fabs(t - now) <= 1e-9 * fmax(1.0, fabs(now)))) /* NaN refused too */
         return refuse(c, "doStep at t = %s, but the FMU is at t = %s", repr(t).s, repr(now).s);
     end = fmax(t + h, now);
-    if (CORE(set_input)(c->solver, input_value(&c->f), err, sizeof err) != DFWB_OK ||
-        CORE(advance)(c->solver, end - c->f.start, err, sizeof err) != DFWB_OK) {
+    if (dfwb_plant_set_input(c->solver, input_value(&c->f), err, sizeof err) != DFWB_OK ||
+        dfwb_plant_advance(c->solver, end - c->f.start, err, sizeof err) != DFWB_OK) {
         broken(c);
         return refuse(c, "step from t = %s refused: %s", repr(t).s, err);
     }
@@ -621,7 +598,7 @@ static fmu_state *own_state(instance *c, const char *call, void *state)
 static void free_state(const instance *c, fmu_state *s)
 {
     if (!s) return;
-    CORE(free)(s->solver);
+    dfwb_plant_free(s->solver);
     s->tag = 0;
     c->host.release(s);
 }
@@ -633,12 +610,12 @@ int plant_fmu_get_state(plant_fmu *c, void **state)
     if (!state) return refuse(c, "getFMUstate: a NULL pointer for the state");
     if (!expect(c, "getFMUstate", ANY_BUT_ERROR)) return PLANT_ERROR;
     if (*state && !own_state(c, "getFMUstate", *state)) return PLANT_ERROR;
-    if (c->solver && !(copy = CORE(copy)(c->solver))) return refuse(c, "getFMUstate failed: out of memory");
+    if (c->solver && !(copy = dfwb_plant_copy(c->solver))) return refuse(c, "getFMUstate failed: out of memory");
     s = *state; /* a state given back is overwritten in place */
     if (s) {
-        CORE(free)(s->solver);
+        dfwb_plant_free(s->solver);
     } else if (!(s = allocate(c, sizeof *s))) {
-        CORE(free)(copy);
+        dfwb_plant_free(copy);
         return refuse(c, "getFMUstate failed: out of memory");
     }
     s->tag = state_tag();
@@ -677,13 +654,13 @@ static int state_ok(instance *c, const fmu_state *s)
         refuse(c, "the state's parameters are refused: %s", err);
         return 0;
     }
-    same = CORE(same_parameters)(fresh, s->solver);
-    CORE(free)(fresh);
+    same = dfwb_plant_same_parameters(fresh, s->solver);
+    dfwb_plant_free(fresh);
     if (!same) {
         refuse(c, "the state's solver does not match its parameters");
         return 0;
     }
-    if (!(CORE(time)(s->solver) == f->time - f->start)) {
+    if (!(dfwb_plant_time(s->solver) == f->time - f->start)) {
         refuse(c, "the state's solver time does not match the state's time");
         return 0;
     }
@@ -696,8 +673,8 @@ int plant_fmu_set_state(plant_fmu *c, void *state)
     plant *copy = NULL;
     if (!s) return refuse(c, "setFMUstate: a NULL state");
     if (!own_state(c, "setFMUstate", state) || !state_ok(c, s)) return PLANT_ERROR;
-    if (s->solver && !(copy = CORE(copy)(s->solver))) return refuse(c, "setFMUstate failed: out of memory");
-    CORE(free)(c->solver);
+    if (s->solver && !(copy = dfwb_plant_copy(s->solver))) return refuse(c, "setFMUstate failed: out of memory");
+    dfwb_plant_free(c->solver);
     c->solver = copy;
     c->f = s->f;
     c->frozen = 0; /* PlantFMU._restored */
@@ -747,7 +724,7 @@ static double get_f64(const unsigned char *p)
 static size_t solver_bytes(const plant *solver)
 {
     size_t size = 0;
-    if (!solver || CORE(to_bytes)(solver, NULL, 0, &size, NULL, 0) != DFWB_OK) return 0;
+    if (!solver || dfwb_plant_to_bytes(solver, NULL, 0, &size, NULL, 0) != DFWB_OK) return 0;
     return size;
 }
 
@@ -783,7 +760,7 @@ int plant_fmu_serialize(plant_fmu *c, void *state, unsigned char out[], size_t s
     for (i = 0; i < NVARS; i++) put_f64(p + 24 + 8 * i, s->f.values[i]);
     p += 24 + 8 * NVARS;
     dfwb_put_u64(p, (uint64_t)n);
-    if (n && CORE(to_bytes)(s->solver, p + 8, n, &n, err, sizeof err) != DFWB_OK)
+    if (n && dfwb_plant_to_bytes(s->solver, p + 8, n, &n, err, sizeof err) != DFWB_OK)
         return refuse(c, "serializeFMUstate failed: %s", err);
     dfwb_put_u32(out + FIXED + n, dfwb_crc32(out, FIXED + n));
     return PLANT_OK;
@@ -812,14 +789,14 @@ int plant_fmu_deserialize(plant_fmu *c, const unsigned char in[], size_t size, v
         return refuse(c, "serialized state refused: %zu bytes do not hold a state of this FMU", size);
     if (dfwb_get_u32(in + FIXED + n) != dfwb_crc32(in, FIXED + n))
         return refuse(c, "serialized state refused: its CRC-32 does not match its bytes (damaged)");
-    if (n && CORE(from_bytes)(p + 32 + 8 * NVARS, n, &solver, err, sizeof err) != DFWB_OK)
+    if (n && dfwb_plant_from_bytes(DFWB_MODEL_KIND, p + 32 + 8 * NVARS, n, &solver, err, sizeof err) != DFWB_OK)
         return refuse(c, "serialized state refused: %s", err);
     s = *state ? (fmu_state *)*state : allocate(c, sizeof *s);
     if (!s) {
-        CORE(free)(solver);
+        dfwb_plant_free(solver);
         return refuse(c, "deSerializeFMUstate failed: out of memory");
     }
-    if (*state) CORE(free)(s->solver);
+    if (*state) dfwb_plant_free(s->solver);
     s->tag = state_tag();
     s->f.phase = (int)phase;
     s->f.start = get_f64(p + 8);
