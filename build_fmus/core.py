@@ -16,7 +16,7 @@ Examples
 --------
 >>> from dfwb.build_fmus.core import sources
 >>> [path.name for path in sources()][:4]
-['backlash.c', 'dfwb_core.h', 'dfwb_parameters.h', 'exact.c']
+['backlash.c', 'dfwb_core.h', 'dfwb_plants.h', 'exact.c']
 """
 
 import hashlib

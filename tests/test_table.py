@@ -5,7 +5,7 @@ import inspect
 
 import pytest
 
-from dfwb.build_fmus import parameters
+from dfwb.build_fmus import plant_header
 from dfwb.fmus import backlash, facade, friction, loops, naive, native_core, static_backlash
 from dfwb.fmus.table import EXCITATION_NAMES, INPUT_NAMES, Parameter, PlantTable
 from dfwb.plants import closed_forms, loop_reference, reference
@@ -68,8 +68,8 @@ def test_the_engine_ranges_are_the_tables():
 
 
 def test_the_generated_header_is_current():
-    """fmus/native/dfwb_parameters.h is what the tables write; else run `python -m dfwb.build_fmus.parameters`."""
-    assert parameters.HEADER.read_text() == parameters.header_text()
+    """fmus/native/dfwb_plants.h is what the tables write; else run `python -m dfwb.build_fmus.plant_header`."""
+    assert plant_header.HEADER.read_text() == plant_header.header_text()
 
 
 def test_the_core_reads_parameters_in_the_tables_order(core):

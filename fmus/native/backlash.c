@@ -10,11 +10,13 @@
  * first (an uncounted event).
  */
 #include <math.h>
+#include <stdio.h>
 #include <stddef.h>
 #include <string.h>
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "loop.h"
 #include "plant.h"
 
 #define MIN_CLEARANCE 1e-290 /* m: the Zeno tolerance 1e-12 h stays a normal float */
@@ -274,6 +276,120 @@ int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double ep
     return dfwb_check(err, "v2_0", v2_0, 1, "v2_0 must be a finite number");
 }
 
+/* -- the closed loop (BacklashLoop of fmus/loops.py): q = (x1, v1, gap, w = v2 - v1), y = x1, f on M2 ---------- */
+/* BacklashLoop.__init__: {M1, M2, h, eps, x1_0, v1_0, v2_0, gap0}; par = {M1, M2, h, eps, r2, tol_h} */
+static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
+{
+    const double M1 = v[DFWB_BACKLASH_LOOP_M1], M2 = v[DFWB_BACKLASH_LOOP_M2], h = v[DFWB_BACKLASH_LOOP_h];
+    const double eps = v[DFWB_BACKLASH_LOOP_eps], gap0 = v[DFWB_BACKLASH_LOOP_gap0];
+    const double x1_0 = v[DFWB_BACKLASH_LOOP_x1_0], v1_0 = v[DFWB_BACKLASH_LOOP_v1_0];
+    const double v2_0 = v[DFWB_BACKLASH_LOOP_v2_0];
+    int rc;
+    if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK)
+        return rc;
+    L->par[0] = M1;
+    L->par[1] = M2;
+    L->par[2] = h;
+    L->par[3] = eps;
+    L->par[4] = M2 / (M1 + M2);
+    L->par[5] = 1e-12 * h;
+    q0[0] = x1_0;
+    q0[1] = v1_0;
+    q0[2] = gap0;
+    q0[3] = v2_0 - v1_0;
+    return DFWB_OK;
+}
+
+/* BacklashLoop.check_coordinates */
+static int loop_check_state(const dfwb_loop *L, const double *q, dfwb_err *err)
+{
+    const double h = L->par[2];
+    char rh[DFWB_REPR_SIZE], allowed[96];
+    dfwb_repr(h, rh);
+    snprintf(allowed, sizeof allowed, "the gap must be in [0, h] = [0, %s] (m)", rh);
+    return dfwb_check(err, "gap", q[2], 0.0 <= q[2] && q[2] <= h, allowed);
+}
+
+/* the sigma of a contact key: -1 held at gap 0, +1 at gap h */
+static int contact_sigma(int key) { return key == DFWB_LOOP_CONTACT_LOWER ? -1 : 1; }
+
+/* BacklashLoop.plant_mode */
+static void loop_mode(const dfwb_loop *L, int key, dfwb_plant_mode *pm)
+{
+    const double M1 = L->par[0], M2 = L->par[1], h = L->par[2];
+    pm->P[0][1] = 1.0;
+    if (key == DFWB_LOOP_FREE) {
+        pm->P[2][3] = 1.0;
+        pm->phi[3] = 1.0 / M2;
+        dfwb_loop_add_event(pm, DFWB_EVENT_WALL_LOWER, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0); /* g > 0 */
+        dfwb_loop_add_event(pm, DFWB_EVENT_WALL_UPPER, 0.0, 0.0, -1.0, 0.0, 0.0, h); /* h - g > 0 */
+        return;
+    }
+    pm->phi[1] = 1.0 / (M1 + M2);
+    dfwb_loop_add_event(pm, DFWB_EVENT_RELEASE, 0.0, 0.0, 0.0, 0.0, (double)contact_sigma(key), 0.0); /* pressing */
+}
+
+/* BacklashLoop._at_wall: at a wall after any impact, contact or a flight away from it */
+static int loop_at_wall(dfwb_loop *L, int sigma, double *X, int *key, int *departing, dfwb_err *err)
+{
+    const double M2 = L->par[1], h = L->par[2], r2 = L->par[4], tol_h = L->par[5];
+    const int contact = sigma < 0 ? DFWB_LOOP_CONTACT_LOWER : DFWB_LOOP_CONTACT_UPPER;
+    double w, f;
+    int press, rc;
+    X[2] = sigma < 0 ? 0.0 : h;
+    w = X[3];
+    rc = dfwb_hy_after(&L->hy, contact, 0, X, &press, err);
+    if (rc != DFWB_OK)
+        return rc;
+    f = dfwb_loop_feedback(L, X);
+    if ((w == 0.0 && press >= 0) || (press > 0 && 0.5 * w * w * M2 <= tol_h * fabs(f))) {
+        X[1] += r2 * w; /* both move with the centre of mass */
+        X[3] = 0.0;
+        *key = contact;
+        *departing = -1;
+        return DFWB_OK;
+    }
+    *key = DFWB_LOOP_FREE;
+    *departing = sigma < 0 ? 0 : 1;
+    return DFWB_OK;
+}
+
+static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
+{
+    if (0.0 < X[2] && X[2] < L->par[2]) {
+        *key = DFWB_LOOP_FREE;
+        return DFWB_OK;
+    }
+    return loop_at_wall(L, X[2] <= 0.0 ? -1 : 1, X, key, departing, err);
+}
+
+static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)
+{
+    int sigma;
+    double w;
+    if (kind == DFWB_EVENT_RELEASE) {
+        X[3] = 0.0;
+        *departing = contact_sigma(L->hy.key) < 0 ? 0 : 1;
+        *key = DFWB_LOOP_FREE;
+        return DFWB_OK;
+    }
+    sigma = kind == DFWB_EVENT_WALL_LOWER ? -1 : 1;
+    w = X[3];
+    if ((double)sigma * w > 0.0) { /* closing: Newton's impact law, momentum kept */
+        const double eps = L->par[3], r2 = L->par[4], next = -eps * w;
+        X[1] += r2 * (w - next);
+        X[3] = next;
+        L->count += 1;
+    }
+    return loop_at_wall(L, sigma, X, key, departing, err);
+}
+
+static const char *const LOOP_COORDINATES[] = {"x1", "v1", "gap", "w"};
+
+static const dfwb_loop_class LOOP = {4, 0, DFWB_LOOP_BACKLASH_PARAMS, 6, "a two-mass backlash", LOOP_COORDINATES,
+                                            "('x1', 'v1', 'gap', 'w')", loop_check, loop_check_state, loop_mode,
+                                            loop_initial, loop_fire};
+
 /* -- the class ------------------------------------------------------------------------------------ */
 /* TwoMassBacklash.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */
 static int init(void *plant, const double *params, dfwb_err *err)
@@ -343,4 +459,4 @@ static const dfwb_backlash zero_state = {0}; /* the state's size is counted on i
 
 const dfwb_plant_class dfwb_backlash_class = {
     DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state, offsetof(dfwb_backlash, gap), fire, restart,
-    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same};
+    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same, &LOOP};

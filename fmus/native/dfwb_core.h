@@ -45,7 +45,7 @@
  *   otherwise (or when either is NULL). An importer restoring a state checks it against a new instance
  *   made from the state's parameter values.
  *
- * Parameters of dfwb_plant_new and dfwb_loop_new: in the orders of dfwb_parameters.h
+ * Parameters of dfwb_plant_new and dfwb_loop_new: in the orders of dfwb_plants.h
  * (DFWB_FRICTION_Fc is Fc's index, ...), written from the plants' tables
  * (fmus/table.py, where their defaults, units and ranges live). Ranges: friction M > 0 (kg), B >= 0 (N.s/m),
  * Fc >= 0 (N), Fs >= Fc (N), Dv >= 0 (m/s); backlash M1, M2 > 0 (kg), h >= 1e-290 (m), eps in [0, 1],
@@ -68,7 +68,7 @@
 
 #include <stddef.h>
 
-#include "dfwb_parameters.h"
+#include "dfwb_plants.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -106,14 +106,9 @@ extern "C" {
 #define DFWB_E_STATE 6    /* bytes that are not a valid state of this plant (Python: StateRefused) */
 #define DFWB_E_DIVERGED 7 /* a loop's state grew beyond DFWB_HY_MAX_STATE (Python: Diverged) */
 
-/* Plant kinds (the header of a state). */
-#define DFWB_PLANT_FRICTION 1
-#define DFWB_PLANT_BACKLASH 2
-#define DFWB_PLANT_STATIC_BACKLASH 3
-/* The header kinds of a closed loop's state (dfwb_loop_to_bytes): 3 + the plant kind. */
-#define DFWB_STATE_FRICTION_LOOP 4
-#define DFWB_STATE_BACKLASH_LOOP 5
-#define DFWB_STATE_STATIC_BACKLASH_LOOP 6
+/* Plant kinds (the header of a state): DFWB_PLANT_FRICTION, ... (dfwb_plants.h). The header kind of a closed
+ * loop's state (dfwb_loop_to_bytes) is DFWB_STATE_LOOP + the plant kind. */
+#define DFWB_STATE_LOOP 256
 
 /* Event kinds of the log: the EventKind of fmus/contract.py (its str in comments). */
 #define DFWB_EVENT_BREAK_UP 1     /* "break+" */
@@ -136,12 +131,12 @@ typedef struct dfwb_plant dfwb_plant;
 /* DFWB_CORE_ABI of the compiled library. */
 DFWB_API int dfwb_core_abi_version(void);
 
-/* A plant kind's shape: *nparams the length of dfwb_plant_new's array (DFWB_*_PARAMS of dfwb_parameters.h),
+/* A plant kind's shape: *nparams the length of dfwb_plant_new's array (DFWB_*_PARAMS of dfwb_plants.h),
  * *noutputs of dfwb_plant_output's, *ncounters the counters of dfwb_plant_counter. DFWB_E_ARGUMENT for a
  * kind the core does not know (the arguments untouched); NULL pointers are skipped. */
 DFWB_API int dfwb_plant_shape(int kind, size_t *nparams, size_t *noutputs, size_t *ncounters);
 
-/* A new solver of plant kind (DFWB_PLANT_*) at t = 0 from params[nparams], in the order of dfwb_parameters.h.
+/* A new solver of plant kind (DFWB_PLANT_*) at t = 0 from params[nparams], in the order of dfwb_plants.h.
  * On success *out is the instance (free it with dfwb_plant_free); on refusal *out is NULL. */
 DFWB_API int dfwb_plant_new(int kind, const double *params, size_t nparams, dfwb_plant **out, char *err,
                             size_t errlen);
@@ -212,7 +207,7 @@ DFWB_API int dfwb_plant_from_bytes(int kind, const unsigned char *buf, size_t le
 /* -- the exact closed loops (FrictionLoop, BacklashLoop, StaticBacklashLoop of fmus/loops.py) ------ */
 #define DFWB_LOOP_MAX_ORDER 8
 #define DFWB_LOOP_MAX_STATE 12               /* 4 plant coordinates + 8 controller states */
-/* DFWB_LOOP_*_PARAMS: dfwb_parameters.h */
+/* DFWB_LOOP_*_PARAMS: dfwb_plants.h */
 
 /* Mode keys (dfwb_loop_mode): the Python key tuples in comments. */
 #define DFWB_LOOP_STICK 0          /* friction ("stick", 0) */
@@ -228,7 +223,7 @@ typedef struct dfwb_loop dfwb_loop;
 
 /* A new loop at t = 0 (the Python constructors: FrictionLoop(b, a, M, B, Fc, Fs, Dv, x0, v0, z0, state,
  * section), ...). plant: DFWB_PLANT_*; params[nparams]: the plant's parameters in the order of
- * dfwb_parameters.h (DFWB_LOOP_*_PARAMS of them; Python's gap0=None is 0.5 * h); b[nb] = {b0..bn},
+ * dfwb_plants.h (DFWB_LOOP_*_PARAMS of them; Python's gap0=None is 0.5 * h); b[nb] = {b0..bn},
  * a[na] = {a1..an}; z0[nz0] the controller's initial state (NULL: zeros); state[nstate] the whole loop
  * state (NULL: from the parameters and z0; given, it supersedes them); section (NULL: none) watches the
  * output y rising through *section (dfwb_loop_crossings_read). Checked in Python's order and refused
@@ -300,8 +295,8 @@ DFWB_API int dfwb_loop_section(const dfwb_loop *p, double *level);
  * controller's coefficients b and a, the section (none, or its level); 0 otherwise or when either is NULL. */
 DFWB_API int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b);
 
-/* The loop's state as bytes (as dfwb_plant_to_bytes; header kind DFWB_STATE_*_LOOP, one size for every
- * loop of a plant): its parameters and controller coefficients, the section, the time, the counts, the
+/* The loop's state as bytes (as dfwb_plant_to_bytes; header kind DFWB_STATE_LOOP + the plant kind, one size
+ * for every loop of a plant): its parameters and controller coefficients, the section, the time, the counts, the
  * current mode, the modes built, the chunk (its start, its state, the search flags, a pending event).
  * Not in it: the section's crossings not read yet and the event log. from_bytes(plant, ...) makes a loop of
  * that plant from such bytes, checking everything it reads (the parameters as dfwb_loop_new checks them,

@@ -13,6 +13,7 @@
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "loop.h"
 #include "plant.h"
 
 enum { HOLD, SLIDE, PUSH };
@@ -251,6 +252,93 @@ int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs,
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
+/* -- the closed loop (FrictionLoop of fmus/loops.py): q = (x, v), y = x ------------------------------------ */
+/* FrictionLoop.__init__: {M, B, Fc, Fs, Dv, x0, v0} (exact stick: Dv = 0); par = {M, B, Fc, Fs} */
+static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
+{
+    const double M = v[DFWB_FRICTION_LOOP_M], B = v[DFWB_FRICTION_LOOP_B], Fc = v[DFWB_FRICTION_LOOP_Fc];
+    const double Fs = v[DFWB_FRICTION_LOOP_Fs], x0 = v[DFWB_FRICTION_LOOP_x0], v0 = v[DFWB_FRICTION_LOOP_v0];
+    int rc;
+    if ((rc = dfwb_friction_check(err, M, B, Fc, Fs, v[DFWB_FRICTION_LOOP_Dv], x0, v0, 1)) != DFWB_OK)
+        return rc;
+    L->par[0] = M;
+    L->par[1] = B;
+    L->par[2] = Fc;
+    L->par[3] = Fs;
+    q0[0] = x0;
+    q0[1] = v0;
+    return DFWB_OK;
+}
+
+/* FrictionLoop.plant_mode */
+static void loop_mode(const dfwb_loop *L, int key, dfwb_plant_mode *pm)
+{
+    const double M = L->par[0], B = L->par[1], Fc = L->par[2], Fs = L->par[3];
+    const int s = key == DFWB_LOOP_SLIDE_UP ? 1 : -1;
+    if (key == DFWB_LOOP_STICK) {
+        dfwb_loop_add_event(pm, DFWB_EVENT_BREAK_UP, 0.0, 0.0, 0.0, 0.0, -1.0, Fs); /* Fs - f > 0 */
+        dfwb_loop_add_event(pm, DFWB_EVENT_BREAK_DOWN, 0.0, 0.0, 0.0, 0.0, 1.0, Fs); /* f + Fs > 0 */
+        return;
+    }
+    pm->P[0][1] = 1.0;
+    pm->P[1][1] = -B / M;
+    pm->p[1] = (double)(-s) * Fc / M;
+    pm->phi[1] = 1.0 / M;
+    dfwb_loop_add_event(pm, DFWB_EVENT_BAND, 0.0, (double)s, 0.0, 0.0, 0.0, 0.0); /* s v > 0 */
+}
+
+/* FrictionLoop._rest: at v = 0, stick while -Fs <= f <= Fs, else slide in the direction of f */
+static int loop_rest(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
+{
+    int sign, rc;
+    rc = dfwb_hy_after(&L->hy, DFWB_LOOP_STICK, 0, X, &sign, err);
+    if (rc != DFWB_OK)
+        return rc;
+    if (sign < 0) {
+        *key = DFWB_LOOP_SLIDE_UP;
+        *departing = 0;
+        return DFWB_OK;
+    }
+    rc = dfwb_hy_after(&L->hy, DFWB_LOOP_STICK, 1, X, &sign, err);
+    if (rc != DFWB_OK)
+        return rc;
+    if (sign < 0) {
+        *key = DFWB_LOOP_SLIDE_DOWN;
+        *departing = 0;
+        return DFWB_OK;
+    }
+    L->count += 1;
+    *key = DFWB_LOOP_STICK;
+    *departing = -1;
+    return DFWB_OK;
+}
+
+static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
+{
+    const double v = X[1];
+    if (v != 0.0) {
+        *key = v > 0.0 ? DFWB_LOOP_SLIDE_UP : DFWB_LOOP_SLIDE_DOWN;
+        return DFWB_OK;
+    }
+    return loop_rest(L, X, key, departing, err);
+}
+
+static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)
+{
+    if (kind == DFWB_EVENT_BAND) {
+        X[1] = 0.0;
+        return loop_rest(L, X, key, departing, err);
+    }
+    *key = kind == DFWB_EVENT_BREAK_UP ? DFWB_LOOP_SLIDE_UP : DFWB_LOOP_SLIDE_DOWN;
+    *departing = 0;
+    return DFWB_OK;
+}
+
+static const char *const LOOP_COORDINATES[] = {"x", "v"};
+
+static const dfwb_loop_class LOOP = {2, 0, DFWB_LOOP_FRICTION_PARAMS, 4, "a friction mass", LOOP_COORDINATES,
+                                            "('x', 'v')", loop_check, NULL, loop_mode, loop_initial, loop_fire};
+
 /* -- the class ------------------------------------------------------------------------------------ */
 /* FrictionMass.__init__, then PiecewisePlant's: the order of the Python constructor */
 static int init(void *plant, const double *params, dfwb_err *err)
@@ -298,4 +386,4 @@ static const dfwb_friction zero_state = {0}; /* the state's size is counted on i
 
 const dfwb_plant_class dfwb_friction_class = {
     DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state, offsetof(dfwb_friction, pw.output), fire, restart,
-    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same};
+    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same, &LOOP};

@@ -1,6 +1,7 @@
-/* loops.c - the three plants in feedback with a linear controller, as exact hybrid systems: a port of
- * fmus/loops.py (FeedbackLoop, FrictionLoop, BacklashLoop, StaticBacklashLoop) on the solver of hybrid.c.
- * The API is documented in dfwb_core.h.
+/* loops.c - a plant in feedback with a linear controller, as an exact hybrid system: a port of fmus/loops.py's
+ * FeedbackLoop on the solver of hybrid.c. What is the plant's (its modes, checks and switching: FrictionLoop,
+ * BacklashLoop, StaticBacklashLoop) is its dfwb_loop_class (loop.h), in the plant's own file, found through its
+ * dfwb_plant_class. The API is documented in dfwb_core.h.
  *
  *     f = -G(s) y,   G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an),   n = 1..8
  *
@@ -16,33 +17,14 @@
 #include "dfwb_core.h"
 #include "exact.h"
 #include "hybrid.h"
+#include "loop.h"
 #include "plant.h"
 
 #define MAX_ORDER DFWB_LOOP_MAX_ORDER
-#define MAX_PLANT 4
+#define MAX_PLANT DFWB_LOOP_PLANT_MAX
 
-struct dfwb_loop {
-    dfwb_hy hy; /* first: the hybrid solver */
-    int plant;  /* DFWB_PLANT_* */
-    int m, order, out;
-    /* -G(s): (Ac, Bc, C, D) of LinearSystem with C and D negated; f = D y + C z as a row over the state */
-    double Ac[MAX_ORDER][MAX_ORDER], Bc[MAX_ORDER], C[MAX_ORDER], D;
-    double f_row[DFWB_HY_DIM];
-    /* the plant's constants: friction {M, B, Fc, Fs}, backlash {M1, M2, h, eps, r2, tol_h}, static {M, k, h} */
-    double par[6];
-    double bc[MAX_ORDER + 1], ac[MAX_ORDER]; /* G's coefficients b0..bn, a1..an (0 beyond n) */
-    double section;                            /* the section's level (0 without one) */
-    long long count; /* sticks, impacts, engagements */
-};
-
-/* a plant mode: q' = P q + p + phi f, event functions Lq.q + Lf f + l0 */
-typedef struct {
-    double P[MAX_PLANT][MAX_PLANT], p[MAX_PLANT], phi[MAX_PLANT];
-    int nev, kind[2];
-    double Lq[2][MAX_PLANT], Lf[2], l0[2];
-} plant_mode;
-
-static void add_event(plant_mode *pm, int kind, double l1, double l2, double l3, double l4, double Lf, double l0)
+void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, double l3, double l4, double Lf,
+                         double l0)
 {
     const int e = pm->nev++;
     pm->kind[e] = kind;
@@ -54,68 +36,17 @@ static void add_event(plant_mode *pm, int kind, double l1, double l2, double l3,
     pm->l0[e] = l0;
 }
 
-/* the sign s of a mode key (slide, contact or engaged; 0 for stick and free) */
-static int key_sign(const dfwb_loop *L, int key)
-{
-    if (key == 0)
-        return 0;
-    if (L->plant == DFWB_PLANT_BACKLASH)
-        return key == DFWB_LOOP_CONTACT_LOWER ? -1 : 1;
-    return key == 1 ? 1 : -1; /* slide +1 / engaged +1 is key 1, -1 is key 2 */
-}
-
-/* FrictionLoop.plant_mode, BacklashLoop.plant_mode, StaticBacklashLoop.plant_mode */
-static void plant_mode_of(const dfwb_loop *L, int key, plant_mode *pm)
-{
-    const int s = key_sign(L, key);
-    memset(pm, 0, sizeof *pm);
-    if (L->plant == DFWB_PLANT_FRICTION) {
-        const double M = L->par[0], B = L->par[1], Fc = L->par[2], Fs = L->par[3];
-        if (key == DFWB_LOOP_STICK) {
-            add_event(pm, DFWB_EVENT_BREAK_UP, 0.0, 0.0, 0.0, 0.0, -1.0, Fs); /* Fs - f > 0 */
-            add_event(pm, DFWB_EVENT_BREAK_DOWN, 0.0, 0.0, 0.0, 0.0, 1.0, Fs); /* f + Fs > 0 */
-            return;
-        }
-        pm->P[0][1] = 1.0;
-        pm->P[1][1] = -B / M;
-        pm->p[1] = (double)(-s) * Fc / M;
-        pm->phi[1] = 1.0 / M;
-        add_event(pm, DFWB_EVENT_BAND, 0.0, (double)s, 0.0, 0.0, 0.0, 0.0); /* s v > 0 */
-    } else if (L->plant == DFWB_PLANT_BACKLASH) {
-        const double M1 = L->par[0], M2 = L->par[1], h = L->par[2];
-        pm->P[0][1] = 1.0;
-        if (key == DFWB_LOOP_FREE) {
-            pm->P[2][3] = 1.0;
-            pm->phi[3] = 1.0 / M2;
-            add_event(pm, DFWB_EVENT_WALL_LOWER, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0); /* g > 0 */
-            add_event(pm, DFWB_EVENT_WALL_UPPER, 0.0, 0.0, -1.0, 0.0, 0.0, h); /* h - g > 0 */
-            return;
-        }
-        pm->phi[1] = 1.0 / (M1 + M2);
-        add_event(pm, DFWB_EVENT_RELEASE, 0.0, 0.0, 0.0, 0.0, (double)s, 0.0); /* sigma f > 0: pressing */
-    } else {
-        const double M = L->par[0], k = L->par[1], half = 0.5 * L->par[2];
-        pm->P[0][1] = 1.0;
-        pm->phi[1] = 1.0 / M;
-        if (key == DFWB_LOOP_FREE) {
-            add_event(pm, DFWB_EVENT_ENGAGE_UP, -1.0, 0.0, 1.0 / k, 0.0, 0.0, half); /* y/k + h/2 - x > 0 */
-            add_event(pm, DFWB_EVENT_ENGAGE_DOWN, 1.0, 0.0, -1.0 / k, 0.0, 0.0, half); /* x - y/k + h/2 > 0 */
-            return;
-        }
-        pm->P[2][1] = k;
-        add_event(pm, DFWB_EVENT_REVERSE, 0.0, (double)s, 0.0, 0.0, 0.0, 0.0); /* s v > 0 */
-    }
-}
 
 /* FeedbackLoop.system: the loop's A, c and event functions of a mode */
 static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
 {
     const dfwb_loop *L = (const dfwb_loop *)(const void *)hy;
     const int m = L->m, n = L->order, size = m + n;
-    plant_mode pm;
+    dfwb_plant_mode pm;
     int i, j, e;
     (void)err;
-    plant_mode_of(L, key, &pm);
+    memset(&pm, 0, sizeof pm);
+    L->cls->mode(L, key, &pm);
     mode->n = size;
     for (i = 0; i < m; i++) /* row = list(P[i]) + [0.0] * n; [value + phi[i] * fv ...] */
         for (j = 0; j < size; j++)
@@ -137,8 +68,7 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
     return DFWB_OK;
 }
 
-/* FeedbackLoop.force: f = D y + C z at X */
-static double loop_force(const dfwb_loop *L, const double *X)
+double dfwb_loop_feedback(const dfwb_loop *L, const double *X)
 {
     double s = 0.0;
     int i;
@@ -147,111 +77,11 @@ static double loop_force(const dfwb_loop *L, const double *X)
     return L->D * X[L->out] + s;
 }
 
-/* -- friction ------------------------------------------------------------------------------- */
-/* FrictionLoop._rest: at v = 0, stick while -Fs <= f <= Fs, else slide in the direction of f */
-static int friction_rest(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
-{
-    int sign, rc;
-    rc = dfwb_hy_after(&L->hy, DFWB_LOOP_STICK, 0, X, &sign, err);
-    if (rc != DFWB_OK)
-        return rc;
-    if (sign < 0) {
-        *key = DFWB_LOOP_SLIDE_UP;
-        *departing = 0;
-        return DFWB_OK;
-    }
-    rc = dfwb_hy_after(&L->hy, DFWB_LOOP_STICK, 1, X, &sign, err);
-    if (rc != DFWB_OK)
-        return rc;
-    if (sign < 0) {
-        *key = DFWB_LOOP_SLIDE_DOWN;
-        *departing = 0;
-        return DFWB_OK;
-    }
-    L->count += 1;
-    *key = DFWB_LOOP_STICK;
-    *departing = -1;
-    return DFWB_OK;
-}
-
-/* -- two-mass backlash ------------------------------------------------------------------------ */
-/* BacklashLoop._at_wall: at a wall after any impact, contact or a flight away from it */
-static int backlash_at_wall(dfwb_loop *L, int sigma, double *X, int *key, int *departing, dfwb_err *err)
-{
-    const double M2 = L->par[1], h = L->par[2], r2 = L->par[4], tol_h = L->par[5];
-    const int contact = sigma < 0 ? DFWB_LOOP_CONTACT_LOWER : DFWB_LOOP_CONTACT_UPPER;
-    double w, f;
-    int press, rc;
-    X[2] = sigma < 0 ? 0.0 : h;
-    w = X[3];
-    rc = dfwb_hy_after(&L->hy, contact, 0, X, &press, err);
-    if (rc != DFWB_OK)
-        return rc;
-    f = loop_force(L, X);
-    if ((w == 0.0 && press >= 0) || (press > 0 && 0.5 * w * w * M2 <= tol_h * fabs(f))) {
-        X[1] += r2 * w; /* both move with the centre of mass */
-        X[3] = 0.0;
-        *key = contact;
-        *departing = -1;
-        return DFWB_OK;
-    }
-    *key = DFWB_LOOP_FREE;
-    *departing = sigma < 0 ? 0 : 1;
-    return DFWB_OK;
-}
-
-/* -- static backlash -------------------------------------------------------------------------- */
-/* StaticBacklashLoop._engage */
-static int static_engage(dfwb_loop *L, int s, double *X, int count, int *key, int *departing, dfwb_err *err)
-{
-    const double k = L->par[1], h = L->par[2];
-    int sign, rc;
-    if (count) /* reached the edge: y takes up from x (within rounding of the edge already) */
-        X[2] = k * (X[0] - (double)s * 0.5 * h);
-    rc = dfwb_hy_after(&L->hy, s > 0 ? DFWB_LOOP_ENGAGED_UP : DFWB_LOOP_ENGAGED_DOWN, 0, X, &sign, err);
-    if (rc != DFWB_OK)
-        return rc;
-    if (sign > 0) {
-        L->count += count;
-        *key = s > 0 ? DFWB_LOOP_ENGAGED_UP : DFWB_LOOP_ENGAGED_DOWN;
-        *departing = -1;
-        return DFWB_OK;
-    }
-    *key = DFWB_LOOP_FREE;
-    *departing = s > 0 ? 0 : 1;
-    return DFWB_OK;
-}
-
-/* -- the switching logic: initial (t = 0) and _fire ----------------------------------------------- */
+/* -- the switching logic: the plant's (initial at t = 0, _fire) ------------------------------------------- */
 static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
 {
     *departing = -1;
-    if (L->plant == DFWB_PLANT_FRICTION) {
-        const double v = X[1];
-        if (v != 0.0) {
-            *key = v > 0.0 ? DFWB_LOOP_SLIDE_UP : DFWB_LOOP_SLIDE_DOWN;
-            return DFWB_OK;
-        }
-        return friction_rest(L, X, key, departing, err);
-    }
-    if (L->plant == DFWB_PLANT_BACKLASH) {
-        if (0.0 < X[2] && X[2] < L->par[2]) {
-            *key = DFWB_LOOP_FREE;
-            return DFWB_OK;
-        }
-        return backlash_at_wall(L, X[2] <= 0.0 ? -1 : 1, X, key, departing, err);
-    }
-    {
-        const double k = L->par[1], h = L->par[2], play = X[0] - X[2] / k;
-        int s;
-        for (s = 1; s >= -1; s -= 2) /* on an edge: engaged if moving on */
-            if ((double)s * play >= 0.5 * h * (1.0 - 1e-12)) {
-                X[0] = X[2] / k + (double)s * 0.5 * h; /* on the edge, the given output kept */
-                return static_engage(L, s, X, 0, key, departing, err);
-            }
-        *key = DFWB_LOOP_FREE;
-        return DFWB_OK;
-    }
+    return L->cls->initial(L, X, key, departing, err);
 }
 
 static int loop_fire(dfwb_hy *hy, double t, int kind, double *X, int *key, int *departing, dfwb_err *err)
@@ -259,110 +89,23 @@ static int loop_fire(dfwb_hy *hy, double t, int kind, double *X, int *key, int *
     dfwb_loop *L = (dfwb_loop *)(void *)hy;
     (void)t;
     *departing = -1;
-    if (L->plant == DFWB_PLANT_FRICTION) {
-        if (kind == DFWB_EVENT_BAND) {
-            X[1] = 0.0;
-            return friction_rest(L, X, key, departing, err);
-        }
-        *key = kind == DFWB_EVENT_BREAK_UP ? DFWB_LOOP_SLIDE_UP : DFWB_LOOP_SLIDE_DOWN;
-        *departing = 0;
-        return DFWB_OK;
-    }
-    if (L->plant == DFWB_PLANT_BACKLASH) {
-        int sigma;
-        double w;
-        if (kind == DFWB_EVENT_RELEASE) {
-            X[3] = 0.0;
-            *departing = key_sign(L, hy->key) < 0 ? 0 : 1;
-            *key = DFWB_LOOP_FREE;
-            return DFWB_OK;
-        }
-        sigma = kind == DFWB_EVENT_WALL_LOWER ? -1 : 1;
-        w = X[3];
-        if ((double)sigma * w > 0.0) { /* closing: Newton's impact law, momentum kept */
-            const double eps = L->par[3], r2 = L->par[4], next = -eps * w;
-            X[1] += r2 * (w - next);
-            X[3] = next;
-            L->count += 1;
-        }
-        return backlash_at_wall(L, sigma, X, key, departing, err);
-    }
-    if (kind == DFWB_EVENT_REVERSE) {
-        const int s = key_sign(L, hy->key);
-        X[1] = 0.0;
-        *key = DFWB_LOOP_FREE;
-        *departing = s > 0 ? 0 : 1;
-        return DFWB_OK;
-    }
-    return static_engage(L, kind == DFWB_EVENT_ENGAGE_UP ? 1 : -1, X, 1, key, departing, err);
+    return L->cls->fire(L, kind, X, key, departing, err);
+}
+
+/* The loop class of a plant kind (NULL: none). */
+static const dfwb_loop_class *loop_plant_of(int kind)
+{
+    const dfwb_plant_class *cls = dfwb_plant_class_of(kind);
+    return cls == NULL ? NULL : cls->loop;
 }
 
 /* -- construction --------------------------------------------------------------------------------- */
-static const char *const COORDINATES[4][4] = {
-    {NULL}, {"x", "v", NULL, NULL}, {"x1", "v1", "gap", "w"}, {"x", "v", "y", NULL}};
-static const char *const COORDINATES_TEXT[4] = {"", "('x', 'v')", "('x1', 'v1', 'gap', 'w')", "('x', 'v', 'y')"};
-static const int PLANT_SIZE[4] = {0, 2, 4, 3};
-static const int PLANT_PARAMS[4] = {0, DFWB_LOOP_FRICTION_PARAMS, DFWB_LOOP_BACKLASH_PARAMS,
-                                    DFWB_LOOP_STATIC_BACKLASH_PARAMS};
-
 /* check() of an integer (a length): "<name> = <n> is out of range: <allowed>" */
 static int check_count(dfwb_err *err, const char *name, size_t value, int ok, const char *allowed)
 {
     if (ok)
         return DFWB_OK;
     return dfwb_fail(err, DFWB_E_VALUE, "%s = %lu is out of range: %s", name, (unsigned long)value, allowed);
-}
-
-/* The plant's checks (the subclass's __init__, the plant's own dfwb_*_check); its parameters; q0. */
-static int check_plant(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
-{
-    int rc;
-    if (L->plant == DFWB_PLANT_FRICTION) {
-        const double M = v[DFWB_FRICTION_LOOP_M], B = v[DFWB_FRICTION_LOOP_B], Fc = v[DFWB_FRICTION_LOOP_Fc];
-        const double Fs = v[DFWB_FRICTION_LOOP_Fs], x0 = v[DFWB_FRICTION_LOOP_x0], v0 = v[DFWB_FRICTION_LOOP_v0];
-        if ((rc = dfwb_friction_check(err, M, B, Fc, Fs, v[DFWB_FRICTION_LOOP_Dv], x0, v0, 1)) != DFWB_OK)
-            return rc;
-        L->par[0] = M;
-        L->par[1] = B;
-        L->par[2] = Fc;
-        L->par[3] = Fs;
-        q0[0] = x0;
-        q0[1] = v0;
-        return DFWB_OK;
-    }
-    if (L->plant == DFWB_PLANT_BACKLASH) {
-        const double M1 = v[DFWB_BACKLASH_LOOP_M1], M2 = v[DFWB_BACKLASH_LOOP_M2], h = v[DFWB_BACKLASH_LOOP_h];
-        const double eps = v[DFWB_BACKLASH_LOOP_eps], gap0 = v[DFWB_BACKLASH_LOOP_gap0];
-        const double x1_0 = v[DFWB_BACKLASH_LOOP_x1_0], v1_0 = v[DFWB_BACKLASH_LOOP_v1_0];
-        const double v2_0 = v[DFWB_BACKLASH_LOOP_v2_0];
-        if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK)
-            return rc;
-        L->par[0] = M1;
-        L->par[1] = M2;
-        L->par[2] = h;
-        L->par[3] = eps;
-        L->par[4] = M2 / (M1 + M2);
-        L->par[5] = 1e-12 * h;
-        q0[0] = x1_0;
-        q0[1] = v1_0;
-        q0[2] = gap0;
-        q0[3] = v2_0 - v1_0;
-        return DFWB_OK;
-    }
-    {
-        const double M = v[DFWB_STATIC_BACKLASH_LOOP_M], k = v[DFWB_STATIC_BACKLASH_LOOP_k];
-        const double h = v[DFWB_STATIC_BACKLASH_LOOP_h], x0 = v[DFWB_STATIC_BACKLASH_LOOP_x0];
-        const double v0 = v[DFWB_STATIC_BACKLASH_LOOP_v0];
-        if ((rc = dfwb_static_backlash_check(err, M, k, h, x0, v0)) != DFWB_OK)
-            return rc;
-        L->par[0] = M;
-        L->par[1] = k;
-        L->par[2] = h;
-        q0[0] = x0;
-        q0[1] = v0;
-        q0[2] = k * x0;
-        return DFWB_OK;
-    }
 }
 
 /* LinearSystem(b, a)'s checks and matrices, then _controller's negation of C and D. */
@@ -431,6 +174,7 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
 {
     dfwb_err err;
     dfwb_loop *L;
+    const dfwb_loop_class *cls;
     double q0[MAX_PLANT], X[DFWB_HY_DIM];
     char name[16], allowed[160];
     int rc, m, n, i, key, departing;
@@ -438,19 +182,21 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
     if (out == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_new: NULL out");
     *out = NULL;
-    if (plant < DFWB_PLANT_FRICTION || plant > DFWB_PLANT_STATIC_BACKLASH)
+    cls = loop_plant_of(plant);
+    if (cls == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_new: no plant kind %d", plant);
-    if (params == NULL || nparams != (size_t)PLANT_PARAMS[plant] || (b == NULL && nb > 0) || (a == NULL && na > 0)
+    if (params == NULL || nparams != cls->nparams || (b == NULL && nb > 0) || (a == NULL && na > 0)
         || (z0 == NULL && nz0 > 0) || (state == NULL && nstate > 0))
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_new: %s needs %d parameters and arrays for its lengths",
-                         dfwb_plant_name(plant), PLANT_PARAMS[plant]);
+                         dfwb_plant_name(plant), (int)cls->nparams);
     L = (dfwb_loop *)calloc(1, sizeof *L);
     if (L == NULL)
         return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a loop)");
+    L->cls = cls;
     L->plant = plant;
-    L->m = m = PLANT_SIZE[plant];
-    L->out = plant == DFWB_PLANT_STATIC_BACKLASH ? 2 : 0;
-    rc = check_plant(L, params, q0, &err);
+    L->m = m = cls->size;
+    L->out = cls->out;
+    rc = cls->check(L, params, q0, &err);
     if (rc == DFWB_OK)
         rc = controller(L, b, nb, a, na, &err);
     if (rc != DFWB_OK) {
@@ -464,25 +210,14 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
         X[m + i] = 0.0;
     if (state != NULL) { /* the whole loop state: the plant's coordinates, then z */
         snprintf(allowed, sizeof allowed, "the loop's state has %d plant coordinates %s and %d controller states", m,
-                 COORDINATES_TEXT[plant], n);
+                 cls->coordinates_text, n);
         rc = check_count(&err, "length of state", nstate, nstate == (size_t)(m + n), allowed);
         for (i = 0; rc == DFWB_OK && i < m; i++) {
-            snprintf(allowed, sizeof allowed, "%s must be a finite number", COORDINATES[plant][i]);
-            rc = dfwb_check(&err, COORDINATES[plant][i], state[i], 1, allowed);
+            snprintf(allowed, sizeof allowed, "%s must be a finite number", cls->coordinates[i]);
+            rc = dfwb_check(&err, cls->coordinates[i], state[i], 1, allowed);
         }
-        if (rc == DFWB_OK && plant == DFWB_PLANT_BACKLASH) {
-            const double h = L->par[2];
-            char rh[DFWB_REPR_SIZE];
-            dfwb_repr(h, rh);
-            snprintf(allowed, sizeof allowed, "the gap must be in [0, h] = [0, %s] (m)", rh);
-            rc = dfwb_check(&err, "gap", state[2], 0.0 <= state[2] && state[2] <= h, allowed);
-        } else if (rc == DFWB_OK && plant == DFWB_PLANT_STATIC_BACKLASH) {
-            const double play = state[0] - state[2] / L->par[1];
-            char rh[DFWB_REPR_SIZE];
-            dfwb_repr(0.5 * L->par[2], rh);
-            snprintf(allowed, sizeof allowed, "the play x - y/k must be within +-h/2 = %s (m)", rh);
-            rc = dfwb_check(&err, "x - y/k", play, fabs(play) <= 0.5 * L->par[2] * (1.0 + 1e-9), allowed);
-        }
+        if (rc == DFWB_OK && cls->check_state != NULL)
+            rc = cls->check_state(L, state, &err);
         if (rc == DFWB_OK) {
             for (i = 0; i < m + n; i++)
                 X[i] = state[i];
@@ -578,7 +313,7 @@ double dfwb_loop_output(const dfwb_loop *p)
 
 double dfwb_loop_force(const dfwb_loop *p, const double *X)
 {
-    return p == NULL || X == NULL ? NAN : loop_force(p, X);
+    return p == NULL || X == NULL ? NAN : dfwb_loop_feedback(p, X);
 }
 
 void dfwb_loop_parameters(const dfwb_loop *p, double out[6])
@@ -803,7 +538,7 @@ int dfwb_loop_to_bytes(const dfwb_loop *p, unsigned char *buf, size_t buflen, si
     mask = dfwb_loop_modes_built(p);
     dfwb_io_writer(&io, buf + DFWB_STATE_HEADER);
     loop_io(&io, &tmp, &mask);
-    dfwb_state_header(buf, DFWB_STATE_FRICTION_LOOP - DFWB_PLANT_FRICTION + p->plant, payload);
+    dfwb_state_header(buf, DFWB_STATE_LOOP + p->plant, payload);
     return DFWB_OK;
 }
 
@@ -820,14 +555,15 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     dfwb_loop *L, s;
     char message[512];
     double values[8] = {0.0}, q0[MAX_PLANT];
-    int rc, mask = 0, i, n;
+    const dfwb_loop_class *cls = loop_plant_of(plant);
+    int rc = DFWB_OK, mask = 0, i, n;
     dfwb_err_init(&err, errbuf, errlen);
     if (out == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_from_bytes: NULL out");
     *out = NULL;
-    if (plant < DFWB_PLANT_FRICTION || plant > DFWB_PLANT_STATIC_BACKLASH)
+    if (cls == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_from_bytes: no plant kind %d", plant);
-    rc = dfwb_state_open(buf, len, DFWB_STATE_FRICTION_LOOP - DFWB_PLANT_FRICTION + plant, loop_payload(), &err);
+    rc = dfwb_state_open(buf, len, DFWB_STATE_LOOP + plant, loop_payload(), &err);
     if (rc != DFWB_OK)
         return rc;
     {
@@ -842,18 +578,24 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     L = (dfwb_loop *)calloc(1, sizeof *L);
     if (L == NULL)
         return dfwb_fail(&err, DFWB_E_MEMORY, "out of memory (a loop)");
+    L->cls = cls;
     L->plant = plant;
-    L->m = PLANT_SIZE[plant];
-    L->out = plant == DFWB_PLANT_STATIC_BACKLASH ? 2 : 0;
-    /* the parameters and the controller, checked as dfwb_loop_new checks them */
+    L->m = cls->size;
+    L->out = cls->out;
+    /* the parameters and the controller, checked as dfwb_loop_new checks them: the constants the state holds
+     * (par[0..3]; the initial values, not state, as 0) */
     for (i = 0; i < 4; i++)
         values[i] = s.par[i];
-    if (plant == DFWB_PLANT_BACKLASH)
-        values[7] = 0.0; /* gap0: not state */
+    for (i = cls->npar; rc == DFWB_OK && i < DFWB_LOOP_PAR; i++)
+        if (s.par[i] != 0.0) {
+            char name[32], allowed[64];
+            snprintf(name, sizeof name, "parameter %d", i + 1);
+            snprintf(allowed, sizeof allowed, "must be 0 (%s has %d)", cls->name, cls->npar);
+            rc = dfwb_state_check(&err, name, s.par[i], 0, allowed);
+        }
     dfwb_err_init(&local, message, sizeof message);
-    rc = plant == DFWB_PLANT_STATIC_BACKLASH && s.par[3] != 0.0
-             ? dfwb_state_check(&err, "parameter 4", s.par[3], 0, "must be 0 (a static backlash has 3)")
-             : (check_plant(L, values, q0, &local) != DFWB_OK ? state_refused(&err, "parameters", message) : DFWB_OK);
+    if (rc == DFWB_OK && cls->check(L, values, q0, &local) != DFWB_OK)
+        rc = state_refused(&err, "parameters", message);
     if (rc == DFWB_OK)
         rc = dfwb_state_check_int(&err, "order", s.order, 1 <= s.order && s.order <= MAX_ORDER, "must be in 1..8");
     n = rc == DFWB_OK ? s.order : 0;

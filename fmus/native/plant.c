@@ -103,15 +103,14 @@ const char *dfwb_event_name(int kind)
 
 const char *dfwb_plant_name(int kind)
 {
+#define DFWB_NAME_CASES(kind, name)                                                                                \
+    case kind: return "dfwb_" #name;                                                                               \
+    case DFWB_STATE_LOOP + kind: return "dfwb_" #name "_loop";
     switch (kind) {
-    case DFWB_PLANT_FRICTION: return "dfwb_friction";
-    case DFWB_PLANT_BACKLASH: return "dfwb_backlash";
-    case DFWB_PLANT_STATIC_BACKLASH: return "dfwb_static_backlash";
-    case DFWB_STATE_FRICTION_LOOP: return "dfwb_friction_loop";
-    case DFWB_STATE_BACKLASH_LOOP: return "dfwb_backlash_loop";
-    case DFWB_STATE_STATIC_BACKLASH_LOOP: return "dfwb_static_backlash_loop";
+        DFWB_PLANTS(DFWB_NAME_CASES)
     default: return "unknown plant";
     }
+#undef DFWB_NAME_CASES
 }
 
 /* -- the event log -------------------------------------------------------------------- */
@@ -351,7 +350,7 @@ int dfwb_state_open(const unsigned char *buf, size_t len, int kind, size_t paylo
     their_kind = dfwb_get_u32(buf + 12);
     if (their_kind != (uint32_t)kind)
         return dfwb_fail(err, DFWB_E_STATE, "the state is one of a %s, not of a %s",
-                         their_kind <= 6u ? dfwb_plant_name((int)their_kind) : "unknown plant", name);
+                         their_kind <= (uint32_t)INT_MAX ? dfwb_plant_name((int)their_kind) : "unknown plant", name);
     declared = dfwb_get_u32(buf + 16);
     if (declared != (uint32_t)payload || len != DFWB_STATE_HEADER + payload)
         return dfwb_fail(err, DFWB_E_STATE, "a %s state has %lu bytes, these are %lu (declaring %lu): "
@@ -835,20 +834,20 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
 /* -- what every plant's API does alike ----------------------------------------------------------- */
 int dfwb_core_abi_version(void) { return DFWB_CORE_ABI; }
 
-/* The class of a plant kind, NULL for a kind the core does not know. */
-static const dfwb_plant_class *class_of(int kind)
+const dfwb_plant_class *dfwb_plant_class_of(int kind)
 {
+#define DFWB_CLASS_CASE(kind, name)                                                                                \
+    case kind: return &dfwb_##name##_class;
     switch (kind) {
-    case DFWB_PLANT_FRICTION: return &dfwb_friction_class;
-    case DFWB_PLANT_BACKLASH: return &dfwb_backlash_class;
-    case DFWB_PLANT_STATIC_BACKLASH: return &dfwb_static_backlash_class;
+        DFWB_PLANTS(DFWB_CLASS_CASE)
     default: return NULL;
     }
+#undef DFWB_CLASS_CASE
 }
 
 int dfwb_plant_shape(int kind, size_t *nparams, size_t *noutputs, size_t *ncounters)
 {
-    const dfwb_plant_class *cls = class_of(kind);
+    const dfwb_plant_class *cls = dfwb_plant_class_of(kind);
     if (cls == NULL)
         return DFWB_E_ARGUMENT;
     if (nparams != NULL)
@@ -884,7 +883,7 @@ static int plant_created(dfwb_plant *p, int rc, dfwb_plant **out)
 
 int dfwb_plant_new(int kind, const double *params, size_t nparams, dfwb_plant **out, char *errbuf, size_t errlen)
 {
-    const dfwb_plant_class *cls = class_of(kind);
+    const dfwb_plant_class *cls = dfwb_plant_class_of(kind);
     dfwb_plant *p;
     dfwb_err err;
     int rc;
@@ -1020,7 +1019,7 @@ static size_t payload_size(const dfwb_plant_class *cls)
 
 size_t dfwb_plant_state_size(int kind)
 {
-    const dfwb_plant_class *cls = class_of(kind);
+    const dfwb_plant_class *cls = dfwb_plant_class_of(kind);
     return cls == NULL ? 0 : DFWB_STATE_HEADER + payload_size(cls);
 }
 
@@ -1050,7 +1049,7 @@ int dfwb_plant_to_bytes(const dfwb_plant *p, unsigned char *buf, size_t buflen, 
 int dfwb_plant_from_bytes(int kind, const unsigned char *buf, size_t len, dfwb_plant **out, char *errbuf,
                           size_t errlen)
 {
-    const dfwb_plant_class *cls = class_of(kind);
+    const dfwb_plant_class *cls = dfwb_plant_class_of(kind);
     dfwb_err err;
     dfwb_io io;
     dfwb_plant *p;

@@ -83,7 +83,8 @@ void dfwb_io_int(dfwb_io *io, int *x);
 /* A motion's defining fields (t0, x0, v0, lam, a, b); omega and phi are the drive's, P is recomputed. */
 void dfwb_io_motion(dfwb_io *io, dfwb_motion *m);
 
-const char *dfwb_plant_name(int kind); /* "dfwb_friction", ..., "dfwb_friction_loop" (DFWB_STATE_*_LOOP) */
+/* "dfwb_friction", ... for a plant kind, "dfwb_friction_loop", ... for DFWB_STATE_LOOP + a plant kind */
+const char *dfwb_plant_name(int kind);
 const char *dfwb_event_name(int kind); /* str(EventKind): "break+", "gap 0", ...; "None" for 0 */
 
 /* Write the header for a payload already in buf + DFWB_STATE_HEADER. */
@@ -195,7 +196,7 @@ struct dfwb_plant_class {
     /* The plant's own checks of a state read into it (after dfwb_pw_validate): DFWB_E_STATE when refused;
      * then it is usable (derived constants computed, every motion's P recomputed). */
     int (*validate)(void *plant, dfwb_err *err);
-    size_t nparams;        /* the length of dfwb_plant_new's array (dfwb_parameters.h) */
+    size_t nparams;        /* the length of dfwb_plant_new's array (dfwb_plants.h) */
     size_t noutputs;       /* the length of dfwb_plant_output's array */
     size_t ncounters;      /* the plant's counters beyond events (dfwb_plant_counter) */
     /* Make the zeroed plant (its pw.cls set) the one at t = 0 from params[nparams], checked in its Python
@@ -205,15 +206,21 @@ struct dfwb_plant_class {
     long long (*counter)(const void *plant, size_t i);
     /* The plant's own fixed parameters (and what is derived from them) of a and b have the same bits. */
     int (*same)(const void *a, const void *b);
+    const struct dfwb_loop_class *loop; /* its closed loop (loop.h), or NULL: none */
 };
+
+/* The class of a plant kind (DFWB_PLANT_*), NULL for a kind the core does not know. */
+const dfwb_plant_class *dfwb_plant_class_of(int kind);
 
 /* The public dfwb_plant is any plant's struct, seen through its first member. */
 struct dfwb_plant {
     dfwb_pw pw;
 };
 
-/* The classes of the core's plants (each plant's file defines its own). */
-extern const dfwb_plant_class dfwb_friction_class, dfwb_backlash_class, dfwb_static_backlash_class;
+/* The classes of the core's plants (each plant's file defines its own: dfwb_plants.h lists them). */
+#define DFWB_CLASS_DECLARATION(kind, name) extern const dfwb_plant_class dfwb_##name##_class;
+DFWB_PLANTS(DFWB_CLASS_DECLARATION)
+#undef DFWB_CLASS_DECLARATION
 
 /* Each plant's parameter checks, in its Python check_*'s order: shared by the plant and its closed loop (the
  * loop's friction needs exact stick, Dv = 0). gap0 is given (the caller's None is h/2). */

@@ -8,11 +8,13 @@
  * first (an uncounted event). The output is y; it starts centred, y = k x0.
  */
 #include <math.h>
+#include <stdio.h>
 #include <stddef.h>
 #include <string.h>
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "loop.h"
 #include "plant.h"
 
 typedef struct dfwb_static_backlash dfwb_static_backlash;
@@ -209,6 +211,103 @@ int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, doub
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
+/* -- the closed loop (StaticBacklashLoop of fmus/loops.py): q = (x, v, y), y = q[2] ------------------------- */
+/* StaticBacklashLoop.__init__: {M, k, h, x0, v0}; par = {M, k, h}; y starts centred, k x0 */
+static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
+{
+    const double M = v[DFWB_STATIC_BACKLASH_LOOP_M], k = v[DFWB_STATIC_BACKLASH_LOOP_k];
+    const double h = v[DFWB_STATIC_BACKLASH_LOOP_h], x0 = v[DFWB_STATIC_BACKLASH_LOOP_x0];
+    const double v0 = v[DFWB_STATIC_BACKLASH_LOOP_v0];
+    int rc;
+    if ((rc = dfwb_static_backlash_check(err, M, k, h, x0, v0)) != DFWB_OK)
+        return rc;
+    L->par[0] = M;
+    L->par[1] = k;
+    L->par[2] = h;
+    q0[0] = x0;
+    q0[1] = v0;
+    q0[2] = k * x0;
+    return DFWB_OK;
+}
+
+/* StaticBacklashLoop.check_coordinates */
+static int loop_check_state(const dfwb_loop *L, const double *q, dfwb_err *err)
+{
+    const double play = q[0] - q[2] / L->par[1];
+    char rh[DFWB_REPR_SIZE], allowed[96];
+    dfwb_repr(0.5 * L->par[2], rh);
+    snprintf(allowed, sizeof allowed, "the play x - y/k must be within +-h/2 = %s (m)", rh);
+    return dfwb_check(err, "x - y/k", play, fabs(play) <= 0.5 * L->par[2] * (1.0 + 1e-9), allowed);
+}
+
+/* StaticBacklashLoop.plant_mode */
+static void loop_mode(const dfwb_loop *L, int key, dfwb_plant_mode *pm)
+{
+    const double M = L->par[0], k = L->par[1], half = 0.5 * L->par[2];
+    pm->P[0][1] = 1.0;
+    pm->phi[1] = 1.0 / M;
+    if (key == DFWB_LOOP_FREE) {
+        dfwb_loop_add_event(pm, DFWB_EVENT_ENGAGE_UP, -1.0, 0.0, 1.0 / k, 0.0, 0.0, half); /* y/k + h/2 - x > 0 */
+        dfwb_loop_add_event(pm, DFWB_EVENT_ENGAGE_DOWN, 1.0, 0.0, -1.0 / k, 0.0, 0.0, half); /* x - y/k + h/2 > 0 */
+        return;
+    }
+    pm->P[2][1] = k;
+    dfwb_loop_add_event(pm, DFWB_EVENT_REVERSE, 0.0, key == DFWB_LOOP_ENGAGED_UP ? 1.0 : -1.0, 0.0, 0.0, 0.0,
+                        0.0); /* s v > 0 */
+}
+
+/* StaticBacklashLoop._engage */
+static int loop_engage(dfwb_loop *L, int s, double *X, int count, int *key, int *departing, dfwb_err *err)
+{
+    const double k = L->par[1], h = L->par[2];
+    int sign, rc;
+    if (count) /* reached the edge: y takes up from x (within rounding of the edge already) */
+        X[2] = k * (X[0] - (double)s * 0.5 * h);
+    rc = dfwb_hy_after(&L->hy, s > 0 ? DFWB_LOOP_ENGAGED_UP : DFWB_LOOP_ENGAGED_DOWN, 0, X, &sign, err);
+    if (rc != DFWB_OK)
+        return rc;
+    if (sign > 0) {
+        L->count += count;
+        *key = s > 0 ? DFWB_LOOP_ENGAGED_UP : DFWB_LOOP_ENGAGED_DOWN;
+        *departing = -1;
+        return DFWB_OK;
+    }
+    *key = DFWB_LOOP_FREE;
+    *departing = s > 0 ? 0 : 1;
+    return DFWB_OK;
+}
+
+static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
+{
+    const double k = L->par[1], h = L->par[2], play = X[0] - X[2] / k;
+    int s;
+    for (s = 1; s >= -1; s -= 2) /* on an edge: engaged if moving on */
+        if ((double)s * play >= 0.5 * h * (1.0 - 1e-12)) {
+            X[0] = X[2] / k + (double)s * 0.5 * h; /* on the edge, the given output kept */
+            return loop_engage(L, s, X, 0, key, departing, err);
+        }
+    *key = DFWB_LOOP_FREE;
+    return DFWB_OK;
+}
+
+static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)
+{
+    if (kind == DFWB_EVENT_REVERSE) {
+        const int s = L->hy.key == DFWB_LOOP_ENGAGED_UP ? 1 : -1;
+        X[1] = 0.0;
+        *key = DFWB_LOOP_FREE;
+        *departing = s > 0 ? 0 : 1;
+        return DFWB_OK;
+    }
+    return loop_engage(L, kind == DFWB_EVENT_ENGAGE_UP ? 1 : -1, X, 1, key, departing, err);
+}
+
+static const char *const LOOP_COORDINATES[] = {"x", "v", "y"};
+
+static const dfwb_loop_class LOOP = {3, 2, DFWB_LOOP_STATIC_BACKLASH_PARAMS, 3, "a static backlash",
+                                                   LOOP_COORDINATES, "('x', 'v', 'y')", loop_check, loop_check_state,
+                                                   loop_mode, loop_initial, loop_fire};
+
 /* -- the class ------------------------------------------------------------------------------------ */
 /* StaticBacklash.__init__, then PiecewisePlant's: the order of the Python constructor */
 static int init(void *plant, const double *params, dfwb_err *err)
@@ -258,4 +357,5 @@ static const dfwb_static_backlash zero_state = {0}; /* the state's size is count
 
 const dfwb_plant_class dfwb_static_backlash_class = {
     DFWB_PLANT_STATIC_BACKLASH, sizeof(dfwb_static_backlash), &zero_state, offsetof(dfwb_static_backlash, mass),
-    fire, restart, state_io, validate, DFWB_STATIC_BACKLASH_PARAMS, 3, 1, init, output, counter, same};
+    fire, restart, state_io, validate, DFWB_STATIC_BACKLASH_PARAMS, 3, 1, init, output, counter, same,
+    &LOOP};

@@ -1,9 +1,20 @@
-/* dfwb_parameters.h - the plants' parameter orders in the C core, written from their tables
- * (fmus/table.py) by `python -m dfwb.build_fmus.parameters`; do not edit. */
-#ifndef DFWB_PARAMETERS_H
-#define DFWB_PARAMETERS_H
+/* dfwb_plants.h - the plants of the C core and their parameter orders, written from their tables
+ * (fmus/table.py) by `python -m dfwb.build_fmus.plant_header`; do not edit. */
+#ifndef DFWB_PLANTS_H
+#define DFWB_PLANTS_H
 
-/* dfwb_friction_new: {M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics} */
+/* The plants' kinds (a state's header names its kind: plants are appended, never renumbered). */
+#define DFWB_PLANT_FRICTION 1
+#define DFWB_PLANT_BACKLASH 2
+#define DFWB_PLANT_STATIC_BACKLASH 3
+
+/* X(kind, name) for every plant: plant name defines dfwb_<name>_class in its own file. */
+#define DFWB_PLANTS(X) \
+    X(DFWB_PLANT_FRICTION, friction) \
+    X(DFWB_PLANT_BACKLASH, backlash) \
+    X(DFWB_PLANT_STATIC_BACKLASH, static_backlash)
+
+/* dfwb_plant_new, the friction: {M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics} */
 #define DFWB_FRICTION_PARAMS 12
 #define DFWB_FRICTION_M         0
 #define DFWB_FRICTION_B         1
@@ -28,7 +39,7 @@
 #define DFWB_FRICTION_LOOP_x0 5
 #define DFWB_FRICTION_LOOP_v0 6
 
-/* dfwb_backlash_new: {M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics} */
+/* dfwb_plant_new, the backlash: {M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics} */
 #define DFWB_BACKLASH_PARAMS 13
 #define DFWB_BACKLASH_M1        0
 #define DFWB_BACKLASH_M2        1
@@ -55,7 +66,7 @@
 #define DFWB_BACKLASH_LOOP_v2_0 6
 #define DFWB_BACKLASH_LOOP_gap0 7
 
-/* dfwb_static_backlash_new: {M, k, h, F, omega, phi, x0, v0, f, harmonics} */
+/* dfwb_plant_new, the static backlash: {M, k, h, F, omega, phi, x0, v0, f, harmonics} */
 #define DFWB_STATIC_BACKLASH_PARAMS 10
 #define DFWB_STATIC_BACKLASH_M         0
 #define DFWB_STATIC_BACKLASH_k         1

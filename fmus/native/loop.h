@@ -1,0 +1,67 @@
+/* loop.h - internal: a plant in feedback with a linear controller (loops.c), and what a plant gives its loop.
+ *
+ * loops.c is the loop (fmus/loops.py's FeedbackLoop: the controller, the coupling, the API); each plant's
+ * file gives its dfwb_loop_class (the subclass: FrictionLoop, BacklashLoop, StaticBacklashLoop), named by
+ * its dfwb_plant_class. Not part of the public API (dfwb_core.h).
+ */
+#ifndef DFWB_LOOP_H
+#define DFWB_LOOP_H
+
+#include "dfwb_core.h"
+#include "exact.h"
+#include "hybrid.h"
+
+#define DFWB_LOOP_PLANT_MAX 4 /* plant coordinates at most */
+#define DFWB_LOOP_PAR 6       /* the plant's constants held by a loop */
+
+typedef struct dfwb_loop_class dfwb_loop_class;
+
+struct dfwb_loop {
+    dfwb_hy hy; /* first: the hybrid solver */
+    const dfwb_loop_class *cls;
+    int plant;  /* DFWB_PLANT_* */
+    int m, order, out;
+    /* -G(s): (Ac, Bc, C, D) of LinearSystem with C and D negated; f = D y + C z as a row over the state */
+    double Ac[DFWB_LOOP_MAX_ORDER][DFWB_LOOP_MAX_ORDER], Bc[DFWB_LOOP_MAX_ORDER], C[DFWB_LOOP_MAX_ORDER], D;
+    double f_row[DFWB_HY_DIM];
+    /* the plant's constants (its check writes them): friction {M, B, Fc, Fs}, backlash {M1, M2, h, eps, r2,
+     * tol_h}, static {M, k, h} */
+    double par[DFWB_LOOP_PAR];
+    double bc[DFWB_LOOP_MAX_ORDER + 1], ac[DFWB_LOOP_MAX_ORDER]; /* G's b0..bn, a1..an (0 beyond n) */
+    double section;                                                /* the section's level (0 without one) */
+    long long count; /* the plant's counter: sticks, impacts, engagements */
+};
+
+/* A plant mode: q' = P q + p + phi f, event functions Lq.q + Lf f + l0 (FeedbackLoop.plant_mode). */
+typedef struct {
+    double P[DFWB_LOOP_PLANT_MAX][DFWB_LOOP_PLANT_MAX], p[DFWB_LOOP_PLANT_MAX], phi[DFWB_LOOP_PLANT_MAX];
+    int nev, kind[2];
+    double Lq[2][DFWB_LOOP_PLANT_MAX], Lf[2], l0[2];
+} dfwb_plant_mode;
+
+/* Append the event function l1 q0 + l2 q1 + l3 q2 + l4 q3 + Lf f + l0 of kind (DFWB_EVENT_*). */
+void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, double l3, double l4, double Lf,
+                         double l0);
+/* FeedbackLoop.force: f = D y + C z at X. */
+double dfwb_loop_feedback(const dfwb_loop *L, const double *X);
+
+/* What a plant gives its closed loop (a FeedbackLoop subclass of fmus/loops.py). */
+struct dfwb_loop_class {
+    int size;                        /* the plant's coordinates q (at most DFWB_LOOP_PLANT_MAX) */
+    int out;                         /* the coordinate that is the output y */
+    size_t nparams;                  /* dfwb_loop_new's parameters (DFWB_LOOP_*_PARAMS) */
+    int npar;                        /* the entries of par[] it uses (a state's others must be 0) */
+    const char *name;                /* "a static backlash": a state's messages */
+    const char *const *coordinates;  /* the size coordinates' names */
+    const char *coordinates_text;    /* "('x', 'v')" */
+    /* The subclass's __init__: params checked (the plant's own dfwb_*_check), par[] and q0 written. */
+    int (*check)(dfwb_loop *L, const double *params, double *q0, dfwb_err *err);
+    /* check_coordinates of a given state (beyond finite), or NULL. */
+    int (*check_state)(const dfwb_loop *L, const double *q, dfwb_err *err);
+    void (*mode)(const dfwb_loop *L, int key, dfwb_plant_mode *pm);
+    /* initial: the mode of X at t = 0 (X may be snapped); _fire: the mode after an event of kind at X. */
+    int (*initial)(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err);
+    int (*fire)(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err);
+};
+
+#endif /* DFWB_LOOP_H */
