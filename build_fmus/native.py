@@ -38,7 +38,6 @@ from pathlib import Path
 import pythonfmu
 
 from dfwb.fmus import backlash, contract, facade, friction, static_backlash, table
-from dfwb.fmus.contract import BacklashOutput, FrictionOutput, StaticBacklashOutput
 
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
 from .errors import BuildError
@@ -63,14 +62,12 @@ FMI_VERSIONS = (2, 3)
 WIN64_FLAGS = ("-O2", "-std=c99", "-shared", "-ffp-contract=off", "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc",
                "-s")
 
-# Per plant: the core's plant kind, its parameter order (the plant's table, fmus/table.py), the order of
-# dfwb_plant_output's array (the fields of its solver's output) and its counters (dfwb_plant_counter's order).
+# Per plant: the core's plant kind and table (fmus/table.py): the parameters' order, dfwb_plant_output's
+# array (the solver's outputs) and dfwb_plant_counter's order (its counters).
 KINDS = {
-    "FrictionMass": ("DFWB_PLANT_FRICTION", friction.TABLE.core_order, FrictionOutput._fields, ()),
-    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH", backlash.TABLE.core_order, BacklashOutput._fields,
-                        ("contact", "impacts")),
-    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH", static_backlash.TABLE.core_order, StaticBacklashOutput._fields,
-                       ("engaged",)),
+    "FrictionMass": ("DFWB_PLANT_FRICTION", friction.TABLE),
+    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH", backlash.TABLE),
+    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH", static_backlash.TABLE),
 }
 COSIMULATION = {
     "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
@@ -179,7 +176,8 @@ def _c_string(text):
 def model_header(model, root):
     """dfwb_model.h for ``model`` from its FMI 2.0 or 3.0 model description ``root``: its kind, GUID (or
     instantiationToken) and every variable's name, type, role and start value."""
-    kind, parameters, outputs, counters = KINDS[model.__name__]
+    kind, table = KINDS[model.__name__]
+    parameters, outputs, counters = table.core_order, table.solver_outputs, table.counters
     index = {name: i for i, name in enumerate(parameters)}
     rows, vr_of = [], {}
     fmi3 = root.get("fmiVersion") == "3.0"

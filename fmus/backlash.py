@@ -18,7 +18,7 @@ drifted far or their masses differ by orders of magnitude.
 from .contract import BacklashOutput, EventKind
 from .exact import Motion
 from .piecewise import PiecewisePlant, PositionSearch, Search, VelocitySearch, check
-from .table import MASS, POSITION, VELOCITY, Parameter, PlantTable
+from .table import MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
 
 MIN_CLEARANCE = 1e-290  # m: the Zeno tolerance 1e-12 h stays a normal float
 FREE, LOWER, UPPER = 0, 1, 2  # the ``contact`` output: free, at gap 0, at gap h
@@ -41,6 +41,15 @@ TABLE = PlantTable(
         Parameter("v1_0", 0.0, "m/s", "initial velocity of M1", accepted=VELOCITY),
         Parameter("v2_0", 0.0, "m/s", "initial velocity of M2", accepted=VELOCITY),
         Parameter("gap0", None, "m", "initial gap x2 - x1, in [0, h]; -1 (default): h/2", (-1.0, None), start=-1.0),
+    ),
+    outputs=(
+        Output("x1", "m", "position of M1"),
+        Output("v1", "m/s", "velocity of M1"),
+        Output("x2", "m", "position of M2"),
+        Output("v2", "m/s", "velocity of M2"),
+        Output("gap", "m", "gap x2 - x1, in [0, h]"),
+        Output("contact", None, "0 free, 1 in contact at gap 0, 2 in contact at gap h", integer=True, counter=True),
+        Output("impacts", None, "number of impacts so far", integer=True, counter=True),
     ),
 )
 DEFAULT = TABLE.default  # the keyword defaults below

@@ -675,7 +675,8 @@ class PlantFMU(TableFMU):
 
     solver_class = None
     table = None
-    """The plant's :class:`~.table.PlantTable`: ``parameters`` and ``ranges`` are read from it (None: declared)."""
+    """The plant's :class:`~.table.PlantTable`: ``parameters``, ``ranges``, ``outputs``, ``feedthrough`` and
+    ``output_signal`` are read from it, and the outputs' values from the solver (None: all declared here)."""
     parameters = ()  # (name, default, unit, description)
     outputs = ()  # (name, unit, description, is_integer)
     output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
@@ -683,8 +684,12 @@ class PlantFMU(TableFMU):
     piecewise_solver = True  # a PiecewisePlant: its piece start and searched time are checked too
 
     def __init_subclass__(cls, **kwargs):
-        if "table" in cls.__dict__ and cls.table is not None:  # first: TableFMU lays the variables out from them
-            cls.parameters, cls.ranges = cls.table.fmu_parameters(), cls.table.bounds()
+        table = cls.__dict__.get("table")
+        if table is not None:  # first: TableFMU lays the variables out from them
+            cls.parameters, cls.ranges = table.fmu_parameters(), table.bounds()
+            if table.outputs:
+                cls.outputs, cls.feedthrough = table.fmu_outputs(), table.feedthrough()
+                cls.output_signal = table.fmu_signal()
         super().__init_subclass__(**kwargs)
         if cls.solver_class is not None:
             FACADES.append(cls)
@@ -815,7 +820,11 @@ class PlantFMU(TableFMU):
 
     @classmethod
     def solver_kwargs(cls, kwargs):
-        """The solver's keyword arguments from the FMU's parameter values."""
+        """The solver's keyword arguments from the FMU's parameter values (a table's parameter whose FMU start
+        value stands for a default that is not a number, gap0 = -1 for h/2, is given that default)."""
+        for parameter in cls.table.parameters if cls.table is not None else ():
+            if parameter.start is not None and kwargs.get(parameter.name) == parameter.start:
+                kwargs[parameter.name] = parameter.default
         return kwargs
 
     def _refresh(self):
@@ -830,7 +839,10 @@ class PlantFMU(TableFMU):
         self._fourier = None
 
     def output_values(self):
-        raise NotImplementedError
+        """The values of ``outputs``, in order: the solver's ``output()``, then its counters (a table's)."""
+        if self.table is None:
+            raise NotImplementedError
+        return tuple(self.solver.output()) + tuple(getattr(self.solver, name) for name in self.table.counters)
 
 
 class FrictionMass(PlantFMU):
@@ -840,16 +852,6 @@ class FrictionMass(PlantFMU):
     native_solver = "FrictionMass"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "B", "Fc", "Fs", "Dv", "edge_force")
     table = _FRICTION
-    feedthrough = {"Ff": "dependent", "mode": "dependent"}  # stuck: Ff = u; a new f can break away at once
-    outputs = (
-        ("x", "m", "position", False),
-        ("v", "m/s", "velocity", False),
-        ("Ff", "N", "friction force", False),
-        ("mode", None, "0 stick (or inside the Karnopp band), +1/-1 sliding", True),
-    )
-
-    def output_values(self):
-        return self.solver.output()
 
 
 class TwoMassBacklash(PlantFMU):
@@ -858,26 +860,7 @@ class TwoMassBacklash(PlantFMU):
     solver_class = _TwoMassBacklash
     native_solver = "TwoMassBacklash"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M1", "M2", "h", "eps", "total", "r1", "r2", "tol_h")
-    output_signal = ("x1", "m")
     table = _BACKLASH
-    outputs = (
-        ("x1", "m", "position of M1", False),
-        ("v1", "m/s", "velocity of M1", False),
-        ("x2", "m", "position of M2", False),
-        ("v2", "m/s", "velocity of M2", False),
-        ("gap", "m", "gap x2 - x1, in [0, h]", False),
-        ("contact", None, "0 free, 1 in contact at gap 0, 2 in contact at gap h", True),
-        ("impacts", None, "number of impacts so far", True),
-    )
-
-    @classmethod
-    def solver_kwargs(cls, kwargs):
-        if kwargs["gap0"] == -1.0:  # the start value: centred, whatever h is
-            kwargs["gap0"] = None
-        return kwargs
-
-    def output_values(self):
-        return self.solver.output() + (self.solver.contact, self.solver.impacts)
 
 
 class StaticBacklash(PlantFMU):
@@ -886,17 +869,7 @@ class StaticBacklash(PlantFMU):
     solver_class = _StaticBacklash
     native_solver = "StaticBacklash"
     fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "k", "h")
-    output_signal = ("y", "m")
     table = _STATIC_BACKLASH
-    outputs = (
-        ("x", "m", "position of the mass (backlash input)", False),
-        ("v", "m/s", "velocity of the mass", False),
-        ("y", "m", "backlash output", False),
-        ("engaged", None, "0 inside the play, +1/-1 engaged and dragging y", True),
-    )
-
-    def output_values(self):
-        return self.solver.output() + (self.solver.engaged,)
 
 
 class LinearSystem(SolverFMU):

@@ -16,7 +16,7 @@ stops (v reaching the band) are first zeros of the closed-form velocity.
 from .contract import EventKind, FrictionOutput
 from .exact import Motion
 from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, check
-from .table import FORCE, MASS, POSITION, VELOCITY, Parameter, PlantTable
+from .table import FORCE, MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
     constants=(
@@ -29,6 +29,13 @@ TABLE = PlantTable(
     initial=(
         Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
         Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
+    ),
+    outputs=(
+        Output("x", "m", "position"),
+        Output("v", "m/s", "velocity"),
+        Output("Ff", "N", "friction force", feedthrough=True),  # stuck: Ff = u
+        Output("mode", None, "0 stick (or inside the Karnopp band), +1/-1 sliding", integer=True,
+               feedthrough=True),  # a new f can break away at once
     ),
 )
 DEFAULT = TABLE.default  # the keyword defaults below

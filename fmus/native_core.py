@@ -84,11 +84,11 @@ EVENT_KINDS = (None, EventKind.BREAK_UP, EventKind.BREAK_DOWN, EventKind.RELEASE
                EventKind.WALL_LOWER, EventKind.WALL_UPPER, EventKind.APEX, EventKind.ENGAGE_UP,
                EventKind.ENGAGE_DOWN, EventKind.REVERSE)
 
-# plant -> (DFWB_PLANT_*, NativeCore attribute, its parameters (the C order), its outputs, its counters)
+# plant -> (DFWB_PLANT_*, NativeCore attribute, its table: the C order of its parameters, outputs and counters)
 _PLANTS = {
-    "friction": (1, "FrictionMass", PARAMETERS, FrictionOutput._fields, ()),
-    "backlash": (2, "TwoMassBacklash", BACKLASH_PARAMETERS, BacklashOutput._fields, ("contact", "impacts")),
-    "static_backlash": (3, "StaticBacklash", STATIC_BACKLASH_PARAMETERS, StaticBacklashOutput._fields, ("engaged",)),
+    "friction": (1, "FrictionMass", _FRICTION),
+    "backlash": (2, "TwoMassBacklash", _BACKLASH),
+    "static_backlash": (3, "StaticBacklash", _STATIC_BACKLASH),
 }
 
 
@@ -163,11 +163,11 @@ class _PlantApi(_Functions):
         }
         super().__init__(lib, "dfwb_plant", path, table)
         self.state_sizes = {}
-        for plant, (kind, _attr, parameters, outputs, counters) in _PLANTS.items():
+        for plant, (kind, _attr, table) in _PLANTS.items():
             shape = [c_size_t() for _ in range(3)]
             if self.shape(kind, *map(ctypes.byref, shape)) != OK:
                 raise CoreError(f"the C core {path} has no plant of kind {kind} ({plant}): rebuild it")
-            expected = (len(parameters), len(outputs), len(counters))
+            expected = (len(table.core_order), len(table.solver_outputs), len(table.counters))
             if tuple(n.value for n in shape) != expected:
                 raise CoreError(f"the C core {path}'s {plant} has (parameters, outputs, counters) = "
                                 f"{tuple(n.value for n in shape)}, this binding's {expected}: rebuild it")
@@ -443,7 +443,7 @@ class _NativeSolver(_Native):
     def _setup(self, core, handle):
         super()._setup(core, handle)
         self.harmonics = self._api.harmonics(handle)
-        self._out = (ctypes.c_double * len(_PLANTS[self._plant][3]))()
+        self._out = (ctypes.c_double * len(_PLANTS[self._plant][2].solver_outputs))()
         self._re = (ctypes.c_double * (self.harmonics + 1))()
         self._im = (ctypes.c_double * (self.harmonics + 1))()
 

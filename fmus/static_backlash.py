@@ -10,7 +10,7 @@ of the closed-form velocity. The output is y; it starts centred, y = k x0.
 from .contract import EventKind, StaticBacklashOutput
 from .exact import Motion
 from .piecewise import EdgeSearch, PiecewisePlant, Search, VelocitySearch, check
-from .table import MASS, POSITION, VELOCITY, Parameter, PlantTable
+from .table import MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
 
 ENGAGE = {1: EventKind.ENGAGE_UP, -1: EventKind.ENGAGE_DOWN}  # the edge x reaches -> the event
 EDGE = {kind: s for s, kind in ENGAGE.items()}
@@ -26,6 +26,13 @@ TABLE = PlantTable(
         Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
         Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
     ),
+    outputs=(
+        Output("x", "m", "position of the mass (backlash input)"),
+        Output("v", "m/s", "velocity of the mass"),
+        Output("y", "m", "backlash output"),
+        Output("engaged", None, "0 inside the play, +1/-1 engaged and dragging y", integer=True, counter=True),
+    ),
+    signal="y",
 )
 DEFAULT = TABLE.default  # the keyword defaults below
 

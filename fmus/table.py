@@ -27,7 +27,7 @@ Examples
 
 from typing import NamedTuple, Optional
 
-__all__ = ["Parameter", "PlantTable", "EXCITATION", "EXCITATION_NAMES", "INPUT_NAMES", "MASS", "FORCE", "VELOCITY",
+__all__ = ["Parameter", "Output", "PlantTable", "EXCITATION", "EXCITATION_NAMES", "INPUT_NAMES", "MASS", "FORCE", "VELOCITY",
            "POSITION"]
 
 EXCITATION_NAMES = ("F", "omega", "phi")
@@ -69,6 +69,23 @@ FORCE = (0.0, 1e9)
 VELOCITY = (-1e6, 1e6)
 POSITION = (-1e30, 1e30)
 
+class Output(NamedTuple):
+    """One output of a plant's FMU.
+
+    A ``counter`` is an integer the solver keeps as an attribute of that
+    name (``impacts``); the others are the fields of its ``output()``, in
+    order. ``feedthrough``: the input feeds it directly (stuck friction's
+    force is the input), which the model description states.
+    """
+
+    name: str
+    unit: Optional[str]
+    description: str
+    integer: bool = False
+    counter: bool = False
+    feedthrough: bool = False
+
+
 EXCITATION = (
     Parameter("F", 0.0, "N", "amplitude of the built-in excitation F cos(omega t + phi)"),
     Parameter("omega", 1.0, "rad/s", "angular frequency of the built-in excitation (> 0)"),
@@ -84,10 +101,17 @@ class _Defaults:
 
 
 class PlantTable:
-    """A plant's parameters: ``constants`` then ``initial`` values (tuples of :class:`Parameter`)."""
+    """A plant's parameters (``constants`` then ``initial`` values, tuples of :class:`Parameter`), its outputs
+    (:class:`Output`) and the ``signal`` among them whose Fourier integrals the FMU computes (its DF's)."""
 
-    def __init__(self, constants, initial):
+    def __init__(self, constants, initial, outputs=(), signal=None):
         self.constants, self.initial = tuple(constants), tuple(initial)
+        self.outputs = tuple(outputs)
+        self.signal = signal if signal is not None else (self.outputs[0].name if self.outputs else None)
+        self.solver_outputs = tuple(o.name for o in self.outputs if not o.counter)
+        self.counters = tuple(o.name for o in self.outputs if o.counter)
+        if self.outputs and self.signal not in self.solver_outputs:
+            raise ValueError(f"the signal {self.signal!r} is not one of the outputs {self.solver_outputs}")
         self.parameters = self.constants + self.initial
         names = [p.name for p in self.parameters + EXCITATION] + list(INPUT_NAMES)
         repeated = sorted({name for name in names if names.count(name) > 1})
@@ -107,6 +131,18 @@ class PlantTable:
     def bounds(self):
         """{name: (min, max)} stated in the model description (parameters with a bound only)."""
         return {p.name: p.bounds for p in self.parameters if p.bounds != (None, None)}
+
+    def fmu_outputs(self):
+        """((name, unit, description, is_integer)) of the FMU facade, in its variables' order."""
+        return tuple((o.name, o.unit, o.description, o.integer) for o in self.outputs)
+
+    def feedthrough(self):
+        """{output: "dependent"} of the outputs the input feeds directly."""
+        return {o.name: "dependent" for o in self.outputs if o.feedthrough}
+
+    def fmu_signal(self):
+        """(name, unit) of the signal whose Fourier integrals the FMU computes."""
+        return next((o.name, o.unit) for o in self.outputs if o.name == self.signal)
 
     def accepted(self):
         """{name: (low, high, unit)} the engine accepts (parameters with such a range only)."""

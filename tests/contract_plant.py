@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 from dfwb.fmus.facade import PlantFMU
 from dfwb.fmus.piecewise import check
-from dfwb.fmus.table import MASS, POSITION, VELOCITY, Parameter, PlantTable
+from dfwb.fmus.table import MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
     constants=(
@@ -31,6 +31,10 @@ TABLE = PlantTable(
     initial=(
         Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
         Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
+    ),
+    outputs=(
+        Output("x", "m", "position"),
+        Output("v", "m/s", "velocity"),
     ),
 )
 DEFAULT = TABLE.default
@@ -125,13 +129,6 @@ class MassSpringDamper(PlantFMU):
 
     solver_class = MassSpringDamperSolver
     table = TABLE
-    outputs = (
-        ("x", "m", "position", False),
-        ("v", "m/s", "velocity", False),
-    )
-
-    def output_values(self):
-        return self.solver.output()
 
 
 def linear_df(omega, params):

@@ -61,6 +61,20 @@ def test_the_facade_and_the_orders_come_from_the_table(plant):
     assert loop_reference.DEFAULTS[plant] is table.defaults
 
 
+@pytest.mark.parametrize("plant", TABLES)
+def test_the_outputs_come_from_the_table(plant):
+    """The FMU's outputs, their order and feedthrough are the table's; the solver's output() has the table's
+    non-counter outputs as its fields, and its counters are attributes."""
+    table, model = TABLES[plant], FACADES[plant]
+    assert [row[0] for row in model.outputs] == [o.name for o in table.outputs]
+    assert model.output_signal == table.fmu_signal() and model.feedthrough == table.feedthrough()
+    solver = model.solver_class(F=1.0)
+    assert solver.output()._fields == table.solver_outputs
+    assert all(isinstance(getattr(solver, name), int) for name in table.counters)
+    with pytest.raises(ValueError, match="the signal 'z' is not one of the outputs"):
+        PlantTable(table.constants, table.initial, table.outputs, signal="z")
+
+
 def test_the_engine_ranges_are_the_tables():
     for table in TABLES.values():
         for name, accepted in table.accepted().items():
