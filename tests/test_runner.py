@@ -349,10 +349,13 @@ def test_a_running_dask_scheduler_gets_the_fmus_shipped_and_gives_the_local_resu
                                   "--port", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     worker = None
     try:
-        deadline = time.monotonic() + 60
-        while not info.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        address = json.loads(info.read_text())["address"]
+        deadline, address = time.monotonic() + 60, None
+        while address is None and time.monotonic() < deadline:  # dask writes the file in place: it can be
+            try:                                                 # there, empty or half written
+                address = json.loads(info.read_text())["address"]
+            except (OSError, ValueError, KeyError):
+                time.sleep(0.1)
+        assert address, "the dask scheduler wrote no address within 60 s"
         worker = subprocess.Popen([str(dask), "worker", address, "--nthreads", "1", "--no-dashboard"],
                                   cwd=worker_dir, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         outcome = run_scene(scene(), tmp_path / "remote", dask=address, cache=False, progress=False)
