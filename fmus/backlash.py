@@ -51,6 +51,9 @@ TABLE = PlantTable(
         Output("contact", None, "0 free, 1 in contact at gap 0, 2 in contact at gap h", integer=True, counter=True),
         Output("impacts", None, "number of impacts so far", integer=True, counter=True),
     ),
+    section=("x1", "v1", "gap", "v2"), modes=("contact",), starts={"x1": "x1_0", "v1": "v1_0", "gap": "gap0",
+                                                                      "v2": "v2_0"},
+    shifts={"x1": 1.0}, position="x1_0", counter="impacts",
 )
 DEFAULT = TABLE.default  # the keyword defaults below
 

@@ -37,6 +37,7 @@ TABLE = PlantTable(
         Output("mode", None, "0 stick (or inside the Karnopp band), +1/-1 sliding", integer=True,
                feedthrough=True),  # a new f can break away at once
     ),
+    section=("x", "v"), modes=("mode",), starts={"x": "x0", "v": "v0"}, shifts={"x": 1.0}, position="x0",
 )
 DEFAULT = TABLE.default  # the keyword defaults below
 

@@ -32,7 +32,7 @@ TABLE = PlantTable(
         Output("y", "m", "backlash output"),
         Output("engaged", None, "0 inside the play, +1/-1 engaged and dragging y", integer=True, counter=True),
     ),
-    signal="y",
+    signal="y", section=("x", "v", "y"), modes=("engaged",), shifts={"x": 1.0, "y": "k"}, position="x0",
 )
 DEFAULT = TABLE.default  # the keyword defaults below
 

@@ -101,11 +101,36 @@ class _Defaults:
 
 
 class PlantTable:
-    """A plant's parameters (``constants`` then ``initial`` values, tuples of :class:`Parameter`), its outputs
-    (:class:`Output`) and the ``signal`` among them whose Fourier integrals the FMU computes (its DF's)."""
+    """A plant described once.
 
-    def __init__(self, constants, initial, outputs=(), signal=None):
+    Parameters
+    ----------
+    constants, initial : tuple of Parameter
+        The plant's constants, then its initial values.
+    outputs : tuple of Output
+        The FMU's outputs.
+    signal : str
+        The output whose Fourier integrals the FMU computes, its DF's (default: the first).
+    section : tuple of str
+        The continuous outputs read at whole periods: an orbit repeats when they do (the Poincare section).
+    modes : tuple of str
+        The discrete outputs read with them.
+    starts : dict
+        Section component -> the parameter that sets it at t = 0 (shooting starts there).
+    shifts : dict
+        How each section component and the signal move when the plant is translated by 1 m: a number, or
+        the name of the parameter that is the factor (``"k"``).
+    position : str
+        The parameter that translates the whole plant.
+    counter : str
+        The integer output that counts engagements (``"events"``: every event).
+    """
+
+    def __init__(self, constants, initial, outputs=(), signal=None, section=(), modes=(), starts=None, shifts=None,
+                 position=None, counter="events"):
         self.constants, self.initial = tuple(constants), tuple(initial)
+        self.section, self.modes, self.position, self.counter = tuple(section), tuple(modes), position, counter
+        self.starts, self.shifts = dict(starts or {}), dict(shifts or {})
         self.outputs = tuple(outputs)
         self.signal = signal if signal is not None else (self.outputs[0].name if self.outputs else None)
         self.solver_outputs = tuple(o.name for o in self.outputs if not o.counter)

@@ -36,6 +36,7 @@ TABLE = PlantTable(
         Output("x", "m", "position"),
         Output("v", "m/s", "velocity"),
     ),
+    section=("x", "v"), starts={"x": "x0", "v": "v0"}, position="x0",  # shifts: none (the spring is fixed)
 )
 DEFAULT = TABLE.default
 
@@ -142,8 +143,7 @@ def entry():
     from dfwb.plants.registry import Demo, Plant
 
     return Plant(
-        "mass-spring-damper", MassSpringDamper, output="x", section=("x", "v"), modes=(),
-        initial={"x": "x0", "v": "v0"}, shifts={}, position="x0",
+        "mass-spring-damper", MassSpringDamper,
         summary="mass on a spring with viscous damping (linear, exact closed form)",
         linear=({}, linear_df),
         demo=Demo({"F": 10.0, "omega": 1.0}, 4 * math.pi, 64, (("x", "position x [m]"),)),

@@ -146,3 +146,24 @@ def test_the_docs_tables_state_the_tables_defaults_and_units():
             default, unit = rows[parameter.name]
             assert float(default) == parameter.fmu_start, (plant, parameter.name)
             assert unit == (parameter.unit or "-"), (plant, parameter.name)
+
+
+def test_a_registry_entry_takes_the_engine_facts_from_the_table():
+    """Plant(name, model) without section, modes, ... has the table's; one given overrides it; a model
+    without a table must give them (one line naming what is missing)."""
+    from dfwb.plants.registry import Plant
+
+    entry = Plant("table-friction", facade.FrictionMass)
+    table = friction.TABLE
+    assert (entry.output, entry.section, entry.modes, entry.initial, entry.shifts, entry.position, entry.counter) == \
+        (table.signal, table.section, table.modes, table.starts, table.shifts, table.position, table.counter)
+    assert Plant("table-friction", facade.FrictionMass, section=("x",), counter="events").section == ("x",)
+    assert Plant("table-backlash", facade.TwoMassBacklash).counter == "impacts"
+
+    class Untabled(facade.FrictionMass):
+        """A facade that declares its variables itself."""
+
+    Untabled.table = None
+    with pytest.raises(facade.PlantError, match="plant 'bare': no output given, and Untabled has no table"):
+        Plant("bare", Untabled)
+    facade.FACADES.remove(Untabled)

@@ -1,7 +1,7 @@
 """The three plants of the paper, as registry entries.
 
-Each entry is the whole of what dfwb knows about its plant beyond the solver
-and the FMU facade (:mod:`dfwb.fmus`): see :class:`~dfwb.plants.registry.Plant`.
+Each entry is the whole of what dfwb knows about its plant beyond the solver,
+its table and the FMU facade (:mod:`dfwb.fmus`): see :class:`~dfwb.plants.registry.Plant`.
 The independent references (:mod:`dfwb.plants.reference`, scipy) are imported
 only when a reference is asked for.
 """
@@ -52,8 +52,7 @@ def _static_backlash_scipy(F, omega, params, method, rtol):
 
 
 FRICTION = register(Plant(
-    "friction", facade.FrictionMass, output="x", section=("x", "v"), modes=("mode",),
-    initial={"x": "x0", "v": "v0"}, shifts={"x": 1.0}, position="x0",
+    "friction", facade.FrictionMass,
     summary="mass with Coulomb, viscous and static friction (exact stick-slip)",
     naive=naive_facade.NaiveFrictionMass,
     reference=_reference("friction"),
@@ -68,10 +67,8 @@ FRICTION = register(Plant(
 ))
 
 BACKLASH = register(Plant(
-    "backlash", facade.TwoMassBacklash, output="x1", section=("x1", "v1", "gap", "v2"), modes=("contact",),
-    initial={"x1": "x1_0", "v1": "v1_0", "gap": "gap0", "v2": "v2_0"}, shifts={"x1": 1.0}, position="x1_0",
+    "backlash", facade.TwoMassBacklash,
     summary="two masses with a clearance and impacts of restitution eps",
-    counter="impacts",
     never_engaged="the masses do not touch in the steady state: x1 is constant, N = 0",
     naive=naive_facade.NaiveTwoMassBacklash,
     reference=_reference("backlash"),
@@ -86,8 +83,7 @@ BACKLASH = register(Plant(
 ))
 
 STATIC_BACKLASH = register(Plant(
-    "static-backlash", facade.StaticBacklash, output="y", section=("x", "v", "y"), modes=("engaged",),
-    initial={}, shifts={"x": 1.0, "y": "k"}, position="x0",
+    "static-backlash", facade.StaticBacklash,
     summary="mass driven by the force, followed by a static backlash (dead band h, slope k)",
     never_engaged="the backlash does not engage in the steady state (X <= h/2): N = 0",
     naive=naive_facade.NaiveStaticBacklash,

@@ -77,7 +77,11 @@ class Plant:
         The name on the command line and in scenes (``"friction"``).
     model : type
         The FMI facade class (:class:`dfwb.fmus.facade.PlantFMU`); its
-        ``parameters`` and ``outputs`` name the variables.
+        ``parameters`` and ``outputs`` name the variables. The fields from
+        ``output`` to ``position`` and ``counter``, when not given, are its
+        table's (:class:`dfwb.fmus.table.PlantTable`: ``signal``,
+        ``section``, ``modes``, ``starts``, ``shifts``, ``position``,
+        ``counter``).
     output : str
         The signal whose describing function is taken.
     section : tuple of str
@@ -160,14 +164,14 @@ class Plant:
 
     name: str
     model: type
-    output: str
-    section: tuple
-    modes: tuple
-    initial: dict
-    shifts: dict
-    position: str
+    output: Optional[str] = None
+    section: Optional[tuple] = None
+    modes: Optional[tuple] = None
+    initial: Optional[dict] = None
+    shifts: Optional[dict] = None
+    position: Optional[str] = None
     summary: str = ""
-    counter: str = "events"
+    counter: Optional[str] = None
     never_engaged: Optional[str] = None
     ranges: dict = field(default_factory=dict)
     naive: Optional[type] = None
@@ -189,6 +193,18 @@ class Plant:
         if not (isinstance(self.model, type) and issubclass(self.model, PlantFMU)):
             raise PlantError(f"plant {self.name!r}: model {self.model!r} is not an FMU facade "
                              "(a subclass of dfwb.fmus.facade.PlantFMU)")
+        table = self.model.table
+        for what, key, fallback in (("output", "signal", None), ("section", "section", None), ("modes", "modes", None),
+                                    ("initial", "starts", {}), ("shifts", "shifts", {}),
+                                    ("position", "position", None), ("counter", "counter", "events")):
+            if getattr(self, what) is None:  # not given: the model's table states it
+                stated = getattr(table, key, None) if table is not None else None
+                if what == "section" and not stated:
+                    stated = None
+                if stated is None and fallback is None:
+                    raise PlantError(f"plant {self.name!r}: no {what} given, and {self.model.__name__} has no "
+                                     f"table that states it")
+                object.__setattr__(self, what, fallback if stated is None else stated)
         for what in ("section", "modes"):
             value = getattr(self, what)
             if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) for v in value)):
