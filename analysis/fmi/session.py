@@ -17,7 +17,7 @@ freed: pythonfmu 0.7.0 would release its objects twice after a fatal error.
 import ctypes
 import itertools
 
-from fmpy.fmi1 import FMICallException, calloc, free
+from fmpy.fmi1 import calloc, free
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,
@@ -28,17 +28,10 @@ from fmpy.fmi2 import (
 
 from dfwb.base import stop
 from dfwb.fmi.simulation import FMUError, unpacked
+from dfwb.fmi.status import ERROR, Messages, check
 
 _ABANDONED = []  # failed instances stay referenced for the life of the process
 _COUNTER = itertools.count()
-WARNING, ERROR = 1, 3  # fmi2Warning, fmi2Error
-
-
-def _check(function, status):
-    """FMICallException for a status worse than fmi2Warning (what fmpy's wrapper raises)."""
-    if status > WARNING:
-        raise FMICallException(function=function, status=status)
-
 
 class FMUSession:
     """A reusable co-simulation instance of one FMU."""
@@ -48,19 +41,15 @@ class FMUSession:
         self.description = description
         self.name = description.modelName
         self.variables = {v.name: v for v in description.modelVariables}
-        self.messages = []
+        self.messages = Messages()
         self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(self.messages.fmi2())
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         self._fmu = None
         self._needs_reset = False
         self._setter_cache = {}
         self.time = 0.0
-
-    def _log(self, _env, _instance, status, _category, message):
-        if status >= 1 and b"Fatal py exception" not in message:
-            self.messages.append(message.decode(errors="replace").strip())
 
     def _instance(self):
         if self._fmu is None:
@@ -79,8 +68,7 @@ class FMUSession:
             self._fmu = None
         if stop.requested():  # a Ctrl-C or kill that landed inside the FMU's Python code
             raise KeyboardInterrupt
-        reason = "; ".join(self.messages) or str(error)
-        self.messages = []
+        reason = self.messages.reasons(otherwise=str(error))
         raise FMUError(f"{self.name}: {what} failed at t = {self.time!r}: {reason}") from None
 
     def start(self, values):
@@ -90,14 +78,14 @@ class FMUSession:
         dll, component = fmu.dll, fmu.component  # the FMI functions as fmpy declared them, without its wrapper
         try:
             if self._needs_reset:
-                _check("fmi2Reset", dll.fmi2Reset(component))
+                check("fmi2Reset", dll.fmi2Reset(component))
             self._needs_reset = True
             for name, refs, ctype, convert, names in self._setters(tuple(values)):
                 numbers = (ctype * len(names))(*(convert(values[n]) for n in names))
-                _check(name, getattr(dll, name)(component, refs, len(names), numbers))
-            _check("fmi2SetupExperiment", dll.fmi2SetupExperiment(component, 0, 0.0, 0.0, 0, 0.0))
-            _check("fmi2EnterInitializationMode", dll.fmi2EnterInitializationMode(component))
-            _check("fmi2ExitInitializationMode", dll.fmi2ExitInitializationMode(component))
+                check(name, getattr(dll, name)(component, refs, len(names), numbers))
+            check("fmi2SetupExperiment", dll.fmi2SetupExperiment(component, 0, 0.0, 0.0, 0, 0.0))
+            check("fmi2EnterInitializationMode", dll.fmi2EnterInitializationMode(component))
+            check("fmi2ExitInitializationMode", dll.fmi2ExitInitializationMode(component))
         except Exception as error:  # a refused call, or a value ctypes cannot convert
             self._fail("initialisation", error)
 
@@ -122,7 +110,7 @@ class FMUSession:
         try:
             if inputs:
                 fmu.setReal([self.variables[n].valueReference for n in inputs], list(inputs.values()))
-            _check("fmi2DoStep", fmu.dll.fmi2DoStep(fmu.component, self.time, size, 1))
+            check("fmi2DoStep", fmu.dll.fmi2DoStep(fmu.component, self.time, size, 1))
         except Exception as error:
             self._fail(f"the step of {float(size)!r} s", error)
         self.time += size
@@ -140,8 +128,8 @@ class FMUSession:
         def read():
             fmu = self._fmu
             try:
-                _check("fmi2GetReal", fmu.dll.fmi2GetReal(fmu.component, real_refs, len(reals), real_values))
-                _check("fmi2GetInteger",
+                check("fmi2GetReal", fmu.dll.fmi2GetReal(fmu.component, real_refs, len(reals), real_values))
+                check("fmi2GetInteger",
                        fmu.dll.fmi2GetInteger(fmu.component, integer_refs, len(integers), integer_values))
             except FMICallException as error:
                 self._fail("reading the outputs", error)

@@ -23,8 +23,8 @@ from fmpy.fmi1 import FMICallException
 
 from dfwb.base import stop
 from dfwb.base.errors import DfwbError
+from dfwb.fmi.status import Messages
 
-STATUS = {1: "warning", 2: "discard", 3: "error", 4: "fatal"}
 
 
 class FMUError(DfwbError, RuntimeError):
@@ -126,27 +126,19 @@ def simulate(fmu_path, stop_time, output_interval, start_values=None, outputs=No
         raise FMUError(f"output_interval = {output_interval!r}: the communication step must be > 0")
     directory, description = unpacked(fmu_path)
     name = description.modelName
-    messages = []
-
-    def logger(_env, _instance, status, _category, message):
-        if status >= 1:
-            messages.append(f"{STATUS.get(status, status)}: {message.decode(errors='replace').strip()}")
-
+    messages = Messages(labelled=True)
     try:
         result = fmpy.simulate_fmu(
             directory, model_description=description, stop_time=stop_time,
             output_interval=output_interval, start_values=dict(start_values or {}),
-            output=outputs, input=input, logger=logger, debug_logging=True, validate=False)
+            output=outputs, input=input, logger=messages.fmi2(), debug_logging=True, validate=False)
     except FMICallException as error:
         if stop.requested():  # a Ctrl-C or kill that landed inside the FMU's Python code
             raise KeyboardInterrupt from None
-        # pythonfmu adds a generic "Fatal py exception" line after the FMU's own message
-        own = [m for m in messages if "Fatal py exception" not in m]
-        reasons = "; ".join(own or messages) or "no message from the FMU"
-        raise FMUError(f"{name}: {error} ({reasons})") from None
+        raise FMUError(f"{name}: {error} ({messages.reasons(otherwise='no message from the FMU')})") from None
     reached = float(result["time"][-1]) if len(result) else float("nan")
     if not reached >= stop_time - 1e-9 * max(1.0, abs(stop_time)):
-        reasons = "; ".join(messages) or "the FMU discarded a step without a message"
+        reasons = messages.reasons(otherwise="the FMU discarded a step without a message")
         raise FMUError(f"{name}: the simulation stopped at t = {reached!r} before "
                        f"stop_time = {stop_time!r} ({reasons})")
     return result

@@ -15,6 +15,7 @@ import itertools
 import numpy as np
 
 from dfwb.fmi.simulation import FMUError
+from dfwb.fmi.status import Messages, check
 from dfwb.foreign.description import MAX_EVENT_INDICATORS
 
 __all__ = ["Instance"]
@@ -49,7 +50,7 @@ class Instance:
         self.variables = {v.name: v for v in md.modelVariables}
         classes = {("2", "model-exchange"): FMU2Model, ("2", "co-simulation"): FMU2Slave,
                    ("3", "model-exchange"): FMU3Model, ("3", "co-simulation"): FMU3Slave}
-        self.messages = []
+        self.messages = Messages()
         token = md.instantiationToken if self.v3 else md.guid
         self.fmu = classes[info.major, kind](guid=token, unzipDirectory=info.folder,
                                              modelIdentifier=info.identifiers[kind],
@@ -58,10 +59,7 @@ class Instance:
         self.intermediate = self.v3 and kind == "co-simulation" and input in info.intermediate_inputs
         self.input_law, self.refused = None, None
         if self.v3:
-            def log(_env, status, _category, message):
-                if status >= 1:
-                    self.messages.append(message.decode(errors="replace").strip())
-
+            log = self.messages.fmi3()
             if self.intermediate:
                 def update(_env, time, set_requested, _get_allowed, _finished, _can_return, early, _early_time):
                     early[0] = False
@@ -75,12 +73,8 @@ class Instance:
             else:
                 self.fmu.instantiate(loggingOn=True, logMessage=log)
         else:
-            def log(_env, _instance, status, _category, message):
-                if status >= 1:
-                    self.messages.append(message.decode(errors="replace").strip())
-
             self._callbacks = fmi2CallbackFunctions()
-            self._callbacks.logger = fmi2CallbackLoggerTYPE(log)
+            self._callbacks.logger = fmi2CallbackLoggerTYPE(self.messages.fmi2())
             from fmpy.fmi1 import calloc, free
             from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 
@@ -110,20 +104,14 @@ class Instance:
         function = self._raw.get(name)
         if function is None:
             return getattr(self.fmu, name)(*args)
-        status = function(*args)
-        if status > 1:
-            from fmpy.fmi1 import FMICallException
-
-            raise FMICallException(function=name, status=status)
-        return status
+        return check(name, function(*args))
 
     def _refs(self, names):
         return (ctypes.c_uint * len(names))(*(self.variables[n].valueReference for n in names))
 
     def failed(self, what, error):
         """The FMUError for a refused call, with the FMU's own messages."""
-        reason = "; ".join(m for m in self.messages if m) or str(error)
-        self.messages = []
+        reason = self.messages.reasons(otherwise=str(error))
         return FMUError(f"{self.info.path}: {what} failed at t = {self.time!r}: {' '.join(reason.split())[:400]}")
 
     def _set(self, name, value):

@@ -25,6 +25,7 @@ import numpy as np
 
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.fmi.simulation import FMUError
+from dfwb.fmi.status import check
 
 __all__ = ["Drive", "Stepper", "choice", "library", "not_finite", "unsolved", "CHOICES", "MAX_ALGEBRAIC",
            "ALGEBRAIC_ULPS", "ALGEBRAIC_TOLERANCE"]
@@ -212,9 +213,7 @@ class Stepper:
             return code
         path = flow.inst.info.path
         if code == FMI:
-            from fmpy.fmi1 import FMICallException
-
-            raise FMICallException(function=_CALLS[flow.inst.v3][model.failed_call], status=model.fmi_status)
+            check(_CALLS[flow.inst.v3][model.failed_call], model.fmi_status)
         if code == NOT_FINITE:
             raise not_finite(path, model.at)
         if code == ALGEBRAIC:
