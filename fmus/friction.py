@@ -16,7 +16,7 @@ stops (v reaching the band) are first zeros of the closed-form velocity.
 from .contract import EventKind, FrictionOutput
 from .exact import Motion
 from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, check
-from .table import FORCE, MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
+from .table import FORCE, MASS, START, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
     constants=(
@@ -26,10 +26,7 @@ TABLE = PlantTable(
         Parameter("Fs", 7.0, "N", "static friction force (>= Fc)", (0.0, None), FORCE),
         Parameter("Dv", 0.0, "m/s", "Karnopp velocity band (0: exact stick at v = 0)", (0.0, None), (0.0, 1e3)),
     ),
-    initial=(
-        Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
-        Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
-    ),
+    initial=START,
     outputs=(
         Output("x", "m", "position"),
         Output("v", "m/s", "velocity"),

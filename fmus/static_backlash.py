@@ -10,7 +10,7 @@ of the closed-form velocity. The output is y; it starts centred, y = k x0.
 from .contract import EventKind, StaticBacklashOutput
 from .exact import Motion
 from .piecewise import EdgeSearch, PiecewisePlant, Search, VelocitySearch, check
-from .table import MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
+from .table import MASS, START, Output, Parameter, PlantTable
 
 ENGAGE = {1: EventKind.ENGAGE_UP, -1: EventKind.ENGAGE_DOWN}  # the edge x reaches -> the event
 EDGE = {kind: s for s, kind in ENGAGE.items()}
@@ -22,10 +22,7 @@ TABLE = PlantTable(
         Parameter("k", 1.0, None, "slope of the backlash element (> 0)", (0.0, None), (1e-6, 1e6)),
         Parameter("h", 0.1, "m", "total width of the dead band (> 0)", (0.0, None), (1e-9, 1e3)),
     ),
-    initial=(
-        Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
-        Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
-    ),
+    initial=START,
     outputs=(
         Output("x", "m", "position of the mass (backlash input)"),
         Output("v", "m/s", "velocity of the mass"),

@@ -27,8 +27,8 @@ Examples
 
 from typing import NamedTuple, Optional
 
-__all__ = ["Parameter", "Output", "PlantTable", "EXCITATION", "EXCITATION_NAMES", "INPUT_NAMES", "MASS", "FORCE", "VELOCITY",
-           "POSITION"]
+__all__ = ["Parameter", "Output", "PlantTable", "EXCITATION", "EXCITATION_NAMES", "INPUT_NAMES", "START", "MASS",
+           "FORCE", "VELOCITY", "POSITION"]
 
 EXCITATION_NAMES = ("F", "omega", "phi")
 """The built-in excitation F cos(omega t + phi), between the constants and the initial values in the C order."""
@@ -85,6 +85,12 @@ class Output(NamedTuple):
     counter: bool = False
     feedthrough: bool = False
 
+
+START = (
+    Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
+    Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
+)
+"""The initial values of a plant with one mass: its position and velocity, at rest at the origin by default."""
 
 EXCITATION = (
     Parameter("F", 0.0, "N", "amplitude of the built-in excitation F cos(omega t + phi)"),

@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 from dfwb.fmus.facade import PlantFMU
 from dfwb.fmus.piecewise import check
-from dfwb.fmus.table import MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
+from dfwb.fmus.table import MASS, START, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
     constants=(
@@ -28,10 +28,7 @@ TABLE = PlantTable(
         Parameter("B", 0.5, "N.s/m", "viscous damping (> 0)", (0.0, None), (1e-6, 1e9)),
         Parameter("K", 4.0, "N/m", "spring stiffness (> 0, not critical damping)", (0.0, None), (1e-6, 1e9)),
     ),
-    initial=(
-        Parameter("x0", 0.0, "m", "initial position", accepted=POSITION),
-        Parameter("v0", 0.0, "m/s", "initial velocity", accepted=VELOCITY),
-    ),
+    initial=START,
     outputs=(
         Output("x", "m", "position"),
         Output("v", "m/s", "velocity"),
