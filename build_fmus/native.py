@@ -37,7 +37,8 @@ from pathlib import Path
 
 import pythonfmu
 
-from dfwb.fmus import backlash, contract, facade, friction, static_backlash, table
+from dfwb.fmus import backlash, contract, facade, friction, plants, static_backlash, table
+from dfwb.fmus.plants import c_name
 
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
 from .errors import BuildError
@@ -62,13 +63,9 @@ FMI_VERSIONS = (2, 3)
 WIN64_FLAGS = ("-O2", "-std=c99", "-shared", "-ffp-contract=off", "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc",
                "-s")
 
-# Per plant: the core's plant kind and table (fmus/table.py): the parameters' order, dfwb_plant_output's
-# array (the solver's outputs) and dfwb_plant_counter's order (its counters).
-KINDS = {
-    "FrictionMass": ("DFWB_PLANT_FRICTION", friction.TABLE),
-    "TwoMassBacklash": ("DFWB_PLANT_BACKLASH", backlash.TABLE),
-    "StaticBacklash": ("DFWB_PLANT_STATIC_BACKLASH", static_backlash.TABLE),
-}
+KINDS = {model.__name__: (f"DFWB_PLANT_{c_name(model.table).upper()}", model.table)
+         for model in facade.PRODUCTION if model.native_solver and model.table is not None}
+"""{facade name: (its kind's macro, its table: the C order of its parameters, outputs and counters)}."""
 COSIMULATION = {
     "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
     "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
@@ -119,7 +116,7 @@ def _static_digest():
     """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
     digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
     wrappers = sorted(FMU_SOURCES.glob("*.[ch]"))
-    tables = [Path(module.__file__) for module in (friction, backlash, static_backlash, table, contract)]
+    tables = [Path(module.__file__) for module in (friction, backlash, static_backlash, table, contract, plants)]
     for path in wrappers + [Path(facade.__file__), BUILDER, Path(__file__)] + tables + sources():
         digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()

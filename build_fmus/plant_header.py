@@ -16,13 +16,13 @@ array) and ``DFWB_<P>_<name>`` (a parameter's index there), then
 
 import sys
 
-from dfwb.fmus import backlash, friction, static_backlash
+from dfwb.fmus.plants import TABLES, c_name
 
 from .core import NATIVE_DIR
 
 HEADER = NATIVE_DIR / "dfwb_plants.h"
-PLANTS = (("friction", friction.TABLE), ("backlash", backlash.TABLE), ("static_backlash", static_backlash.TABLE))
-"""(C name, table) of the core's plants, in the order of their kinds (1, 2, ...)."""
+PLANTS = tuple((c_name(table), table) for table in TABLES)
+"""(C name, table) of the core's plants (:data:`dfwb.fmus.plants.TABLES`), in the order of their kinds."""
 
 
 def _block(title, count, prefix, names):

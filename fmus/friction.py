@@ -19,6 +19,7 @@ from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, c
 from .table import FORCE, MASS, START, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
+    "friction",
     constants=(
         Parameter("M", 1.0, "kg", "mass (> 0)", (0.0, None), MASS),
         Parameter("B", 0.5, "N.s/m", "viscous friction coefficient (>= 0)", (0.0, None), (0.0, 1e9)),

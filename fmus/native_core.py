@@ -58,6 +58,7 @@ from . import loops as _loops
 from .backlash import GAP0_FMU
 from .backlash import TABLE as _BACKLASH
 from .friction import TABLE as _FRICTION
+from .plants import KINDS, c_name
 from .static_backlash import TABLE as _STATIC_BACKLASH
 from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
 from .exact import DfwbError, Diverged, Drive, PlantError
@@ -85,11 +86,9 @@ EVENT_KINDS = (None, EventKind.BREAK_UP, EventKind.BREAK_DOWN, EventKind.RELEASE
                EventKind.ENGAGE_DOWN, EventKind.REVERSE)
 
 # plant -> (DFWB_PLANT_*, NativeCore attribute, its table: the C order of its parameters, outputs and counters)
-_PLANTS = {
-    "friction": (1, "FrictionMass", _FRICTION),
-    "backlash": (2, "TwoMassBacklash", _BACKLASH),
-    "static_backlash": (3, "StaticBacklash", _STATIC_BACKLASH),
-}
+_PLANTS = {c_name(table): (KINDS[table.name], attr, table)
+           for table, attr in ((_FRICTION, "FrictionMass"), (_BACKLASH, "TwoMassBacklash"),
+                               (_STATIC_BACKLASH, "StaticBacklash"))}
 
 
 class CoreError(DfwbError, RuntimeError):
@@ -571,11 +570,9 @@ class NativeStaticBacklash(_NativeSolver):
 
 # -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------
 # plant -> (DFWB_PLANT_*, NativeCore attribute, the Python class, parameters in the C order)
-_LOOPS = {
-    "friction": (1, "FrictionLoop", _loops.FrictionLoop, _FRICTION.loop_order),
-    "backlash": (2, "BacklashLoop", _loops.BacklashLoop, _BACKLASH.loop_order),
-    "static_backlash": (3, "StaticBacklashLoop", _loops.StaticBacklashLoop, _STATIC_BACKLASH.loop_order),
-}
+_LOOPS = {c_name(table): (KINDS[table.name], loop.__name__, loop, table.loop_order)
+          for table, loop in ((_FRICTION, _loops.FrictionLoop), (_BACKLASH, _loops.BacklashLoop),
+                              (_STATIC_BACKLASH, _loops.StaticBacklashLoop))}
 LOOP_PARAMETERS = {plant: names for plant, (_kind, _attr, _cls, names) in _LOOPS.items()}
 
 NativeMode = namedtuple("NativeMode", "key h terms")

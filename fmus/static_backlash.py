@@ -17,6 +17,7 @@ EDGE = {kind: s for s, kind in ENGAGE.items()}
 
 
 TABLE = PlantTable(
+    "static-backlash",
     constants=(
         Parameter("M", 2.0, "kg", "mass (> 0)", (0.0, None), MASS),
         Parameter("k", 1.0, None, "slope of the backlash element (> 0)", (0.0, None), (1e-6, 1e6)),

@@ -111,6 +111,8 @@ class PlantTable:
 
     Parameters
     ----------
+    name : str
+        The plant's name (the command line's, the registry's).
     constants, initial : tuple of Parameter
         The plant's constants, then its initial values.
     outputs : tuple of Output
@@ -132,8 +134,9 @@ class PlantTable:
         The integer output that counts engagements (``"events"``: every event).
     """
 
-    def __init__(self, constants, initial, outputs=(), signal=None, section=(), modes=(), starts=None, shifts=None,
-                 position=None, counter="events"):
+    def __init__(self, name, constants, initial, outputs=(), signal=None, section=(), modes=(), starts=None,
+                 shifts=None, position=None, counter="events"):
+        self.name = name
         self.constants, self.initial = tuple(constants), tuple(initial)
         self.section, self.modes, self.position, self.counter = tuple(section), tuple(modes), position, counter
         self.starts, self.shifts = dict(starts or {}), dict(shifts or {})

@@ -23,6 +23,7 @@ from dfwb.fmus.piecewise import check
 from dfwb.fmus.table import MASS, START, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
+    "mass-spring-damper",
     constants=(
         Parameter("M", 1.0, "kg", "mass (> 0)", (0.0, None), MASS),
         Parameter("B", 0.5, "N.s/m", "viscous damping (> 0)", (0.0, None), (1e-6, 1e9)),

@@ -72,7 +72,7 @@ def test_the_outputs_come_from_the_table(plant):
     assert solver.output()._fields == table.solver_outputs
     assert all(isinstance(getattr(solver, name), int) for name in table.counters)
     with pytest.raises(ValueError, match="the signal 'z' is not one of the outputs"):
-        PlantTable(table.constants, table.initial, table.outputs, signal="z")
+        PlantTable(plant, table.constants, table.initial, table.outputs, signal="z")
 
 
 def test_the_engine_ranges_are_the_tables():
@@ -101,18 +101,33 @@ def test_the_core_reads_parameters_in_the_tables_order(core):
 
 def test_a_table_refuses_a_name_twice():
     with pytest.raises(ValueError, match=r"\['M'\] are declared twice"):
-        PlantTable([Parameter("M", 1.0, "kg", "mass")], [Parameter("M", 0.0, "m", "again")])
+        PlantTable("twice", [Parameter("M", 1.0, "kg", "mass")], [Parameter("M", 0.0, "m", "again")])
     with pytest.raises(ValueError, match=r"\['F'\] are declared twice"):
-        PlantTable([Parameter("F", 1.0, "N", "a force named like the excitation's")], [])
+        PlantTable("twice", [Parameter("F", 1.0, "N", "a force named like the excitation's")], [])
     assert EXCITATION_NAMES == ("F", "omega", "phi") and INPUT_NAMES == ("f", "harmonics")
 
 
-def test_the_modules_example_runs():
-    """fmus/ is not a doctest path (it is bundled into the FMUs): its example runs here."""
-    from dfwb.fmus import table
+def test_the_modules_examples_run():
+    """fmus/ is not a doctest path (it is bundled into the FMUs): the examples of its table and plant list run
+    here."""
+    from dfwb.fmus import plants, table
 
-    result = doctest.testmod(table)
-    assert result.attempted > 0 and result.failed == 0
+    for module in (table, plants):
+        result = doctest.testmod(module)
+        assert result.attempted > 0 and result.failed == 0, module
+
+
+def test_one_list_of_plants():
+    """dfwb's own plants are listed once (fmus/plants.py): the registry's, the C core's and the native FMUs'
+    are that list."""
+    from dfwb.build_fmus.native import KINDS as NATIVE
+    from dfwb.fmus import plants
+    from dfwb.plants.registry import names
+
+    assert [table.name for table in plants.TABLES] == list(names())
+    assert [table for _c, table in plant_header.PLANTS] == list(plants.TABLES)
+    assert sorted(table.name for _kind, table in NATIVE.values()) == sorted(names())
+    assert {FACADES[name].table.name: kind for name, kind in plants.KINDS.items()} == plants.KINDS
 
 
 def _docs_rows():
