@@ -57,12 +57,12 @@ from pathlib import Path
 from . import loops as _loops
 from .backlash import GAP0_FMU
 from .backlash import TABLE as _BACKLASH
-from .friction import TABLE as _FRICTION
-from .plants import KINDS, c_name
-from .static_backlash import TABLE as _STATIC_BACKLASH
 from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
 from .exact import DfwbError, Diverged, Drive, PlantError
+from .friction import TABLE as _FRICTION
+from .plants import KINDS, c_name
 from .state import StateRefused
+from .static_backlash import TABLE as _STATIC_BACKLASH
 
 __all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", "NativeStaticBacklash",
            "CoreError", "PARAMETERS", "BACKLASH_PARAMETERS", "STATIC_BACKLASH_PARAMETERS", "ABI", "LOG_CAPACITY",

@@ -160,3 +160,29 @@ def test_a_refused_run_keeps_its_instance_and_the_next_run_is_exact(fmus):
         session.step(0.25, {"f": math.nan})
     assert session._fmu is instance and len(_ABANDONED) == abandoned
     assert run(session, {"F": 10.0, "omega": 1.5}) == run(fresh, {"F": 10.0, "omega": 1.5})
+
+
+def test_a_refused_read_is_an_fmu_error_naming_it(fmus, monkeypatch):
+    """The per-period reads check their status like every FMI call: a refusal is FMUError, one line, and the
+    instance is reset before the next run (dfwb.fmi.status's rule)."""
+    from fmpy.fmi1 import FMICallException
+
+    from dfwb.fmi import session as session_module
+    from dfwb.fmi.session import FMUSession
+    from dfwb.fmi.simulation import FMUError
+
+    session = FMUSession(fmus["FrictionMass"])
+    session.start({"F": 10.0, "omega": 1.0})
+    read = session.reader(["x", "v"], ["events"])
+    assert read()[0] == [0.0, 0.0]
+
+    def refuse(function, status):
+        raise FMICallException(function=function, status=3)
+
+    monkeypatch.setattr(session_module, "check", refuse)
+    with pytest.raises(FMUError, match=r"^FrictionMass: reading the outputs failed at t = 0\.0: fmi2GetReal failed"):
+        read()
+    monkeypatch.undo()
+    session.start({"F": 10.0, "omega": 1.0})  # reset, as after any refused call
+    session.step(0.5, {"f": 0.0})
+    assert read()[1] == [0] and read()[0][0] != 0.0

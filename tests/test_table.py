@@ -133,8 +133,8 @@ def test_one_list_of_plants():
 def _docs_rows():
     """{parameter: (default, unit)} of the parameter tables of docs/models.md (rows naming several parameters
     split: "`x0`, `v0` | 0, 0 | m, m/s")."""
-    from pathlib import Path
     import re
+    from pathlib import Path
 
     text = (Path(__file__).resolve().parents[1] / "docs" / "models.md").read_text()
     sections = {}

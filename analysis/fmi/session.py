@@ -17,7 +17,7 @@ freed: pythonfmu 0.7.0 would release its objects twice after a fatal error.
 import ctypes
 import itertools
 
-from fmpy.fmi1 import calloc, free
+from fmpy.fmi1 import FMICallException, calloc, free
 from fmpy.fmi2 import (
     FMU2Slave,
     fmi2CallbackAllocateMemoryTYPE,

@@ -26,7 +26,6 @@ from dfwb.base.errors import DfwbError
 from dfwb.fmi.status import Messages
 
 
-
 class FMUError(DfwbError, RuntimeError):
     """An FMU refused a call or a step; the message says which, when and why."""
 
