@@ -37,9 +37,10 @@ from pathlib import Path
 
 import pythonfmu
 
-from dfwb.fmus import backlash, contract, facade, friction, plants, static_backlash, table
+from dfwb.fmus import facade
 from dfwb.fmus.plants import c_name
 
+from .builder import sources as bundled_sources
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
 from .errors import BuildError
 from .fmi3 import TIME, build_description, fmi3_description
@@ -116,9 +117,13 @@ def _static_digest():
     """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
     digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
     wrappers = sorted(FMU_SOURCES.glob("*.[ch]"))
-    tables = [Path(module.__file__) for module in (friction, backlash, static_backlash, table, contract, plants)]
-    for path in wrappers + [Path(facade.__file__), BUILDER, Path(__file__)] + tables + sources():
+    for path in wrappers + [BUILDER, Path(__file__)] + sources():
         digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
+    modules = {}  # the Python the model descriptions come from: the facades' modules and all they import
+    for model in native_models():
+        modules.update(bundled_sources(model))
+    for name in sorted(modules):
+        digest.update(b"\0" + name.encode() + b"\0" + modules[name])
     return digest.hexdigest()
 
 

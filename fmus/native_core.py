@@ -162,11 +162,11 @@ class _PlantApi(_Functions):
         }
         super().__init__(lib, "dfwb_plant", path, table)
         self.state_sizes = {}
-        for plant, (kind, _attr, table) in _PLANTS.items():
+        for plant, (kind, _attr, plant_table) in _PLANTS.items():
             shape = [c_size_t() for _ in range(3)]
             if self.shape(kind, *map(ctypes.byref, shape)) != OK:
                 raise CoreError(f"the C core {path} has no plant of kind {kind} ({plant}): rebuild it")
-            expected = (len(table.core_order), len(table.solver_outputs), len(table.counters))
+            expected = (len(plant_table.core_order), len(plant_table.solver_outputs), len(plant_table.counters))
             if tuple(n.value for n in shape) != expected:
                 raise CoreError(f"the C core {path}'s {plant} has (parameters, outputs, counters) = "
                                 f"{tuple(n.value for n in shape)}, this binding's {expected}: rebuild it")
@@ -305,7 +305,6 @@ class _Native:
 
     def _setup(self, core, handle):
         self._core, self._api, self._handle = core, self._functions(core), handle
-        self._state_bytes = self._state_size()
         self._err = ctypes.create_string_buffer(ERRLEN)
         self._event_log = None
         self.event_log_dropped = 0
@@ -389,9 +388,10 @@ class _Native:
 
     def to_bytes(self):
         """The state as bytes (not in it: the event log, a loop's crossings): see ``from_bytes``."""
-        size = ctypes.c_size_t(self._state_bytes)
-        buf = ctypes.create_string_buffer(self._state_bytes)
-        code = self._api.to_bytes(self._handle, buf, self._state_bytes, ctypes.byref(size), self._err, ERRLEN)
+        needed = self._state_size()
+        size = ctypes.c_size_t(needed)
+        buf = ctypes.create_string_buffer(needed)
+        code = self._api.to_bytes(self._handle, buf, needed, ctypes.byref(size), self._err, ERRLEN)
         if code != OK:
             _raise(code, self._err)
         return buf.raw[:size.value]
@@ -430,6 +430,10 @@ class _NativeSolver(_Native):
 
     def _state_size(self):
         return self._api.state_sizes[_PLANTS[self._plant][0]]
+
+    def _counter(self, name):
+        """The C solver's counter ``name``, one of its table's counters (dfwb_plant_counter's order)."""
+        return self._api.counter(self._handle, _PLANTS[self._plant][2].counters.index(name))
 
     def _create(self, core, values, originals, tails=()):
         self._handle = None
@@ -542,12 +546,12 @@ class NativeTwoMassBacklash(_NativeSolver):
     @property
     def contact(self):
         """0 free, 1 riding at gap 0, 2 riding at gap h."""
-        return self._api.counter(self._handle, 0)
+        return self._counter("contact")
 
     @property
     def impacts(self):
         """Impacts so far."""
-        return self._api.counter(self._handle, 1)
+        return self._counter("impacts")
 
 
 class NativeStaticBacklash(_NativeSolver):
@@ -565,7 +569,7 @@ class NativeStaticBacklash(_NativeSolver):
     @property
     def engaged(self):
         """0 free, +1/-1 dragging y at the upper/lower edge of the play."""
-        return self._api.counter(self._handle, 0)
+        return self._counter("engaged")
 
 
 # -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------

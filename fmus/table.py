@@ -1,12 +1,14 @@
-"""A plant's parameters, described once: what every layer of dfwb reads instead of repeating them.
+"""A plant described once: what every layer of dfwb reads instead of repeating it.
 
 A plant's model module declares one :class:`PlantTable`: its constants
 (masses, frictions, clearances) and its initial values, each a
-:class:`Parameter` with its default, unit, description and bounds. From it
-come the solver's and the closed loop's keyword defaults, the FMU's
-parameters and their ranges (pythonfmu and native), the C core's parameter
-orders and the engine's accepted ranges. A default written anywhere else is
-a copy that can drift; ``tests/test_table.py`` holds every constructor to it.
+:class:`Parameter` with its default, unit, description and bounds; its
+outputs (:class:`Output`); and what the engine needs of its motion (the DF
+signal, the section and modes, the translation). From it come the solver's
+and the closed loop's keyword defaults, the FMU's variables and ranges
+(pythonfmu and native), the C core's parameter orders, the engine's accepted
+ranges and the registry entry's facts. A default written anywhere else is a
+copy that can drift; ``tests/test_table.py`` holds every constructor to it.
 
 The C core's orders follow one rule: a plant solver takes the constants,
 the excitation ``F, omega, phi``, the initial values, then ``f, harmonics``;
@@ -68,6 +70,7 @@ MASS = (1e-6, 1e6)
 FORCE = (0.0, 1e9)
 VELOCITY = (-1e6, 1e6)
 POSITION = (-1e30, 1e30)
+
 
 class Output(NamedTuple):
     """One output of a plant's FMU.

@@ -29,10 +29,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional
 
-from dfwb.fmus.backlash import TABLE as BACKLASH_TABLE
-from dfwb.fmus.friction import TABLE as FRICTION_TABLE
 from dfwb.fmus.piecewise import PlantError, check
-from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH_TABLE
+from dfwb.fmus.plants import TABLES
 
 __all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "PLANTS", "RANGES", "check_range"]
 
@@ -46,7 +44,7 @@ MAX_CHECKED = 4096  # parameter sets remembered
 # Parameters without one (eps, gap0) keep the solver's own ranges. A plant added outside dfwb states its
 # own in its entry (:attr:`Plant.ranges`).
 RANGES = {}
-for _table in (FRICTION_TABLE, BACKLASH_TABLE, STATIC_BACKLASH_TABLE):
+for _table in TABLES:
     for _name, _accepted in _table.accepted().items():
         if RANGES.setdefault(_name, _accepted) != _accepted:  # one name, one range: scenes and --set share them
             raise ValueError(f"the plants' tables give {_name} two ranges: {RANGES[_name]} and {_accepted}")
