@@ -40,7 +40,6 @@ import pythonfmu
 from dfwb.fmus import facade
 from dfwb.fmus.plants import c_name
 
-from .builder import sources as bundled_sources
 from .core import FLAGS, LIBS, NATIVE_DIR, WIN64_CC, compiler, sources, win64_compiler
 from .errors import BuildError
 from .fmi3 import TIME, build_description, fmi3_description
@@ -117,13 +116,11 @@ def _static_digest():
     """The hash of what every native FMU is made of (sources, modules, versions), once per process."""
     digest = hashlib.sha256((NATIVE_REVISION + "\0" + pythonfmu.__version__).encode())
     wrappers = sorted(FMU_SOURCES.glob("*.[ch]"))
-    for path in wrappers + [BUILDER, Path(__file__)] + sources():
+    # the solver package whole (the model descriptions come from its facades, which import its modules): a
+    # superset of what a facade bundles, as sources() is of the core's, read without the builder's import graph
+    package = sorted(Path(facade.__file__).parent.glob("*.py"))
+    for path in wrappers + [BUILDER, Path(__file__)] + package + sources():
         digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
-    modules = {}  # the Python the model descriptions come from: the facades' modules and all they import
-    for model in native_models():
-        modules.update(bundled_sources(model))
-    for name in sorted(modules):
-        digest.update(b"\0" + name.encode() + b"\0" + modules[name])
     return digest.hexdigest()
 
 

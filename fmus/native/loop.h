@@ -13,6 +13,7 @@
 
 #define DFWB_LOOP_PLANT_MAX 4 /* plant coordinates at most */
 #define DFWB_LOOP_PAR 6       /* the plant's constants held by a loop */
+#define DFWB_LOOP_STATE_PAR 4 /* of them, the ones its state holds (the others are derived) */
 
 typedef struct dfwb_loop_class dfwb_loop_class;
 

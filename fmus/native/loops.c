@@ -468,7 +468,7 @@ static void loop_io(dfwb_io *io, dfwb_loop *L, int *mask)
 {
     dfwb_hy *hy = &L->hy;
     int i;
-    for (i = 0; i < 4; i++)
+    for (i = 0; i < DFWB_LOOP_STATE_PAR; i++)
         dfwb_io_f64(io, &L->par[i]);
     dfwb_io_int(io, &L->order);
     for (i = 0; i <= MAX_ORDER; i++)
@@ -583,10 +583,10 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     L->m = cls->size;
     L->out = cls->out;
     /* the parameters and the controller, checked as dfwb_loop_new checks them: the constants the state holds
-     * (par[0..3]; the initial values, not state, as 0) */
-    for (i = 0; i < 4; i++)
+     * (a plant using fewer must hold 0 in the rest; the initial values, not state, as 0) */
+    for (i = 0; i < DFWB_LOOP_STATE_PAR; i++)
         values[i] = s.par[i];
-    for (i = cls->npar; rc == DFWB_OK && i < DFWB_LOOP_PAR; i++)
+    for (i = cls->npar; rc == DFWB_OK && i < DFWB_LOOP_STATE_PAR; i++)
         if (s.par[i] != 0.0) {
             char name[32], allowed[64];
             snprintf(name, sizeof name, "parameter %d", i + 1);
