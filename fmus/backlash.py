@@ -15,8 +15,10 @@ suffers the cancellation of x2 - x1 or M1 v1 + M2 v2 when the masses have
 drifted far or their masses differ by orders of magnitude.
 """
 
-from .contract import BacklashOutput, EventKind
+from .contract import EventKind
 from .exact import Motion
+from .loops import FREE as FLIGHT  # the loop's mode key of free flight
+from .loops import FeedbackLoop
 from .piecewise import PiecewisePlant, PositionSearch, Search, VelocitySearch, check
 from .table import MASS, POSITION, VELOCITY, Output, Parameter, PlantTable
 
@@ -31,6 +33,7 @@ GAP0_FMU = ", or -1 in an FMU (h/2)"  # an FMU's start value -1 stands for h/2 (
 
 TABLE = PlantTable(
     "backlash",
+    model="TwoMassBacklash", summary="two masses with a clearance and impacts of restitution eps",
     constants=(
         Parameter("M1", 1.0, "kg", "mass 1, the output side (> 0)", (0.0, None), MASS),
         Parameter("M2", 1.0, "kg", "mass 2, driven by the force (> 0)", (0.0, None), MASS),
@@ -41,7 +44,8 @@ TABLE = PlantTable(
         Parameter("x1_0", 0.0, "m", "initial position of M1", accepted=POSITION),
         Parameter("v1_0", 0.0, "m/s", "initial velocity of M1", accepted=VELOCITY),
         Parameter("v2_0", 0.0, "m/s", "initial velocity of M2", accepted=VELOCITY),
-        Parameter("gap0", None, "m", "initial gap x2 - x1, in [0, h]; -1 (default): h/2", (-1.0, None), start=-1.0),
+        Parameter("gap0", None, "m", "initial gap x2 - x1, in [0, h]; -1 (default): h/2", (-1.0, None), start=-1.0,
+                  half_of="h"),
     ),
     outputs=(
         Output("x1", "m", "position of M1"),
@@ -76,6 +80,9 @@ def check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0=None):
 class TwoMassBacklash(PiecewisePlant):
     """Exact solver of the two-mass backlash; the output is x1."""
 
+    # what a run never changes: a restored FMU state's solver is held to it
+    FIXED = ("M1", "M2", "h", "eps", "total", "r1", "r2", "tol_h")
+
     def __init__(self, M1=DEFAULT.M1, M2=DEFAULT.M2, h=DEFAULT.h, eps=DEFAULT.eps, F=0.0, omega=1.0, phi=0.0,
                  x1_0=DEFAULT.x1_0, v1_0=DEFAULT.v1_0, v2_0=DEFAULT.v2_0, gap0=DEFAULT.gap0, f=0.0, harmonics=10):
         gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
@@ -106,9 +113,9 @@ class TwoMassBacklash(PiecewisePlant):
         x1, v1 = self._output.state(self.t)
         g, w = self.relative(self.t)
         if self.contact != FREE:  # riding together: one closed form for both
-            return BacklashOutput(x1, v1, x1 + g, v1, g)
+            return TABLE.output_type(x1, v1, x1 + g, v1, g)
         x_cm, v_cm = self._cm.state(self.t)
-        return BacklashOutput(x1, v1, x_cm + self.r1 * g, v_cm + self.r1 * w, g)
+        return TABLE.output_type(x1, v1, x_cm + self.r1 * g, v_cm + self.r1 * w, g)
 
     # -- pieces -------------------------------------------------------------
     def _start(self, t, g, w):
@@ -204,3 +211,103 @@ class TwoMassBacklash(PiecewisePlant):
             self._free(t, g, w, departing=self._departing)
         else:
             self._start(t, g, w)
+
+
+class BacklashLoop(FeedbackLoop):
+    """The two-mass backlash in feedback with -G(s); q = (x1, v1, g, w), y = x1, f on M2.
+
+    Flight until the gap g reaches 0 or h, an impact (w -> -eps w, momentum
+    kept); contact (the masses move together) while f presses them into the
+    wall and the next bounce would rise less than 1e-12 h (the accumulation
+    of impacts is over), released when f turns.
+    """
+
+    coordinates = ("x1", "v1", "gap", "w")
+    initial_parameters = ("x1_0", "v1_0", "v2_0", "gap0")
+    plant = TwoMassBacklash
+    KEYS = (FLIGHT, ("contact", -1), ("contact", 1))
+    MODE_VALUES = {FLIGHT: 0, ("contact", -1): 1, ("contact", 1): 2}
+    CONSTANTS = ("M1", "M2", "h", "eps", "r2", "tol_h")
+    FMU_OUTPUTS = (Output("x1", "m", "position of M1 (the output y fed back to the controller)"),) + TABLE.outputs[1:5]
+    MODE_OUTPUT = TABLE.outputs[5]  # contact
+    COUNTER = TABLE.outputs[6]  # impacts
+    SECTION = (((FLIGHT, EventKind.WALL_LOWER),), ((FLIGHT, EventKind.WALL_UPPER),))  # an impact at 0, then at h
+    PIVOT = 2  # gap = h
+
+    def pivot(self, X):
+        return self.h
+
+    @staticmethod
+    def fmu_values(loop, X, f):
+        x1, v1, g, w = X[0], X[1], X[2], X[3]
+        return {"x1": x1, "v1": v1, "x2": x1 + g, "v2": v1 + w, "gap": g}
+
+    def linear(self):
+        return [1.0], [self.M1 + self.M2, 0.0, 0.0]
+
+    def nonlinearity(self):
+        return "length", self.h
+
+    def still(self, F, omega):
+        return F <= 0.25 * self.h * self.M2 * omega * omega  # M2 from rest at the centre never reaches a wall
+
+    @staticmethod
+    def coordinates_of(output):
+        return [output.x1, output.v1, output.gap, output.v2 - output.v1]
+
+    def __init__(self, b, a, M1=DEFAULT.M1, M2=DEFAULT.M2, h=DEFAULT.h, eps=DEFAULT.eps, x1_0=DEFAULT.x1_0,
+                 v1_0=DEFAULT.v1_0, v2_0=DEFAULT.v2_0, gap0=DEFAULT.gap0, z0=None, state=None, section=None,
+                 modes=None, budget=None):
+        gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
+        self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
+        self.r2 = M2 / (M1 + M2)
+        self.tol_h = 1e-12 * h
+        self.impacts = 0
+        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget)
+
+    def check_coordinates(self, q):
+        check("gap", q[2], lambda: 0.0 <= q[2] <= self.h, f"the gap must be in [0, h] = [0, {self.h!r}] (m)")
+
+    def plant_mode(self, key):
+        if key == FLIGHT:
+            return ([[0.0, 1.0, 0.0, 0.0], [0.0] * 4, [0.0, 0.0, 0.0, 1.0], [0.0] * 4], [0.0] * 4,
+                    [0.0, 0.0, 0.0, 1.0 / self.M2],
+                    [(EventKind.WALL_LOWER, (0.0, 0.0, 1.0, 0.0), 0.0, 0.0),  # g > 0
+                     (EventKind.WALL_UPPER, (0.0, 0.0, -1.0, 0.0), 0.0, self.h)])  # h - g > 0
+        sigma = key[1]  # -1: held at gap 0, +1: at gap h
+        return ([[0.0, 1.0, 0.0, 0.0], [0.0] * 4, [0.0] * 4, [0.0] * 4], [0.0] * 4,
+                [0.0, 1.0 / (self.M1 + self.M2), 0.0, 0.0],
+                [(EventKind.RELEASE, (0.0,) * 4, float(sigma), 0.0)])  # sigma f > 0: pressing
+
+    def initial(self, X):
+        if 0.0 < X[2] < self.h:
+            return FLIGHT, X, None
+        return self._at_wall(-1 if X[2] <= 0.0 else 1, X)
+
+    def _at_wall(self, sigma, X):
+        """At a wall after any impact: contact, or a flight away from it."""
+        X[2] = 0.0 if sigma < 0 else self.h
+        w = X[3]
+        press = self.after(("contact", sigma), 0, X)
+        f = self.force(X)
+        if (w == 0.0 and press >= 0) or (press > 0 and 0.5 * w * w * self.M2 <= self.tol_h * abs(f)):
+            X[1] += self.r2 * w  # both move with the centre of mass
+            X[3] = 0.0
+            return ("contact", sigma), X, None
+        return FLIGHT, X, 0 if sigma < 0 else 1
+
+    def _fire(self, t, kind, X):
+        if kind is EventKind.RELEASE:
+            X[3] = 0.0
+            return FLIGHT, X, 0 if self.key[1] < 0 else 1
+        sigma = -1 if kind is EventKind.WALL_LOWER else 1
+        w = X[3]
+        if sigma * w > 0.0:  # closing: Newton's impact law, momentum kept
+            new = -self.eps * w
+            X[1] += self.r2 * (w - new)
+            X[3] = new
+            self.impacts += 1
+        return self._at_wall(sigma, X)
+
+
+SOLVER, LOOP = TwoMassBacklash, BacklashLoop

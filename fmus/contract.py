@@ -18,9 +18,9 @@ Plain Python only: this module runs inside the FMUs.
 """
 
 import enum
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
-__all__ = ["Solver", "EventKind", "FrictionOutput", "BacklashOutput", "StaticBacklashOutput"]
+__all__ = ["Solver", "EventKind"]
 
 
 @runtime_checkable
@@ -48,7 +48,7 @@ class Solver(Protocol):
         """Running integrals ``I_k(t) = int_0^t y(s) exp(-i k omega s) ds``, k = 0..harmonics (complex)."""
 
     def output(self) -> tuple:
-        """The continuous outputs at ``t`` as a named tuple whose fields are the FMU's output names."""
+        """The continuous outputs at ``t`` as the plant table's ``output_type`` (the FMU's output names)."""
 
 
 class EventKind(str, enum.Enum):
@@ -75,30 +75,3 @@ class EventKind(str, enum.Enum):
 
     def __str__(self):
         return self.value
-
-
-class FrictionOutput(NamedTuple):
-    """FrictionMass.output(): position, velocity, friction force, mode (0 stick or band, +-1 sliding)."""
-
-    x: float
-    v: float
-    Ff: float
-    mode: int
-
-
-class BacklashOutput(NamedTuple):
-    """TwoMassBacklash.output(): both masses' positions and velocities, and the gap x2 - x1."""
-
-    x1: float
-    v1: float
-    x2: float
-    v2: float
-    gap: float
-
-
-class StaticBacklashOutput(NamedTuple):
-    """StaticBacklash.output(): the mass's position and velocity, and the backlash output y."""
-
-    x: float
-    v: float
-    y: float

@@ -36,19 +36,14 @@ from pythonfmu import DefaultExperiment, Fmi2Slave, Integer, Real
 from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 
 from . import native_core as _native_core
+from . import plants as _plants
 from . import state as _state
 from . import table as _table
-from .backlash import TABLE as _BACKLASH
-from .backlash import TwoMassBacklash as _TwoMassBacklash
 from .contract import EventKind
 from .exact import PHASE_LIMIT, Drive, Motion
-from .friction import TABLE as _FRICTION
-from .friction import FrictionMass as _FrictionMass
 from .linear_system import MAX_ORDER as _MAX_ORDER
 from .linear_system import LinearSystem as _LinearSystem
 from .piecewise import SEARCH_CLASSES, PlantError, check
-from .static_backlash import TABLE as _STATIC_BACKLASH
-from .static_backlash import StaticBacklash as _StaticBacklash
 
 MAX_HARMONIC = 10
 STATE_BASE_CLASSES = (Drive, Motion, EventKind) + SEARCH_CLASSES
@@ -682,6 +677,8 @@ class PlantFMU(TableFMU):
     output_signal = ("x", "m")  # the signal whose Fourier integrals are exposed
     fixed_solver_attributes = ("period", "harmonics", "event_log", "drive.F", "drive.omega", "drive.phi")
     piecewise_solver = True  # a PiecewisePlant: its piece start and searched time are checked too
+    loop = None
+    """The plant's exact closed loop (a :class:`~.loops.FeedbackLoop`), or None."""
 
     def __init_subclass__(cls, **kwargs):
         table = cls.__dict__.get("table")
@@ -845,31 +842,21 @@ class PlantFMU(TableFMU):
         return tuple(self.solver.output()) + tuple(getattr(self.solver, name) for name in self.table.counters)
 
 
-class FrictionMass(PlantFMU):
-    """Mass with Coulomb, viscous and static friction (exact stick-slip), force input f."""
-
-    solver_class = _FrictionMass
-    native_solver = "FrictionMass"
-    fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "B", "Fc", "Fs", "Dv", "edge_force")
-    table = _FRICTION
-
-
-class TwoMassBacklash(PlantFMU):
-    """Two masses with a clearance h and impacts of restitution eps, force input f on M2."""
-
-    solver_class = _TwoMassBacklash
-    native_solver = "TwoMassBacklash"
-    fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M1", "M2", "h", "eps", "total", "r1", "r2", "tol_h")
-    table = _BACKLASH
+def plant_facade(module):
+    """The FMU facade of a plant's model module (:mod:`.plants`): its ``TABLE`` gives the variables, the name
+    (``table.model``) and the description, its ``SOLVER`` the solver, which runs on its compiled twin when the
+    FMU carries the core."""
+    table, solver = module.TABLE, module.SOLVER
+    summary = table.summary[:1].upper() + table.summary[1:]
+    return type(table.model, (PlantFMU,), {
+        "__doc__": f"{summary}, force input f.", "__module__": __name__, "solver_class": solver,
+        "native_solver": table.model, "table": table, "loop": module.LOOP,
+        "fixed_solver_attributes": PlantFMU.fixed_solver_attributes + solver.FIXED})
 
 
-class StaticBacklash(PlantFMU):
-    """Mass M driven by the force, followed by a backlash element of slope k and width h."""
-
-    solver_class = _StaticBacklash
-    native_solver = "StaticBacklash"
-    fixed_solver_attributes = PlantFMU.fixed_solver_attributes + ("M", "k", "h")
-    table = _STATIC_BACKLASH
+PLANTS = tuple(plant_facade(module) for module in _plants.MODULES)
+"""The facades of dfwb's plants (FrictionMass, TwoMassBacklash, StaticBacklash, ...), one per model module."""
+globals().update((facade.__name__, facade) for facade in PLANTS)  # importable by name: the FMUs' scripts do
 
 
 class LinearSystem(SolverFMU):
@@ -953,7 +940,7 @@ class LinearSystem(SolverFMU):
         return names
 
 
-PRODUCTION = (FrictionMass, TwoMassBacklash, StaticBacklash, LinearSystem)
-"""The FMUs dfwb ships: the three plants and the linear controller (what ``dfwb build`` builds)."""
+PRODUCTION = PLANTS + (LinearSystem,)
+"""The FMUs dfwb ships: the plants and the linear controller (what ``dfwb build`` builds)."""
 
 FACADES.append(LinearSystem)

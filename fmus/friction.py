@@ -13,13 +13,15 @@ slide +-1. Break-away and release are analytic crossings of the force;
 stops (v reaching the band) are first zeros of the closed-form velocity.
 """
 
-from .contract import EventKind, FrictionOutput
+from .contract import EventKind
 from .exact import Motion
+from .loops import STICK, FeedbackLoop
 from .piecewise import CurvatureBound, PiecewisePlant, Search, VelocitySearch, check
 from .table import FORCE, MASS, START, Output, Parameter, PlantTable
 
 TABLE = PlantTable(
     "friction",
+    model="FrictionMass", summary="mass with Coulomb, viscous and static friction (exact stick-slip)",
     constants=(
         Parameter("M", 1.0, "kg", "mass (> 0)", (0.0, None), MASS),
         Parameter("B", 0.5, "N.s/m", "viscous friction coefficient (>= 0)", (0.0, None), (0.0, 1e9)),
@@ -59,6 +61,9 @@ def check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=False):
 class FrictionMass(PiecewisePlant):
     """Exact solver of the friction mass; the output is the position x."""
 
+    # what a run never changes: a restored FMU state's solver is held to it
+    FIXED = ("M", "B", "Fc", "Fs", "Dv", "edge_force")
+
     def __init__(self, M=DEFAULT.M, B=DEFAULT.B, Fc=DEFAULT.Fc, Fs=DEFAULT.Fs, Dv=DEFAULT.Dv, F=0.0, omega=1.0, phi=0.0,
                  x0=DEFAULT.x0, v0=DEFAULT.v0, f=0.0, harmonics=10):
         check_friction(M, B, Fc, Fs, Dv, x0, v0)
@@ -74,7 +79,7 @@ class FrictionMass(PiecewisePlant):
         x, v = self._output.state(self.t)
         acc = self._output.acceleration(self.t, v)
         ff = self.drive.u(self.t) - self.M * acc
-        return FrictionOutput(x, v, ff, self.direction if self.mode == SLIDE else 0)
+        return TABLE.output_type(x, v, ff, self.direction if self.mode == SLIDE else 0)
 
     # -- pieces ------------------------------------------------------------
     def _motion(self, t, x, v, lam, force):
@@ -166,3 +171,91 @@ class FrictionMass(PiecewisePlant):
         x, v = self._output.state(t)
         at_edge = self.direction if self.mode == SLIDE and abs(v) <= self.Dv else 0
         self._start(t, x, v, at_edge)
+
+
+class FrictionLoop(FeedbackLoop):
+    """The friction mass (CVS friction, Dv = 0) in feedback with -G(s); q = (x, v), y = x.
+
+    Slide +-1 (Ff = Fc sgn v + B v) until v reaches 0; stick (v = 0, x held)
+    until |f| exceeds Fs, breaking away in the direction of f; at v = 0 the
+    mass sticks while |f| <= Fs.
+    """
+
+    coordinates = ("x", "v")
+    initial_parameters = ("x0", "v0")
+    plant = FrictionMass
+    KEYS = (STICK, ("slide", 1), ("slide", -1))
+    MODE_VALUES = {STICK: 0, ("slide", 1): 1, ("slide", -1): -1}
+    CONSTANTS = ("M", "B", "Fc", "Fs")
+    FMU_OUTPUTS = (Output("x", "m", "position (the output y fed back to the controller)"),
+                   Output("v", "m/s", "velocity"),
+                   Output("Ff", "N", "friction force (stuck: it balances f)"))
+    MODE_OUTPUT = Output("mode", None, "0 stick, +1/-1 sliding", integer=True)
+    COUNTER = Output("sticks", None, "number of stick phases so far (one at the start time if the mass starts "
+                     "stuck)", integer=True, counter=True)
+    FMU_RANGES = {"Dv": (0.0, 0.0)}
+    FMU_DESCRIPTIONS = {"Dv": "Karnopp velocity band: must be 0 (the loop is solved with exact stick at v = 0)"}
+    SECTION = (((("slide", -1), EventKind.BAND),), ((("slide", 1), EventKind.BAND),))  # x at a minimum, a maximum
+    PIVOT = 1  # v = 0
+
+    def pivot(self, X):
+        return 0.0
+
+    @staticmethod
+    def fmu_values(loop, X, f):
+        s = FrictionLoop.MODE_VALUES[loop.key]
+        return {"x": X[0], "v": X[1], "Ff": f if s == 0 else s * loop.Fc + loop.B * X[1]}
+
+    def linear(self):
+        return [1.0], [self.M, self.B, 0.0]
+
+    def nonlinearity(self):
+        return "force", max(self.Fs, self.Fc)
+
+    def still(self, F, omega):
+        return F <= self.Fs  # the mass never breaks away
+
+    @staticmethod
+    def coordinates_of(output):
+        return [output.x, output.v]
+
+    def __init__(self, b, a, M=DEFAULT.M, B=DEFAULT.B, Fc=DEFAULT.Fc, Fs=DEFAULT.Fs, Dv=DEFAULT.Dv, x0=DEFAULT.x0,
+                 v0=DEFAULT.v0, z0=None, state=None, section=None, modes=None, budget=None):
+        check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=True)
+        self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
+        self.sticks = 0
+        super().__init__(b, a, (x0, v0), z0, state, section, modes, budget)
+
+    def plant_mode(self, key):
+        M = self.M
+        if key == STICK:
+            return ([[0.0, 0.0], [0.0, 0.0]], [0.0, 0.0], [0.0, 0.0],
+                    [(EventKind.BREAK_UP, (0.0, 0.0), -1.0, self.Fs),  # Fs - f > 0
+                     (EventKind.BREAK_DOWN, (0.0, 0.0), 1.0, self.Fs)])  # f + Fs > 0
+        s = key[1]
+        return ([[0.0, 1.0], [0.0, -self.B / M]], [0.0, -s * self.Fc / M], [0.0, 1.0 / M],
+                [(EventKind.BAND, (0.0, float(s)), 0.0, 0.0)])  # s v > 0
+
+    def initial(self, X):
+        v = X[1]
+        if v != 0.0:
+            return ("slide", 1 if v > 0.0 else -1), X, None
+        return self._rest(X)
+
+    def _rest(self, X):
+        """At v = 0: stick while -Fs <= f <= Fs, else slide in the direction of f."""
+        if self.after(STICK, 0, X) < 0:
+            return ("slide", 1), X, 0
+        if self.after(STICK, 1, X) < 0:
+            return ("slide", -1), X, 0
+        self.sticks += 1
+        return STICK, X, None
+
+    def _fire(self, t, kind, X):
+        if kind is EventKind.BAND:
+            X[1] = 0.0
+            return self._rest(X)
+        return ("slide", 1 if kind is EventKind.BREAK_UP else -1), X, 0
+
+
+SOLVER, LOOP = FrictionMass, FrictionLoop

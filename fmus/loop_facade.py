@@ -2,11 +2,12 @@
 
     f = -G(s) y,   G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an),   n = order = 1..8
 
-One FMU holds the whole loop, solved exactly and event by event by
-:mod:`.loops`: the friction mass (FrictionMassLoop), the two-mass backlash
-(TwoMassBacklashLoop) and the mass with a static backlash
-(StaticBacklashLoop), each with its plant output y (x, x1, y) fed back
-through -G(s). The FMU has no input. Its parameters are the plant FMU's
+One FMU holds the whole loop, solved exactly and event by event by the
+plant's ``LOOP`` (:class:`~.loops.FeedbackLoop`), one FMU per plant of
+:mod:`.plants`, made by :func:`loop_facade`: the friction mass
+(FrictionMassLoop), the two-mass backlash (TwoMassBacklashLoop) and the mass
+with a static backlash (StaticBacklashLoop), each with its plant output y
+(x, x1, y) fed back through -G(s). The FMU has no input. Its parameters are the plant FMU's
 (same names, defaults, units and descriptions; no built-in excitation, no
 harmonics) and the controller's, named as in LinearSystem.fmu (``order``,
 ``b0..b8``, ``a1..a8``; the coefficients above the order must be 0), plus
@@ -31,7 +32,7 @@ The compiled core: as the plant FMUs, each loop FMU carries the C core
 (``resources/libdfwb_core.so``) and runs on its port of the loop
 (``native_solver``: ``FrictionLoop``, ``BacklashLoop``,
 ``StaticBacklashLoop`` of :mod:`.native_core`), bit for bit the Python
-solver's outputs and refusals; the pure-Python solver of :mod:`.loops` is
+solver's outputs and refusals; the pure-Python loop is
 the fallback (one warning) and ``DFWB_FMU_SOLVER`` chooses as for the
 plants (see :mod:`.facade`). A serialized state holds the C loop's checked
 bytes, read back by the instance's own core.
@@ -39,27 +40,13 @@ bytes, read back by the instance's own core.
 
 import math
 
-from .facade import FrictionMass, StaticBacklash, TableFMU, TwoMassBacklash
+from . import facade as _facade
 from .hybrid import Mode
 from .linear_system import MAX_ORDER
-from .loops import FREE, STICK
-from .loops import BacklashLoop as _BacklashLoop
-from .loops import FrictionLoop as _FrictionLoop
-from .loops import StaticBacklashLoop as _StaticBacklashLoop
 from .piecewise import PlantError, check
+from .plants import MODULES
 
-__all__ = ["LoopFMU", "FrictionMassLoop", "TwoMassBacklashLoop", "StaticBacklashLoop", "LOOPS"]
-
-COUNTERS = {"sticks": "number of stick phases so far (one at the start time if the mass starts stuck)",
-            "impacts": "number of impacts so far",
-            "engagements": "number of engagements so far (an edge reached and the output dragged)"}
-
-
-def _plant_parameters(plant, drop=(), replace=None):
-    """The plant FMU's parameter table (name, default, unit, description), some dropped or redescribed."""
-    replace = replace or {}
-    return tuple((name, default, unit, replace.get(name, description))
-                 for name, default, unit, description in plant.parameters if name not in drop)
+__all__ = ["LoopFMU", "loop_facade", "LOOPS"]
 
 
 def _controller_layout():
@@ -91,13 +78,15 @@ COMMON_FIXED = ("order", "Ac", "Bc", "C", "D", "event_log", "_section", "_watchi
 """Solver attributes of every loop that a run never changes (a restored solver's must equal a new one's)."""
 
 
-class LoopFMU(TableFMU):
+class LoopFMU(_facade.TableFMU):
     """A plant in feedback with -G(s): no input, the plant's parameters and outputs, the controller's parameters."""
 
     input_name = None
     solver_class = None
     plant = None
     """The plant FMU facade whose parameters (minus the excitation) and outputs this loop keeps."""
+    table = None
+    """The plant's :class:`~.table.PlantTable`."""
     parameters = ()  # (name, default, unit, description): the plant's
     outputs = ()  # (name, unit, description, is_integer), in value-reference order after the parameters
     mode_keys = {}
@@ -179,18 +168,16 @@ class LoopFMU(TableFMU):
     @classmethod
     def solver_kwargs(cls, kwargs):
         """The solver's keyword arguments (the plant's) from the FMU's parameter values."""
-        return kwargs
-
-    def output_values(self, solver, X, f):
-        """{output name: value} of the plant's outputs and its mode, from the solver's loop state X and force f."""
-        raise NotImplementedError
+        return cls.plant.solver_kwargs(kwargs)
 
     def _outputs_of(self, solver):
         """{output name: value} at the solver's time."""
         X = solver.state()
         f = solver.force(X)
-        values = self.output_values(solver, X, f)
+        loop = self.solver_class
+        values = loop.fmu_values(solver, X, f)
         values["f"] = f
+        values[loop.MODE_OUTPUT.name] = self.mode_keys[solver.key]
         values["events"] = solver.events
         values.update(solver.counts())
         return values
@@ -302,87 +289,27 @@ def _same_mode(mode, fresh):
     return all(_same(getattr(mode, slot, None), getattr(fresh, slot)) for slot in Mode.__slots__)
 
 
-class FrictionMassLoop(LoopFMU):
-    """Mass with Coulomb, viscous and static friction (exact stick-slip) in feedback f = -G(s) x."""
-
-    solver_class = _FrictionLoop
-    native_solver = "FrictionLoop"
-    plant = FrictionMass
-    fixed_solver_attributes = COMMON_FIXED + ("M", "B", "Fc", "Fs")
-    ranges = {"Dv": (0.0, 0.0)}
-    mode_keys = {STICK: 0, ("slide", 1): 1, ("slide", -1): -1}
-    parameters = _plant_parameters(FrictionMass, replace={
-        "Dv": "Karnopp velocity band: must be 0 (the loop is solved with exact stick at v = 0)"})
-    outputs = (
-        ("x", "m", "position (the output y fed back to the controller)", False),
-        ("v", "m/s", "velocity", False),
-        ("Ff", "N", "friction force (stuck: it balances f)", False),
-        ("f", "N", "force on the mass, f = -G(s) x", False),
-        ("mode", None, "0 stick, +1/-1 sliding", True),
-        ("events", None, "number of events (mode changes) so far", True),
-        ("sticks", None, COUNTERS["sticks"], True),
-    )
-
-    def output_values(self, solver, X, f):
-        x, v = X[0], X[1]
-        s = self.mode_keys[solver.key]
-        return {"x": x, "v": v, "Ff": f if s == 0 else s * solver.Fc + solver.B * v, "mode": s}
+def loop_facade(module):
+    """The closed-loop FMU facade of a plant's model module (:mod:`.plants`), ``table.model + "Loop"``: the
+    plant FMU's parameters (the loop's descriptions where it has its own), the loop's outputs (its plant's
+    continuous outputs, the force, its mode, the events, its counter), its ``LOOP`` as the solver."""
+    table, loop = module.TABLE, module.LOOP
+    plant = getattr(_facade, table.model)
+    summary = table.summary[:1].upper() + table.summary[1:]
+    outputs = tuple((o.name, o.unit, o.description, o.integer) for o in loop.FMU_OUTPUTS) + (
+        ("f", "N", f"force on the plant, f = -G(s) {table.signal}", False),
+        (loop.MODE_OUTPUT.name, None, loop.MODE_OUTPUT.description, True),
+        ("events", None, "number of events (mode changes, impacts) so far", True),
+        (loop.COUNTER.name, None, loop.COUNTER.description, True))
+    return type(table.model + "Loop", (LoopFMU,), {
+        "__doc__": f"{summary}, in feedback f = -G(s) {table.signal}.", "__module__": __name__,
+        "solver_class": loop, "native_solver": loop.__name__, "plant": plant, "table": table,
+        "fixed_solver_attributes": COMMON_FIXED + loop.CONSTANTS, "ranges": dict(loop.FMU_RANGES),
+        "mode_keys": loop.MODE_VALUES, "outputs": outputs,
+        "parameters": tuple((name, start, unit, loop.FMU_DESCRIPTIONS.get(name, description))
+                            for name, start, unit, description in plant.parameters)})
 
 
-class TwoMassBacklashLoop(LoopFMU):
-    """Two masses with a clearance h and impacts of restitution eps, force f = -G(s) x1 on M2."""
-
-    solver_class = _BacklashLoop
-    native_solver = "BacklashLoop"
-    plant = TwoMassBacklash
-    fixed_solver_attributes = COMMON_FIXED + ("M1", "M2", "h", "eps", "r2", "tol_h")
-    ranges = {}
-    mode_keys = {FREE: 0, ("contact", -1): 1, ("contact", 1): 2}
-    parameters = _plant_parameters(TwoMassBacklash)
-    outputs = (
-        ("x1", "m", "position of M1 (the output y fed back to the controller)", False),
-        ("v1", "m/s", "velocity of M1", False),
-        ("x2", "m", "position of M2", False),
-        ("v2", "m/s", "velocity of M2", False),
-        ("gap", "m", "gap x2 - x1, in [0, h]", False),
-        ("f", "N", "force on M2, f = -G(s) x1", False),
-        ("contact", None, "0 free, 1 in contact at gap 0, 2 in contact at gap h", True),
-        ("events", None, "number of events (impacts, contacts, releases) so far", True),
-        ("impacts", None, COUNTERS["impacts"], True),
-    )
-
-    @classmethod
-    def solver_kwargs(cls, kwargs):
-        return TwoMassBacklash.solver_kwargs(kwargs)  # gap0 = -1: h/2
-
-    def output_values(self, solver, X, f):
-        x1, v1, g, w = X[0], X[1], X[2], X[3]
-        return {"x1": x1, "v1": v1, "x2": x1 + g, "v2": v1 + w, "gap": g, "contact": self.mode_keys[solver.key]}
-
-
-class StaticBacklashLoop(LoopFMU):
-    """Mass M with a backlash element of slope k and width h, in feedback f = -G(s) y on the backlash output."""
-
-    solver_class = _StaticBacklashLoop
-    native_solver = "StaticBacklashLoop"
-    plant = StaticBacklash
-    fixed_solver_attributes = COMMON_FIXED + ("M", "k", "h")
-    ranges = {}
-    mode_keys = {FREE: 0, ("engaged", 1): 1, ("engaged", -1): -1}
-    parameters = _plant_parameters(StaticBacklash)
-    outputs = (
-        ("x", "m", "position of the mass (backlash input)", False),
-        ("v", "m/s", "velocity of the mass", False),
-        ("y", "m", "backlash output (fed back to the controller)", False),
-        ("f", "N", "force on the mass, f = -G(s) y", False),
-        ("engaged", None, "0 inside the play, +1/-1 engaged and dragging y", True),
-        ("events", None, "number of events (engagements, reversals) so far", True),
-        ("engagements", None, COUNTERS["engagements"], True),
-    )
-
-    def output_values(self, solver, X, f):
-        return {"x": X[0], "v": X[1], "y": X[2], "engaged": self.mode_keys[solver.key]}
-
-
-LOOPS = (FrictionMassLoop, TwoMassBacklashLoop, StaticBacklashLoop)
+LOOPS = tuple(loop_facade(module) for module in MODULES)
 """The closed-loop FMUs (``dfwb build`` builds them with the plants and LinearSystem)."""
+globals().update((facade.__name__, facade) for facade in LOOPS)  # importable by name: the FMUs' scripts do

@@ -1,40 +1,24 @@
-"""The three plants in feedback with a linear controller, as exact hybrid systems.
+"""A plant in feedback with a linear controller, as an exact hybrid system: :class:`FeedbackLoop`.
 
     f = -G(s) y,   G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an),   n = 1..8
 
-The plant's output y (the friction mass's x, the two-mass backlash's x1, the
-static backlash's output y) drives the controller; its output is the force
-on the plant. The controller is realised as :class:`~.linear_system.LinearSystem`
+The plant's output y drives the controller; its output is the force on the
+plant. The controller is realised as :class:`~.linear_system.LinearSystem`
 realises it (controllable canonical form, state z), so the loop's state is
 the plant's coordinates followed by z, and every mode of the plant makes the
 loop an affine system X' = A X + c, integrated exactly by
-:class:`~.hybrid.HybridSolver`:
-
-* friction (Dv = 0): slide +-1 (Ff = Fc sgn v + B v) until v reaches 0;
-  stick (v = 0, x held) until |f| exceeds Fs, breaking away in the direction
-  of f; at v = 0 the mass sticks while |f| <= Fs.
-* two-mass backlash: flight until the gap g reaches 0 or h, an impact
-  (w -> -eps w, momentum kept); contact (the masses move together) while f
-  presses them into the wall and the next bounce would rise less than 1e-12 h
-  (the accumulation of impacts is over), released when f turns.
-* static backlash: y held while x moves in the play; engaged (y = k (x -+ h/2))
-  from x reaching an edge until its velocity reverses.
+:class:`~.hybrid.HybridSolver`. Each plant's loop (its modes, its events and
+what happens at them) lives beside its solver, in its model module
+(``LOOP`` of :mod:`.friction`, :mod:`.backlash`, :mod:`.static_backlash`).
 
 Plain Python only: this module runs inside the FMUs.
 """
 
-from .backlash import TABLE as BACKLASH
-from .backlash import TwoMassBacklash, check_backlash
-from .contract import EventKind
-from .friction import TABLE as FRICTION
-from .friction import FrictionMass, check_friction
 from .hybrid import HybridSolver
 from .linear_system import LinearSystem
 from .piecewise import check
-from .static_backlash import TABLE as STATIC_BACKLASH
-from .static_backlash import StaticBacklash, check_static_backlash
 
-_fr, _bl, _sb = FRICTION.default, BACKLASH.default, STATIC_BACKLASH.default  # the plants' defaults (fmus/table.py)
+__all__ = ["FeedbackLoop", "STICK", "FREE"]
 
 STICK = ("stick", 0)
 FREE = ("free", 0)
@@ -70,6 +54,19 @@ class FeedbackLoop(HybridSolver):
     # section is the state the last leg's event leaves; there coordinate PIVOT is fixed by the others (pivot()).
     SECTION = ()
     PIVOT = 0
+    # What the loop's FMU (:mod:`.loop_facade`) and the compiled twin (:mod:`.native_core`) read:
+    MODE_VALUES = {}  # {mode key: the FMU's mode output}: every mode the loop can be in
+    CONSTANTS = ()  # the constants a run never changes, in the C core's order (dfwb_loop_parameters)
+    FMU_OUTPUTS = ()  # the FMU's continuous outputs (table.Output): fmu_values' keys, in order
+    MODE_OUTPUT = None  # the FMU's mode output (table.Output)
+    COUNTER = None  # what the loop counts (table.Output; an attribute of that name)
+    FMU_RANGES = {}  # {parameter: (min, max)} of the loop's FMU beyond the plant's
+    FMU_DESCRIPTIONS = {}  # {parameter: its description in the loop's FMU}, where the plant's does not fit
+
+    @staticmethod
+    def fmu_values(loop, X, f):
+        """{name: value} of FMU_OUTPUTS for ``loop`` (this class or its compiled twin) at state X, force f."""
+        raise NotImplementedError
 
     @staticmethod
     def coordinates_of(output):
@@ -167,238 +164,5 @@ class FeedbackLoop(HybridSolver):
         return self.state()[self.OUTPUT]
 
     def counts(self):
-        """What the loop counts (stick phases, impacts, engagements)."""
-        return {}
-
-
-class FrictionLoop(FeedbackLoop):
-    """The friction mass (CVS friction, Dv = 0) in feedback with -G(s); q = (x, v), y = x."""
-
-    coordinates = ("x", "v")
-    initial_parameters = ("x0", "v0")
-    plant = FrictionMass
-    KEYS = (STICK, ("slide", 1), ("slide", -1))
-    SECTION = (((("slide", -1), EventKind.BAND),), ((("slide", 1), EventKind.BAND),))  # x at a minimum, a maximum
-    PIVOT = 1  # v = 0
-
-    def pivot(self, X):
-        return 0.0
-
-    def linear(self):
-        return [1.0], [self.M, self.B, 0.0]
-
-    def nonlinearity(self):
-        return "force", max(self.Fs, self.Fc)
-
-    def still(self, F, omega):
-        return F <= self.Fs  # the mass never breaks away
-
-    @staticmethod
-    def coordinates_of(output):
-        return [output.x, output.v]
-
-    def __init__(self, b, a, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, x0=_fr.x0, v0=_fr.v0, z0=None,
-                 state=None, section=None, modes=None, budget=None):
-        check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=True)
-        self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
-        self.sticks = 0
-        super().__init__(b, a, (x0, v0), z0, state, section, modes, budget)
-
-    def plant_mode(self, key):
-        M = self.M
-        if key == STICK:
-            return ([[0.0, 0.0], [0.0, 0.0]], [0.0, 0.0], [0.0, 0.0],
-                    [(EventKind.BREAK_UP, (0.0, 0.0), -1.0, self.Fs),  # Fs - f > 0
-                     (EventKind.BREAK_DOWN, (0.0, 0.0), 1.0, self.Fs)])  # f + Fs > 0
-        s = key[1]
-        return ([[0.0, 1.0], [0.0, -self.B / M]], [0.0, -s * self.Fc / M], [0.0, 1.0 / M],
-                [(EventKind.BAND, (0.0, float(s)), 0.0, 0.0)])  # s v > 0
-
-    def initial(self, X):
-        v = X[1]
-        if v != 0.0:
-            return ("slide", 1 if v > 0.0 else -1), X, None
-        return self._rest(X)
-
-    def _rest(self, X):
-        """At v = 0: stick while -Fs <= f <= Fs, else slide in the direction of f."""
-        if self.after(STICK, 0, X) < 0:
-            return ("slide", 1), X, 0
-        if self.after(STICK, 1, X) < 0:
-            return ("slide", -1), X, 0
-        self.sticks += 1
-        return STICK, X, None
-
-    def _fire(self, t, kind, X):
-        if kind is EventKind.BAND:
-            X[1] = 0.0
-            return self._rest(X)
-        return ("slide", 1 if kind is EventKind.BREAK_UP else -1), X, 0
-
-    def counts(self):
-        return {"sticks": self.sticks}
-
-
-class BacklashLoop(FeedbackLoop):
-    """The two-mass backlash in feedback with -G(s); q = (x1, v1, g, w), y = x1, f on M2."""
-
-    coordinates = ("x1", "v1", "gap", "w")
-    initial_parameters = ("x1_0", "v1_0", "v2_0", "gap0")
-    plant = TwoMassBacklash
-    KEYS = (FREE, ("contact", -1), ("contact", 1))
-    SECTION = (((FREE, EventKind.WALL_LOWER),), ((FREE, EventKind.WALL_UPPER),))  # an impact at 0, then at h
-    PIVOT = 2  # gap = h
-
-    def pivot(self, X):
-        return self.h
-
-    def linear(self):
-        return [1.0], [self.M1 + self.M2, 0.0, 0.0]
-
-    def nonlinearity(self):
-        return "length", self.h
-
-    def still(self, F, omega):
-        return F <= 0.25 * self.h * self.M2 * omega * omega  # M2 from rest at the centre never reaches a wall
-
-    @staticmethod
-    def coordinates_of(output):
-        return [output.x1, output.v1, output.gap, output.v2 - output.v1]
-
-    def __init__(self, b, a, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, x1_0=_bl.x1_0, v1_0=_bl.v1_0, v2_0=_bl.v2_0,
-                 gap0=_bl.gap0, z0=None, state=None, section=None, modes=None, budget=None):
-        gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
-        self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
-        self.r2 = M2 / (M1 + M2)
-        self.tol_h = 1e-12 * h
-        self.impacts = 0
-        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget)
-
-    def check_coordinates(self, q):
-        check("gap", q[2], lambda: 0.0 <= q[2] <= self.h, f"the gap must be in [0, h] = [0, {self.h!r}] (m)")
-
-    def plant_mode(self, key):
-        if key == FREE:
-            return ([[0.0, 1.0, 0.0, 0.0], [0.0] * 4, [0.0, 0.0, 0.0, 1.0], [0.0] * 4], [0.0] * 4,
-                    [0.0, 0.0, 0.0, 1.0 / self.M2],
-                    [(EventKind.WALL_LOWER, (0.0, 0.0, 1.0, 0.0), 0.0, 0.0),  # g > 0
-                     (EventKind.WALL_UPPER, (0.0, 0.0, -1.0, 0.0), 0.0, self.h)])  # h - g > 0
-        sigma = key[1]  # -1: held at gap 0, +1: at gap h
-        return ([[0.0, 1.0, 0.0, 0.0], [0.0] * 4, [0.0] * 4, [0.0] * 4], [0.0] * 4,
-                [0.0, 1.0 / (self.M1 + self.M2), 0.0, 0.0],
-                [(EventKind.RELEASE, (0.0,) * 4, float(sigma), 0.0)])  # sigma f > 0: pressing
-
-    def initial(self, X):
-        if 0.0 < X[2] < self.h:
-            return FREE, X, None
-        return self._at_wall(-1 if X[2] <= 0.0 else 1, X)
-
-    def _at_wall(self, sigma, X):
-        """At a wall after any impact: contact, or a flight away from it."""
-        X[2] = 0.0 if sigma < 0 else self.h
-        w = X[3]
-        press = self.after(("contact", sigma), 0, X)
-        f = self.force(X)
-        if (w == 0.0 and press >= 0) or (press > 0 and 0.5 * w * w * self.M2 <= self.tol_h * abs(f)):
-            X[1] += self.r2 * w  # both move with the centre of mass
-            X[3] = 0.0
-            return ("contact", sigma), X, None
-        return FREE, X, 0 if sigma < 0 else 1
-
-    def _fire(self, t, kind, X):
-        if kind is EventKind.RELEASE:
-            X[3] = 0.0
-            return FREE, X, 0 if self.key[1] < 0 else 1
-        sigma = -1 if kind is EventKind.WALL_LOWER else 1
-        w = X[3]
-        if sigma * w > 0.0:  # closing: Newton's impact law, momentum kept
-            new = -self.eps * w
-            X[1] += self.r2 * (w - new)
-            X[3] = new
-            self.impacts += 1
-        return self._at_wall(sigma, X)
-
-    def counts(self):
-        return {"impacts": self.impacts}
-
-
-class StaticBacklashLoop(FeedbackLoop):
-    """Mass + geometric backlash in feedback with -G(s); q = (x, v, y), y the backlash output."""
-
-    coordinates = ("x", "v", "y")
-    OUTPUT = 2
-    initial_parameters = ("x0", "v0")
-    plant = StaticBacklash
-    KEYS = (FREE, ("engaged", 1), ("engaged", -1))
-    SECTION = (((FREE, EventKind.ENGAGE_DOWN),), ((FREE, EventKind.ENGAGE_UP),))  # the lower edge, then the upper
-    PIVOT = 0  # x = y/k + h/2: at the upper edge of the play
-
-    def pivot(self, X):
-        return X[2] / self.k + 0.5 * self.h
-
-    def linear(self):
-        return [self.k], [self.M, 0.0, 0.0]
-
-    def nonlinearity(self):
-        return "length", self.k * self.h
-
-    def still(self, F, omega):
-        return F <= 0.5 * self.h * self.M * omega * omega  # the mass swings inside the play: y never moves
-
-    @staticmethod
-    def coordinates_of(output):
-        return [output.x, output.v, output.y]
-
-    def translate(self, q, d):
-        q = list(q)
-        q[0] += d / self.k
-        q[2] += d
-        return q
-
-    def __init__(self, b, a, M=_sb.M, k=_sb.k, h=_sb.h, x0=_sb.x0, v0=_sb.v0, z0=None, state=None, section=None,
-                 modes=None, budget=None):
-        check_static_backlash(M, k, h, x0, v0)
-        self.M, self.k, self.h = M, k, h
-        self.engagements = 0
-        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes, budget)
-
-    def check_coordinates(self, q):
-        play = q[0] - q[2] / self.k
-        check("x - y/k", play, lambda: abs(play) <= 0.5 * self.h * (1.0 + 1e-9),
-              f"the play x - y/k must be within +-h/2 = {0.5 * self.h!r} (m)")
-
-    def plant_mode(self, key):
-        M, k, half = self.M, self.k, 0.5 * self.h
-        if key == FREE:
-            return ([[0.0, 1.0, 0.0], [0.0] * 3, [0.0] * 3], [0.0] * 3, [0.0, 1.0 / M, 0.0],
-                    [(EventKind.ENGAGE_UP, (-1.0, 0.0, 1.0 / k), 0.0, half),  # y/k + h/2 - x > 0
-                     (EventKind.ENGAGE_DOWN, (1.0, 0.0, -1.0 / k), 0.0, half)])  # x - y/k + h/2 > 0
-        s = key[1]
-        return ([[0.0, 1.0, 0.0], [0.0] * 3, [0.0, k, 0.0]], [0.0] * 3, [0.0, 1.0 / M, 0.0],
-                [(EventKind.REVERSE, (0.0, float(s), 0.0), 0.0, 0.0)])  # s v > 0
-
-    def initial(self, X):
-        play = X[0] - X[2] / self.k
-        for s in (1, -1):  # on an edge: engaged if moving on
-            if s * play >= 0.5 * self.h * (1.0 - 1e-12):
-                X[0] = X[2] / self.k + s * 0.5 * self.h  # on the edge, the given output kept
-                return self._engage(s, X, count=False)
-        return FREE, X, None
-
-    def _engage(self, s, X, count=True):
-        if count:  # reached the edge: y takes up from x (within rounding of the edge already)
-            X[2] = self.k * (X[0] - s * 0.5 * self.h)
-        if self.after(("engaged", s), 0, X) > 0:
-            self.engagements += count
-            return ("engaged", s), X, None
-        return FREE, X, 0 if s > 0 else 1
-
-    def _fire(self, t, kind, X):
-        if kind is EventKind.REVERSE:
-            s = self.key[1]
-            X[1] = 0.0
-            return FREE, X, 0 if s > 0 else 1
-        return self._engage(1 if kind is EventKind.ENGAGE_UP else -1, X)
-
-    def counts(self):
-        return {"engagements": self.engagements}
+        """{COUNTER's name: what the loop counted} (stick phases, impacts, engagements)."""
+        return {self.COUNTER.name: getattr(self, self.COUNTER.name)}

@@ -33,7 +33,6 @@ from . import backlash as _backlash
 from . import friction as _friction
 from . import static_backlash as _static_backlash
 from .backlash import TwoMassBacklash as _ExactTwoMassBacklash
-from .contract import BacklashOutput, FrictionOutput, StaticBacklashOutput
 from .exact import Drive
 from .friction import FrictionMass as _ExactFrictionMass
 from .piecewise import PlantError, check, check_step_end
@@ -150,7 +149,7 @@ class NaiveFrictionMass(NaivePlant):
 
     def output(self):
         """x, v, friction force Ff (at the current state and force) and mode (0 band, +-1 sliding)."""
-        return FrictionOutput(self.x, self.v, self._friction(self.v, self.drive.u(self.t)), self.mode)
+        return _friction.TABLE.output_type(self.x, self.v, self._friction(self.v, self.drive.u(self.t)), self.mode)
 
 
 class NaiveTwoMassBacklash(NaivePlant):
@@ -225,7 +224,7 @@ class NaiveTwoMassBacklash(NaivePlant):
 
     def output(self):
         """x1, v1, x2, v2, gap at self.t."""
-        return BacklashOutput(self.x1, self.v1, self.x1 + self.g, self.v1 + self.w, self.g)
+        return _backlash.TABLE.output_type(self.x1, self.v1, self.x1 + self.g, self.v1 + self.w, self.g)
 
 
 class NaiveStaticBacklash(NaivePlant):
@@ -266,4 +265,4 @@ class NaiveStaticBacklash(NaivePlant):
 
     def output(self):
         """x, v, y at self.t."""
-        return StaticBacklashOutput(self.x, self.v, self.k * self.z)
+        return _static_backlash.TABLE.output_type(self.x, self.v, self.k * self.z)

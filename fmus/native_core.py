@@ -50,30 +50,20 @@ Plain Python (stdlib ``ctypes``) only.
 
 import copy
 import ctypes
+import inspect
 import warnings
 from collections import namedtuple
 from pathlib import Path
 
-from . import loops as _loops
-from .backlash import GAP0_FMU
-from .backlash import TABLE as _BACKLASH
-from .contract import BacklashOutput, EventKind, FrictionOutput, StaticBacklashOutput
+from .contract import EventKind
 from .exact import DfwbError, Diverged, Drive, PlantError
-from .friction import TABLE as _FRICTION
-from .plants import KINDS, c_name
+from .plants import KINDS, MODULES, c_name
 from .state import StateRefused
-from .static_backlash import TABLE as _STATIC_BACKLASH
 
-__all__ = ["load", "NativeCore", "NativeFrictionMass", "NativeTwoMassBacklash", "NativeStaticBacklash",
-           "CoreError", "PARAMETERS", "BACKLASH_PARAMETERS", "STATIC_BACKLASH_PARAMETERS", "ABI", "LOG_CAPACITY",
-           "EVENT_KINDS", "NativeFrictionLoop", "NativeBacklashLoop", "NativeStaticBacklashLoop", "NativeMode",
-           "LOOP_PARAMETERS"]
+__all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CAPACITY", "EVENT_KINDS",
+           "NativeMode"]  # and each plant's classes by name: NativeFrictionMass, NativeFrictionLoop, ...
 
 ABI = 6  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
-# the parameters of dfwb_*_new in their C order (fmus/table.py)
-PARAMETERS, BACKLASH_PARAMETERS, STATIC_BACKLASH_PARAMETERS = (_FRICTION.core_order, _BACKLASH.core_order,
-                                                               _STATIC_BACKLASH.core_order)
-_fr, _bl, _sb = _FRICTION.default, _BACKLASH.default, _STATIC_BACKLASH.default  # the keyword defaults below
 ERRLEN = 1024
 LOG_CAPACITY = 1 << 20  # events one step may record (16 bytes each in C, allocated as they come)
 
@@ -86,9 +76,7 @@ EVENT_KINDS = (None, EventKind.BREAK_UP, EventKind.BREAK_DOWN, EventKind.RELEASE
                EventKind.ENGAGE_DOWN, EventKind.REVERSE)
 
 # plant -> (DFWB_PLANT_*, NativeCore attribute, its table: the C order of its parameters, outputs and counters)
-_PLANTS = {c_name(table): (KINDS[table.name], attr, table)
-           for table, attr in ((_FRICTION, "FrictionMass"), (_BACKLASH, "TwoMassBacklash"),
-                               (_STATIC_BACKLASH, "StaticBacklash"))}
+_PLANTS = {c_name(m.TABLE): (KINDS[m.TABLE.name], m.TABLE.model, m.TABLE) for m in MODULES}
 
 
 class CoreError(DfwbError, RuntimeError):
@@ -174,9 +162,9 @@ class _PlantApi(_Functions):
 
 
 class NativeCore:
-    """An opened C core: its ctypes functions and the solver classes bound to it
-    (``FrictionMass``, ``TwoMassBacklash``, ``StaticBacklash``; the closed loops ``FrictionLoop``,
-    ``BacklashLoop``, ``StaticBacklashLoop``)."""
+    """An opened C core: its ctypes functions and the solver classes bound to it, each plant's under its
+    model's name (``FrictionMass``, ``TwoMassBacklash``, ``StaticBacklash``) and its closed loop's under the
+    Python loop's (``FrictionLoop``, ``BacklashLoop``, ``StaticBacklashLoop``)."""
 
     def __init__(self, path):
         self.path = Path(path)
@@ -194,15 +182,14 @@ class NativeCore:
             raise CoreError(f"the C core {self.path} speaks ABI {abi}, this binding {ABI}: rebuild it")
         self.lib = lib
         self.api = _PlantApi(lib, self.path)
-        for cls in (NativeFrictionMass, NativeTwoMassBacklash, NativeStaticBacklash):
+        for cls in SOLVERS:
             attr = _PLANTS[cls._plant][1]
             setattr(self, attr, type(cls.__name__, (cls,), {"core": self, "__module__": __name__}))
         self.loop_api = _LoopApi(lib, self.path)
-        for cls, plant in ((NativeFrictionLoop, "FrictionMass"), (NativeBacklashLoop, "TwoMassBacklash"),
-                           (NativeStaticBacklashLoop, "StaticBacklash")):
-            attr = _LOOPS[cls._plant][1]  # plant: the open-loop solver on this core (a shooting's start)
-            setattr(self, attr, type(cls.__name__, (cls,), {"core": self, "plant": getattr(self, plant),
-                                                            "__module__": __name__}))
+        for cls in LOOPS:
+            _kind, attr, _python, _names = _LOOPS[cls._plant]
+            plant = getattr(self, _PLANTS[cls._plant][1])  # the open-loop solver on this core (a shooting's start)
+            setattr(self, attr, type(cls.__name__, (cls,), {"core": self, "plant": plant, "__module__": __name__}))
 
     def __repr__(self):
         return f"NativeCore({str(self.path)!r})"
@@ -223,29 +210,23 @@ def _c_repr(value):
     return repr(_as_double(value))
 
 
-def _clearance_tails(h):
-    """The ``tails`` of a refusal that quotes a clearance h given as a non-float (as Python writes it): of
-    gap0, and of a loop state's gap."""
-    if type(h) is float:
-        return ()
-    return tuple((f"= [0, {_c_repr(h)}] (m){note}", f"= [0, {h!r}] (m){note}") for note in (GAP0_FMU, ""))
-
-
-def _raise(code, buffer, originals=None, tails=()):
+def _raise(code, buffer, originals=None):
     """Raise the exception of a C status, its message the C text (values named as Python writes them).
 
-    ``tails``: (C text, Python text) pairs replaced at the end of a value's message (an allowed range
-    that quotes another parameter, e.g. ``Fs must be >= Fc = 5 (N)``)."""
+    ``originals``: {name: value as given}; a value that is not a float, which the C text writes as the
+    float it became (or NaN), is written as Python does: where the message names it (``Fs must be >= Fc
+    = 5 (N)``) and where it bounds a range (``gap0 must be in [0, h] = [0, 1] (m)``)."""
     message = buffer.value.decode("utf-8", "replace")
     if code in (E_VALUE, E_LIMIT):
         for name, value in (originals or {}).items():
             if type(value) is not float:  # the C text wrote float(value) (or NaN): write it as Python does
-                head = f"{name} = {_c_repr(value)} is out of range"
+                c_text, py_text = _c_repr(value), repr(value)
+                head = f"{name} = {c_text} is out of range"
                 if message.startswith(head):
-                    message = f"{name} = {value!r} is out of range" + message[len(head):]
-        for c_text, py_text in tails:
-            if message.endswith(c_text):
-                message = message[:-len(c_text)] + py_text
+                    message = f"{name} = {py_text} is out of range" + message[len(head):]
+                head, sep, tail = message.partition(" is out of range")
+                tail = tail.replace(f"{name} = {c_text}", f"{name} = {py_text}")
+                message = head + sep + tail.replace(f"{name}] = [0, {c_text}]", f"{name}] = [0, {py_text}]")
         raise PlantError(message)
     if code == E_MATH:
         raise OverflowError(message)
@@ -269,14 +250,14 @@ def _restore(path, attr, data, event_log=None, crossings=None):
     return native
 
 
-def _new(function, *args, originals=None, tails=()):
+def _new(function, *args, originals=None):
     """The handle ``function(*args, &handle, err, ERRLEN)`` makes (a ``new`` or a ``from_bytes``), else its
-    error raised (``originals`` and ``tails`` as :func:`_raise`'s)."""
+    error raised (``originals`` as :func:`_raise`'s)."""
     handle = ctypes.c_void_p()
     err = ctypes.create_string_buffer(ERRLEN)
     code = function(*args, ctypes.byref(handle), err, ERRLEN)
     if code != OK:
-        _raise(code, err, originals, tails)
+        _raise(code, err, originals)
     return handle
 
 
@@ -422,7 +403,8 @@ class _NativeSolver(_Native):
     """What the three native solvers share: the Solver protocol on a C instance."""
 
     _table = _PLANTS
-    _output_type = None
+    _output_type = None  # the table's output_type
+    _integer_fields = ()  # the indices of its integer fields
 
     @classmethod
     def _functions(cls, core):
@@ -435,13 +417,17 @@ class _NativeSolver(_Native):
         """The C solver's counter ``name``, one of its table's counters (dfwb_plant_counter's order)."""
         return self._api.counter(self._handle, _PLANTS[self._plant][2].counters.index(name))
 
-    def _create(self, core, values, originals, tails=()):
+    def __init__(self, *args, core=None, **kwargs):
+        table = _PLANTS[self._plant][2]
+        originals = _numbers(table, _bind(type(self), args, kwargs))
+        self._create(core, tuple(originals[name] for name in table.core_order), originals)
+
+    def _create(self, core, values, originals):
         self._handle = None
         core = self._bound_core(core)
         params = (ctypes.c_double * len(values))(*(_as_double(v) for v in values))
         kind = _PLANTS[self._plant][0]
-        self._setup(core, _new(self._functions(core).new, kind, params, len(values), originals=originals,
-                               tails=tails))
+        self._setup(core, _new(self._functions(core).new, kind, params, len(values), originals=originals))
 
     def _setup(self, core, handle):
         super()._setup(core, handle)
@@ -478,10 +464,13 @@ class _NativeSolver(_Native):
             _raise(code, self._err, {"t_end": t_end})
 
     def output(self):
-        """The outputs at self.t, as the Python solver's named tuple."""
+        """The outputs at self.t, as the Python solver's named tuple (its integer fields ints)."""
         out = self._out
         self._api.output(self._handle, out)
-        return self._output_type._make(out[:])
+        values = out[:]
+        for i in self._integer_fields:
+            values[i] = int(values[i])
+        return self._output_type._make(values)
 
     def integrals(self):
         """Running integrals I_k(t) = int_0^t y exp(-i k omega s) ds, k = 0..harmonics."""
@@ -500,84 +489,54 @@ class _NativeSolver(_Native):
         return solver
 
 
-class NativeFrictionMass(_NativeSolver):
-    """The friction mass solved by the C core: the :class:`~.contract.Solver` protocol of FrictionMass.
-
-    Same keywords and defaults as :class:`~.friction.FrictionMass`; ``core``
-    (keyword only) is the :class:`NativeCore` to run on, by default the class's
-    own (``load(path).FrictionMass`` is this class bound to that core).
-    """
-
-    _plant = "friction"
-    _output_type = FrictionOutput
-
-    def __init__(self, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, F=0.0, omega=1.0, phi=0.0,
-                 x0=_fr.x0, v0=_fr.v0, f=0.0, harmonics=10, *, core=None):
-        values = (M, B, Fc, Fs, Dv, F, omega, phi, x0, v0, f, harmonics)
-        tails = () if type(Fc) is float else ((f"Fc = {_c_repr(Fc)} (N)", f"Fc = {Fc!r} (N)"),)
-        self._create(core, values, dict(zip(PARAMETERS, values)), tails)
-
-    def output(self):
-        """x, v, friction force Ff and mode (0 stick or band, +-1 sliding) at self.t."""
-        out = self._out
-        self._api.output(self._handle, out)
-        x, v, ff, mode = out[:]
-        return FrictionOutput(x, v, ff, int(mode))
+def _bind(cls, args, kwargs):
+    """{name: value as given} of a call of ``cls`` with its Python twin's signature (TypeError as Python's),
+    defaults applied."""
+    bound = cls._signature.bind(*args, **kwargs)
+    bound.apply_defaults()
+    return dict(bound.arguments)
 
 
-class NativeTwoMassBacklash(_NativeSolver):
-    """The two-mass backlash solved by the C core: keywords, defaults (gap0=None: h/2) and outputs of
-    :class:`~.backlash.TwoMassBacklash`, with its counters ``contact`` (0 free, 1 gap 0, 2 gap h) and
-    ``impacts``."""
-
-    _plant = "backlash"
-    _output_type = BacklashOutput
-
-    def __init__(self, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, F=0.0, omega=1.0, phi=0.0,
-                 x1_0=_bl.x1_0, v1_0=_bl.v1_0, v2_0=_bl.v2_0, gap0=_bl.gap0, f=0.0, harmonics=10, *, core=None):
-        originals = dict(M1=M1, M2=M2, h=h, eps=eps, F=F, omega=omega, phi=phi, x1_0=x1_0, v1_0=v1_0,
-                         v2_0=v2_0, gap0=gap0, f=f, harmonics=harmonics)
-        if gap0 is None:
-            gap0 = originals["gap0"] = 0.5 * _as_double(h)  # as Python: 0.5 * h (h is checked first)
-        values = (M1, M2, h, eps, F, omega, phi, x1_0, v1_0, v2_0, gap0, f, harmonics)
-        tails = _clearance_tails(h)
-        self._create(core, values, originals, tails)
-
-    @property
-    def contact(self):
-        """0 free, 1 riding at gap 0, 2 riding at gap h."""
-        return self._counter("contact")
-
-    @property
-    def impacts(self):
-        """Impacts so far."""
-        return self._counter("impacts")
+def _numbers(table, originals):
+    """``originals`` with each default that is not a number (gap0=None) made the number it stands for, as
+    Python makes it (h/2; a bad h is refused first)."""
+    for parameter in table.parameters:
+        if parameter.half_of and originals.get(parameter.name) is None:
+            originals[parameter.name] = 0.5 * _as_double(originals[parameter.half_of])
+    return originals
 
 
-class NativeStaticBacklash(_NativeSolver):
-    """Mass + backlash solved by the C core: keywords, defaults and outputs of
-    :class:`~.static_backlash.StaticBacklash`, with its counter ``engaged`` (0, +1, -1)."""
+def _with_core(signature):
+    """A Python twin's signature with the keyword-only ``core=None`` last."""
+    core = inspect.Parameter("core", inspect.Parameter.KEYWORD_ONLY, default=None)
+    return signature.replace(parameters=[*signature.parameters.values(), core])
 
-    _plant = "static_backlash"
-    _output_type = StaticBacklashOutput
 
-    def __init__(self, M=_sb.M, k=_sb.k, h=_sb.h, F=0.0, omega=1.0, phi=0.0, x0=_sb.x0, v0=_sb.v0, f=0.0,
-                 harmonics=10, *, core=None):
-        values = (M, k, h, F, omega, phi, x0, v0, f, harmonics)
-        self._create(core, values, dict(zip(STATIC_BACKLASH_PARAMETERS, values)))
+def _native_solver(module):
+    """The class of a plant's solver on the C core: its Python twin's constructor (same keywords and
+    defaults; ``core`` keyword only) and outputs, its table's counters as attributes."""
+    table, python = module.TABLE, module.SOLVER
+    signature = inspect.signature(python)
+    namespace = {"__module__": __name__, "_plant": c_name(table), "_signature": signature,
+                 "__signature__": _with_core(signature),
+                 "_output_type": table.output_type, "_integer_fields": tuple(
+                     i for i, output in enumerate(o for o in table.outputs if not o.counter) if output.integer),
+                 "__doc__": f"{python.__name__} solved by the C core: the :class:`~.contract.Solver` protocol with "
+                            f"its Python twin's keywords, defaults and outputs; ``core`` (keyword only) is the "
+                            f":class:`NativeCore` to run on, by default the class's own "
+                            f"(``load(path).{table.model}`` is this class bound to that core)."}
+    for name in table.counters:
+        namespace[name] = property(lambda self, name=name: self._counter(name), doc=f"The C solver's {name}.")
+    return type("Native" + python.__name__, (_NativeSolver,), namespace)
 
-    @property
-    def engaged(self):
-        """0 free, +1/-1 dragging y at the upper/lower edge of the play."""
-        return self._counter("engaged")
+
+SOLVERS = tuple(_native_solver(module) for module in MODULES)
+"""The native solvers' classes, one per plant (NativeFrictionMass, NativeTwoMassBacklash, ...)."""
 
 
 # -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------
 # plant -> (DFWB_PLANT_*, NativeCore attribute, the Python class, parameters in the C order)
-_LOOPS = {c_name(table): (KINDS[table.name], loop.__name__, loop, table.loop_order)
-          for table, loop in ((_FRICTION, _loops.FrictionLoop), (_BACKLASH, _loops.BacklashLoop),
-                              (_STATIC_BACKLASH, _loops.StaticBacklashLoop))}
-LOOP_PARAMETERS = {plant: names for plant, (_kind, _attr, _cls, names) in _LOOPS.items()}
+_LOOPS = {c_name(m.TABLE): (KINDS[m.TABLE.name], m.LOOP.__name__, m.LOOP, m.TABLE.loop_order) for m in MODULES}
 
 NativeMode = namedtuple("NativeMode", "key h terms")
 NativeMode.__doc__ = """A mode of a native loop as its ``_modes`` dict holds it: key, chunk length h, Taylor terms."""
@@ -633,8 +592,6 @@ class _NativeLoop(_Native):
 
     _table = _LOOPS
     _keys = ()  # mode key index of the C core -> the Python key tuple
-    _counter = None  # the name of the plant's counter
-    _constant_names = ()  # the plant's constants, as dfwb_loop_parameters gives them
     plant = None  # the open-loop solver class (the bound subclass: the native one of its core)
 
     def __init_subclass__(cls, **kwargs):
@@ -642,9 +599,18 @@ class _NativeLoop(_Native):
         super().__init_subclass__(**kwargs)
         python = _LOOPS[cls._plant][2]
         for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates", "force",
-                     "KEYS", "SECTION", "PIVOT", "pivot", "linear", "nonlinearity", "still"):
+                     "KEYS", "SECTION", "PIVOT", "pivot", "linear", "nonlinearity", "still", "CONSTANTS",
+                     "COUNTER", "MODE_VALUES"):
             setattr(cls, name, getattr(python, name))
         cls.coordinates_of = staticmethod(python.coordinates_of)
+        cls._keys = python.KEYS
+
+    def __init__(self, b, a, *args, core=None, **kwargs):
+        originals = _numbers(_PLANTS[self._plant][2], _bind(type(self), (b, a) + args, kwargs))
+        names = _LOOPS[self._plant][3]
+        self._create(core, b, a, tuple(originals[name] for name in names), *(
+            originals[name] for name in ("z0", "state", "section", "modes", "budget")))
+        self._set_constants()
 
     @classmethod
     def _functions(cls, core):
@@ -653,7 +619,7 @@ class _NativeLoop(_Native):
     def _state_size(self):
         return self._api.state_size
 
-    def _create(self, core, b, a, values, z0, state, section, modes, budget, tails=()):
+    def _create(self, core, b, a, values, z0, state, section, modes, budget):
         self._handle = None
         core = self._bound_core(core)
         kind, _attr, _cls, names = _LOOPS[self._plant]
@@ -680,7 +646,7 @@ class _NativeLoop(_Native):
         else:
             csec = None
         handle = _new(core.loop_api.new, kind, params, nparams, cb, nb, ca, na, cz, nz, cs, ns, csec,
-                      originals=originals, tails=tails)
+                      originals=originals)
         self._setup(core, handle, modes, budget, section)
 
     def _setup(self, core, handle, modes, budget, level):
@@ -777,8 +743,8 @@ class _NativeLoop(_Native):
         return self._api.output(self._handle)
 
     def counts(self):
-        """What the loop counts (stick phases, impacts, engagements)."""
-        return {self._counter: self._api.counter(self._handle)}
+        """{COUNTER's name: what the loop counted} (stick phases, impacts, engagements)."""
+        return {self.COUNTER.name: self._api.counter(self._handle)}
 
     def mode(self, key):
         """The mode ``key`` (a :data:`NativeMode`), built if new (HybridSolver.mode)."""
@@ -836,11 +802,12 @@ class _NativeLoop(_Native):
         return clone
 
     # -- the state as bytes ------------------------------------------------------------------------------
-    def _constants(self):
-        """The plant's constants (M, B, ...) from the C instance (a loop made from bytes)."""
+    def _set_constants(self):
+        """The plant's constants (M, B, ...: CONSTANTS) as attributes, from the C instance."""
         out = (ctypes.c_double * 6)()
         self._api.parameters(self._handle, out)
-        return out[:]
+        for name, value in zip(self.CONSTANTS, out):
+            setattr(self, name, value)
 
     @classmethod
     def from_bytes(cls, data, *, core=None, modes=None, budget=None):
@@ -851,8 +818,7 @@ class _NativeLoop(_Native):
         section = level.value if core.loop_api.section(handle, ctypes.byref(level)) else None
         loop = object.__new__(cls)
         loop._setup(core, handle, modes, budget, section)
-        for name, value in zip(cls._constant_names, loop._constants()):
-            setattr(loop, name, value)
+        loop._set_constants()
         return loop
 
     def __reduce__(self):
@@ -860,65 +826,20 @@ class _NativeLoop(_Native):
         return function, args + (self.crossings,)
 
 
-class NativeFrictionLoop(_NativeLoop):
-    """:class:`~.loops.FrictionLoop` solved by the C core: same keywords, defaults, attributes and methods."""
-
-    _plant = "friction"
-    _keys = _loops.FrictionLoop.KEYS
-    _counter = "sticks"
-    _constant_names = ("M", "B", "Fc", "Fs")
-
-    def __init__(self, b, a, M=_fr.M, B=_fr.B, Fc=_fr.Fc, Fs=_fr.Fs, Dv=_fr.Dv, x0=_fr.x0, v0=_fr.v0, z0=None,
-                 state=None, section=None, modes=None, budget=None, *, core=None):
-        tails = () if type(Fc) is float else ((f"Fc = {_c_repr(Fc)} (N)", f"Fc = {Fc!r} (N)"),)
-        self._create(core, b, a, (M, B, Fc, Fs, Dv, x0, v0), z0, state, section, modes, budget, tails)
-        self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
-
-    @property
-    def sticks(self):
-        """Stick phases so far."""
-        return self._api.counter(self._handle)
+def _native_loop(module):
+    """The class of a plant's closed loop on the C core: its Python twin's constructor (same keywords and
+    defaults; ``core`` keyword only), attributes and methods; its counter as an attribute."""
+    python = module.LOOP
+    signature = inspect.signature(python)
+    counter = python.COUNTER.name
+    return type("Native" + python.__name__, (_NativeLoop,), {
+        "__module__": __name__, "_plant": c_name(module.TABLE), "_signature": signature,
+        "__signature__": _with_core(signature),
+        counter: property(lambda self: self._api.counter(self._handle), doc=python.COUNTER.description),
+        "__doc__": f":class:`~.{module.__name__.rsplit('.', 1)[-1]}.{python.__name__}` solved by the C core: "
+                   f"same keywords, defaults, attributes and methods."})
 
 
-class NativeBacklashLoop(_NativeLoop):
-    """:class:`~.loops.BacklashLoop` solved by the C core: same keywords, defaults, attributes and methods."""
-
-    _plant = "backlash"
-    _keys = _loops.BacklashLoop.KEYS
-    _counter = "impacts"
-    _constant_names = ("M1", "M2", "h", "eps", "r2", "tol_h")
-
-    def __init__(self, b, a, M1=_bl.M1, M2=_bl.M2, h=_bl.h, eps=_bl.eps, x1_0=_bl.x1_0, v1_0=_bl.v1_0,
-                 v2_0=_bl.v2_0, gap0=_bl.gap0, z0=None, state=None, section=None, modes=None, budget=None, *,
-                 core=None):
-        if gap0 is None:
-            gap0 = 0.5 * _as_double(h)  # as Python: 0.5 * h (h is checked first)
-        tails = _clearance_tails(h)
-        self._create(core, b, a, (M1, M2, h, eps, x1_0, v1_0, v2_0, gap0), z0, state, section, modes, budget, tails)
-        self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
-        self.r2 = M2 / (M1 + M2)
-        self.tol_h = 1e-12 * h
-
-    @property
-    def impacts(self):
-        """Impacts so far."""
-        return self._api.counter(self._handle)
-
-
-class NativeStaticBacklashLoop(_NativeLoop):
-    """:class:`~.loops.StaticBacklashLoop` solved by the C core: same keywords, defaults, attributes and methods."""
-
-    _plant = "static_backlash"
-    _keys = _loops.StaticBacklashLoop.KEYS
-    _counter = "engagements"
-    _constant_names = ("M", "k", "h")
-
-    def __init__(self, b, a, M=_sb.M, k=_sb.k, h=_sb.h, x0=_sb.x0, v0=_sb.v0, z0=None, state=None, section=None,
-                 modes=None, budget=None, *, core=None):
-        self._create(core, b, a, (M, k, h, x0, v0), z0, state, section, modes, budget)
-        self.M, self.k, self.h = M, k, h
-
-    @property
-    def engagements(self):
-        """Engagements so far."""
-        return self._api.counter(self._handle)
+LOOPS = tuple(_native_loop(module) for module in MODULES)
+"""The native loops' classes, one per plant (NativeFrictionLoop, NativeBacklashLoop, ...)."""
+globals().update((cls.__name__, cls) for cls in SOLVERS + LOOPS)  # NativeFrictionMass, ... by name

@@ -1,10 +1,14 @@
-"""The plants of dfwb, listed once: their tables, in the order of their kinds in the C core.
+"""The plants of dfwb, listed once: their model modules, in the order of their kinds in the C core.
 
-A plant's kind numbers its states (the C core writes it into their
-header), so the list is appended to, never reordered. Everything that
-enumerates dfwb's own plants below the registry reads it: the C core's
-generated list of plants (:mod:`dfwb.build_fmus.plant_header`), the native
-FMUs' kinds and the C binding's.
+A plant's model module holds its ``TABLE`` (:class:`~.table.PlantTable`),
+its exact solver ``SOLVER`` and its closed loop ``LOOP``
+(:class:`~.loops.FeedbackLoop`). A plant's kind numbers its states (the C
+core writes it into their header), so the list is appended to, never
+reordered. Everything that enumerates dfwb's own plants reads it: the FMU
+facades of the plants and their loops (generated from the modules), the C
+binding's classes, the C core's generated list of plants
+(:mod:`dfwb.build_fmus.plant_header`), the native FMUs' kinds and the
+registry.
 
 Plain Python only: this module runs inside the FMUs.
 
@@ -17,9 +21,10 @@ Examples
 
 from . import backlash, friction, static_backlash
 
-__all__ = ["TABLES", "KINDS", "c_name"]
+__all__ = ["MODULES", "TABLES", "KINDS", "c_name"]
 
-TABLES = (friction.TABLE, backlash.TABLE, static_backlash.TABLE)
+MODULES = (friction, backlash, static_backlash)
+TABLES = tuple(module.TABLE for module in MODULES)
 KINDS = {table.name: kind for kind, table in enumerate(TABLES, start=1)}
 """{plant name: its kind in the C core (DFWB_PLANT_*)}."""
 

@@ -7,8 +7,9 @@ closed-form position; disengagement is the velocity reversal, a first zero
 of the closed-form velocity. The output is y; it starts centred, y = k x0.
 """
 
-from .contract import EventKind, StaticBacklashOutput
+from .contract import EventKind
 from .exact import Motion
+from .loops import FREE, FeedbackLoop
 from .piecewise import EdgeSearch, PiecewisePlant, Search, VelocitySearch, check
 from .table import MASS, START, Output, Parameter, PlantTable
 
@@ -18,6 +19,7 @@ EDGE = {kind: s for s, kind in ENGAGE.items()}
 
 TABLE = PlantTable(
     "static-backlash",
+    model="StaticBacklash", summary="mass driven by the force, followed by a static backlash (dead band h, slope k)",
     constants=(
         Parameter("M", 2.0, "kg", "mass (> 0)", (0.0, None), MASS),
         Parameter("k", 1.0, None, "slope of the backlash element (> 0)", (0.0, None), (1e-6, 1e6)),
@@ -47,6 +49,9 @@ def check_static_backlash(M, k, h, x0, v0):
 class StaticBacklash(PiecewisePlant):
     """Exact solver of mass + backlash; the output is the backlash output y."""
 
+    # what a run never changes: a restored FMU state's solver is held to it
+    FIXED = ("M", "k", "h")
+
     def __init__(self, M=DEFAULT.M, k=DEFAULT.k, h=DEFAULT.h, F=0.0, omega=1.0, phi=0.0, x0=DEFAULT.x0, v0=DEFAULT.v0,
                  f=0.0, harmonics=10):
         check_static_backlash(M, k, h, x0, v0)
@@ -59,7 +64,7 @@ class StaticBacklash(PiecewisePlant):
         """x, v, y at self.t."""
         x, v = self._mass.state(self.t)
         y, _ = self._output.state(self.t)
-        return StaticBacklashOutput(x, v, y)
+        return TABLE.output_type(x, v, y)
 
     def _mass_motion(self, t, x, v):
         d = self.drive
@@ -133,3 +138,99 @@ class StaticBacklash(PiecewisePlant):
             self._engage(t, x, v, self._leaving)
         else:
             self._free(t, x, v, self._y, leaving=self._leaving)
+
+
+class StaticBacklashLoop(FeedbackLoop):
+    """Mass + geometric backlash in feedback with -G(s); q = (x, v, y), y the backlash output.
+
+    y held while x moves in the play; engaged (y = k (x -+ h/2)) from x
+    reaching an edge until its velocity reverses.
+    """
+
+    coordinates = ("x", "v", "y")
+    OUTPUT = 2
+    initial_parameters = ("x0", "v0")
+    plant = StaticBacklash
+    KEYS = (FREE, ("engaged", 1), ("engaged", -1))
+    MODE_VALUES = {FREE: 0, ("engaged", 1): 1, ("engaged", -1): -1}
+    CONSTANTS = ("M", "k", "h")
+    FMU_OUTPUTS = TABLE.outputs[:2] + (Output("y", "m", "backlash output (fed back to the controller)"),)
+    MODE_OUTPUT = TABLE.outputs[3]  # engaged
+    COUNTER = Output("engagements", None, "number of engagements so far (an edge reached and the output dragged)",
+                     integer=True, counter=True)
+    SECTION = (((FREE, EventKind.ENGAGE_DOWN),), ((FREE, EventKind.ENGAGE_UP),))  # the lower edge, then the upper
+    PIVOT = 0  # x = y/k + h/2: at the upper edge of the play
+
+    def pivot(self, X):
+        return X[2] / self.k + 0.5 * self.h
+
+    @staticmethod
+    def fmu_values(loop, X, f):
+        return {"x": X[0], "v": X[1], "y": X[2]}
+
+    def linear(self):
+        return [self.k], [self.M, 0.0, 0.0]
+
+    def nonlinearity(self):
+        return "length", self.k * self.h
+
+    def still(self, F, omega):
+        return F <= 0.5 * self.h * self.M * omega * omega  # the mass swings inside the play: y never moves
+
+    @staticmethod
+    def coordinates_of(output):
+        return [output.x, output.v, output.y]
+
+    def translate(self, q, d):
+        q = list(q)
+        q[0] += d / self.k
+        q[2] += d
+        return q
+
+    def __init__(self, b, a, M=DEFAULT.M, k=DEFAULT.k, h=DEFAULT.h, x0=DEFAULT.x0, v0=DEFAULT.v0, z0=None, state=None,
+                 section=None,                  modes=None, budget=None):
+        check_static_backlash(M, k, h, x0, v0)
+        self.M, self.k, self.h = M, k, h
+        self.engagements = 0
+        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes, budget)
+
+    def check_coordinates(self, q):
+        play = q[0] - q[2] / self.k
+        check("x - y/k", play, lambda: abs(play) <= 0.5 * self.h * (1.0 + 1e-9),
+              f"the play x - y/k must be within +-h/2 = {0.5 * self.h!r} (m)")
+
+    def plant_mode(self, key):
+        M, k, half = self.M, self.k, 0.5 * self.h
+        if key == FREE:
+            return ([[0.0, 1.0, 0.0], [0.0] * 3, [0.0] * 3], [0.0] * 3, [0.0, 1.0 / M, 0.0],
+                    [(EventKind.ENGAGE_UP, (-1.0, 0.0, 1.0 / k), 0.0, half),  # y/k + h/2 - x > 0
+                     (EventKind.ENGAGE_DOWN, (1.0, 0.0, -1.0 / k), 0.0, half)])  # x - y/k + h/2 > 0
+        s = key[1]
+        return ([[0.0, 1.0, 0.0], [0.0] * 3, [0.0, k, 0.0]], [0.0] * 3, [0.0, 1.0 / M, 0.0],
+                [(EventKind.REVERSE, (0.0, float(s), 0.0), 0.0, 0.0)])  # s v > 0
+
+    def initial(self, X):
+        play = X[0] - X[2] / self.k
+        for s in (1, -1):  # on an edge: engaged if moving on
+            if s * play >= 0.5 * self.h * (1.0 - 1e-12):
+                X[0] = X[2] / self.k + s * 0.5 * self.h  # on the edge, the given output kept
+                return self._engage(s, X, count=False)
+        return FREE, X, None
+
+    def _engage(self, s, X, count=True):
+        if count:  # reached the edge: y takes up from x (within rounding of the edge already)
+            X[2] = self.k * (X[0] - s * 0.5 * self.h)
+        if self.after(("engaged", s), 0, X) > 0:
+            self.engagements += count
+            return ("engaged", s), X, None
+        return FREE, X, 0 if s > 0 else 1
+
+    def _fire(self, t, kind, X):
+        if kind is EventKind.REVERSE:
+            s = self.key[1]
+            X[1] = 0.0
+            return FREE, X, 0 if s > 0 else 1
+        return self._engage(1 if kind is EventKind.ENGAGE_UP else -1, X)
+
+
+SOLVER, LOOP = StaticBacklash, StaticBacklashLoop

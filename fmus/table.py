@@ -46,7 +46,9 @@ class Parameter(NamedTuple):
     message). ``accepted`` is the (low, high) the describing-function engine
     accepts (None: the solver's check alone), the edges ``dfwb stress``
     covers. ``start`` is the FMU's start value when the default is not a
-    number (gap0: None in Python, -1 in an FMU, both meaning h/2).
+    number (gap0: None in Python, -1 in an FMU, both meaning h/2). ``half_of``
+    names the parameter whose half a default None stands for (gap0: ``"h"``),
+    for the C core, which takes numbers only.
     """
 
     name: str
@@ -56,6 +58,7 @@ class Parameter(NamedTuple):
     bounds: tuple = (None, None)
     accepted: Optional[tuple] = None
     start: Optional[float] = None
+    half_of: Optional[str] = None
 
     @property
     def fmu_start(self):
@@ -116,6 +119,12 @@ class PlantTable:
     ----------
     name : str
         The plant's name (the command line's, the registry's).
+    model : str
+        The name of its FMU (``FrictionMass``), of its facade and of its solver on the C core; its closed
+        loop's FMU is ``model + "Loop"``.
+    summary : str
+        What the plant is, in one line (lower case, no full stop): the registry's summary and, capitalised,
+        its FMUs' description.
     constants, initial : tuple of Parameter
         The plant's constants, then its initial values.
     outputs : tuple of Output
@@ -138,8 +147,8 @@ class PlantTable:
     """
 
     def __init__(self, name, constants, initial, outputs=(), signal=None, section=(), modes=(), starts=None,
-                 shifts=None, position=None, counter="events"):
-        self.name = name
+                 shifts=None, position=None, counter="events", model=None, summary=""):
+        self.name, self.model, self.summary = name, model, summary
         self.constants, self.initial = tuple(constants), tuple(initial)
         self.section, self.modes, self.position, self.counter = tuple(section), tuple(modes), position, counter
         self.starts, self.shifts = dict(starts or {}), dict(shifts or {})
@@ -147,6 +156,9 @@ class PlantTable:
         self.signal = signal if signal is not None else (self.outputs[0].name if self.outputs else None)
         self.solver_outputs = tuple(o.name for o in self.outputs if not o.counter)
         self.counters = tuple(o.name for o in self.outputs if o.counter)
+        self.output_type = NamedTuple(f"{model or 'Plant'}Output", [
+            (o.name, int if o.integer else float) for o in self.outputs if not o.counter])
+        """The named tuple of the solver's ``output()``: the outputs that are not counters, in order."""
         if self.outputs and self.signal not in self.solver_outputs:
             raise ValueError(f"the signal {self.signal!r} is not one of the outputs {self.solver_outputs}")
         self.parameters = self.constants + self.initial

@@ -24,8 +24,11 @@ import numpy as np
 import pytest
 
 from dfwb.base.errors import RunError
+from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.exact import PlantError
-from dfwb.fmus.loops import STICK, BacklashLoop, FrictionLoop, StaticBacklashLoop
+from dfwb.fmus.friction import FrictionLoop
+from dfwb.fmus.loops import STICK
+from dfwb.fmus.static_backlash import StaticBacklashLoop
 from dfwb.plants.loop_reference import closed_loop_reference
 
 TIME_TOL = 1e-10  # |t_exact - t_reference| <= TIME_TOL * max(1, t)

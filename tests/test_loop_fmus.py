@@ -14,10 +14,12 @@ from native_fmu_helpers import initialised, read, run
 from dfwb.build_fmus import builder
 from dfwb.fmi import location
 from dfwb.fmus import facade, loop_facade, state
+from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.contract import EventKind
+from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.hybrid import Mode, Polynomial
 from dfwb.fmus.linear_system import LinearSystem
-from dfwb.fmus.loops import BacklashLoop, FrictionLoop, StaticBacklashLoop
+from dfwb.fmus.static_backlash import StaticBacklashLoop
 
 MODELS = ["FrictionMassLoop", "TwoMassBacklashLoop", "StaticBacklashLoop"]
 START = {  # model: start values of a loop with events (stick-slip hunting, impacts, engagements)

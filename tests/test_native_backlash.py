@@ -37,15 +37,13 @@ from test_native_core import (
     trace,
 )
 
-from dfwb.fmus import native_core
+from dfwb.fmus import backlash, native_core, static_backlash
 from dfwb.fmus.backlash import TwoMassBacklash
-from dfwb.fmus.contract import BacklashOutput, EventKind, Solver, StaticBacklashOutput
+from dfwb.fmus.contract import EventKind, Solver
 from dfwb.fmus.exact import PHASE_LIMIT
 from dfwb.fmus.friction import FrictionMass
 from dfwb.fmus.native_core import (
     ABI,
-    BACKLASH_PARAMETERS,
-    STATIC_BACKLASH_PARAMETERS,
     CoreError,
     NativeStaticBacklash,
     NativeTwoMassBacklash,
@@ -266,8 +264,8 @@ def test_solver_protocol(core):
         assert native.integrals() == [0j] * 11 and native.event_log is None
         assert all(getattr(native, name) == getattr(python, name) for name in counters)
     assert isinstance(core.TwoMassBacklash(), NativeTwoMassBacklash)
-    assert type(core.TwoMassBacklash(h=0.2).output()) is BacklashOutput
-    assert type(NativeStaticBacklash(harmonics=2, core=core).output()) is StaticBacklashOutput
+    assert type(core.TwoMassBacklash(h=0.2).output()) is backlash.TABLE.output_type
+    assert type(NativeStaticBacklash(harmonics=2, core=core).output()) is static_backlash.TABLE.output_type
     assert NativeStaticBacklash(harmonics=2, core=core).integrals() == [0j] * 3
     assert core.TwoMassBacklash(h=0.2).output().gap == 0.1  # gap0=None: h/2
 
@@ -288,7 +286,7 @@ def test_same_parameters(core, plant):
     """Equal fixed parameters survive a run, an input change, a copy and the state bytes; a change of any one
     fixed parameter (as bits: -0.0 is not 0.0) makes them differ; the initial state and the input do not."""
     params, fixed, free, base = SAME[plant]
-    names = BACKLASH_PARAMETERS if plant == "backlash" else STATIC_BACKLASH_PARAMETERS
+    names = (backlash if plant == "backlash" else static_backlash).TABLE.core_order
     assert set(fixed) | set(free) == set(names) and not set(fixed) & set(free)
     cls = _native_class(core, plant)
     a, b = cls(**params), cls(**params)

@@ -25,10 +25,10 @@ from array import array
 import pytest
 
 from dfwb.build_fmus.core import CoreBuildError, build_core
-from dfwb.fmus.contract import FrictionOutput, Solver
+from dfwb.fmus.contract import Solver
 from dfwb.fmus.exact import PHASE_LIMIT, PlantError
-from dfwb.fmus.friction import FrictionMass
-from dfwb.fmus.native_core import PARAMETERS, CoreError, NativeFrictionMass, load
+from dfwb.fmus.friction import TABLE, FrictionMass
+from dfwb.fmus.native_core import CoreError, NativeFrictionMass, load
 from dfwb.plants.stress_kit import Case, InvalidCase, periods
 from dfwb.verify.stress import all_cases
 
@@ -446,7 +446,7 @@ def test_same_parameters(core):
     assert a.same_parameters(NativeFrictionMass(**params, core=core))
     restored = type(a).from_bytes(a.to_bytes())
     assert restored.same_parameters(b) and b.same_parameters(restored) and restored.same_parameters(a.copy())
-    assert set(FIXED) == set(PARAMETERS) - {"x0", "v0", "f"}
+    assert set(FIXED) == set(TABLE.core_order) - {"x0", "v0", "f"}
     for name, value in FIXED.items():
         assert params.get(name) != value
         other = core.FrictionMass(**dict(params, **{name: value}))
@@ -466,7 +466,7 @@ def test_solver_protocol(core):
     plant = core.FrictionMass()
     assert isinstance(plant, Solver) and isinstance(plant, NativeFrictionMass)
     assert plant.t == 0.0 and plant.events == 0 and plant.harmonics == 10
-    assert plant.output() == FrictionOutput(0.0, 0.0, 0.0, 0)
+    assert plant.output() == TABLE.output_type(0.0, 0.0, 0.0, 0)
     assert plant.integrals() == [0j] * 11
     assert NativeFrictionMass(harmonics=2, core=core).integrals() == [0j] * 3
     assert load(core.path) is core

@@ -33,11 +33,14 @@ from test_periodic import LOOPS as PERIODIC  # tests/test_periodic.py's loops
 
 from dfwb.engine.cycles import find_cycles
 from dfwb.engine.periodic import MAX_CHUNKS, LoopProblem
+from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.exact import PlantError
+from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.hybrid import Budget
-from dfwb.fmus.loops import STICK, BacklashLoop, FrictionLoop, StaticBacklashLoop
+from dfwb.fmus.loops import STICK
 from dfwb.fmus.native_core import ABI, NativeFrictionLoop, NativeMode
 from dfwb.fmus.state import StateRefused
+from dfwb.fmus.static_backlash import StaticBacklashLoop
 
 pytestmark = pytest.mark.needs_cc
 
@@ -573,7 +576,7 @@ def test_state_round_trip_continues_bit_for_bit(core, python_whole, case):
         assert again.to_bytes() == data and again.same_parameters(c) and c.same_parameters(again)
         assert again.state() == c.state() and again.key == c.key and again.t == c.t and again.counts() == c.counts()
         assert pickle.loads(pickle.dumps(c)).to_bytes() == data
-        for name in ("order", "Ac", "Bc", "C", "D") + cls._constant_names:
+        for name in ("order", "Ac", "Bc", "C", "D") + cls.CONSTANTS:
             assert getattr(again, name) == getattr(py, name), name
         again.advance(t_end)
         assert again.state() == py.state() and again.events == py.events and again.counts() == py.counts()

@@ -230,7 +230,7 @@ def test_a_search_of_a_loop_too_stiff_for_its_budget_says_it_is_incomplete():
 def test_the_compiled_loop_runs_by_default_and_finds_the_python_loops_cycles(monkeypatch):
     """LoopProblem runs the C loop (the default kind, native) and DFWB_FMU=python the Python loop: the
     same cycles, bit for bit (periods, states, multipliers)."""
-    from dfwb.fmus.loops import FrictionLoop
+    from dfwb.fmus.friction import FrictionLoop
 
     monkeypatch.delenv("DFWB_FMU", raising=False)
     native = LoopProblem("friction", "20 + 100/s + 2*s/(0.1*s+1)")

@@ -18,7 +18,7 @@ import math
 import pytest
 
 from dfwb.build_fmus.core import build_core
-from dfwb.fmus import exact, hybrid, loops, piecewise
+from dfwb.fmus import backlash, exact, friction, hybrid, piecewise, static_backlash
 from dfwb.fmus.backlash import TwoMassBacklash
 from dfwb.fmus.friction import FrictionMass
 from dfwb.fmus.native_core import load
@@ -106,9 +106,9 @@ def test_the_real_span_bound_refuses_at_once_with_one_text(core, python_class, n
 PID = ([40.0, 300.0, 1000.0], [10.0, 0.0])  # 20 + 100/s + 2s/(0.1s + 1): hunting, events first
 LEAD = ([200.0, 400.0], [20.0])  # 200 (s + 2)/(s + 20)
 LEAD_LOW = ([20.0, 40.0], [20.0])  # 20 (s + 2)/(s + 20): few events, chunks first
-LOOPS = [(loops.FrictionLoop, "FrictionLoop", PID, {"x0": 0.1}, "events"),
-         (loops.BacklashLoop, "BacklashLoop", LEAD, {"eps": 0.2, "x1_0": 0.1}, None),
-         (loops.StaticBacklashLoop, "StaticBacklashLoop", LEAD_LOW, {"x0": 0.1}, "chunks")]
+LOOPS = [(friction.LOOP, "FrictionLoop", PID, {"x0": 0.1}, "events"),
+         (backlash.LOOP, "BacklashLoop", LEAD, {"eps": 0.2, "x1_0": 0.1}, None),
+         (static_backlash.LOOP, "StaticBacklashLoop", LEAD_LOW, {"x0": 0.1}, "chunks")]
 
 
 @pytest.mark.parametrize("python_class, name, G, params, first", LOOPS, ids=[loop[1] for loop in LOOPS])

@@ -6,7 +6,7 @@ import inspect
 import pytest
 
 from dfwb.build_fmus import plant_header
-from dfwb.fmus import backlash, facade, friction, loops, naive, native_core, static_backlash
+from dfwb.fmus import backlash, facade, friction, naive, native_core, static_backlash
 from dfwb.fmus.table import EXCITATION_NAMES, INPUT_NAMES, Parameter, PlantTable
 from dfwb.plants import closed_forms, loop_reference, reference
 from dfwb.plants.registry import RANGES
@@ -14,12 +14,12 @@ from dfwb.plants.registry import RANGES
 TABLES = {"friction": friction.TABLE, "backlash": backlash.TABLE, "static-backlash": static_backlash.TABLE}
 # every class or function that takes a plant's parameters as keywords with defaults, by plant
 TAKERS = {
-    "friction": (friction.FrictionMass, naive.NaiveFrictionMass, loops.FrictionLoop, native_core.NativeFrictionMass,
+    "friction": (friction.FrictionMass, naive.NaiveFrictionMass, friction.LOOP, native_core.NativeFrictionMass,
                  native_core.NativeFrictionLoop, reference.friction_response),
-    "backlash": (backlash.TwoMassBacklash, naive.NaiveTwoMassBacklash, loops.BacklashLoop,
+    "backlash": (backlash.TwoMassBacklash, naive.NaiveTwoMassBacklash, backlash.LOOP,
                  native_core.NativeTwoMassBacklash, native_core.NativeBacklashLoop, reference.backlash_response,
                  closed_forms.validity_frequencies),
-    "static-backlash": (static_backlash.StaticBacklash, naive.NaiveStaticBacklash, loops.StaticBacklashLoop,
+    "static-backlash": (static_backlash.StaticBacklash, naive.NaiveStaticBacklash, static_backlash.LOOP,
                         native_core.NativeStaticBacklash, native_core.NativeStaticBacklashLoop,
                         reference.static_backlash_scipy, closed_forms.static_backlash_plant_df,
                         closed_forms.backlash_df),
@@ -52,8 +52,8 @@ def test_the_facade_and_the_orders_come_from_the_table(plant):
     assert [row[0] for row in model.parameters] == list(table.names)
     assert {row[0]: row[1] for row in model.parameters} == {p.name: p.fmu_start for p in table.parameters}
     assert model.ranges == table.bounds()
-    loop = {"friction": loops.FrictionLoop, "backlash": loops.BacklashLoop,
-            "static-backlash": loops.StaticBacklashLoop}[plant]
+    loop = {"friction": friction.LOOP, "backlash": backlash.LOOP,
+            "static-backlash": static_backlash.LOOP}[plant]
     signature = list(inspect.signature(loop).parameters)
     assert tuple(name for name in signature if name in table.names) == table.loop_order
     solver = list(inspect.signature(model.solver_class).parameters)

@@ -1,15 +1,17 @@
-"""The three plants of the paper, as registry entries.
+"""dfwb's own plants (:mod:`dfwb.fmus.plants`), as registry entries.
 
-Each entry is the whole of what dfwb knows about its plant beyond the solver,
-its table and the FMU facade (:mod:`dfwb.fmus`): see :class:`~dfwb.plants.registry.Plant`.
+The three plants of the paper have entries here with what dfwb knows of
+them beyond the solver, its loop, its table and the FMU facade
+(:mod:`dfwb.fmus`): see :class:`~dfwb.plants.registry.Plant`. Any other
+plant of :mod:`dfwb.fmus.plants` is registered with its table's facts alone.
 The independent references (:mod:`dfwb.plants.reference`, scipy) are imported
 only when a reference is asked for.
 """
 
 import math
 
-from dfwb.fmus import facade, loops, naive_facade
-from dfwb.plants.registry import Demo, Plant, register
+from dfwb.fmus import facade, naive_facade
+from dfwb.plants.registry import Demo, Plant, names, register
 from dfwb.plants.stress_profiles import BACKLASH as BACKLASH_STRESS
 from dfwb.plants.stress_profiles import FRICTION as FRICTION_STRESS
 from dfwb.plants.stress_profiles import STATIC_BACKLASH as STATIC_BACKLASH_STRESS
@@ -53,11 +55,9 @@ def _static_backlash_scipy(F, omega, params, method, rtol):
 
 FRICTION = register(Plant(
     "friction", facade.FrictionMass,
-    summary="mass with Coulomb, viscous and static friction (exact stick-slip)",
     naive=naive_facade.NaiveFrictionMass,
     reference=_reference("friction"),
     scipy=_scipy("friction"),
-    loop=loops.FrictionLoop,
     stress=FRICTION_STRESS,
     bench={"quick": [(10.0, 1.0, {}), (30.0, 5.0, {})],
            "full": [(10.0, 1.0, {}), (30.0, 1.0, {}), (50.0, 0.5, {}), (20.0, 5.0, {}), (10.0, 0.1, {})]},
@@ -68,12 +68,10 @@ FRICTION = register(Plant(
 
 BACKLASH = register(Plant(
     "backlash", facade.TwoMassBacklash,
-    summary="two masses with a clearance and impacts of restitution eps",
     never_engaged="the masses do not touch in the steady state: x1 is constant, N = 0",
     naive=naive_facade.NaiveTwoMassBacklash,
     reference=_reference("backlash"),
     scipy=_scipy("backlash"),
-    loop=loops.BacklashLoop,
     stress=BACKLASH_STRESS,
     bench={"quick": [(50.0, 20.0, {"eps": 0.5}), (30.0, 25.0, {"eps": 0.2})],
            "full": [(50.0, 20.0, {"eps": 0.5}), (50.0, 20.0, {"eps": 0.8}), (50.0, 40.0, {"eps": 0.2}),
@@ -84,15 +82,17 @@ BACKLASH = register(Plant(
 
 STATIC_BACKLASH = register(Plant(
     "static-backlash", facade.StaticBacklash,
-    summary="mass driven by the force, followed by a static backlash (dead band h, slope k)",
     never_engaged="the backlash does not engage in the steady state (X <= h/2): N = 0",
     naive=naive_facade.NaiveStaticBacklash,
     reference=_static_backlash_reference,
     scipy=_static_backlash_scipy,
-    loop=loops.StaticBacklashLoop,
     stress=STATIC_BACKLASH_STRESS,
     bench={"quick": [(50.0, 20.0, {})],
            "full": [(50.0, 20.0, {}), (50.0, 10.0, {}), (5.0, 2.0, {})]},
     demo=Demo({"F": 50.0, "omega": 20.0}, 4 * math.pi / 20.0, 64,
               (("x", "mass position x [m]"), ("y", "backlash output y [m]"))),
 ))
+
+for _facade in facade.PLANTS:  # a plant of dfwb.fmus.plants without an entry above: its table's facts
+    if _facade.table.name not in names():
+        register(Plant(_facade.table.name, _facade))

@@ -96,7 +96,7 @@ class Plant:
         The parameter that translates the whole plant; the closed loop also
         starts the plant from it.
     summary : str
-        One line for tables (README, ``dfwb --help``).
+        One line for tables (README, ``dfwb --help``); not given, the table's.
     counter : str
         The FMU's integer output counting engagements (``"events"``: the
         facade's own count of every event).
@@ -138,7 +138,8 @@ class Plant:
     loop : type or None
         The exact closed loop of the plant with a linear controller (a
         :class:`dfwb.fmus.loops.FeedbackLoop`): what ``dfwb limit-cycle
-        --exact`` shoots periodic orbits of; None: no exact loop.
+        --exact`` shoots periodic orbits of; not given, the facade's ``loop``
+        (dfwb's own plants have one), else None: no exact loop.
 
     Examples
     --------
@@ -203,6 +204,10 @@ class Plant:
                     raise PlantError(f"plant {self.name!r}: no {what} given, and {self.model.__name__} has no "
                                      f"table that states it")
                 object.__setattr__(self, what, fallback if stated is None else stated)
+        if not self.summary and table is not None:
+            object.__setattr__(self, "summary", table.summary)
+        if self.loop is None:  # a facade of dfwb's own plants (dfwb.fmus.plants) knows its loop
+            object.__setattr__(self, "loop", getattr(self.model, "loop", None))
         for what in ("section", "modes"):
             value = getattr(self, what)
             if not (isinstance(value, (tuple, list)) and all(isinstance(v, str) for v in value)):
