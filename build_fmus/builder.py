@@ -249,7 +249,7 @@ def core_sources():
     from .core import sources as native_sources
 
     try:
-        return {path.name: path.read_bytes() for path in native_sources()}
+        return native_sources()
     except CoreBuildError:
         return {}
 

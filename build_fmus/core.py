@@ -12,10 +12,16 @@ multiply-add: every operation rounds as the Python oracle's does) and
 ``-fvisibility=hidden`` (only the ``DFWB_API`` functions of ``dfwb_core.h``
 are exported); never ``-ffast-math``. The tests add ``-Wall -Wextra -Werror``.
 
+The core's list of plants, ``dfwb_plants.h``, is not a file of the tree:
+:func:`sources` writes it from the plants' tables
+(:mod:`dfwb.build_fmus.plant_header`) into every build, beside the files
+of ``fmus/native``, and every FMU that carries the core's sources carries it
+too (they build without Python).
+
 Examples
 --------
 >>> from dfwb.build_fmus.core import sources
->>> [path.name for path in sources()][:4]
+>>> list(sources())[:4]
 ['backlash.c', 'dfwb_core.h', 'dfwb_plants.h', 'exact.c']
 """
 
@@ -44,12 +50,17 @@ class CoreBuildError(BuildError):
 
 
 def sources():
-    """The C sources and headers of the core, sorted by name."""
+    """{name: bytes} of the core's C sources and headers, sorted by name: the files of ``fmus/native`` and the
+    generated ``dfwb_plants.h``."""
+    from .plant_header import NAME, header_text  # the solver package's tables: only when building
+
     folder = NATIVE_DIR
     found = sorted(path for path in folder.iterdir() if path.suffix in (".c", ".h")) if folder.is_dir() else []
     if not any(path.suffix == ".c" for path in found):
         raise CoreBuildError(f"no C sources of the core in {folder}")
-    return found
+    files = {path.name: path.read_bytes() for path in found}
+    files[NAME] = header_text().encode()
+    return dict(sorted(files.items()))
 
 
 def compiler():
@@ -71,9 +82,9 @@ def win64_compiler():
 def _digest(command, files):
     h = hashlib.sha256()
     h.update("\0".join(command).encode())
-    for path in files:
-        h.update(b"\0" + path.name.encode() + b"\0")
-        h.update(path.read_bytes())
+    for name, content in files.items():
+        h.update(b"\0" + name.encode() + b"\0")
+        h.update(content)
     return h.hexdigest()[:16]
 
 
@@ -89,9 +100,12 @@ def build_core(out_dir, extra_flags=()):
 
 
 def build_library(out_dir, files, prefix, extra_flags=(), what="the C library"):
-    """Compile the C ``files`` (with their headers) into ``out_dir/<prefix><hash>.so`` as :func:`build_core`
-    does the core (the same flags, reuse and atomic rename); its path. ``what`` names it in errors."""
+    """Compile the C ``files`` (with their headers: paths, or {name: bytes}) into ``out_dir/<prefix><hash>.so``
+    as :func:`build_core` does the core (the same flags, reuse and atomic rename; compiled in a temporary folder
+    that holds them); its path. ``what`` names it in errors."""
     out_dir = Path(out_dir)
+    if not isinstance(files, dict):
+        files = {Path(path).name: Path(path).read_bytes() for path in files}
     cc = compiler()
     flags = list(FLAGS) + [str(flag) for flag in extra_flags]
     target = out_dir / f"{prefix}{_digest(cc + flags + list(LIBS), files)}.so"
@@ -101,11 +115,15 @@ def build_library(out_dir, files, prefix, extra_flags=(), what="the C library"):
     handle, temporary = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=".so.tmp", dir=out_dir)
     os.close(handle)
     try:
-        command = cc + flags + ["-o", temporary] + [str(p) for p in files if p.suffix == ".c"] + list(LIBS)
-        try:
-            run = subprocess.run(command, capture_output=True, text=True, cwd=files[0].parent)
-        except OSError as error:
-            raise CoreBuildError(f"compiling {what} failed: {' '.join(cc)}: {error}") from None
+        with tempfile.TemporaryDirectory(prefix="dfwb_c_") as stage:
+            for name, content in files.items():
+                Path(stage, name).write_bytes(content)
+            command = (cc + flags + ["-o", os.path.abspath(temporary)] + [name for name in files if name.endswith(".c")]
+                       + list(LIBS))
+            try:
+                run = subprocess.run(command, capture_output=True, text=True, cwd=stage)
+            except OSError as error:
+                raise CoreBuildError(f"compiling {what} failed: {' '.join(cc)}: {error}") from None
         if run.returncode != 0:
             lines = [line.strip() for line in run.stderr.splitlines() if line.strip()]
             first = next((line for line in lines if "error" in line), lines[0] if lines else "no message")

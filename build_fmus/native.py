@@ -119,8 +119,9 @@ def _static_digest():
     # the solver package whole (the model descriptions come from its facades, which import its modules): a
     # superset of what a facade bundles, as sources() is of the core's, read without the builder's import graph
     package = sorted(Path(facade.__file__).parent.glob("*.py"))
-    for path in wrappers + [BUILDER, Path(__file__)] + package + sources():
-        digest.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
+    files = {path.name: path.read_bytes() for path in wrappers + [BUILDER, Path(__file__)] + package}
+    for name, content in list(files.items()) + list(sources().items()):
+        digest.update(b"\0" + name.encode() + b"\0" + content)
     return digest.hexdigest()
 
 
@@ -158,7 +159,7 @@ def _description(model, digest):
 
 
 def _source_names(fmi_version):
-    return list(WRAPPERS[fmi_version]) + ["dfwb_model.h"] + [path.name for path in sources()]
+    return list(WRAPPERS[fmi_version]) + ["dfwb_model.h"] + list(sources())
 
 
 def _token(model, digest):
@@ -210,8 +211,12 @@ def model_header(model, root):
                "DFWB_MODEL_GUID": _c_string(root.get("instantiationToken" if fmi3 else "guid")),
                "DFWB_MODEL_INPUT_PARAMETER": index["f"], "DFWB_MODEL_PHI_PARAMETER": index["phi"],
                "DFWB_MODEL_OMEGA_PARAMETER": index["omega"], "DFWB_MODEL_OMEGA_VR": vr_of["omega"]}
-    if "gap0" in index:
-        defines.update(DFWB_MODEL_GAP0_PARAMETER=index["gap0"], DFWB_MODEL_H_PARAMETER=index["h"])
+    halves = [p for p in table.parameters if p.half_of]  # gap0 = -1 (its start): h/2
+    if len(halves) > 1:
+        raise BuildError(f"{model.__name__}: the native wrapper takes one parameter that stands for half another")
+    for parameter in halves:
+        defines.update(DFWB_MODEL_HALF_PARAMETER=index[parameter.name], DFWB_MODEL_HALF_START=repr(parameter.start),
+                       DFWB_MODEL_HALF_OF=index[parameter.half_of])
     lines = [f"/* dfwb_model.h - {model.__name__}: written by build_fmus/native.py from the facade; do not edit. */"]
     lines += [f"#define {key} {value}" for key, value in defines.items()]
     lines += ["static const model_variable DFWB_MODEL_VARIABLES[] = {"] + rows + ["};", ""]
@@ -252,8 +257,10 @@ def build_one_native(model, out_dir, digest=None, extra_flags=(), targets=("linu
     with tempfile.TemporaryDirectory(prefix="dfwb_native_") as tmp:
         stage = Path(tmp) / "sources"
         stage.mkdir()
-        for path in [FMU_SOURCES / name for name in WRAPPERS[fmi_version]] + sources():
-            (stage / path.name).write_bytes(path.read_bytes())
+        for name in WRAPPERS[fmi_version]:
+            (stage / name).write_bytes((FMU_SOURCES / name).read_bytes())
+        for name, content in sources().items():
+            (stage / name).write_bytes(content)
         (stage / "dfwb_model.h").write_text(model_header(model, root))
         binaries = {target: Path(tmp) / f"{target}{PLATFORMS[target]}" for target in targets}
         _compile(stage, binaries, extra_flags, fmi_version)

@@ -1,9 +1,10 @@
 """The C core's list of plants and their parameter orders, written from the plants' tables (:mod:`dfwb.fmus.table`).
 
-``fmus/native/dfwb_plants.h`` is generated, and kept in the tree so that
-the core's sources build anywhere without Python (an importer's cmake build
-of a sources FMU). ``tests/test_table.py`` fails when it is stale; ``python
--m dfwb.build_fmus.plant_header`` writes it again.
+``dfwb_plants.h`` is not a file of the tree: :func:`dfwb.build_fmus.core.sources`
+writes it into every build of the core, and into every FMU that carries the
+core's sources (which then build anywhere without Python: an importer's
+cmake build of a sources FMU). ``python -m dfwb.build_fmus.plant_header``
+prints it.
 
 It defines each plant's kind ``DFWB_PLANT_<P>`` (a state's header names it:
 plants are appended, never renumbered), ``DFWB_PLANTS(X)``, which expands
@@ -18,9 +19,7 @@ import sys
 
 from dfwb.fmus.plants import TABLES, c_name
 
-from .core import NATIVE_DIR
-
-HEADER = NATIVE_DIR / "dfwb_plants.h"
+NAME = "dfwb_plants.h"
 PLANTS = tuple((c_name(table), table) for table in TABLES)
 """(C name, table) of the core's plants (:data:`dfwb.fmus.plants.TABLES`), in the order of their kinds."""
 
@@ -35,7 +34,7 @@ def _block(title, count, prefix, names):
 def header_text():
     """The text of dfwb_plants.h."""
     lines = ["/* dfwb_plants.h - the plants of the C core and their parameter orders, written from their tables",
-             " * (fmus/table.py) by `python -m dfwb.build_fmus.plant_header`; do not edit. */",
+             " * (fmus/table.py) into every build by dfwb.build_fmus.core.sources; do not edit. */",
              "#ifndef DFWB_PLANTS_H", "#define DFWB_PLANTS_H", "",
              "/* The plants' kinds (a state's header names its kind: plants are appended, never renumbered). */"]
     lines += [f"#define DFWB_PLANT_{name.upper()} {kind}" for kind, (name, _table) in enumerate(PLANTS, start=1)]
@@ -54,8 +53,7 @@ def header_text():
 
 
 def main():
-    HEADER.write_text(header_text())
-    print(f"wrote {HEADER}", file=sys.stderr)
+    sys.stdout.write(header_text())
 
 
 if __name__ == "__main__":

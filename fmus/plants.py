@@ -6,8 +6,8 @@ its exact solver ``SOLVER`` and its closed loop ``LOOP``
 core writes it into their header), so the list is appended to, never
 reordered. Everything that enumerates dfwb's own plants reads it: the FMU
 facades of the plants and their loops (generated from the modules), the C
-binding's classes, the C core's generated list of plants
-(:mod:`dfwb.build_fmus.plant_header`), the native FMUs' kinds and the
+binding's classes, the C core's list of plants (``dfwb_plants.h``, written
+into every build by :mod:`dfwb.build_fmus.plant_header`), the native FMUs' kinds and the
 registry.
 
 Plain Python only: this module runs inside the FMUs.

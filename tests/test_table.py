@@ -2,11 +2,12 @@
 
 import doctest
 import inspect
+import re
 
 import pytest
 
 from dfwb.build_fmus import plant_header
-from dfwb.fmus import backlash, facade, friction, naive, native_core, static_backlash
+from dfwb.fmus import backlash, facade, friction, naive, native_core, plants, static_backlash
 from dfwb.fmus.table import EXCITATION_NAMES, INPUT_NAMES, Parameter, PlantTable
 from dfwb.plants import closed_forms, loop_reference, reference
 from dfwb.plants.registry import RANGES
@@ -81,9 +82,20 @@ def test_the_engine_ranges_are_the_tables():
             assert RANGES[name] == accepted
 
 
-def test_the_generated_header_is_current():
-    """fmus/native/dfwb_plants.h is what the tables write; else run `python -m dfwb.build_fmus.plant_header`."""
-    assert plant_header.HEADER.read_text() == plant_header.header_text()
+def test_the_core_is_built_with_the_header_the_tables_write():
+    """dfwb_plants.h is written into every build from the tables (no copy in the tree to go stale): each plant's
+    kind and the index of each of its parameters in both C orders."""
+    from dfwb.build_fmus.core import NATIVE_DIR, sources
+
+    assert not (NATIVE_DIR / plant_header.NAME).exists()
+    text = sources()[plant_header.NAME].decode()
+    assert text == plant_header.header_text()
+    for kind, table in enumerate(plants.TABLES, start=1):
+        prefix = plants.c_name(table).upper()
+        assert f"#define DFWB_PLANT_{prefix} {kind}\n" in text
+        for order, infix in ((table.core_order, ""), (table.loop_order, "_LOOP")):
+            for index, name in enumerate(order):
+                assert re.search(rf"#define DFWB_{prefix}{infix}_{name} +{index}\n", text), (prefix, name)
 
 
 def test_the_core_reads_parameters_in_the_tables_order(core):
@@ -110,7 +122,7 @@ def test_a_table_refuses_a_name_twice():
 def test_the_modules_examples_run():
     """fmus/ is not a doctest path (it is bundled into the FMUs): the examples of its table and plant list run
     here."""
-    from dfwb.fmus import plants, table
+    from dfwb.fmus import table
 
     for module in (table, plants):
         result = doctest.testmod(module)
@@ -121,7 +133,6 @@ def test_one_list_of_plants():
     """dfwb's own plants are listed once (fmus/plants.py): the registry's, the C core's and the native FMUs'
     are that list."""
     from dfwb.build_fmus.native import KINDS as NATIVE
-    from dfwb.fmus import plants
     from dfwb.plants.registry import names
 
     assert [table.name for table in plants.TABLES] == list(names())

@@ -46,7 +46,7 @@
  *   made from the state's parameter values.
  *
  * Parameters of dfwb_plant_new and dfwb_loop_new: in the orders of dfwb_plants.h
- * (DFWB_FRICTION_Fc is Fc's index, ...), written from the plants' tables
+ * (DFWB_FRICTION_Fc is Fc's index, ...), written into every build from the plants' tables
  * (fmus/table.py, where their defaults, units and ranges live). Ranges: friction M > 0 (kg), B >= 0 (N.s/m),
  * Fc >= 0 (N), Fs >= Fc (N), Dv >= 0 (m/s); backlash M1, M2 > 0 (kg), h >= 1e-290 (m), eps in [0, 1],
  * gap0 in [0, h] (Python's gap0=None is h/2: pass 0.5 * h); static backlash M, k, h > 0; everywhere

@@ -192,9 +192,10 @@ static void core_parameters(const facade *f, double params[NPARAMS])
     params[DFWB_MODEL_INPUT_PARAMETER] = input_value(f);
     if (f->start != 0.0) /* F cos(omega t + phi) = F cos(omega (t - t0) + phi + omega t0) */
         params[DFWB_MODEL_PHI_PARAMETER] = params[DFWB_MODEL_PHI_PARAMETER] + params[DFWB_MODEL_OMEGA_PARAMETER] * f->start;
-#ifdef DFWB_MODEL_GAP0_PARAMETER
-    if (params[DFWB_MODEL_GAP0_PARAMETER] == -1.0) /* the start value -1: centred, whatever h is */
-        params[DFWB_MODEL_GAP0_PARAMETER] = 0.5 * params[DFWB_MODEL_H_PARAMETER];
+#ifdef DFWB_MODEL_HALF_PARAMETER
+    /* a parameter whose start value stands for half another (gap0 = -1: h/2, centred whatever h is) */
+    if (params[DFWB_MODEL_HALF_PARAMETER] == DFWB_MODEL_HALF_START)
+        params[DFWB_MODEL_HALF_PARAMETER] = 0.5 * params[DFWB_MODEL_HALF_OF];
 #endif
 }
 
