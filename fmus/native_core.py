@@ -534,7 +534,7 @@ SOLVERS = tuple(_native_solver(module) for module in MODULES)
 """The native solvers' classes, one per plant (NativeFrictionMass, NativeTwoMassBacklash, ...)."""
 
 
-# -- the exact closed loops (fmus/loops.py) ---------------------------------------------------------------
+# -- the exact closed loops (each plant's LOOP) ---------------------------------------------------------------
 # plant -> (DFWB_PLANT_*, NativeCore attribute, the Python class, parameters in the C order)
 _LOOPS = {c_name(m.TABLE): (KINDS[m.TABLE.name], m.LOOP.__name__, m.LOOP, m.TABLE.loop_order) for m in MODULES}
 

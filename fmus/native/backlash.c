@@ -276,7 +276,7 @@ int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double ep
     return dfwb_check(err, "v2_0", v2_0, 1, "v2_0 must be a finite number");
 }
 
-/* -- the closed loop (BacklashLoop of fmus/loops.py): q = (x1, v1, gap, w = v2 - v1), y = x1, f on M2 ---------- */
+/* -- the closed loop (BacklashLoop of fmus/backlash.py): q = (x1, v1, gap, w = v2 - v1), y = x1, f on M2 ---------- */
 /* BacklashLoop.__init__: {M1, M2, h, eps, x1_0, v1_0, v2_0, gap0}; par = {M1, M2, h, eps, r2, tol_h} */
 static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 {

@@ -204,7 +204,7 @@ DFWB_API int dfwb_plant_to_bytes(const dfwb_plant *p, unsigned char *buf, size_t
 DFWB_API int dfwb_plant_from_bytes(int kind, const unsigned char *buf, size_t len, dfwb_plant **out, char *err,
                                    size_t errlen);
 
-/* -- the exact closed loops (FrictionLoop, BacklashLoop, StaticBacklashLoop of fmus/loops.py) ------ */
+/* -- the exact closed loops (each plant's LOOP, a FeedbackLoop of fmus/loops.py) ------ */
 #define DFWB_LOOP_MAX_ORDER 8
 #define DFWB_LOOP_MAX_STATE 12               /* 4 plant coordinates + 8 controller states */
 /* DFWB_LOOP_*_PARAMS: dfwb_plants.h */

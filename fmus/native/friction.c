@@ -252,7 +252,7 @@ int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs,
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
-/* -- the closed loop (FrictionLoop of fmus/loops.py): q = (x, v), y = x ------------------------------------ */
+/* -- the closed loop (FrictionLoop of fmus/friction.py): q = (x, v), y = x ------------------------------------ */
 /* FrictionLoop.__init__: {M, B, Fc, Fs, Dv, x0, v0} (exact stick: Dv = 0); par = {M, B, Fc, Fs} */
 static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 {

@@ -46,7 +46,7 @@ void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, do
 /* FeedbackLoop.force: f = D y + C z at X. */
 double dfwb_loop_feedback(const dfwb_loop *L, const double *X);
 
-/* What a plant gives its closed loop (a FeedbackLoop subclass of fmus/loops.py). */
+/* What a plant gives its closed loop (its LOOP, a FeedbackLoop subclass beside its solver). */
 struct dfwb_loop_class {
     int size;                        /* the plant's coordinates q (at most DFWB_LOOP_PLANT_MAX) */
     int out;                         /* the coordinate that is the output y */

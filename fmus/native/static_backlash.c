@@ -211,7 +211,7 @@ int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, doub
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
-/* -- the closed loop (StaticBacklashLoop of fmus/loops.py): q = (x, v, y), y = q[2] ------------------------- */
+/* -- the closed loop (StaticBacklashLoop of fmus/static_backlash.py): q = (x, v, y), y = q[2] ------------------------- */
 /* StaticBacklashLoop.__init__: {M, k, h, x0, v0}; par = {M, k, h}; y starts centred, k x0 */
 static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 {
