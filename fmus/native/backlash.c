@@ -255,8 +255,9 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
-                        double v2_0, double gap0)
+/* The parameter checks, in the Python check's order: shared by the plant and its closed loop. */
+static int check_parameters(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
+                            double v2_0, double gap0)
 {
     char rh[DFWB_REPR_SIZE], allowed[128];
     int rc;
@@ -285,7 +286,7 @@ static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
     const double x1_0 = v[DFWB_BACKLASH_LOOP_x1_0], v1_0 = v[DFWB_BACKLASH_LOOP_v1_0];
     const double v2_0 = v[DFWB_BACKLASH_LOOP_v2_0];
     int rc;
-    if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK)
+    if ((rc = check_parameters(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK)
         return rc;
     L->par[0] = M1;
     L->par[1] = M2;
@@ -402,7 +403,7 @@ static int init(void *plant, const double *params, dfwb_err *err)
     const double v2_0 = params[DFWB_BACKLASH_v2_0], gap0 = params[DFWB_BACKLASH_gap0], f = params[DFWB_BACKLASH_f];
     const double harmonics = params[DFWB_BACKLASH_harmonics];
     int rc;
-    if ((rc = dfwb_backlash_check(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK
+    if ((rc = check_parameters(err, M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)) != DFWB_OK
         || (rc = dfwb_check_drive(err, F, omega, phi, f, harmonics)) != DFWB_OK)
         return rc;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);

@@ -228,8 +228,9 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
-                        int exact_stick)
+/* The parameter checks, in the Python check's order: shared by the plant and its closed loop. */
+static int check_parameters(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
+                            int exact_stick)
 {
     char rFc[DFWB_REPR_SIZE], allowed[96];
     int rc;
@@ -259,7 +260,7 @@ static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
     const double M = v[DFWB_FRICTION_LOOP_M], B = v[DFWB_FRICTION_LOOP_B], Fc = v[DFWB_FRICTION_LOOP_Fc];
     const double Fs = v[DFWB_FRICTION_LOOP_Fs], x0 = v[DFWB_FRICTION_LOOP_x0], v0 = v[DFWB_FRICTION_LOOP_v0];
     int rc;
-    if ((rc = dfwb_friction_check(err, M, B, Fc, Fs, v[DFWB_FRICTION_LOOP_Dv], x0, v0, 1)) != DFWB_OK)
+    if ((rc = check_parameters(err, M, B, Fc, Fs, v[DFWB_FRICTION_LOOP_Dv], x0, v0, 1)) != DFWB_OK)
         return rc;
     L->par[0] = M;
     L->par[1] = B;
@@ -350,7 +351,7 @@ static int init(void *plant, const double *params, dfwb_err *err)
     const double x0 = params[DFWB_FRICTION_x0], v0 = params[DFWB_FRICTION_v0], f = params[DFWB_FRICTION_f];
     const double harmonics = params[DFWB_FRICTION_harmonics];
     int rc;
-    if ((rc = dfwb_friction_check(err, M, B, Fc, Fs, Dv, x0, v0, 0)) != DFWB_OK
+    if ((rc = check_parameters(err, M, B, Fc, Fs, Dv, x0, v0, 0)) != DFWB_OK
         || (rc = dfwb_check_drive(err, F, omega, phi, f, harmonics)) != DFWB_OK)
         return rc;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);

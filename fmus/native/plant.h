@@ -222,12 +222,4 @@ struct dfwb_plant {
 DFWB_PLANTS(DFWB_CLASS_DECLARATION)
 #undef DFWB_CLASS_DECLARATION
 
-/* Each plant's parameter checks, in its Python check_*'s order: shared by the plant and its closed loop (the
- * loop's friction needs exact stick, Dv = 0). gap0 is given (the caller's None is h/2). */
-int dfwb_friction_check(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
-                        int exact_stick);
-int dfwb_backlash_check(dfwb_err *err, double M1, double M2, double h, double eps, double x1_0, double v1_0,
-                        double v2_0, double gap0);
-int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, double x0, double v0);
-
 #endif /* DFWB_PLANT_H */

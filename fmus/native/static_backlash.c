@@ -200,7 +200,8 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, double x0, double v0)
+/* The parameter checks, in the Python check's order: shared by the plant and its closed loop. */
+static int check_parameters(dfwb_err *err, double M, double k, double h, double x0, double v0)
 {
     int rc;
     if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
@@ -211,7 +212,7 @@ int dfwb_static_backlash_check(dfwb_err *err, double M, double k, double h, doub
     return dfwb_check(err, "v0", v0, 1, "v0 must be a finite number (m/s)");
 }
 
-/* -- the closed loop (StaticBacklashLoop of fmus/static_backlash.py): q = (x, v, y), y = q[2] ------------------------- */
+/* -- the closed loop (StaticBacklashLoop of fmus/static_backlash.py): q = (x, v, y), y = q[2] ---------------------- */
 /* StaticBacklashLoop.__init__: {M, k, h, x0, v0}; par = {M, k, h}; y starts centred, k x0 */
 static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 {
@@ -219,7 +220,7 @@ static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
     const double h = v[DFWB_STATIC_BACKLASH_LOOP_h], x0 = v[DFWB_STATIC_BACKLASH_LOOP_x0];
     const double v0 = v[DFWB_STATIC_BACKLASH_LOOP_v0];
     int rc;
-    if ((rc = dfwb_static_backlash_check(err, M, k, h, x0, v0)) != DFWB_OK)
+    if ((rc = check_parameters(err, M, k, h, x0, v0)) != DFWB_OK)
         return rc;
     L->par[0] = M;
     L->par[1] = k;
@@ -319,7 +320,7 @@ static int init(void *plant, const double *params, dfwb_err *err)
     const double x0 = params[DFWB_STATIC_BACKLASH_x0], v0 = params[DFWB_STATIC_BACKLASH_v0];
     const double f = params[DFWB_STATIC_BACKLASH_f], harmonics = params[DFWB_STATIC_BACKLASH_harmonics];
     int rc;
-    if ((rc = dfwb_static_backlash_check(err, M, k, h, x0, v0)) != DFWB_OK
+    if ((rc = check_parameters(err, M, k, h, x0, v0)) != DFWB_OK
         || (rc = dfwb_check_drive(err, F, omega, phi, f, harmonics)) != DFWB_OK)
         return rc;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
