@@ -15,7 +15,7 @@ Plain Python only: this module runs inside the FMUs.
 Examples
 --------
 >>> from dfwb.fmus.plants import KINDS, TABLES
->>> [table.name for table in TABLES], KINDS["backlash"]
+>>> [table.name for table in TABLES[:3]], KINDS["backlash"]
 (['friction', 'backlash', 'static-backlash'], 2)
 """
 
@@ -29,7 +29,21 @@ KINDS = {table.name: kind for kind, table in enumerate(TABLES, start=1)}
 """{plant name: its kind in the C core (DFWB_PLANT_*)}."""
 
 
+def _distinct():
+    """Every name a plant gives the generated classes is its own: a plant copied from another and not renamed
+    would silently replace that plant's FMU, loop FMU or C classes."""
+    for what, names in (("plant", [m.TABLE.name for m in MODULES]), ("FMU", [m.TABLE.model for m in MODULES]),
+                        ("solver", [m.SOLVER.__name__ for m in MODULES]),
+                        ("loop", [m.LOOP.__name__ for m in MODULES])):
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            raise ValueError(f"dfwb.fmus.plants: two plants have the {what} name {repeated[0]!r}")
+
+
 def c_name(table):
     """The plant's name in C: ``static_backlash`` (its class ``dfwb_static_backlash_class``, its kind
     ``DFWB_PLANT_STATIC_BACKLASH``)."""
     return table.name.replace("-", "_")
+
+
+_distinct()

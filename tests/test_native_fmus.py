@@ -27,11 +27,12 @@ from fmpy.validation import validate_fmu
 
 from dfwb.fmi.location import FMU_KINDS, fmu_kind, fmu_path
 from dfwb.fmi.simulation import FMUError, simulate
+from dfwb.fmus import facade
 from dfwb.fmus.piecewise import PlantError
 
 pytestmark = pytest.mark.needs_cc
 
-MODELS = ("FrictionMass", "TwoMassBacklash", "StaticBacklash")
+MODELS = tuple(model.__name__ for model in facade.PLANTS)  # every plant of dfwb.fmus.plants has one
 CASES = [
     ("FrictionMass", {"F": 10.0, "omega": 1.0}),
     ("FrictionMass", {"F": 6.0, "omega": 3.0, "Fs": 9.0, "B": 0.1, "harmonics": 3}),
@@ -343,7 +344,7 @@ def test_libcosim_runs_them_as_fmpy_does(native_fmus, model, start_values):
         np.testing.assert_allclose(actual[name], expected[name], rtol=0, atol=scale, err_msg=name)
 
 
-def test_dfwb_build_native_writes_the_three_fmus(built_native, native_fmus, capsys):
+def test_dfwb_build_native_writes_every_plants_fmu(built_native, native_fmus, capsys):
     from dfwb.cli import main
 
     folder, code, out = built_native
@@ -351,11 +352,11 @@ def test_dfwb_build_native_writes_the_three_fmus(built_native, native_fmus, caps
     assert code == 0
     assert sorted(path.name for path in tmp_path.iterdir()) == sorted(f"{model}.fmu" for model in MODELS)
     # the FMU folder holds them built from the same sources (the fmus fixture): copied, not compiled again
-    assert out.count(": copied from ") == 3, out
+    assert out.count(": copied from ") == len(MODELS), out
     for model in MODELS:
         assert (tmp_path / f"{model}.fmu").read_bytes() == native_fmus[model].read_bytes()
     assert main(["build", "--native", "--out", str(tmp_path)]) == 0  # up to date: nothing rebuilt
-    assert capsys.readouterr().out.count(": up to date (native") == 3
+    assert capsys.readouterr().out.count(": up to date (native") == len(MODELS)
     with pytest.raises(SystemExit) as stopped:
         main(["build", "--native", "--naive", "--out", str(tmp_path)])
     assert stopped.value.code == 2 and "--native and --naive" in capsys.readouterr().err

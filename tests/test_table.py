@@ -138,7 +138,8 @@ def test_one_list_of_plants():
     assert [table.name for table in plants.TABLES] == list(names())
     assert [table for _c, table in plant_header.PLANTS] == list(plants.TABLES)
     assert sorted(table.name for _kind, table in NATIVE.values()) == sorted(names())
-    assert {FACADES[name].table.name: kind for name, kind in plants.KINDS.items()} == plants.KINDS
+    assert [model.table for model in facade.PLANTS] == list(plants.TABLES)
+    assert plants.KINDS == {table.name: kind for kind, table in enumerate(plants.TABLES, start=1)}
 
 
 def _docs_rows():
