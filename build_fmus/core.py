@@ -105,7 +105,12 @@ def build_library(out_dir, files, prefix, extra_flags=(), what="the C library"):
     that holds them); its path. ``what`` names it in errors."""
     out_dir = Path(out_dir)
     if not isinstance(files, dict):
-        files = {Path(path).name: Path(path).read_bytes() for path in files}
+        paths = [Path(path) for path in files]
+        names = [path.name for path in paths]
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            raise CoreBuildError(f"compiling {what}: two files named {repeated[0]} (they are compiled side by side)")
+        files = {path.name: path.read_bytes() for path in paths}
     cc = compiler()
     flags = list(FLAGS) + [str(flag) for flag in extra_flags]
     target = out_dir / f"{prefix}{_digest(cc + flags + list(LIBS), files)}.so"

@@ -33,7 +33,7 @@ GAP0_FMU = ", or -1 in an FMU (h/2)"  # an FMU's start value -1 stands for h/2 (
 
 TABLE = PlantTable(
     "backlash",
-    model="TwoMassBacklash", summary="two masses with a clearance and impacts of restitution eps",
+    model="TwoMassBacklash", summary="two masses with a clearance and impacts of restitution eps (the force on M2)",
     constants=(
         Parameter("M1", 1.0, "kg", "mass 1, the output side (> 0)", (0.0, None), MASS),
         Parameter("M2", 1.0, "kg", "mass 2, driven by the force (> 0)", (0.0, None), MASS),

@@ -856,7 +856,10 @@ def plant_facade(module):
 
 PLANTS = tuple(plant_facade(module) for module in _plants.MODULES)
 """The facades of dfwb's plants (FrictionMass, TwoMassBacklash, StaticBacklash, ...), one per model module."""
-globals().update((facade.__name__, facade) for facade in PLANTS)  # importable by name: the FMUs' scripts do
+for _facade in PLANTS:  # importable by name (the FMUs' scripts do); never in place of a name of this module
+    if _facade.__name__ in globals():
+        raise ValueError(f"{__name__}: the FMU {_facade.__name__} would replace a name of the module")
+    globals()[_facade.__name__] = _facade
 
 
 class LinearSystem(SolverFMU):

@@ -85,8 +85,6 @@ class LoopFMU(_facade.TableFMU):
     solver_class = None
     plant = None
     """The plant FMU facade whose parameters (minus the excitation) and outputs this loop keeps."""
-    table = None
-    """The plant's :class:`~.table.PlantTable`."""
     parameters = ()  # (name, default, unit, description): the plant's
     outputs = ()  # (name, unit, description, is_integer), in value-reference order after the parameters
     mode_keys = {}
@@ -299,11 +297,11 @@ def loop_facade(module):
     outputs = tuple((o.name, o.unit, o.description, o.integer) for o in loop.FMU_OUTPUTS) + (
         ("f", "N", f"force on the plant, f = -G(s) {table.signal}", False),
         (loop.MODE_OUTPUT.name, None, loop.MODE_OUTPUT.description, True),
-        ("events", None, "number of events (mode changes, impacts) so far", True),
+        ("events", None, "number of events (the loop's mode changes) so far", True),
         (loop.COUNTER.name, None, loop.COUNTER.description, True))
     return type(table.model + "Loop", (LoopFMU,), {
         "__doc__": f"{summary}, in feedback f = -G(s) {table.signal}.", "__module__": __name__,
-        "solver_class": loop, "native_solver": loop.__name__, "plant": plant, "table": table,
+        "solver_class": loop, "native_solver": loop.__name__, "plant": plant,
         "fixed_solver_attributes": COMMON_FIXED + loop.CONSTANTS, "ranges": dict(loop.FMU_RANGES),
         "mode_keys": loop.MODE_VALUES, "outputs": outputs,
         "parameters": tuple((name, start, unit, loop.FMU_DESCRIPTIONS.get(name, description))
@@ -312,4 +310,7 @@ def loop_facade(module):
 
 LOOPS = tuple(loop_facade(module) for module in MODULES)
 """The closed-loop FMUs (``dfwb build`` builds them with the plants and LinearSystem)."""
-globals().update((facade.__name__, facade) for facade in LOOPS)  # importable by name: the FMUs' scripts do
+for _loop in LOOPS:  # importable by name (the FMUs' scripts do); never in place of a name of this module
+    if _loop.__name__ in globals():
+        raise ValueError(f"{__name__}: the FMU {_loop.__name__} would replace a name of the module")
+    globals()[_loop.__name__] = _loop

@@ -65,6 +65,7 @@ __all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CA
 
 ABI = 6  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 ERRLEN = 1024
+LOOP_CONSTANTS = 6  # what dfwb_loop_parameters writes (DFWB_LOOP_PAR): a plant's loop holds at most these
 LOG_CAPACITY = 1 << 20  # events one step may record (16 bytes each in C, allocated as they come)
 
 # status codes of dfwb_core.h
@@ -490,9 +491,12 @@ class _NativeSolver(_Native):
 
 
 def _bind(cls, args, kwargs):
-    """{name: value as given} of a call of ``cls`` with its Python twin's signature (TypeError as Python's),
-    defaults applied."""
-    bound = cls._signature.bind(*args, **kwargs)
+    """{name: value as given} of a call of ``cls`` with its Python twin's signature, defaults applied; a call
+    that does not fit raises TypeError naming the class, as Python does."""
+    try:
+        bound = cls._signature.bind(*args, **kwargs)
+    except TypeError as error:
+        raise TypeError(f"{cls.__name__}(): {error}") from None
     bound.apply_defaults()
     return dict(bound.arguments)
 
@@ -525,9 +529,11 @@ def _native_solver(module):
                             f"its Python twin's keywords, defaults and outputs; ``core`` (keyword only) is the "
                             f":class:`NativeCore` to run on, by default the class's own "
                             f"(``load(path).{table.model}`` is this class bound to that core)."}
-    for name in table.counters:
-        namespace[name] = property(lambda self, name=name: self._counter(name), doc=f"The C solver's {name}.")
-    return type("Native" + python.__name__, (_NativeSolver,), namespace)
+    for output in table.outputs:
+        if output.counter:
+            namespace[output.name] = property(lambda self, name=output.name: self._counter(name),
+                                              doc=output.description)
+    return type("Native" + table.model, (_NativeSolver,), namespace)
 
 
 SOLVERS = tuple(_native_solver(module) for module in MODULES)
@@ -605,12 +611,15 @@ class _NativeLoop(_Native):
         cls.coordinates_of = staticmethod(python.coordinates_of)
         cls._keys = python.KEYS
 
-    def __init__(self, b, a, *args, core=None, **kwargs):
-        originals = _numbers(_PLANTS[self._plant][2], _bind(type(self), (b, a) + args, kwargs))
+    def __init__(self, *args, core=None, **kwargs):
+        originals = _numbers(_PLANTS[self._plant][2], _bind(type(self), args, kwargs))
         names = _LOOPS[self._plant][3]
-        self._create(core, b, a, tuple(originals[name] for name in names), *(
+        self._create(core, originals["b"], originals["a"], tuple(originals[name] for name in names), *(
             originals[name] for name in ("z0", "state", "section", "modes", "budget")))
         self._set_constants()
+        for name in self.CONSTANTS:  # the parameters as given (an int stays an int), as the Python loop keeps them
+            if name in originals:
+                setattr(self, name, originals[name])
 
     @classmethod
     def _functions(cls, core):
@@ -804,7 +813,7 @@ class _NativeLoop(_Native):
     # -- the state as bytes ------------------------------------------------------------------------------
     def _set_constants(self):
         """The plant's constants (M, B, ...: CONSTANTS) as attributes, from the C instance."""
-        out = (ctypes.c_double * 6)()
+        out = (ctypes.c_double * LOOP_CONSTANTS)()
         self._api.parameters(self._handle, out)
         for name, value in zip(self.CONSTANTS, out):
             setattr(self, name, value)
@@ -842,4 +851,7 @@ def _native_loop(module):
 
 LOOPS = tuple(_native_loop(module) for module in MODULES)
 """The native loops' classes, one per plant (NativeFrictionLoop, NativeBacklashLoop, ...)."""
-globals().update((cls.__name__, cls) for cls in SOLVERS + LOOPS)  # NativeFrictionMass, ... by name
+for _cls in SOLVERS + LOOPS:  # NativeFrictionMass, ... by name; never in place of a name of this module
+    if _cls.__name__ in globals():
+        raise ValueError(f"dfwb.fmus.native_core: a plant's class {_cls.__name__} would replace a name of the module")
+    globals()[_cls.__name__] = _cls

@@ -32,7 +32,8 @@ KINDS = {table.name: kind for kind, table in enumerate(TABLES, start=1)}
 def _distinct():
     """Every name a plant gives the generated classes is its own: a plant copied from another and not renamed
     would silently replace that plant's FMU, loop FMU or C classes."""
-    for what, names in (("plant", [m.TABLE.name for m in MODULES]), ("FMU", [m.TABLE.model for m in MODULES]),
+    for what, names in (("plant", [m.TABLE.name for m in MODULES]), ("C", [c_name(m.TABLE) for m in MODULES]),
+                        ("FMU", [m.TABLE.model for m in MODULES]),
                         ("solver", [m.SOLVER.__name__ for m in MODULES]),
                         ("loop", [m.LOOP.__name__ for m in MODULES])):
         repeated = sorted({name for name in names if names.count(name) > 1})

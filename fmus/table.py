@@ -27,6 +27,8 @@ Examples
 ('M', 'B', 'Fc', 'Fs', 'Dv', 'x0', 'v0')
 """
 
+import keyword
+import sys
 from typing import NamedTuple, Optional
 
 __all__ = ["Parameter", "Output", "PlantTable", "EXCITATION", "EXCITATION_NAMES", "INPUT_NAMES", "START", "MASS",
@@ -156,9 +158,18 @@ class PlantTable:
         self.signal = signal if signal is not None else (self.outputs[0].name if self.outputs else None)
         self.solver_outputs = tuple(o.name for o in self.outputs if not o.counter)
         self.counters = tuple(o.name for o in self.outputs if o.counter)
+        names = [o.name for o in self.outputs]
+        bad = [n for n in names if not (isinstance(n, str) and n.isidentifier()) or keyword.iskeyword(n)
+               or n.startswith("_") or names.count(n) > 1]
+        if bad:
+            raise ValueError(f"plant {name!r}: output name {bad[0]!r} is refused: outputs need distinct names that "
+                             f"are identifiers, not keywords, not starting with '_'")
         self.output_type = NamedTuple(f"{model or 'Plant'}Output", [
             (o.name, int if o.integer else float) for o in self.outputs if not o.counter])
         """The named tuple of the solver's ``output()``: the outputs that are not counters, in order."""
+        # pickled as the attribute it is, TABLE.output_type of the module that declares the table
+        self.output_type.__module__ = sys._getframe(1).f_globals.get("__name__", __name__)
+        self.output_type.__qualname__ = "TABLE.output_type"
         if self.outputs and self.signal not in self.solver_outputs:
             raise ValueError(f"the signal {self.signal!r} is not one of the outputs {self.solver_outputs}")
         self.parameters = self.constants + self.initial

@@ -11,6 +11,7 @@ test files check their physics; tests/test_contract.py what the engine needs of 
 
 import inspect
 import math
+import pickle
 import random
 
 import pytest
@@ -61,6 +62,8 @@ def test_the_generated_classes_follow_the_table(module):
         theirs = inspect.signature(native).parameters
         for name, parameter in inspect.signature(python).parameters.items():
             assert theirs[name].default is parameter.default, (native, name)
+    output = module.SOLVER().output()
+    assert type(output) is table.output_type and pickle.loads(pickle.dumps(output)) == output
     entry = registry.plant(table.name)
     assert entry.model is plant and entry.loop is module.LOOP and entry.summary == table.summary
     assert entry.output == table.signal and entry.section == table.section
@@ -115,3 +118,20 @@ def test_the_c_loop_agrees_with_python_bit_for_bit(module, core):
         assert c.state() == python.state() and c.key == python.key, f"t = {0.25 * k}"
         assert c.events == python.events and c.counts() == python.counts()
     assert python.events > 0
+
+
+@pytest.mark.needs_cc
+def test_the_c_classes_take_and_refuse_arguments_as_python(module, core):
+    """Constants given as ints stay ints on the C loop, as on the Python loop; a call that fits no signature
+    is a TypeError naming the class."""
+    table, loop = module.TABLE, module.LOOP
+    ints = {p.name: int(p.default) for p in table.constants if p.default and float(p.default).is_integer()}
+    python, c = loop(*PI, **ints), getattr(core, loop.__name__)(*PI, **ints)
+    for name in loop.CONSTANTS:
+        assert type(getattr(c, name)) is type(getattr(python, name)) and getattr(c, name) == getattr(python, name)
+    for make, name in ((getattr(core, table.model), "Native" + table.model),
+                       (getattr(core, loop.__name__), "Native" + loop.__name__)):
+        with pytest.raises(TypeError, match=f"^{name}\\(\\): got an unexpected keyword argument 'nonsense'"):
+            make(*PI if make is not getattr(core, table.model) else (), nonsense=1.0)
+    with pytest.raises(TypeError, match=f"^Native{loop.__name__}\\(\\): missing a required argument: 'b'"):
+        getattr(core, loop.__name__)()

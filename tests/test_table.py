@@ -8,7 +8,7 @@ import pytest
 
 from dfwb.build_fmus import plant_header
 from dfwb.fmus import backlash, facade, friction, naive, native_core, plants, static_backlash
-from dfwb.fmus.table import EXCITATION_NAMES, INPUT_NAMES, Parameter, PlantTable
+from dfwb.fmus.table import EXCITATION_NAMES, INPUT_NAMES, Output, Parameter, PlantTable
 from dfwb.plants import closed_forms, loop_reference, reference
 from dfwb.plants.registry import RANGES
 
@@ -194,3 +194,10 @@ def test_a_registry_entry_takes_the_engine_facts_from_the_table():
     with pytest.raises(facade.PlantError, match="plant 'bare': no output given, and Untabled has no table"):
         Plant("bare", Untabled)
     facade.FACADES.remove(Untabled)
+
+
+@pytest.mark.parametrize("name", ["_x", "class", "two words", "x"])
+def test_an_output_name_a_tuple_cannot_hold_is_refused_naming_the_plant(name):
+    outputs = (Output("x", "m", "position"), Output(name, "m", "again"))
+    with pytest.raises(ValueError, match=f"^plant 'bad': output name '{name}' is refused"):
+        PlantTable("bad", constants=(), initial=(), outputs=outputs)
