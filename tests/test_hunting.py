@@ -36,6 +36,16 @@ def small_map():
     return dfwb.hunting_map("friction", PI, ("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2), jobs=1, curves=False)
 
 
+@pytest.fixture
+def coarse_boundary(monkeypatch):
+    """The linear loop's boundary from 8 x 8 settings instead of 80 x 80, for the tests whose claims are about the
+    cells (searched, resumed, cached, refused), not the boundary: its 6400 loops take a second of a 2 x 2 map (nine
+    over two plant parameters). The boundary is checked on the full grid, with small_map."""
+    from dfwb.studies import hunting
+
+    monkeypatch.setattr(hunting, "LINEAR_GRID", 8)
+
+
 def test_a_map_is_the_search_cell_by_cell(small_map):
     family = LoopFamily("friction", PI, free=("Kp", "Ki"))
     for j, Ki in enumerate(small_map.ys):
@@ -77,6 +87,7 @@ def test_the_linear_boundary_is_where_python_control_puts_it(small_map):
             assert growth == pytest.approx(float(np.max(poles.real)), abs=1e-9)
 
 
+@pytest.mark.usefixtures("coarse_boundary")
 def test_a_map_reads_its_cells_back_from_the_cache(tmp_path):
     axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
     first = dfwb.hunting_map("friction", PI, *axes, jobs=1, curves=False, cache=tmp_path / "cache")
@@ -211,6 +222,7 @@ def _rewrite_rows(log, change):
         writer.writerows(kept)
 
 
+@pytest.mark.usefixtures("coarse_boundary")
 def test_a_map_resumes_only_its_own_well_formed_cells(tmp_path):
     axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
     out = tmp_path / "m"
@@ -234,6 +246,7 @@ def test_a_map_resumes_only_its_own_well_formed_cells(tmp_path):
     assert again.as_dict()["cells"] == first.as_dict()["cells"]
 
 
+@pytest.mark.usefixtures("coarse_boundary")
 def test_a_crafted_cache_entry_of_a_map_cell_is_recomputed(tmp_path):
     import hashlib
 
@@ -250,6 +263,7 @@ def test_a_crafted_cache_entry_of_a_map_cell_is_recomputed(tmp_path):
     assert again.as_dict()["cells"] == first.as_dict()["cells"]
 
 
+@pytest.mark.usefixtures("coarse_boundary")
 def test_a_map_under_a_function_never_resumes_another_functions_cells(tmp_path):
     out = tmp_path / "m"
     axes = (("Kp", 5.0, 20.0, 2), ("Ki", 1.0, 4.0, 2))
@@ -310,6 +324,7 @@ def test_the_gain_factor_does_not_collide_with_a_plant_parameter_named_k():
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("coarse_boundary")
 def test_a_map_of_two_plant_parameters_reports_the_cells_the_plant_refuses():
     """Fc and Fs over a grid where Fs < Fc at one corner: that cell says why, the others are computed."""
     m = dfwb.hunting_map("friction", PI, ("Fc", 4.0, 6.0, 2), ("Fs", 5.0, 7.0, 2), jobs=1, curves=False,
@@ -319,6 +334,7 @@ def test_a_map_of_two_plant_parameters_reports_the_cells_the_plant_refuses():
     assert classes[0][0] == classes[1][0] == classes[1][1] == "stable"
 
 
+@pytest.mark.usefixtures("coarse_boundary")
 def test_a_scenes_own_map_folder_starts_over_when_the_map_changes(tmp_path):
     from dfwb.base.errors import InputError
     from dfwb.studies.hunting import run_map
