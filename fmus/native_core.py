@@ -63,9 +63,10 @@ from .state import StateRefused
 __all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CAPACITY", "EVENT_KINDS",
            "NativeMode"]  # and each plant's classes by name: NativeFrictionMass, NativeFrictionLoop, ...
 
-ABI = 6  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 7  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 ERRLEN = 1024
-LOOP_CONSTANTS = 6  # what dfwb_loop_parameters writes (DFWB_LOOP_PAR): a plant's loop holds at most these
+LOOP_KEYS = 9  # the mode keys a loop may have (DFWB_HY_MODES)
+LOOP_CONSTANTS = 9  # what dfwb_loop_parameters writes (DFWB_LOOP_PAR): a plant's loop holds at most these
 LOG_CAPACITY = 1 << 20  # events one step may record (16 bytes each in C, allocated as they come)
 
 # status codes of dfwb_core.h
@@ -559,8 +560,8 @@ class _LoopApi(_Functions):
         table = {
             "new": (c_int, [c_int, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t,
                             p_double, c_size_t, p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
-            "advance": (c_int, [c_void_p, c_double, ctypes.c_ulonglong, ctypes.POINTER(c_longlong), c_longlong,
-                                c_char_p, c_size_t]),
+            "advance": (c_int, [c_void_p, c_double, c_int, ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(c_longlong),
+                                c_longlong, c_char_p, c_size_t]),
             "stopped": (c_int, [c_void_p]),
             "sample": (c_int, [c_void_p, p_double, c_size_t, p_double, ctypes.POINTER(c_longlong), c_longlong,
                                c_char_p, c_size_t]),
@@ -695,16 +696,19 @@ class _NativeLoop(_Native):
         first such event (then ``self.stopped`` is its kind)."""
         self._share_modes()
         api, budget = self._api, self._budget
-        stop = bool(stop_at_section)
-        for key, kind in stop_at:
-            stop |= 1 << (1 + 16 * self._keys.index(key) + EVENT_KINDS.index(kind))
+        section = int(bool(stop_at_section))
+        events = None
+        if stop_at:  # a mask of event kinds per mode key
+            events = (ctypes.c_uint * LOOP_KEYS)()
+            for key, kind in stop_at:
+                events[self._keys.index(key)] |= 1 << EVENT_KINDS.index(kind)
         if budget is None:
-            code = api.advance(self._handle, _as_double(t_end), stop, None, 0, self._err, ERRLEN)
+            code = api.advance(self._handle, _as_double(t_end), section, events, None, 0, self._err, ERRLEN)
         else:
             left = self._left
             left.value = budget.left
-            code = api.advance(self._handle, _as_double(t_end), stop, ctypes.byref(left), budget.total, self._err,
-                               ERRLEN)
+            code = api.advance(self._handle, _as_double(t_end), section, events, ctypes.byref(left), budget.total,
+                               self._err, ERRLEN)
             budget.left = left.value
         kind = api.stopped(self._handle)
         self.stopped = EVENT_KINDS[kind] if kind else None

@@ -107,6 +107,44 @@ class EdgeSearch:
         return self.s * (self.edge - x), -self.s * v
 
 
+class DifferenceSearch:
+    """Search function ``t -> level + sign (x_a - x_b)`` with its derivative: the distance between two motions.
+
+    With ``velocity``, of their velocities instead: ``level + sign (v_a - v_b)``, ``sign (v_a' - v_b')``.
+    A gap between two masses whose laws differ (one damped, one driven) is no single :class:`~.exact.Motion`.
+    """
+
+    __slots__ = ("first", "second", "sign", "level", "velocity")
+
+    def __init__(self, first, second, sign, level=0.0, velocity=False):
+        self.first, self.second, self.sign, self.level, self.velocity = first, second, sign, level, velocity
+
+    def __call__(self, t):
+        (xa, va), (xb, vb) = self.first.state(t), self.second.state(t)
+        if self.velocity:
+            dg = self.first.acceleration(t, va) - self.second.acceleration(t, vb)
+            return self.level + self.sign * (va - vb), self.sign * dg
+        return self.level + self.sign * (xa - xb), self.sign * (va - vb)
+
+
+class ForceSearch:
+    """Search function ``t -> (c0 + cu u + cv v, cu u' + cv v')``: a force affine in the drive u and a motion's v.
+
+    The contact force between two masses moving together is one: it changes sign where they part.
+    """
+
+    __slots__ = ("motion", "drive", "cu", "cv", "c0")
+
+    def __init__(self, motion, drive, cu, cv, c0):
+        self.motion, self.drive, self.cu, self.cv, self.c0 = motion, drive, cu, cv, c0
+
+    def __call__(self, t):
+        _, v = self.motion.state(t)
+        d = self.drive
+        return (self.c0 + self.cu * d.u(t) + self.cv * v,
+                self.cu * d.du(t) + self.cv * self.motion.acceleration(t, v))
+
+
 class CurvatureBound:
     """``t -> motion.curvature_bound(t)``: a search's bound K as plain data (not a bound method)."""
 
@@ -119,7 +157,7 @@ class CurvatureBound:
         return self.motion.curvature_bound(t)
 
 
-SEARCH_CLASSES = (Search, VelocitySearch, PositionSearch, EdgeSearch, CurvatureBound)
+SEARCH_CLASSES = (Search, VelocitySearch, PositionSearch, EdgeSearch, DifferenceSearch, ForceSearch, CurvatureBound)
 """The classes a pending search is made of (what a solver's state may hold besides Drive and Motion)."""
 
 
@@ -174,8 +212,11 @@ class PiecewisePlant:
             b = min(self._chunk_end(a), self._analytic)
             for s in self._searches:
                 lo = max(a, s.t_from)
-                if lo < b:
-                    root = first_root(s.fun, lo, b, s.K)
+                # past an event already found the piece has ended: its functions need not (and, past a
+                # stop, may not: a force tending to zero) be resolved there
+                hi = b if self._found is None else self._found[0]
+                if lo < hi:
+                    root = first_root(s.fun, lo, hi, s.K)
                     if root is not None and (self._found is None or root < self._found[0]):
                         self._found = (root, s.kind)
             self._searched = b

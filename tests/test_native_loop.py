@@ -580,7 +580,7 @@ def test_state_round_trip_continues_bit_for_bit(core, python_whole, case):
             assert getattr(again, name) == getattr(py, name), name
         again.advance(t_end)
         assert again.state() == py.state() and again.events == py.events and again.counts() == py.counts()
-    assert len(data) == HEADER + 416 == core.loop_api.state_size
+    assert len(data) == HEADER + 440 == core.loop_api.state_size
 
 
 def test_same_parameters(core):
@@ -602,7 +602,7 @@ def test_damaged_states_are_refused(core):
         (core.BacklashLoop(*PID).to_bytes(), "one of a dfwb_backlash_loop, not of a dfwb_friction_loop"),
         (core.FrictionMass().to_bytes(), "one of a dfwb_friction, not of a dfwb_friction_loop"),
         (data[:-1] + bytes([data[-1] ^ 1]), "checksum does not match"),
-        (with_crc(data[:HEADER + 32] + struct.pack("<q", 9) + data[HEADER + 40:]), "order = 9 is out of range"),
+        (with_crc(data[:HEADER + 56] + struct.pack("<q", 9) + data[HEADER + 64:]), "order = 9 is out of range"),
         (with_crc(data[:HEADER] + struct.pack("<d", -1.0) + data[HEADER + 8:]),
          "parameters are refused: M = -1.0 is out of range"),
     ]

@@ -26,7 +26,7 @@
  * - After a refusal of set_input or advance the instance is valid but its
  *   state is unspecified (as in Python, where the step stops half way):
  *   an importer restores a copy (dfwb_plant_copy, dfwb_plant_from_bytes) or starts anew.
- * - One API for every plant (ABI 6): dfwb_plant_new(kind, ...) makes any plant's solver, the other
+ * - One API for every plant (ABI 7): dfwb_plant_new(kind, ...) makes any plant's solver, the other
  *   dfwb_plant_* functions take the instance, whose kind it knows; the loops have dfwb_loop_*.
  * - Event log: off by default; dfwb_*_log(p, capacity) records (t, DFWB_EVENT_*) of every counted
  *   event (what PiecewisePlant.event_log records), at most capacity entries held (then counted in
@@ -93,7 +93,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 6
+#define DFWB_CORE_ABI 7
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -235,13 +235,15 @@ DFWB_API int dfwb_loop_new(int plant, const double *params, size_t nparams, cons
                            size_t nstate, const double *section, dfwb_loop **out, char *err, size_t errlen);
 
 /* HybridSolver.advance: integrate exactly to t_end (finite, >= the current time, at most 1e12 chunks of the
- * fastest mode built so far), firing every event on the way. stop: bits of what ends the advance early (then
- * the current time is that instant): 1, the next upward crossing of the section; 1 << (1 + 16 key + kind),
- * the first event of kind (DFWB_EVENT_*) fired from mode key (0..2), the state then the one the event left
+ * fastest mode built so far), firing every event on the way. What ends the advance early (then the current
+ * time is that instant): stop_section, the next upward crossing of the section; stop_events (NULL: none, else
+ * one mask per mode key, 9 of them), the first event of kind (DFWB_EVENT_*) fired from mode key where bit
+ * kind of stop_events[key] is set, the state then the one the event left
  * (dfwb_loop_stopped tells which kind stopped it, 0 none). budget_left: NULL for none, else the chunks the
  * study may still integrate (a Budget shared by several loops: decremented per chunk, below 0 refused naming
  * budget_total; written back on refusal too). Events: at most 10000 per chunk of the fastest mode spanned. */
-DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, unsigned long long stop, long long *budget_left,
+DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_section, const unsigned int *stop_events,
+                               long long *budget_left,
                                long long budget_total, char *err, size_t errlen);
 DFWB_API int dfwb_loop_stopped(const dfwb_loop *p); /* the event kind the last advance stopped at, 0: none */
 /* dfwb_loop_advance to each of times[0..n-1] (non-decreasing) in turn, the state there into states[i * size ..]
@@ -264,9 +266,9 @@ DFWB_API long long dfwb_loop_counter(const dfwb_loop *p);
 DFWB_API void dfwb_loop_state(const dfwb_loop *p, double *X);
 DFWB_API double dfwb_loop_output(const dfwb_loop *p);
 DFWB_API double dfwb_loop_force(const dfwb_loop *p, const double *X);
-/* out[6]: friction {M, B, Fc, Fs}, backlash {M1, M2, h, eps, r2 = M2/(M1+M2), tol_h = 1e-12 h},
- * static backlash {M, k, h} (the rest NaN-free zeros). */
-DFWB_API void dfwb_loop_parameters(const dfwb_loop *p, double out[6]);
+/* out[9]: the constants its plant's LOOP.CONSTANTS names, in order (friction {M, B, Fc, Fs}, backlash
+ * {M1, M2, h, eps, r2 = M2/(M1+M2), tol_h = 1e-12 h}, ...; the rest zeros). */
+DFWB_API void dfwb_loop_parameters(const dfwb_loop *p, double out[9]);
 /* The controller of -G(s): Ac[n*n] (row-major), Bc[n], C[n] and *D (C and D negated, as FeedbackLoop's);
  * NULL pointers are skipped. */
 DFWB_API void dfwb_loop_controller(const dfwb_loop *p, double *Ac, double *Bc, double *C, double *D);

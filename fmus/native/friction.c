@@ -338,7 +338,7 @@ static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing
 static const char *const LOOP_COORDINATES[] = {"x", "v"};
 
 static const dfwb_loop_class LOOP = {2, 0, DFWB_LOOP_FRICTION_PARAMS, 4, "a friction mass", LOOP_COORDINATES,
-                                            "('x', 'v')", loop_check, NULL, loop_mode, loop_initial, loop_fire};
+                                            "('x', 'v')", loop_check, NULL, loop_mode, loop_initial, loop_fire, 3};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* FrictionMass.__init__, then PiecewisePlant's: the order of the Python constructor */
@@ -387,4 +387,4 @@ static const dfwb_friction zero_state = {0}; /* the state's size is counted on i
 
 const dfwb_plant_class dfwb_friction_class = {
     DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state, offsetof(dfwb_friction, pw.output), fire, restart,
-    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same, &LOOP};
+    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same, &LOOP, NULL};

@@ -606,8 +606,8 @@ static void add_crossing(dfwb_hy *hy, double t, const double *X)
     hy->ncrossings += 1;
 }
 
-int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long long *budget_left,
-                    long long budget_total, dfwb_err *err)
+int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned int *stop_events,
+                    long long *budget_left, long long budget_total, dfwb_err *err)
 {
     double fastest = 0.0, limit, fired = 0.0, chunks = 0.0;
     int i, have = 0, rc;
@@ -679,7 +679,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long lon
                 rc = begin(hy, t, X, hy->key, 1, &index, err);
                 if (rc != DFWB_OK)
                     return rc;
-                if ((stop & DFWB_HY_STOP_SECTION) && kind == DFWB_HY_SECTION_UP) {
+                if (stop_section && kind == DFWB_HY_SECTION_UP) {
                     t_end = t;
                     break;
                 }
@@ -696,7 +696,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long lon
             rc = begin(hy, t, X, key, departing >= 0 ? 1 : 0, &departing, err);
             if (rc != DFWB_OK)
                 return rc;
-            if (kind > 0 && kind < 16 && (stop & DFWB_HY_STOP_EVENT(fired_from, kind))) {
+            if (stop_events != NULL && kind > 0 && kind < 32 && ((stop_events[fired_from] >> kind) & 1u)) {
                 hy->stopped = kind;
                 t_end = t;
                 break;

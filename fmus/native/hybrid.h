@@ -20,8 +20,8 @@
 #include "plant.h"
 
 #define DFWB_HY_DIM 12          /* the state's size at most: 4 plant coordinates + 8 controller states */
-#define DFWB_HY_EVENTS 4        /* event functions of a mode at most: 2 of the plant + the section's 2 */
-#define DFWB_HY_MODES 3         /* mode keys 0..2 */
+#define DFWB_HY_EVENTS 5        /* event functions of a mode at most: 3 of the plant + the section's 2 */
+#define DFWB_HY_MODES 9         /* mode keys 0..8 */
 #define DFWB_HY_MAX_TERMS 40    /* MAX_TERMS */
 #define DFWB_HY_EVENTS_PER_CHUNK 10000
 #define DFWB_HY_TIME_LIMIT 1e12
@@ -31,10 +31,6 @@
 #define DFWB_HY_MAX_CHUNKS_PER_STEP 10000000
 #endif
 #define DFWB_HY_SECTION_UP 101   /* "section+": an upward crossing of the watched function (not an event) */
-/* What dfwb_hy_advance stops at (bits of ``stop``): the section's next upward crossing, and the first event of
- * ``kind`` (DFWB_EVENT_*, below 16) fired from mode ``key`` (0..2). */
-#define DFWB_HY_STOP_SECTION 1ULL
-#define DFWB_HY_STOP_EVENT(key, kind) (1ULL << (1 + 16 * (key) + (kind)))
 #define DFWB_HY_SECTION_DOWN 102 /* "section-" */
 
 /* An event function: the event ``kind`` (DFWB_EVENT_* or a section) where L.X + l0 falls to zero. */
@@ -107,10 +103,12 @@ dfwb_hy_mode *dfwb_hy_mode_of(dfwb_hy *hy, int key, dfwb_err *err);
 int dfwb_hy_after(dfwb_hy *hy, int key, int index, const double *X, int *sign, dfwb_err *err);
 /* HybridSolver.start: begin at t0 in mode ``key`` (departing: an index, or -1). */
 int dfwb_hy_start(dfwb_hy *hy, double t0, const double *X0, int key, int departing, dfwb_err *err);
-/* HybridSolver.advance; stop: DFWB_HY_STOP_* bits (0: to t_end); budget_left NULL: unbounded, else the chunks left
+/* HybridSolver.advance, stopping early at the section's next upward crossing (stop_section) or after the first
+ * event of kind (DFWB_EVENT_*, below 32) fired from mode key where bit kind of stop_events[key] is set
+ * (stop_events: DFWB_HY_MODES masks, or NULL: none); budget_left NULL: unbounded, else the chunks left
  * (decremented; below 0 refused). */
-int dfwb_hy_advance(dfwb_hy *hy, double t_end, unsigned long long stop, long long *budget_left,
-                    long long budget_total, dfwb_err *err);
+int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned int *stop_events,
+                    long long *budget_left, long long budget_total, dfwb_err *err);
 /* HybridSolver.state: X at hy->t. */
 void dfwb_hy_state(const dfwb_hy *hy, double *X);
 /* Deep copy (its own modes, crossings, log; a fresh workspace); 0 when out of memory (dst then freed). */

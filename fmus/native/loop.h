@@ -12,8 +12,10 @@
 #include "hybrid.h"
 
 #define DFWB_LOOP_PLANT_MAX 4 /* plant coordinates at most */
-#define DFWB_LOOP_PAR 6       /* the plant's constants held by a loop */
-#define DFWB_LOOP_STATE_PAR 4 /* of them, the ones its state holds (the others are derived) */
+#define DFWB_LOOP_PAR 9       /* the plant's constants held by a loop */
+#define DFWB_LOOP_STATE_PAR 7 /* of them, the ones its state holds (the others are derived) */
+#define DFWB_LOOP_PLANT_EVENTS 3 /* a plant mode's event functions at most */
+#define DFWB_LOOP_PARAMS_MAX 16  /* dfwb_loop_new's parameters of a plant at most (its class's nparams) */
 
 typedef struct dfwb_loop_class dfwb_loop_class;
 
@@ -36,8 +38,8 @@ struct dfwb_loop {
 /* A plant mode: q' = P q + p + phi f, event functions Lq.q + Lf f + l0 (FeedbackLoop.plant_mode). */
 typedef struct {
     double P[DFWB_LOOP_PLANT_MAX][DFWB_LOOP_PLANT_MAX], p[DFWB_LOOP_PLANT_MAX], phi[DFWB_LOOP_PLANT_MAX];
-    int nev, kind[2];
-    double Lq[2][DFWB_LOOP_PLANT_MAX], Lf[2], l0[2];
+    int nev, kind[DFWB_LOOP_PLANT_EVENTS];
+    double Lq[DFWB_LOOP_PLANT_EVENTS][DFWB_LOOP_PLANT_MAX], Lf[DFWB_LOOP_PLANT_EVENTS], l0[DFWB_LOOP_PLANT_EVENTS];
 } dfwb_plant_mode;
 
 /* Append the event function l1 q0 + l2 q1 + l3 q2 + l4 q3 + Lf f + l0 of kind (DFWB_EVENT_*). */
@@ -63,6 +65,7 @@ struct dfwb_loop_class {
     /* initial: the mode of X at t = 0 (X may be snapped); _fire: the mode after an event of kind at X. */
     int (*initial)(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err);
     int (*fire)(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err);
+    int keys; /* its mode keys are 0..keys-1 (its LOOP.KEYS, at most DFWB_HY_MODES) */
 };
 
 #endif /* DFWB_LOOP_H */

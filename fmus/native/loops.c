@@ -259,14 +259,15 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
 }
 
 /* -- the API ------------------------------------------------------------------------------------ */
-int dfwb_loop_advance(dfwb_loop *p, double t_end, unsigned long long stop, long long *budget_left,
-                      long long budget_total, char *errbuf, size_t errlen)
+int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_section, const unsigned int *stop_events,
+                      long long *budget_left, long long budget_total, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_err_init(&err, errbuf, errlen);
     if (p == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_advance: NULL instance");
-    return dfwb_err_finish(&err, dfwb_hy_advance(&p->hy, t_end, stop, budget_left, budget_total, &err));
+    return dfwb_err_finish(&err, dfwb_hy_advance(&p->hy, t_end, stop_section, stop_events, budget_left,
+                                                     budget_total, &err));
 }
 
 int dfwb_loop_stopped(const dfwb_loop *p) { return p == NULL ? 0 : p->hy.stopped; }
@@ -281,7 +282,7 @@ int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states
     if (p == NULL || (n > 0 && (times == NULL || states == NULL)))
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_sample: NULL argument");
     for (i = 0; i < n && rc == DFWB_OK; i++) {
-        rc = dfwb_hy_advance(&p->hy, times[i], 0, budget_left, budget_total, &err);
+        rc = dfwb_hy_advance(&p->hy, times[i], 0, NULL, budget_left, budget_total, &err);
         if (rc == DFWB_OK)
             dfwb_hy_state(&p->hy, states + i * (size_t)p->hy.n);
     }
@@ -316,10 +317,10 @@ double dfwb_loop_force(const dfwb_loop *p, const double *X)
     return p == NULL || X == NULL ? NAN : dfwb_loop_feedback(p, X);
 }
 
-void dfwb_loop_parameters(const dfwb_loop *p, double out[6])
+void dfwb_loop_parameters(const dfwb_loop *p, double out[DFWB_LOOP_PAR])
 {
     int i;
-    for (i = 0; i < 6; i++)
+    for (i = 0; i < DFWB_LOOP_PAR; i++)
         out[i] = p == NULL ? NAN : p->par[i];
 }
 
@@ -381,7 +382,9 @@ int dfwb_loop_build_modes(dfwb_loop *p, int mask, char *errbuf, size_t errlen)
     dfwb_err_init(&err, errbuf, errlen);
     if (p == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_build_modes: NULL instance");
-    for (i = 0; i < DFWB_HY_MODES && rc == DFWB_OK; i++)
+    if (mask < 0 || mask >= (1 << p->cls->keys))
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_build_modes: modes %d are not the plant's", mask);
+    for (i = 0; i < p->cls->keys && rc == DFWB_OK; i++)
         if ((mask >> i) & 1)
             if (dfwb_hy_mode_of(&p->hy, i, &err) == NULL)
                 rc = err.code != DFWB_OK ? err.code : DFWB_E_MATH;
@@ -453,7 +456,7 @@ int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b)
     if (a == NULL || b == NULL || a->plant != b->plant || a->order != b->order
         || a->hy.has_section != b->hy.has_section || !dfwb_same_double(a->section, b->section))
         return 0;
-    for (i = 0; i < 6; i++)
+    for (i = 0; i < DFWB_LOOP_PAR; i++)
         if (!dfwb_same_double(a->par[i], b->par[i]))
             return 0;
     for (i = 0; i <= MAX_ORDER; i++)
@@ -554,14 +557,14 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     dfwb_err err, local;
     dfwb_loop *L, s;
     char message[512];
-    double values[8] = {0.0}, q0[MAX_PLANT];
+    double values[DFWB_LOOP_PARAMS_MAX] = {0.0}, q0[MAX_PLANT]; /* the constants, the initial values 0 */
     const dfwb_loop_class *cls = loop_plant_of(plant);
     int rc = DFWB_OK, mask = 0, i, n;
     dfwb_err_init(&err, errbuf, errlen);
     if (out == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_from_bytes: NULL out");
     *out = NULL;
-    if (cls == NULL)
+    if (cls == NULL || cls->nparams > DFWB_LOOP_PARAMS_MAX)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_from_bytes: no plant kind %d", plant);
     rc = dfwb_state_open(buf, len, DFWB_STATE_LOOP + plant, loop_payload(), &err);
     if (rc != DFWB_OK)
@@ -619,9 +622,9 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
             != DFWB_OK
         || (rc = dfwb_state_check_int(&err, "events", s.hy.events, s.hy.events >= 0, "must be >= 0")) != DFWB_OK
         || (rc = dfwb_state_check_int(&err, "count", s.count, s.count >= 0, "must be >= 0")) != DFWB_OK
-        || (rc = dfwb_state_check_int(&err, "mode", s.hy.key, 0 <= s.hy.key && s.hy.key < DFWB_HY_MODES,
-                                      "must be a mode key 0..2")) != DFWB_OK
-        || (rc = dfwb_state_check_int(&err, "modes built", mask, 0 <= mask && mask < (1 << DFWB_HY_MODES)
+        || (rc = dfwb_state_check_int(&err, "mode", s.hy.key, 0 <= s.hy.key && s.hy.key < cls->keys,
+                                      "must be one of the plant's mode keys")) != DFWB_OK
+        || (rc = dfwb_state_check_int(&err, "modes built", mask, 0 <= mask && mask < (1 << cls->keys)
                                       && ((mask >> s.hy.key) & 1), "must be a set of modes with the current one"))
                != DFWB_OK) {
         dfwb_loop_free(L);

@@ -544,6 +544,7 @@ void dfwb_pw_integrals(const dfwb_pw *pw, double *re, double *im, dfwb_err *err)
 }
 
 typedef struct {
+    const dfwb_pw *pw; /* the plant, seen through its first member */
     const dfwb_motion *m;
     const dfwb_search *s;
 } search_ctx;
@@ -553,6 +554,10 @@ static void search_fun(const void *ctx, double t, double *g, double *dg)
     const search_ctx *c = (const search_ctx *)ctx;
     const dfwb_search *s = c->s;
     double x, v;
+    if (s->type >= DFWB_SEARCH_PLANT) {
+        c->pw->cls->search(c->pw, s, t, g, dg);
+        return;
+    }
     switch (s->type) {
     case DFWB_SEARCH_VELOCITY: /* VelocitySearch: (offset +) sign v, sign v' */
         v = dfwb_motion_velocity(c->m, t);
@@ -618,13 +623,16 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
         for (i = 0; i < pw->nsearch; i++) {
             const dfwb_search *s = &pw->searches[i];
             const double lo = s->t_from > a ? s->t_from : a;
-            if (lo < b) {
+            /* past an event already found the piece has ended: its functions need not be resolved there */
+            const double hi = pw->has_found ? pw->found_t : b;
+            if (lo < hi) {
                 search_ctx ctx;
                 int found;
                 double root;
+                ctx.pw = pw;
                 ctx.m = subject;
                 ctx.s = s;
-                rc = dfwb_first_root(search_fun, s->bounded ? search_bound : NULL, &ctx, lo, b, s->K, &pw->stack,
+                rc = dfwb_first_root(search_fun, s->bounded ? search_bound : NULL, &ctx, lo, hi, s->K, &pw->stack,
                                      &found, &root, err);
                 if (rc != DFWB_OK)
                     return rc;
@@ -812,7 +820,8 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
                                  "must be zeros", i);
             continue;
         }
-        if (!((s->type == DFWB_SEARCH_VELOCITY || s->type == DFWB_SEARCH_POSITION || s->type == DFWB_SEARCH_EDGE)
+        if (!((s->type == DFWB_SEARCH_VELOCITY || s->type == DFWB_SEARCH_POSITION || s->type == DFWB_SEARCH_EDGE
+               || (s->type >= DFWB_SEARCH_PLANT && pw->cls->search != NULL))
               && (s->sign == 1.0 || s->sign == -1.0) && (s->has_level == 0 || s->has_level == 1)
               && isfinite(s->level) && (s->has_level || s->level == 0.0) && s->K >= 0.0 /* +inf allowed */
               && (s->bounded == 0 || (s->bounded == 1 && s->type == DFWB_SEARCH_VELOCITY && s->K == 0.0))

@@ -110,12 +110,15 @@ int dfwb_state_check_piece(double t, double period, double t_piece, double searc
 
 /* -- the piece machinery (fmus/piecewise.py) ------------------------------------------------ */
 enum { DFWB_SEARCH_VELOCITY = 1, DFWB_SEARCH_POSITION = 2, DFWB_SEARCH_EDGE = 3 };
+#define DFWB_SEARCH_PLANT 8 /* types from here on are the plant's own (its class's search function) */
 #define DFWB_MAX_SEARCHES 3
 
 /* A pending search on the plant's subject motion (the mass, the gap):
  *   VELOCITY (VelocitySearch): g = sign v (level + sign v when has_level: the offset), g' = sign v'
  *   POSITION (PositionSearch): g = x, g' = v; with has_level (a wall): g = level - x, g' = -v
  *   EDGE (EdgeSearch):         g = sign (level - x), g' = -sign v
+ *   DFWB_SEARCH_PLANT and above: the plant's own, evaluated by its class's search function (sign, level and
+ *   has_level are the plant's to use; sign is +-1, the state's check asks)
  * with |g''| <= K (a number) or, when bounded (a VELOCITY search only: CurvatureBound), |g''| <= the
  * subject's curvature bound on [t, inf), a function of t (K is then 0); from t_from; kind: its event. */
 typedef struct {
@@ -207,6 +210,8 @@ struct dfwb_plant_class {
     /* The plant's own fixed parameters (and what is derived from them) of a and b have the same bits. */
     int (*same)(const void *a, const void *b);
     const struct dfwb_loop_class *loop; /* its closed loop (loop.h), or NULL: none */
+    /* g and g' of a search of the plant's own type (>= DFWB_SEARCH_PLANT) at t, or NULL: it has none */
+    void (*search)(const void *plant, const dfwb_search *s, double t, double *g, double *dg);
 };
 
 /* The class of a plant kind (DFWB_PLANT_*), NULL for a kind the core does not know. */
