@@ -19,7 +19,7 @@ rebuilds it. An FMU whose recorded hash matches is not rebuilt.
 A plant defined outside dfwb
 ----------------------------
 A facade class may live in any single-file module (a plugin, a test: see
-``docs/adding-a-plant.md``). That module is bundled into the package next
+``docs/plants/adding-a-plant.md``). That module is bundled into the package next
 to the solver modules, and its imports of the solver package are rewritten
 to relative ones: ``from dfwb.fmus.exact import Motion`` becomes ``from
 .exact import Motion``, ``from dfwb.fmus import PlantError`` becomes

@@ -4,7 +4,7 @@
 
 Its whole definition is here: its parameters' table, the solver (its own
 closed form, not ``dfwb.fmus.exact.Motion``), the FMU facade and the
-registry entry (:func:`entry`). docs/adding-a-plant.md walks through it.
+registry entry (:func:`entry`). docs/plants/adding-a-plant.md walks through it.
 
 The solver: between input changes x is a sum of exponentials, x(s) = Re sum_i
 a_i exp(l_i (s - t0)) with l_i the roots of M l^2 + B l + K (the transient),

@@ -10,7 +10,7 @@ below runs on it as on the built-in plants, with nothing else to edit:
 (d) its describing function in a linear limit is the transfer function's value;
 (e) its solver implements :class:`dfwb.fmus.Solver`, its outputs a named tuple of FMU outputs.
 
-docs/adding-a-plant.md is written from this file.
+docs/plants/adding-a-plant.md is written from this file.
 """
 
 import math
