@@ -16,7 +16,10 @@ that a sign change of an event function is seen) to its first event:
 
 At a wall the masses stay together when their relative acceleration presses them into it and the next
 bounce would rise less than 1e-12 h (the accumulation of impacts is over), as the two-mass backlash does.
-Its limits (tests/test_drivetrain_reference.py): without friction it is dfwb's two-mass backlash; as
+With a controller ``b, a`` (G(s) = (b0 s^n + ... + bn) / (s^n + a1 s^(n-1) + ... + an)) the force is
+u - G(s) x1: the loop of the drivetrain under feedback of the load's position, its controller in the
+controllable canonical form (z1' = z2, ..., zn' = -an z1 - ... - a1 zn + x1, G x1 = (bn - an b0) z1 + ... +
+(b1 - a1 b0) zn + b0 x1) integrated beside the plant. Its limits (tests/test_drivetrain_reference.py): without friction it is dfwb's two-mass backlash; as
 h -> 0 with eps = 0 it tends to the friction mass of mass M1 + M2, its distance falling as sqrt(h).
 """
 
@@ -29,49 +32,66 @@ RTOL, ATOL = 1e-12, 1e-14
 
 
 def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0, omega=1.0, phi=0.0, f=0.0,
-             x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, times=None, max_events=100000):
-    """(times, [[x1, v1, g, w]] at times (g = x2 - x1, w = v2 - v1), [(t, event)]); at most ``max_events``
-    events (the accumulation of impacts ends; a run that needs more stops there, its later rows NaN)."""
+             x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, times=None, max_events=100000, b=None, a=None, z0=None):
+    """(times, [[x1, v1, g, w, z...]] at times (g = x2 - x1, w = v2 - v1, z the controller's state when ``b, a``
+    are given), [(t, event)]); at most ``max_events`` events (the accumulation of impacts ends; a run that needs
+    more stops there, its later rows NaN)."""
     M = M1 + M2
-    u = lambda t: f + F * math.cos(omega * t + phi)  # noqa: E731
+    n = 0 if b is None else len(a)
+    if n:
+        a_, b_ = np.asarray(a, float), np.zeros(n + 1)
+        b_[n + 1 - len(b):] = b  # b0..bn, leading zeros for a proper G
+        Ac = np.zeros((n, n))
+        Ac[:-1, 1:] = np.eye(n - 1)
+        Ac[-1, :] = -a_[::-1]
+        Cz = b_[:0:-1] - a_[::-1] * b_[0]  # (bn - an b0, ..., b1 - a1 b0)
+    excitation = lambda t: f + F * math.cos(omega * t + phi)  # noqa: E731
+
+    def force(t, y):
+        """u at (t, y): the excitation, less G(s) x1 under control."""
+        return excitation(t) - (float(Cz @ np.asarray(y[4:])) + b_[0] * y[0] if n else 0.0)
+
     times = np.linspace(0.0, t_end, 2001) if times is None else np.asarray(times, float)
-    out = np.full((len(times), 4), np.nan)
+    out = np.full((len(times), 4 + n), np.nan)
     events = []
     tol_h = 1e-12 * h
     max_step = 2 * math.pi / omega / 64 if F else math.inf
     sgn = lambda v: int(v > 0) - int(v < 0)  # noqa: E731
 
-    def rest_in_contact(t, sigma):
+    def rest_in_contact(t, y, sigma):
         """Mode at v = 0 in contact at wall sigma."""
-        if sigma * u(t) <= 0.0:
+        u = force(t, y)
+        if sigma * u <= 0.0:
             return ("flight", 0, sigma)  # M2 leaves the wall, M1 stays stuck
-        if abs(u(t)) <= Fs:
+        if abs(u) <= Fs:
             return ("contact", sigma, 0)
-        return ("contact", sigma, sgn(u(t)))
+        return ("contact", sigma, sgn(u))
 
     def at_wall(t, y, sigma):
         """The mode after reaching wall sigma (after its impact): contact when the relative acceleration presses
         the masses together and the next bounce would rise less than 1e-12 h, else flight away from it."""
-        x1, v1, g, w = y
+        x1, v1, g, w = y[:4]
+        z = list(y[4:])
         g = 0.0 if sigma < 0 else h
         if sigma * w > 0.0:  # closing: Newton's impact law, momentum kept
             new = -eps * w
             v1, w = v1 + M2 / M * (w - new), new
         v = v1 + M2 / M * w  # the common velocity if they stay together
         if v == 0.0:
-            mode = rest_in_contact(t, sigma)
+            mode = rest_in_contact(t, y, sigma)
             if mode[0] == "contact" and w == 0.0:
-                return mode, [x1, 0.0, g, 0.0]
-            return ("flight", 0 if v1 == 0.0 else sgn(v1), sigma), [x1, v1, g, w]
+                return mode, [x1, 0.0, g, 0.0] + z
+            return ("flight", 0 if v1 == 0.0 else sgn(v1), sigma), [x1, v1, g, w] + z
         s = sgn(v)
-        relative = (M1 * u(t) + M2 * (Fc * s + B * v)) / (M1 * M2)  # g'' in flight with the load sliding at v
+        relative = (M1 * force(t, y) + M2 * (Fc * s + B * v)) / (M1 * M2)  # g'' in flight, the load sliding at v
         if sigma * relative > 0.0 and 0.5 * w * w <= tol_h * abs(relative):
-            return ("contact", sigma, s), [x1, v, g, 0.0]
-        return ("flight", sgn(v1), sigma), [x1, v1, g, w]
+            return ("contact", sigma, s), [x1, v, g, 0.0] + z
+        return ("flight", sgn(v1), sigma), [x1, v1, g, w] + z
 
     t = 0.0
     g = 0.5 * h if gap0 is None else gap0
-    y = [x1_0, v1_0, g, v2_0 - v1_0]  # the load, then the gap g = x2 - x1 and w = g' (no cancellation)
+    y = [x1_0, v1_0, g, v2_0 - v1_0] + ([0.0] * n if z0 is None else list(z0))  # the gap g = x2 - x1, w = g'
+    controller = (lambda y: list(Ac @ np.asarray(y[4:]) + np.eye(n)[-1] * y[0])) if n else (lambda y: [])
     if 0.0 < g < h:
         mode = ("flight", sgn(v1_0), 0)
     else:
@@ -84,7 +104,7 @@ def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0
 
             def rhs(t, y, s=s):
                 a1 = -(Fc * s + B * y[1]) / M1 if s else 0.0
-                return [y[1], a1, y[3], u(t) / M2 - a1]
+                return [y[1], a1, y[3], force(t, y) / M2 - a1] + controller(y)
 
             def lower(t, y):
                 return y[2]
@@ -106,20 +126,20 @@ def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0
         else:
             sigma, s = mode[1], mode[2]
 
-            def accel(t, v, s=s):
-                return (u(t) - Fc * s - B * v) / M if s else 0.0
+            def accel(t, y, s=s):
+                return (force(t, y) - Fc * s - B * y[1]) / M if s else 0.0
 
             def rhs(t, y):
-                return [y[1], accel(t, y[1]), 0.0, 0.0]
+                return [y[1], accel(t, y), 0.0, 0.0] + controller(y)
 
             def release(t, y, sigma=sigma):
-                return sigma * (u(t) - M2 * accel(t, y[1]))
+                return sigma * (force(t, y) - M2 * accel(t, y))
 
             def stop(t, y):
                 return y[1]
 
             def breakaway(t, y):
-                return Fs - abs(u(t))
+                return Fs - abs(force(t, y))
 
             release.terminal = stop.terminal = breakaway.terminal = True
             release.direction = breakaway.direction = -1
@@ -153,7 +173,7 @@ def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0
                 mode = ("flight", sgn(y[1]) if mode[2] else 0, sigma)
             elif kind == "stop":
                 y[1] = 0.0
-                mode = rest_in_contact(t, sigma)
+                mode = rest_in_contact(t, y, sigma)
             else:  # breakaway
-                mode = ("contact", sigma, sgn(u(t)))
+                mode = ("contact", sigma, sgn(force(t, y)))
     return times, out, events
