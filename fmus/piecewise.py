@@ -25,9 +25,12 @@ as the events exceed it; a longer span is taken in several steps.
 
 import math
 
-from .exact import MAX_EVENTS_PER_STEP, PHASE_LIMIT, TWO_PI, Drive, PlantError, first_root, too_many_events
+from .exact import EPS, MAX_EVENTS_PER_STEP, PHASE_LIMIT, TWO_PI, Drive, PlantError, first_root, too_many_events
 
 EVENTS_PER_PERIOD_LIMIT = 100_000
+# consecutive events each within STALL_ULPS ulp of the one before: time no longer resolves the motion (a state
+# so large that its rounding fires events). A Zeno cascade ends at its 1e-12 tolerance long before.
+STALL_EVENTS, STALL_ULPS = 1000, 64
 MAX_PERIODS_PER_STEP = 1e6  # 10x the longest trace a scene may ask for: a step costs seconds, never hours
 
 
@@ -39,9 +42,17 @@ def check(name, value, ok, allowed):
     ``allowed`` is the text, or a function of no argument that makes it: a
     check on a hot path (a step) formats its message only when it fails.
     """
-    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and _finite(value)
             and (ok() if callable(ok) else ok)):
         raise PlantError(f"{name} = {value!r} is out of range: {allowed() if callable(allowed) else allowed}")
+
+
+def _finite(value):
+    """math.isfinite, False for an int beyond the floats (instead of OverflowError)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def check_step_end(t_end, now):
@@ -145,6 +156,34 @@ class ForceSearch:
                 self.cu * d.du(t) + self.cv * self.motion.acceleration(t, v))
 
 
+class DecayingBound:
+    """``t -> constant + transient exp(-lam (t - t0))``: a search's bound K as plain data, for a curvature
+    with a decaying part (the deceleration of a load braked by viscous friction). No argument: at t0."""
+
+    __slots__ = ("constant", "transient", "lam", "t0")
+
+    def __init__(self, constant, transient, lam, t0):
+        self.constant, self.transient, self.lam, self.t0 = constant, transient, lam, t0
+
+    def __call__(self, t=None):
+        if t is None:
+            return self.constant + self.transient
+        return self.constant + self.transient * math.exp(-self.lam * (t - self.t0))
+
+
+class MotionBound:
+    """``t -> constant + scale * motion.curvature_bound(t)``: a search's bound K as plain data, for a function
+    whose curvature is a constant plus a multiple of a decaying motion's |v''|. No argument: at the motion's t0."""
+
+    __slots__ = ("constant", "scale", "motion")
+
+    def __init__(self, constant, scale, motion):
+        self.constant, self.scale, self.motion = constant, scale, motion
+
+    def __call__(self, t=None):
+        return self.constant + self.scale * self.motion.curvature_bound(t)
+
+
 class CurvatureBound:
     """``t -> motion.curvature_bound(t)``: a search's bound K as plain data (not a bound method)."""
 
@@ -157,7 +196,8 @@ class CurvatureBound:
         return self.motion.curvature_bound(t)
 
 
-SEARCH_CLASSES = (Search, VelocitySearch, PositionSearch, EdgeSearch, DifferenceSearch, ForceSearch, CurvatureBound)
+SEARCH_CLASSES = (Search, VelocitySearch, PositionSearch, EdgeSearch, DifferenceSearch, ForceSearch, DecayingBound,
+                  MotionBound, CurvatureBound)
 """The classes a pending search is made of (what a solver's state may hold besides Drive and Motion)."""
 
 
@@ -247,13 +287,19 @@ class PiecewisePlant:
               lambda: f"a step spans at most {MAX_PERIODS_PER_STEP:g} periods of the drive (2 pi/omega = "
                       f"{self.period!r} s), this one {span!r} from t = {self.t!r}: take smaller steps")
         limit = EVENTS_PER_PERIOD_LIMIT * (1.0 + span)
-        fired = 0
+        fired = stalled = 0
+        last = None
         while True:
             event = self._next_event(t_end)
             if event is None:
                 break
             t_event, kind = event
             fired += 1
+            stalled = stalled + 1 if last is not None and t_event - last <= STALL_ULPS * EPS * abs(t_event) else 0
+            last = t_event
+            if stalled > STALL_EVENTS:
+                raise PlantError(f"more than {STALL_EVENTS} events within {STALL_ULPS} ulp of each other at t = "
+                                 f"{t_event!r} (last event: {kind}): the motion chatters below the resolution of time")
             if fired > limit:
                 raise PlantError(
                     f"more than {EVENTS_PER_PERIOD_LIMIT} events per period between t = {self.t!r} "

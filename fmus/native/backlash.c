@@ -460,4 +460,4 @@ static const dfwb_backlash zero_state = {0}; /* the state's size is counted on i
 
 const dfwb_plant_class dfwb_backlash_class = {
     DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state, offsetof(dfwb_backlash, gap), fire, restart,
-    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same, &LOOP, NULL};
+    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same, &LOOP, NULL, NULL};

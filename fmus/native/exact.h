@@ -20,6 +20,8 @@
 #define DFWB_PHASE_LIMIT_TEXT "1e+10" /* f"{PHASE_LIMIT:g}" */
 #define DFWB_MAX_EVALUATIONS 100000
 #define DFWB_EVENTS_PER_PERIOD_LIMIT 100000
+#define DFWB_STALL_EVENTS 1000 /* consecutive events within DFWB_STALL_ULPS ulp of each other (piecewise.py) */
+#define DFWB_STALL_ULPS 64
 #ifndef DFWB_MAX_PERIODS_PER_STEP /* the work of one step; -D at build time sets smaller bounds (tests) */
 #define DFWB_MAX_PERIODS_PER_STEP 1e6
 #define DFWB_MAX_PERIODS_PER_STEP_TEXT "1e+06" /* f"{MAX_PERIODS_PER_STEP:g}" */

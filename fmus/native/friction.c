@@ -387,4 +387,4 @@ static const dfwb_friction zero_state = {0}; /* the state's size is counted on i
 
 const dfwb_plant_class dfwb_friction_class = {
     DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state, offsetof(dfwb_friction, pw.output), fire, restart,
-    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same, &LOOP, NULL};
+    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same, &LOOP, NULL, NULL};

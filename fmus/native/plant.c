@@ -581,10 +581,14 @@ static void search_fun(const void *ctx, double t, double *g, double *dg)
     }
 }
 
-/* CurvatureBound(subject): |v''| on [t, inf), the bound of a VELOCITY search that is bounded */
+/* CurvatureBound(subject): |v''| on [t, inf), the bound of a VELOCITY search that is bounded; the plant's own
+ * bound of a search of its own type */
 static double search_bound(const void *ctx, double t, dfwb_err *err)
 {
-    return dfwb_motion_curvature_bound(((const search_ctx *)ctx)->m, 1, t, err);
+    const search_ctx *c = (const search_ctx *)ctx;
+    if (c->s->type >= DFWB_SEARCH_PLANT)
+        return c->pw->cls->search_bound(c->pw, c->s, t);
+    return dfwb_motion_curvature_bound(c->m, 1, t, err);
 }
 
 /* End of the search chunk containing t: a grid of period/8 anchored at the piece start. */
@@ -661,7 +665,8 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
 int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_fire_fn fire, void *plant,
                     dfwb_err *err)
 {
-    double theta, span, limit, fired = 0.0;
+    double theta, span, limit, fired = 0.0, last = 0.0;
+    int stalled = 0, have_last = 0;
     int rc = dfwb_check_t_end(err, pw->t, t_end);
     if (rc != DFWB_OK)
         return rc;
@@ -686,6 +691,17 @@ int dfwb_pw_advance(dfwb_pw *pw, double t_end, const dfwb_motion *subject, dfwb_
         if (rc != DFWB_OK || !has || err->overflow != NULL)
             break;
         fired += 1.0;
+        stalled = have_last && t_event - last <= DFWB_STALL_ULPS * DFWB_EPS * fabs(t_event) ? stalled + 1 : 0;
+        last = t_event;
+        have_last = 1;
+        if (stalled > DFWB_STALL_EVENTS) {
+            char rte[DFWB_REPR_SIZE];
+            dfwb_repr(t_event, rte);
+            rc = dfwb_fail(err, DFWB_E_LIMIT, "more than %d events within %d ulp of each other at t = %s (last "
+                           "event: %s): the motion chatters below the resolution of time", DFWB_STALL_EVENTS,
+                           DFWB_STALL_ULPS, rte, dfwb_event_name(kind));
+            break;
+        }
         if (fired > limit) {
             char rt[DFWB_REPR_SIZE], rte[DFWB_REPR_SIZE];
             dfwb_repr(pw->t, rt);
@@ -824,7 +840,10 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
                || (s->type >= DFWB_SEARCH_PLANT && pw->cls->search != NULL))
               && (s->sign == 1.0 || s->sign == -1.0) && (s->has_level == 0 || s->has_level == 1)
               && isfinite(s->level) && (s->has_level || s->level == 0.0) && s->K >= 0.0 /* +inf allowed */
-              && (s->bounded == 0 || (s->bounded == 1 && s->type == DFWB_SEARCH_VELOCITY && s->K == 0.0))
+              && (s->bounded == 0
+                  || (s->bounded == 1 && s->K == 0.0
+                      && (s->type == DFWB_SEARCH_VELOCITY
+                          || (s->type >= DFWB_SEARCH_PLANT && pw->cls->search_bound != NULL))))
               && s->t_from >= pw->t_piece /* +inf allowed: it never starts */))
             return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: needs a known type, "
                              "sign +-1, a finite level, K >= 0 (0 when bounded, a velocity search's) and "

@@ -119,8 +119,9 @@ enum { DFWB_SEARCH_VELOCITY = 1, DFWB_SEARCH_POSITION = 2, DFWB_SEARCH_EDGE = 3 
  *   EDGE (EdgeSearch):         g = sign (level - x), g' = -sign v
  *   DFWB_SEARCH_PLANT and above: the plant's own, evaluated by its class's search function (sign, level and
  *   has_level are the plant's to use; sign is +-1, the state's check asks)
- * with |g''| <= K (a number) or, when bounded (a VELOCITY search only: CurvatureBound), |g''| <= the
- * subject's curvature bound on [t, inf), a function of t (K is then 0); from t_from; kind: its event. */
+ * with |g''| <= K (a number) or, when bounded, a function of t (K is then 0): for a VELOCITY search the
+ * subject's curvature bound on [t, inf) (CurvatureBound), for the plant's own its class's search_bound;
+ * from t_from; kind: its event. */
 typedef struct {
     int type;
     double sign, level;
@@ -212,6 +213,8 @@ struct dfwb_plant_class {
     const struct dfwb_loop_class *loop; /* its closed loop (loop.h), or NULL: none */
     /* g and g' of a search of the plant's own type (>= DFWB_SEARCH_PLANT) at t, or NULL: it has none */
     void (*search)(const void *plant, const dfwb_search *s, double t, double *g, double *dg);
+    /* |g''| on [t, inf) of such a search when it is bounded, or NULL: none of its searches is */
+    double (*search_bound)(const void *plant, const dfwb_search *s, double t);
 };
 
 /* The class of a plant kind (DFWB_PLANT_*), NULL for a kind the core does not know. */

@@ -359,4 +359,4 @@ static const dfwb_static_backlash zero_state = {0}; /* the state's size is count
 const dfwb_plant_class dfwb_static_backlash_class = {
     DFWB_PLANT_STATIC_BACKLASH, sizeof(dfwb_static_backlash), &zero_state, offsetof(dfwb_static_backlash, mass),
     fire, restart, state_io, validate, DFWB_STATIC_BACKLASH_PARAMS, 3, 1, init, output, counter, same,
-    &LOOP, NULL};
+    &LOOP, NULL, NULL};
