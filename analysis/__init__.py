@@ -27,7 +27,7 @@ A DF point has one shape everywhere, its record (a flat dict: ``F`` [N],
 Examples
 --------
 >>> import dfwb
->>> dfwb.names()
+>>> dfwb.names()[:3]
 ('friction', 'backlash', 'static-backlash')
 >>> response = dfwb.describing_function("friction", F=[10.0, 20.0], omega=1.0)
 >>> response.N.shape, response.periodic.tolist()

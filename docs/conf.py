@@ -85,5 +85,19 @@ def _copy_examples(app):
             copy.write_text(text)
 
 
+PLANTS_MARK = "<!-- plants: the table of the registered plants"
+
+
+def _plants_table(app, docname, source):
+    """The table of plants (guide/plant-fmus.md) from the registry, at build time: no copy to go stale."""
+    if docname == "guide/plant-fmus" and PLANTS_MARK in source[0]:
+        from dfwb.plants import markdown_table
+
+        head, mark, tail = source[0].partition(PLANTS_MARK)
+        comment, end, rest = tail.partition("-->")
+        source[0] = f"{head}{mark}{comment}{end}\n\n{markdown_table()}\n{rest}"
+
+
 def setup(app):
     app.connect("builder-inited", _copy_examples)
+    app.connect("source-read", _plants_table)

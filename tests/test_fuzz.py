@@ -35,6 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fuzz import harness  # noqa: E402
 from fuzz.harness import Sandbox, check, run_dfwb  # noqa: E402
 
+from dfwb.fmus.plants import KINDS, TABLES  # noqa: E402
+
 pytestmark = pytest.mark.fuzz
 
 STRESS = os.environ.get("DFWB_HYPOTHESIS", "default") == "stress"
@@ -65,7 +67,20 @@ def judge(result):
 # ----------------------------------------------------------------------------------------------------------
 # The plants' real parameter names (checked against dfwb.plants.registry below) and values that pass their checks.
 
-PARAMETERS = {
+def _ranges(table):
+    """Fuzzed ranges of a plant's parameters: each constant from a tenth to ten times its default (within its
+    bounds), an initial value in [-1, 1], a gap within a tenth of its clearance."""
+    ranges = {}
+    for p in table.constants:
+        lo, hi = p.bounds
+        ranges[p.name] = ((0.1 * p.default, 10.0 * p.default if hi is None else min(10.0 * p.default, hi))
+                          if p.default else (0.0, 1.0))
+    for p in table.initial:
+        ranges[p.name] = (0.0, 0.1 * table.defaults[p.half_of]) if p.half_of else (-1.0, 1.0)
+    return ranges
+
+
+PAPER = {  # the paper's plants, with ranges chosen by hand
     "friction": {"M": (0.1, 10.0), "B": (0.0, 5.0), "Fc": (0.0, 5.0), "Fs": (5.0, 10.0), "Dv": (0.0, 0.1),
                  "x0": (-1.0, 1.0), "v0": (-1.0, 1.0)},
     "backlash": {"M1": (0.1, 10.0), "M2": (0.1, 10.0), "h": (0.01, 1.0), "eps": (0.0, 1.0),
@@ -73,6 +88,7 @@ PARAMETERS = {
     "static-backlash": {"M": (0.1, 10.0), "k": (0.1, 10.0), "h": (0.01, 1.0), "x0": (-1.0, 1.0),
                         "v0": (-1.0, 1.0)},
 }
+PARAMETERS = {**{table.name: _ranges(table) for table in TABLES}, **PAPER}  # every plant of dfwb.fmus.plants
 PLANTS = tuple(PARAMETERS)
 RESERVED = ("F", "omega", "phi", "harmonics")
 JUNK_NAMES = ("", "m", "eps ", "M1=2", "__class__", "é", "x" * 300, "../h", "-h")
@@ -643,7 +659,7 @@ def test_harness_catches_writes_outside_and_bad_errors(sandbox_factory):
 def test_parameter_names_are_the_plants():
     from dfwb.plants.registry import PLANTS as REAL
 
-    assert {name: sorted(spec.defaults()) for name, spec in REAL.items()} == \
+    assert {name: sorted(REAL[name].defaults()) for name in KINDS} == \
         {name: sorted(names) for name, names in PARAMETERS.items()}
 
 

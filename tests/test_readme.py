@@ -1,7 +1,7 @@
 """The README and the documentation pages cannot go stale where they can be checked.
 
-- The table of plants between the ``plants`` markers (docs/guide/plant-fmus.md) is generated from the
-  registry (:mod:`dfwb.plants`); after adding a plant, ``python tests/test_readme.py`` rewrites it.
+- The table of plants (docs/guide/plant-fmus.md) is no copy: docs/conf.py writes it from the registry
+  (``dfwb.plants.markdown_table``) when the docs are built.
 - Every ``dfwb.x.y`` a page names exists; every relative link points to a file that exists; shell blocks
   can be pasted (no ``$`` prompts).
 - The README's tour runs: each command of its shell blocks after the set-up (with the venv's ``dfwb`` and
@@ -22,41 +22,21 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 PAGES = [README] + sorted((ROOT / "docs").rglob("*.md"))
 PLANT_PAGE = ROOT / "docs" / "guide" / "plant-fmus.md"
-BEGIN = "<!-- plants: generated from the registry; `python tests/test_readme.py` rewrites it -->"
-END = "<!-- /plants -->"
+MARK = "<!-- plants: the table of the registered plants"
 
 
-def _value(default, unit):
-    return f"{default:g}" + (f" {unit}" if unit else "")
+def test_the_plant_table_is_written_when_the_docs_are_built():
+    """plant-fmus.md holds no copy of the table (docs/conf.py writes dfwb.plants.markdown_table() there)."""
+    from dfwb.plants import markdown_table, names
 
-
-def plants_table():
-    """The table of plants, one row per registered plant, from the registry and the FMU facades."""
-    from dfwb.plants import names, plant
-
-    rows = ["| plant | FMU | what it is | parameters (defaults) | outputs | DF of |", "|---|---|---|---|---|---|"]
-    for name in names():
-        entry = plant(name)
-        parameters = ", ".join(f"`{p}` {_value(default, unit)}" for p, default, unit, _ in entry.model.parameters)
-        outputs = ", ".join(f"`{o}`" for o, *_ in entry.model.outputs)
-        rows.append(f"| `{name}` | `{entry.fmu_name}.fmu` | {entry.summary} | {parameters} | {outputs} | "
-                    f"`{entry.output}` |")
-    return "\n".join(rows)
-
-
-def _split(text):
-    """(before, table, after) around the generated table."""
-    start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
-    return text[:start], text[start:end].strip(), text[end:]
+    page = PLANT_PAGE.read_text()
+    assert MARK in page and "| plant | FMU |" not in page
+    rows = markdown_table().splitlines()[2:]
+    assert [row.split("`")[1] for row in rows] == list(names())
 
 
 def _pages():
     return [page for page in PAGES if "_build" not in page.parts and "examples" not in page.parent.parts[-1:]]
-
-
-def test_the_plant_table_is_the_registrys():
-    _, table, _ = _split(PLANT_PAGE.read_text())
-    assert table == plants_table(), f"{PLANT_PAGE.name}'s plant table is stale: run `python tests/test_readme.py`"
 
 
 def test_every_dfwb_name_in_the_pages_exists():
@@ -129,9 +109,3 @@ def test_the_readme_tour_runs(fmus, tmp_path):
     for block in python:
         exec(compile(block, "README.md", "exec"), namespace)
     assert namespace["r"].cycles and namespace["r"].coverage
-
-
-if __name__ == "__main__":
-    before, _, after = _split(PLANT_PAGE.read_text())
-    PLANT_PAGE.write_text(f"{before}\n\n{plants_table()}\n\n{after}")
-    print(f"{PLANT_PAGE}: plant table rewritten from the registry", file=sys.stderr)

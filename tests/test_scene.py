@@ -5,6 +5,7 @@ from pathlib import Path
 import pytest
 
 from dfwb.cli import main
+from dfwb.plants import names
 from dfwb.studies.scene import PAPER_FIGURES, SceneError, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,7 +62,7 @@ def test_points_expand_F_outer_grid_then_omega_and_merge_log_and_values():
      "series[0]: unknown parameter 'mass' for plant backlash (allowed: "),
     (("omega = [20.0]", "omega = [20.0]\nparams = {omega = 2}"), "omega is set by the describing-function engine"),
     (("plant = \"backlash\"", "plant = \"gearbox\""),
-     "series[0].plant: Input should be one of 'friction', 'backlash', 'static-backlash' (got 'gearbox')"),
+     "series[0].plant: Input should be one of " + ", ".join(map(repr, names())) + " (got 'gearbox')"),
     (("name = \"s\"", "name = \"a b\""), "series[0].name: String should match pattern"),
     (("[[series]]", "[engine]\ndrive = \"held\"\n[[series]]"),
      "engine.drive: Input should be 'internal' or 'input' (got 'held')"),

@@ -1,4 +1,4 @@
-"""The plants: the contract every plant fulfils, the registry, and the three built-in plants.
+"""The plants: the contract every plant fulfils, the registry, and the built-in plants.
 
 Examples
 --------
@@ -8,6 +8,18 @@ True
 """
 
 from dfwb.plants import builtin  # noqa: F401  (registers the built-in plants)
-from dfwb.plants.registry import PLANTS, RANGES, Demo, Plant, check_range, names, plant, register, unregister
+from dfwb.plants.registry import (
+                                  PLANTS,
+                                  RANGES,
+                                  Demo,
+                                  Plant,
+                                  check_range,
+                                  markdown_table,
+                                  names,
+                                  plant,
+                                  register,
+                                  unregister,
+)
 
-__all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "PLANTS", "RANGES", "check_range"]
+__all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "markdown_table", "PLANTS", "RANGES",
+           "check_range"]

@@ -15,7 +15,7 @@ mid-sweep.
 Examples
 --------
 >>> from dfwb.plants import names, plant
->>> names()
+>>> names()[:3]
 ('friction', 'backlash', 'static-backlash')
 >>> friction = plant("friction")
 >>> friction.output, friction.section, friction.counter
@@ -32,7 +32,8 @@ from typing import Callable, Mapping, Optional
 from dfwb.fmus.piecewise import PlantError, check
 from dfwb.fmus.plants import TABLES
 
-__all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "PLANTS", "RANGES", "check_range"]
+__all__ = ["Plant", "Demo", "register", "unregister", "plant", "names", "markdown_table", "PLANTS", "RANGES",
+           "check_range"]
 
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")  # a plant's name: a CLI word, a scene value, a file name
 RESERVED = {"F", "omega", "phi", "harmonics"}  # set by the engine itself
@@ -342,8 +343,8 @@ def register(entry):
     >>> entry = dfwb.register(dfwb.Plant("my-friction", MyFriction, output="x", section=("x", "v"),
     ...                                  modes=("mode",), initial={"x": "x0", "v": "v0"}, shifts={"x": 1.0},
     ...                                  position="x0"))
-    >>> dfwb.names()
-    ('friction', 'backlash', 'static-backlash', 'my-friction')
+    >>> dfwb.names() == before + ("my-friction",)
+    True
     >>> dfwb.plant("my-friction") is entry, dfwb.register(entry) is entry  # the same facts again: no change
     (True, True)
     >>> dfwb.register(dfwb.Plant("my-friction", FrictionMass, output="v", section=("x", "v"), modes=(),
@@ -409,12 +410,32 @@ def names():
     Examples
     --------
     >>> import dfwb
-    >>> dfwb.names()
+    >>> dfwb.names()[:3]  # the paper's plants first, then dfwb's others, then those registered since
     ('friction', 'backlash', 'static-backlash')
-    >>> [dfwb.plant(name).fmu_name for name in dfwb.names()]
+    >>> [dfwb.plant(name).fmu_name for name in dfwb.names()[:3]]
     ['FrictionMass', 'TwoMassBacklash', 'StaticBacklash']
     """
     return tuple(PLANTS)
+
+
+def markdown_table():
+    """The registered plants as a Markdown table (the docs' table of plants, written when they are built).
+
+    Examples
+    --------
+    >>> from dfwb.plants import markdown_table
+    >>> markdown_table().splitlines()[2].split(" | ")[:2]
+    ['| `friction`', '`FrictionMass.fmu`']
+    """
+    rows = ["| plant | FMU | what it is | parameters (defaults) | outputs | DF of |", "|---|---|---|---|---|---|"]
+    for name in names():
+        entry = plant(name)
+        parameters = ", ".join(f"`{p}` {default:g}" + (f" {unit}" if unit else "")
+                               for p, default, unit, _ in entry.model.parameters)
+        outputs = ", ".join(f"`{o}`" for o, *_ in entry.model.outputs)
+        rows.append(f"| `{name}` | `{entry.fmu_name}.fmu` | {entry.summary} | {parameters} | {outputs} | "
+                    f"`{entry.output}` |")
+    return "\n".join(rows)
 
 
 def plant(name):
@@ -431,10 +452,10 @@ def plant(name):
     ('friction', 'FrictionMass', 'x', 'm')
     >>> dfwb.plant(friction) is friction
     True
-    >>> dfwb.plant("frictoin")
+    >>> dfwb.plant("frictoin")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    dfwb.fmus.exact.PlantError: unknown plant 'frictoin' (allowed: friction, backlash, static-backlash)
+    dfwb.fmus.exact.PlantError: unknown plant 'frictoin' (allowed: friction, backlash, static-backlash...)
     """
     if isinstance(name, Plant) or getattr(name, "foreign", False) is True:
         return name
