@@ -95,7 +95,9 @@ def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
     With Fs > Fc every PI and PID setting whose linear loop is stable hunts by the truth, and the DF misses
     most of the hunting; with Fs = Fc nothing hunts; the PI loop at Kp = 10, Ki = 2 hunts with a period of
     57.26 s that the DF cannot represent; the hunting branch in Ki ends in a nonsmooth fold near 24.77 and
-    at infinity at the linear boundary Ki = 5; the PID's margin: it hunts for any larger gain, the DF says not.
+    at infinity at the linear boundary Ki = 5; the PID's margin: it hunts for any larger gain, the DF says not;
+    with a gear's play in front of the load (drivetrain), every stabilizing PI still hunts and the DF misses
+    most of that.
     """
     nbformat = pytest.importorskip("nbformat")
     import matplotlib
@@ -127,6 +129,10 @@ def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
         assert truth[linear].all(), f"{name}: a stabilizing setting that does not hunt"
         assert (truth & ~df).sum() > truth.sum() / 2, f"{name}: the DF sees most of the hunting"
         assert not (df & ~truth).any(), f"{name}: the DF predicts hunting the truth does not find"
+    linear, truth, df = _hunting(namespace["gear_map"])  # the drivetrain under PI
+    assert linear.any() and truth[linear].all(), "gear_map: a stabilizing setting that does not hunt"
+    assert (truth & linear & ~df).sum() > (truth & linear).sum() / 2, "gear_map: the DF sees most of the hunting"
+    assert not (df & ~truth).any(), "gear_map: the DF predicts hunting the truth does not find"
     for name in ("pi_coulomb", "pid_coulomb"):  # Fs = Fc = 5 N
         linear, truth, df = _hunting(namespace[name])
         assert linear.any() and not truth.any(), f"{name}: hunts without static friction"
