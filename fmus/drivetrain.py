@@ -30,6 +30,7 @@ masses take their common velocity at once if they start apart in speed).
 import math
 
 from . import backlash
+from .backlash import BacklashLoop
 from .contract import EventKind
 from .exact import Motion
 from .loops import FeedbackLoop
@@ -324,8 +325,11 @@ class DrivetrainLoop(FeedbackLoop):
     rise less than 1e-12 h; sliding until v = 0, stuck while |f| <= Fs.
     """
 
-    coordinates = ("x1", "v1", "gap", "w")
-    initial_parameters = ("x1_0", "v1_0", "v2_0", "gap0")
+    # the two-mass geometry is the backlash loop's: its coordinates, FMU values, check of the gap and stillness
+    coordinates, initial_parameters = BacklashLoop.coordinates, BacklashLoop.initial_parameters
+    fmu_values = staticmethod(BacklashLoop.fmu_values)
+    coordinates_of = staticmethod(BacklashLoop.coordinates_of)
+    check_coordinates, still = BacklashLoop.check_coordinates, BacklashLoop.still
     plant = Drivetrain
     KEYS = tuple(_key(side, s) for side in (FREE, LOWER, UPPER) for s in (-1, 0, 1))
     MODE_VALUES = {_key(side, s): 10 * side + s for side in (FREE, LOWER, UPPER) for s in (-1, 0, 1)}
@@ -343,23 +347,11 @@ class DrivetrainLoop(FeedbackLoop):
     def pivot(self, X):
         return 0.0
 
-    @staticmethod
-    def fmu_values(loop, X, f):
-        x1, v1, g, w = X[0], X[1], X[2], X[3]
-        return {"x1": x1, "v1": v1, "x2": x1 + g, "v2": v1 + w, "gap": g}
-
     def linear(self):
         return [1.0], [self.M1 + self.M2, self.B, 0.0]
 
     def nonlinearity(self):
         return "force", max(self.Fs, self.Fc)
-
-    def still(self, F, omega):
-        return F <= 0.25 * self.h * self.M2 * omega * omega  # M2 from rest at the centre never reaches a wall
-
-    @staticmethod
-    def coordinates_of(output):
-        return [output.x1, output.v1, output.gap, output.v2 - output.v1]
 
     def __init__(self, b, a, M1=DEFAULT.M1, M2=DEFAULT.M2, h=DEFAULT.h, eps=DEFAULT.eps, B=DEFAULT.B, Fc=DEFAULT.Fc,
                  Fs=DEFAULT.Fs, x1_0=DEFAULT.x1_0, v1_0=DEFAULT.v1_0, v2_0=DEFAULT.v2_0, gap0=DEFAULT.gap0, z0=None,
@@ -370,9 +362,6 @@ class DrivetrainLoop(FeedbackLoop):
         self.tol_h = 1e-12 * h
         self.impacts = 0
         super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget)
-
-    def check_coordinates(self, q):
-        check("gap", q[2], lambda: 0.0 <= q[2] <= self.h, f"the gap must be in [0, h] = [0, {self.h!r}] (m)")
 
     def plant_mode(self, key):
         M1, M2, B, Fc = self.M1, self.M2, self.B, self.Fc

@@ -376,12 +376,13 @@ static void state_io(dfwb_io *io, void *plant)
 /* Whether search s is one the plant's mode makes (its type, sign, level and bound). */
 static int known_search(const dfwb_drivetrain *p, const dfwb_search *s)
 {
+    if (s->bounded != (p->pw.output.lam != 0.0)) /* every search of a damped motion has a decaying bound */
+        return 0;
     if (s->kind == DFWB_EVENT_BAND)
         return s->type == DFWB_SEARCH_VELOCITY && !s->has_level && s->sign == (double)p->slip && p->slip != 0;
     if (p->contact != FREE)
-        return s->kind == DFWB_EVENT_RELEASE && s->type == PRESSING && !p->rigid && !s->has_level && s->sign == (double)side_sigma(p->contact) && p->slip != 0;
-    if (s->bounded != (p->pw.output.lam != 0.0)) /* a damped load's searches are bounded by decaying bounds */
-        return 0;
+        return s->kind == DFWB_EVENT_RELEASE && s->type == PRESSING && !p->rigid && !s->has_level
+               && s->sign == (double)side_sigma(p->contact) && p->slip != 0;
     if (s->kind == DFWB_EVENT_APEX)
         return s->type == SEPARATION && !s->has_level && s->sign == -(double)p->departing && p->departing != 0;
     if (s->kind == DFWB_EVENT_WALL_LOWER)
@@ -740,4 +741,5 @@ static const dfwb_drivetrain zero_state = {0}; /* the state's size is counted on
 
 const dfwb_plant_class dfwb_drivetrain_class = {
     DFWB_PLANT_DRIVETRAIN, sizeof(dfwb_drivetrain), &zero_state, offsetof(dfwb_drivetrain, pw.output), fire,
-    restart, state_io, validate, DFWB_DRIVETRAIN_PARAMS, 5, 3, init, output, counter, same, &LOOP, search, search_bound};
+    restart, state_io, validate, DFWB_DRIVETRAIN_PARAMS, 5, 3, init, output, counter, same, &LOOP, search,
+    search_bound};

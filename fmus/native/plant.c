@@ -846,8 +846,8 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
                           || (s->type >= DFWB_SEARCH_PLANT && pw->cls->search_bound != NULL))))
               && s->t_from >= pw->t_piece /* +inf allowed: it never starts */))
             return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: needs a known type, "
-                             "sign +-1, a finite level, K >= 0 (0 when bounded, a velocity search's) and "
-                             "t_from >= t_piece", i);
+                             "sign +-1, a finite level, K >= 0 (0 when bounded: a velocity search's or the plant's "
+                             "own) and t_from >= t_piece", i);
     }
     if (pw->has_found) {
         for (i = 0; i < pw->nsearch; i++)
