@@ -207,6 +207,19 @@ class Motion:
             transient *= math.exp(-lam * (t - self.t0))
         return transient + P * self.omega ** 2
 
+    def integral_error(self, t):
+        """A bound on the error of :meth:`integral` and :meth:`fourier` beyond rounding: none (closed form).
+
+        With :meth:`position_error` and :meth:`velocity_error` (also none), what a piece of the integrated
+        family (:class:`~.integrated.Trajectory`) reports, so a plant may mix the two."""
+        return 0.0
+
+    def position_error(self, t):
+        return 0.0
+
+    def velocity_error(self, t):
+        return 0.0
+
     def integral(self, t):
         """Integral of x from t0 to t."""
         tau = t - self.t0

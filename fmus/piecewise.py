@@ -64,7 +64,9 @@ class Search:
     """A pending zero search: ``fun(t) -> (g, g')`` with |g''| <= K, from t_from; ``kind``: its EventKind.
 
     ``K`` is a number, or a function of t bounding |g''| on [t, inf) (a
-    decaying transient's bound tightens as the search advances).
+    decaying transient's bound tightens as the search advances), or None:
+    ``fun`` is an integrated motion (:class:`~.integrated.Trajectory`) that
+    finds its own event, ``fun.first_zero(lo, hi)``.
     """
 
     __slots__ = ("fun", "K", "t_from", "kind")
@@ -219,6 +221,10 @@ class PiecewisePlant:
         self.events = 0
         self.event_log = None  # set to a list to record (time, EventKind) of every counted event
         self._integrals = [0j] * (self.harmonics + 1)
+        # Bounds on the errors of integrated pieces (.integrated; closed forms add none): the integrals' from
+        # the closed pieces, the position's carried into the current piece (it moves every later position),
+        # and the velocity's where the last piece ended (an integrated piece started there takes it over)
+        self._integral_error = self._position_error = self._velocity_error = 0.0
 
     # -- pieces ---------------------------------------------------------
     def _begin(self, t, output, analytic=math.inf, analytic_kind=None, searches=()):
@@ -255,8 +261,8 @@ class PiecewisePlant:
                 # past an event already found the piece has ended: its functions need not (and, past a
                 # stop, may not: a force tending to zero) be resolved there
                 hi = b if self._found is None else self._found[0]
-                if lo < hi:
-                    root = first_root(s.fun, lo, hi, s.K)
+                if lo < hi:  # K None: an integrated motion (.integrated) that locates its own event
+                    root = first_root(s.fun, lo, hi, s.K) if s.K is not None else s.fun.first_zero(lo, hi)
                     if root is not None and (self._found is None or root < self._found[0]):
                         self._found = (root, s.kind)
             self._searched = b
@@ -269,6 +275,10 @@ class PiecewisePlant:
         """Add the piece's Fourier integrals from its start to t."""
         for k, value in enumerate(self._piece_integrals(t)):
             self._integrals[k] += value
+        out = self._output
+        self._integral_error += out.integral_error(t) + self._position_error * (t - self._t_piece)
+        self._position_error += out.position_error(t)
+        self._velocity_error = out.velocity_error(t)
 
     def _piece_integrals(self, t):
         out = self._output
@@ -334,3 +344,9 @@ class PiecewisePlant:
     def integrals(self):
         """Running integrals I_k(t) = int_0^t y exp(-i k omega s) ds, k = 0..harmonics."""
         return [acc + piece for acc, piece in zip(self._integrals, self._piece_integrals(self.t))]
+
+    def integrals_error(self):
+        """A bound on the error of every integral I_k(t) (y's unit times s): 0 for closed-form pieces (exact to
+        rounding), the integrated pieces' own bound (:meth:`~.integrated.Trajectory.integral_error`) for the rest."""
+        return (self._integral_error + self._output.integral_error(self.t)
+                + self._position_error * (self.t - self._t_piece))

@@ -1,0 +1,382 @@
+"""The second solver family: a mode with no closed form, integrated by an embedded Runge-Kutta pair.
+
+The exact family (:mod:`.exact`) needs every mode to be ``x'' = -lam x' + a +
+b cos(omega t + phi)``. A friction law that varies with the velocity
+(Stribeck's drop from breakaway to Coulomb friction) is not of that form; its
+sliding phase
+
+    x' = v,   v' = law(t, v)
+
+is integrated here by the Dormand-Prince pair DOPRI5(4) (Dormand & Prince
+1980; the continuous extension and the step control of Hairer, Norsett &
+Wanner, *Solving Ordinary Differential Equations I*, 2nd ed., II.4-II.6),
+with local extrapolation (the 5th-order solution is kept) and dense output.
+
+A :class:`Trajectory` is a piece's motion: it has the interface of
+:class:`~.exact.Motion` that :class:`~.piecewise.PiecewisePlant` reads
+(``state``, ``acceleration``, ``integral``, ``fourier``), and it finds its
+own event (the velocity falling to zero in the direction of motion) by
+integrating to it: :class:`~.piecewise.PiecewisePlant` asks it through a
+:class:`~.piecewise.Search` whose bound ``K`` is None.
+
+What makes it a solver dfwb can stand behind:
+
+- **Independent of the communication step.** Steps are chosen by the error
+  control alone, from the piece's start, whole steps only; a time between
+  two step ends is read from the dense output. Where an importer stops never
+  changes a step, so the result is the same to the bit for any step.
+- **Scale and translation invariant.** The displacement d = x - x0 is
+  integrated, not x; each component's tolerance is ``rtol`` times the
+  largest size it has had in the piece. Changing units or moving the plant
+  changes no step.
+- **Fourier integrals to the tolerance.** Each step's ``int x exp(-i k omega
+  t) dt`` is a 9-point Gauss-Legendre rule on the dense output; a step spans
+  at most 1/32 of the drive's period, so the rule's own error (phase span
+  below 2 rad at k = 10) is far below rounding.
+- **An honest error.** ``error`` bounds the error of the integral of x so
+  far (its absolute error, m s): the local error estimates of each step,
+  with the velocity's propagated into the position without credit for
+  damping. The describing-function engine turns it into ``N_error``.
+- **Bounded.** At most MAX_REJECTIONS rejections in a row, MAX_STEPS steps
+  in one call, and a step never below STEP_FLOOR ulp of the time: beyond,
+  PlantError (the mode is too stiff for an explicit pair: a light mass with
+  strong damping).
+
+Plain Python (``math``, ``cmath``) only: this module runs inside the FMUs.
+"""
+
+import cmath
+import math
+
+from .exact import EPS, PlantError
+
+__all__ = ["Trajectory", "RTOL", "GAUSS_NODES", "GAUSS_WEIGHTS"]
+
+RTOL = 1e-9  # the family's default relative tolerance
+STEPS_PER_PERIOD = 32  # a step spans at most this fraction of the drive's period
+MAX_REJECTIONS = 60  # in a row: 0.2^60 of a step is far below any resolvable step
+MAX_STEPS = 1_000_000  # steps one call may take (an FMU's step costs seconds at most)
+# Hairer's stiffness test (DOPRI5's): h |lambda| estimated from the last two stages beyond 3.25 (the pair's
+# stability edge) on STIFF_STEPS accepted steps in a row means the step is held by stability, not accuracy;
+# refused once that holds it below STIFF_FRACTION of the largest step (thousands of steps per drive period).
+STIFF_STEPS, STIFF_FRACTION = 15, 1e-3
+STEP_FLOOR = 64.0  # ulp of the time: a step below this is refused (the mode is stiff or singular)
+SAFETY, GROW, SHRINK = 0.9, 5.0, 0.2  # step control: h_new = h * clip(0.9 err^(-1/5), 0.2, 5)
+EVENT_SAMPLES = 8  # an event function is sampled at this many points of each step before refinement
+REFINE_ITERATIONS = 200  # Illinois steps on one bracket (each at least halves it within 2 steps)
+
+# Dormand-Prince 5(4): nodes, stages, the 5th-order weights (the 7th stage is the next step's first: FSAL),
+# the difference to the 4th-order weights, and the dense output's coefficients (Hairer's DOPRI5).
+C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
+A = (
+    (),
+    (1 / 5,),
+    (3 / 40, 9 / 40),
+    (44 / 45, -56 / 15, 32 / 9),
+    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
+    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
+    (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
+)
+E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
+D = (-12715105075 / 11282082432, 0.0, 87487479700 / 32700410799, -10690763975 / 1880347072,
+     701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423)
+
+
+def _gauss_legendre(n):
+    """Nodes in [0, 1] and weights of the n-point Gauss-Legendre rule (Newton on P_n, to rounding)."""
+    nodes, weights = [], []
+    for i in range(1, n + 1):
+        z = math.cos(math.pi * (i - 0.25) / (n + 0.5))
+        for _ in range(100):
+            p0, p1 = 1.0, z
+            for k in range(2, n + 1):
+                p0, p1 = p1, ((2 * k - 1) * z * p1 - (k - 1) * p0) / k
+            dp = n * (z * p1 - p0) / (z * z - 1.0)
+            step = p1 / dp
+            z -= step
+            if abs(step) <= 4.0 * EPS:
+                break
+        p0, p1 = 1.0, z  # P_n' at the final node
+        for k in range(2, n + 1):
+            p0, p1 = p1, ((2 * k - 1) * z * p1 - (k - 1) * p0) / k
+        dp = n * (z * p1 - p0) / (z * z - 1.0)
+        nodes.append(0.5 * (1.0 - z))
+        weights.append(1.0 / ((1.0 - z * z) * dp * dp))  # 2 / ((1 - z^2) P_n'^2), halved for [0, 1]
+    return tuple(nodes), tuple(weights)
+
+
+GAUSS_NODES, GAUSS_WEIGHTS = _gauss_legendre(9)
+
+
+class Trajectory:
+    """The motion ``x' = v, v' = law(t, v)`` from ``(t0, x0, v0)``, integrated to its stop.
+
+    ``law`` is plain data with ``__call__(t, v)`` (the acceleration); the
+    stop is the first time after t0 where ``sign * v`` falls to zero (the
+    direction of motion, sign +-1). ``period`` is the drive's (it caps the
+    step), ``harmonics`` how many Fourier integrals a piece keeps.
+
+    It holds its steps from the one containing the earliest time still asked
+    for: a time before that is refused (the plant's time only increases).
+    """
+
+    __slots__ = ("law", "t0", "x0", "v0", "sign", "omega", "harmonics", "rtol", "max_step", "steps", "h",
+                 "k_last", "peak", "error", "stopped", "taken", "stiff")
+
+    def __init__(self, law, t0, x0, v0, sign, omega, harmonics, rtol=RTOL, v_error=0.0):
+        self.law, self.t0, self.x0, self.v0, self.sign = law, t0, x0, v0, sign
+        self.omega, self.harmonics, self.rtol = omega, harmonics, rtol
+        self.max_step = 2.0 * math.pi / omega / STEPS_PER_PERIOD
+        self.h = self.max_step / 64.0  # grown by the control within a few steps
+        self.k_last = law(t0, v0)  # v' at the end of the last step (first same as last)
+        self.peak = [0.0, abs(v0)]  # the largest |d|, |v| so far: the tolerance's scale
+        # bounds on |error| of d and of v at the last step's end (v0's own error: ``v_error``, the plant's
+        # velocity_error where its last piece ended)
+        self.error = [0.0, v_error]
+        self.stopped = None  # the stop's time once found
+        self.taken = 0  # steps taken (accepted)
+        self.stiff = [0, 0]  # steps held by the pair's stability (Hairer's test), and calm steps since
+        # Each step: (a, h, d0, v0, the dense coefficients of d (5) and of v (4), the integrals [0..harmonics]
+        # of x from t0 to a, the error bound of int d dt from t0 to a, the bound on |err d| within the step).
+        # Starts with a step of zero length at t0.
+        self.steps = [(t0, 0.0, 0.0, v0, (0.0,) * 5, (0.0,) * 4, (0j,) * (harmonics + 1), 0.0, 0.0)]
+
+    # -- the motion's interface (as exact.Motion) ------------------------------------------------
+    def state(self, t):
+        """Position and velocity at t (t0 <= t <= the integrated end)."""
+        step = self._step_at(t)
+        d, v = _dense(step, t)
+        return self.x0 + d, v
+
+    def acceleration(self, t, v):
+        return self.law(t, v)
+
+    def integral(self, t):
+        """Integral of x from t0 to t."""
+        return self._integrals(t, 0)[0].real
+
+    def fourier(self, t, harmonics, x1=None, v1=None):
+        """[int_{t0}^{t} x(s) exp(-i k omega s) ds for k = 1..harmonics] (x1, v1: unused, for Motion's interface)."""
+        return self._integrals(t, harmonics)[1:]
+
+    def position_error(self, t):
+        """A bound on the error of the displacement at t (m)."""
+        return self._step_at(t)[8]
+
+    def velocity_error(self, t):
+        """A bound on the error of the velocity at t (m/s); 0 once stopped (the plant then sets it to zero)."""
+        return 0.0 if self.stopped is not None and t >= self.stopped else self.error[1]
+
+    def integral_error(self, t):
+        """A bound on the error of int_{t0}^{t} x ds (m s): each Fourier integral's error is at most this."""
+        step = self._step_at(t)
+        return step[7] + step[8] * (t - step[0])
+
+    # -- integration ---------------------------------------------------------------------------------
+    @property
+    def end(self):
+        """The time integrated to."""
+        a, h = self.steps[-1][0], self.steps[-1][1]
+        return a + h
+
+    def first_zero(self, lo, hi):
+        """The stop's time if it is in (lo, hi], integrating on as far as needed; else None.
+
+        A ``Search`` with K None calls this (see :class:`~.piecewise.PiecewisePlant`).
+        """
+        if self.stopped is not None:
+            return self.stopped if lo < self.stopped <= hi else None
+        taken = 0
+        while self.end < hi:
+            taken += 1
+            if taken > MAX_STEPS:
+                raise PlantError(f"more than {MAX_STEPS} integration steps between t = {lo!r} and t = {hi!r} s: "
+                                 f"the sliding motion is too stiff for the integrated solver (a light mass with "
+                                 f"strong damping); take smaller steps or a larger mass")
+            self._step()
+            if self.stopped is not None:
+                return self.stopped if lo < self.stopped <= hi else None
+        return None
+
+    def _step(self):
+        """One accepted step past the end (or the stop within it: then ``stopped`` is set)."""
+        last = self.steps[-1]
+        a, d0, v0 = last[0] + last[1], last[2] + last[4][0], last[3] + last[5][0]  # its end
+        law, rtol, sign = self.law, self.rtol, self.sign
+        k1 = self.k_last
+        h = min(self.h, self.max_step)
+        for _ in range(MAX_REJECTIONS):
+            if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
+                break
+            kv = [k1]  # the stages of v' (the stages of d' are the stages' velocities)
+            vs = [v0]
+            for i in range(1, 7):
+                vi = v0 + h * sum(aij * kj for aij, kj in zip(A[i], kv))
+                vs.append(vi)
+                kv.append(law(a + C[i] * h, vi))
+            v1 = vs[6]  # the 7th stage is at the 5th-order solution
+            d1 = d0 + h * sum(b * vi for b, vi in zip(A[6], vs))
+            err_d = h * sum(e * vi for e, vi in zip(E, vs))
+            err_v = h * sum(e * ki for e, ki in zip(E, kv))
+            scale_d = rtol * max(self.peak[0], abs(d1), abs(d0))
+            scale_v = rtol * max(self.peak[1], abs(v1), abs(v0))
+            ratio = max(abs(err_d) / scale_d if scale_d else (0.0 if err_d == 0.0 else math.inf),
+                        abs(err_v) / scale_v if scale_v else (0.0 if err_v == 0.0 else math.inf))
+            factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
+            if ratio <= 1.0:
+                break
+            h *= factor
+        else:
+            ratio = math.inf
+        if not ratio <= 1.0:
+            raise PlantError(f"the integrated solver cannot resolve the motion at t = {a!r} s: its step fell below "
+                             f"{STEP_FLOOR:g} ulp of the time (a stiff or singular sliding law)")
+        self.taken += 1
+        # Hairer's stiffness test: h |lambda| ~ h |k7 - k6| / |v7 - v6|; 6 calm steps in a row reset the count
+        spread = abs(vs[6] - vs[5])
+        if spread and h * abs(kv[6] - kv[5]) > 3.25 * spread:
+            self.stiff[0] += 1
+            self.stiff[1] = 0
+            if self.stiff[0] >= STIFF_STEPS and h < STIFF_FRACTION * self.max_step:
+                raise PlantError(f"the sliding motion at t = {a!r} s is too stiff for the integrated solver: its "
+                                 f"step ({h:.3g} s) is held by the explicit pair's stability, below "
+                                 f"{STIFF_FRACTION:g} of a drive period's 1/{STEPS_PER_PERIOD} (a light mass with "
+                                 f"strong damping)")
+        else:
+            self.stiff[1] += 1
+            if self.stiff[1] >= 6:
+                self.stiff = [0, 0]
+        # Dense output. v: Hairer's contd5, 4th order:
+        #   v(a + theta h) = v0 + theta (r1 + (1 - theta) (r2 + theta (r3 + (1 - theta) r4)));
+        # d: the quintic Hermite of d, d' = v and d'' = v' at both ends, 5th order like the step (contd5's
+        # quartic for d is one order short: at rtol 1e-7 its error mid-step is 50 times the step's own).
+        dv = v1 - v0
+        r2v = h * k1 - dv
+        r3v = dv - h * kv[6] - r2v
+        r4v = h * sum(c * k for c, k in zip(D, kv))
+        quintic = (d1 - d0, h * v0, h * h * k1, h * v1, h * h * kv[6])
+        # the interpolation's error, bounded by the quintic's distance to contd5's quartic for d (the cruder)
+        quartic_d = (d1 - d0, h * v0 - (d1 - d0), (d1 - d0) - h * v1 - (h * v0 - (d1 - d0)),
+                     h * sum(c * vi for c, vi in zip(D, vs)))
+        dense_error = max(abs(_quintic(0.0, quintic, theta) - _poly(0.0, quartic_d, theta))
+                          for theta in (0.25, 0.5, 0.75))
+        last = self.steps[-1]
+        step_error = last[7] + last[8] * last[1]  # the bound on int |err d| from t0 to a
+        integrals = self._step_integrals(last, self.harmonics, a)
+        # the error bounds at the step's end: the velocity's error moves the position by at most itself times h
+        self.error = [self.error[0] + self.error[1] * h + abs(err_d), self.error[1] + abs(err_v)]
+        record = (a, h, d0, v0, quintic, (dv, r2v, r3v, r4v), integrals, step_error,
+                  self.error[0] + 1.5 * dense_error)  # |err d| anywhere in the step
+        self.peak = [max(self.peak[0], abs(d1)), max(self.peak[1], abs(v1))]
+        self.k_last = kv[6]
+        self.h = h * factor
+        # the stop: the first sample of sign v at or below zero, past the start's own zero
+        previous = (0.0, sign * v0)
+        for j in range(1, EVENT_SAMPLES + 1):
+            theta = j / EVENT_SAMPLES
+            g = sign * _dense_v(record, theta)
+            if g <= 0.0 and previous[1] > 0.0:
+                self.stopped = a + h * _illinois(record, sign, previous[0], previous[1], theta, g)
+                break
+            previous = (theta, g)
+        self.steps.append(record)
+
+    # -- reading the steps -------------------------------------------------------------------------------
+    def _step_at(self, t):
+        """The step containing t; the steps before it are dropped (never asked for again)."""
+        steps = self.steps
+        if not steps[0][0] <= t:
+            raise PlantError(f"t = {t!r} is out of range: this piece's integrated motion starts at {steps[0][0]!r} s")
+        i = 0
+        while i + 1 < len(steps) and steps[i + 1][0] < t:
+            i += 1
+        step = steps[i]
+        if t > step[0] + step[1] and i == len(steps) - 1:
+            raise PlantError(f"t = {t!r} is out of range: the motion is integrated to {step[0] + step[1]!r} s")
+        if i:
+            del steps[:i]
+        return step
+
+    def _integrals(self, t, harmonics):
+        step = self._step_at(t)
+        return self._step_integrals(step, harmonics, t)[:harmonics + 1]
+
+    def _step_integrals(self, step, harmonics, t):
+        """The integrals of x from t0 to t (t within ``step``): the step's start's, plus Gauss on [a, t]."""
+        a, h = step[0], step[1]
+        total = list(step[6])
+        span = t - a
+        if not span > 0.0 or not h:
+            return total
+        omega = self.omega
+        for node, weight in zip(GAUSS_NODES, GAUSS_WEIGHTS):
+            s = a + node * span
+            d, _v = _dense(step, s)
+            x = (self.x0 + d) * weight * span
+            total[0] += x
+            if harmonics:
+                z = cmath.exp(-1j * omega * s)
+                zk = z
+                for k in range(1, harmonics + 1):
+                    total[k] += x * zk
+                    zk *= z
+        return total
+
+
+def _dense(step, t):
+    """(d, v) of a step at t, by its dense output."""
+    a, h = step[0], step[1]
+    if not h:
+        return step[2], step[3]
+    theta = (t - a) / h
+    return _quintic(step[2], step[4], theta), _poly(step[3], step[5], theta)
+
+
+def _dense_v(step, theta):
+    return _poly(step[3], step[5], theta)
+
+
+def _quintic(y0, c, theta):
+    """y0 plus the quintic Hermite of a step: c = (y1 - y0, h y0', h^2 y0'', h y1', h^2 y1'')."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    one = 1.0 - theta
+    return y0 + (c[0] * t3 * (10.0 - 15.0 * theta + 6.0 * t2)
+                 + c[1] * theta * one * one * (1.0 + 2.0 * theta - 3.0 * t2)
+                 + c[2] * 0.5 * t2 * one * one * one
+                 + c[3] * t3 * (-4.0 + 7.0 * theta - 3.0 * t2)
+                 + c[4] * 0.5 * t3 * one * one)
+
+
+def _poly(y0, r, theta):
+    one = 1.0 - theta
+    return y0 + theta * (r[0] + one * (r[1] + theta * (r[2] + one * r[3])))
+
+
+def _illinois(step, sign, lo, g_lo, hi, g_hi):
+    """The zero of sign v in (lo, hi] of a step's dense output (theta), g(lo) > 0 >= g(hi): Illinois."""
+    if g_hi == 0.0:
+        return hi
+    side = 0
+    for _ in range(REFINE_ITERATIONS):
+        mid = hi - g_hi * (hi - lo) / (g_hi - g_lo)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+            if not lo < mid < hi:
+                break
+        g = sign * _dense_v(step, mid)
+        if g > 0.0:
+            lo, g_lo = mid, g
+            if side == 1:
+                g_hi *= 0.5
+            side = 1
+        else:
+            hi, g_hi = mid, g
+            if side == -1:
+                g_lo *= 0.5
+            side = -1
+            if g == 0.0:
+                break
+        if hi - lo <= 2.0 * EPS * max(hi, 1.0):
+            break
+    return hi

@@ -1,0 +1,129 @@
+"""The integrated solver family (dfwb.fmus.integrated) against closed forms: the exact Motion, and the exact
+friction mass with its slides integrated instead of solved. Its error bound must hold (never below the true
+error) and be tight (within a factor of 1000), its result must not depend on where it is asked, and every
+refusal must be one line."""
+
+import math
+
+import pytest
+
+from dfwb.fmus.contract import EventKind
+from dfwb.fmus.exact import Motion, PlantError
+from dfwb.fmus.friction import SLIDE, FrictionMass
+from dfwb.fmus.integrated import GAUSS_NODES, GAUSS_WEIGHTS, Trajectory
+from dfwb.fmus.piecewise import Search
+
+
+class Linear:
+    """v' = -lam v + a + b cos(omega t + phi): the law of a closed-form Motion."""
+
+    def __init__(self, lam, a, b, omega, phi):
+        self.lam, self.a, self.b, self.omega, self.phi = lam, a, b, omega, phi
+
+    def __call__(self, t, v):
+        return -self.lam * v + self.a + self.b * math.cos(self.omega * t + self.phi)
+
+
+CASES = [  # lam, a, b, omega, phi, t0, x0, v0
+    (0.5, -5.0, 10.0, 1.0, 0.3, 0.2, 1.0, 2.0),
+    (0.0, -2.0, 1.0, 3.0, -1.0, 0.0, 0.0, 4.0),
+    (20.0, -1.0, 30.0, 5.0, 2.0, 1.5, -3e5, 0.7),  # fast decay, far from the origin
+]
+
+
+def test_the_gauss_rule_is_exact_to_degree_17():
+    for degree in range(18):
+        assert abs(sum(w * x ** degree for x, w in zip(GAUSS_NODES, GAUSS_WEIGHTS)) - 1 / (degree + 1)) < 4e-16
+
+
+@pytest.mark.parametrize("case", CASES)
+@pytest.mark.parametrize("rtol", [1e-6, 1e-9, 1e-12])
+def test_a_trajectory_is_the_closed_form_within_its_bound(case, rtol):
+    lam, a, b, omega, phi, t0, x0, v0 = case
+    exact = Motion(t0, x0, v0, lam, a, b, omega, phi)
+    trajectory = Trajectory(Linear(lam, a, b, omega, phi), t0, x0, v0, 1, omega, 3, rtol)
+    stop = trajectory.first_zero(t0, t0 + 100.0)
+    assert stop is not None
+    assert abs(exact.state(stop)[1]) < 1e3 * rtol * abs(v0) + 1e-15  # it stops where the velocity is zero
+    scale = max(abs(v0) * (stop - t0), 1e-300)  # the displacement's scale
+    for t in [t0 + (stop - t0) * k / 7 for k in range(1, 8)]:
+        x, v = exact.state(t)
+        xi, vi = trajectory.state(t)
+        assert abs(xi - x) <= 1e3 * rtol * scale + 4e-16 * abs(x0)
+        truth = [exact.integral(t)] + exact.fourier(t, 3, x, v)
+        mine = [trajectory.integral(t)] + trajectory.fourier(t, 3)
+        error, bound = max(abs(p - q) for p, q in zip(truth, mine)), trajectory.integral_error(t)
+        rounding = 64 * 2.2e-16 * (abs(x0) + scale) * (t - t0 + 1 / omega)  # the closed form's own (by parts)
+        assert error <= bound + rounding, (t, error, bound)  # honest
+        assert bound <= 1e3 * max(error, rounding, 1e-3 * rtol * scale * (t - t0)), (t, error, bound)  # tight
+
+
+def test_where_it_is_asked_changes_nothing():
+    """The steps are the error control's alone: the same bits however the stop is searched and read."""
+    lam, a, b, omega, phi, t0, x0, v0 = CASES[0]
+
+    def run(grid):
+        trajectory = Trajectory(Linear(lam, a, b, omega, phi), t0, x0, v0, 1, omega, 3)
+        stop, lo = None, t0
+        for hi in grid:
+            stop = stop or trajectory.first_zero(lo, hi)
+            lo = hi
+        return stop, trajectory.state(1.3), trajectory.fourier(1.3, 3)
+
+    assert run([t0 + 0.01 * k for k in range(1, 200)]) == run([2.0]) == run([1.31, 1.5, 9.0])
+
+
+class IntegratedFriction(FrictionMass):
+    """The friction mass (Dv = 0) with each slide integrated by the family instead of solved in closed form."""
+
+    rtol = 1e-9
+
+    def _slide(self, t, x, v, s, departing):
+        self.mode, self.direction = SLIDE, s
+        d = self.drive
+        law = Linear(self.B / self.M, (d.f - s * self.Fc) / self.M, d.F / self.M, d.omega, d.phi)
+        trajectory = Trajectory(law, t, x, v, s, d.omega, self.harmonics, self.rtol, self._velocity_error)
+        self._begin(t, trajectory, searches=[Search(trajectory, None, t, EventKind.BAND)])
+
+
+@pytest.mark.parametrize("params", [dict(F=10.0, omega=1.0), dict(F=20.0, omega=3.0, B=2.0, Fs=9.0),
+                                    dict(F=8.0, omega=0.5, M=3.0, Fc=2.0, Fs=2.0, phi=1.0)])
+@pytest.mark.parametrize("rtol", [1e-7, 1e-10])
+def test_integrated_slides_give_the_exact_friction_mass(params, rtol):
+    """Stick-slip over ten periods: the same events, the describing function's integrals within the bound."""
+    exact, integrated = FrictionMass(**params, harmonics=3), IntegratedFriction(**params, harmonics=3)
+    integrated.rtol = rtol
+    period = 2 * math.pi / params["omega"]
+    exact.event_log, integrated.event_log = [], []
+    for k in range(1, 81):
+        exact.advance(k * period / 8)
+        integrated.advance(k * period / 8)
+        truth, mine = exact.integrals(), integrated.integrals()
+        error, bound = max(abs(p - q) for p, q in zip(truth, mine)), integrated.integrals_error()
+        assert error <= bound + 1e-13 * k, (k, error, bound)
+        assert bound <= 1e3 * max(error, 1e-3 * rtol * k), (k, error, bound)
+        assert abs(integrated.output().x - exact.output().x) < 1e4 * rtol
+    assert [kind for _t, kind in integrated.event_log] == [kind for _t, kind in exact.event_log]
+    assert max(abs(p[0] - q[0]) for p, q in zip(integrated.event_log, exact.event_log)) < 1e4 * rtol
+    assert exact.events > 10
+
+
+def test_the_friction_mass_integrated_does_not_depend_on_the_communication_step():
+    runs = []
+    for n in (3, 8, 50):
+        plant = IntegratedFriction(F=10.0, omega=1.0, harmonics=2)
+        for k in range(1, 4 * n + 1):
+            plant.advance(k * 2 * math.pi / n)
+        runs.append((plant.output(), plant.integrals(), plant.integrals_error(), plant.events))
+    assert runs[0] == runs[1] == runs[2]
+
+
+@pytest.mark.parametrize("law, message", [
+    (Linear(1e6, 1e6, 0.0, 1.0, 0.0), "too stiff for the integrated solver: its step"),  # v -> 1, never stops
+    (lambda t, v: math.nan, "cannot resolve"),
+])
+def test_a_law_it_cannot_integrate_is_refused_in_one_line(law, message):
+    trajectory = Trajectory(law, 0.0, 0.0, 0.5, 1, 1.0, 0)
+    with pytest.raises(PlantError, match=message) as caught:
+        trajectory.first_zero(0.0, 1e6)
+    assert "\n" not in str(caught.value)
