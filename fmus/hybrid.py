@@ -43,6 +43,7 @@ Plain Python (``math``) only: this module runs inside the FMUs.
 import math
 
 from .exact import EPS, MAX_EVENTS_PER_STEP, Diverged, PlantError, first_root, too_many_events
+from .integrated import TREND_ROUNDING, IntegratedMode
 
 TAYLOR_RADIUS = 1.0  # rho h: the Taylor terms decrease from the first
 TAYLOR_TOLERANCE = 2.0 ** -60  # relative truncation of a chunk's series
@@ -52,7 +53,6 @@ TIME_LIMIT = 1e12  # chunks of the fastest mode in [0, t]: beyond, ulp(t) is a s
 MAX_CHUNKS_PER_STEP = 10_000_000  # the chunks one step may integrate (a study's Budget is at most this)
 NILPOTENT_CHUNK = 2.0 ** 20  # s: the chunk of a mode whose series ends (see nilpotency)
 MAX_STATE = 1e150  # a state beyond this diverges: long before floating point's end, where no event resolves
-TREND_ROUNDING = 64.0 * EPS  # a Taylor coefficient within this (relative to its scale) is zero
 SECTION_UP, SECTION_DOWN = "section+", "section-"  # crossings of a watched function (re-anchor, not events)
 SECTION = (SECTION_UP, SECTION_DOWN)
 
@@ -117,6 +117,7 @@ class Mode:
 
     __slots__ = ("key", "A", "c", "events", "h", "resolution", "terms", "psi", "rows", "abs_rows", "absA", "scale",
                  "reach", "norms", "tail", "curvature_tail")
+    integrated = False  # a closed-form mode (IntegratedMode: one integrated by .integrated)
 
     def __init__(self, key, A, c, events):
         self.key, self.A, self.c, self.events = key, A, c, tuple(events)
@@ -307,14 +308,22 @@ class HybridSolver:
     def mode(self, key):
         mode = self._modes.get(key)
         if mode is None:
-            A, c, events = self.system(key)
+            A, c, events, *nonlinear = self.system(key)
             if self._section is not None:
                 L, l0 = self._section
                 events = list(events) + [(SECTION_UP, [-v for v in L], -l0), (SECTION_DOWN, list(L), l0)]
-            mode = self._modes[key] = Mode(key, A, c, events)
+            if nonlinear and nonlinear[0] is not None:  # (row, col, law): X'[row] += law(X[col])
+                mode = IntegratedMode(key, A, c, events, nonlinear[0], self.rtol)
+            else:
+                mode = Mode(key, A, c, events)
+            self._modes[key] = mode
         return mode
 
+    rtol = None  # the relative tolerance of integrated modes (a system with any sets it)
+
     def system(self, key):
+        """(A, c, events) of mode ``key``, or (A, c, events, (row, col, law)) for a mode with the nonlinear
+        term law(X[col]) added to X'[row] (integrated, :class:`~.integrated.IntegratedMode`)."""
         raise NotImplementedError
 
     def _fire(self, t, kind, X):
@@ -344,8 +353,16 @@ class HybridSolver:
                 raise Diverged(f"the state is beyond [-{MAX_STATE:g}, {MAX_STATE:g}] at t = {t!r} s ({X}): the "
                                "loop diverges (or its initial values are too large)")
         self._a, self._X = t, X
-        self._dX = self._mode.derivative(X)
-        self._b = t + self._mode.h
+        mode = self._mode
+        self._dX = mode.derivative(X)
+        if mode.integrated:  # the chunk is one accepted step, sized by the error control from the piece's start
+            last = None if first else self._step
+            h, peak = (mode.first_step(), [abs(x) for x in X]) if last is None else (last[8], last[9])
+            self._step = mode.take(t, X, self._dX, h, peak)
+            self._b = t + self._step[1]
+        else:
+            self._step = None
+            self._b = t + mode.h
         self._first = first
         self._event = None
         self._searched = False
@@ -353,6 +370,9 @@ class HybridSolver:
     def _search(self):
         """The first event in the current chunk: (tau, kind) or None."""
         mode, X, dX = self._mode, self._X, self._dX
+        if mode.integrated:
+            skip = {i for i, event in enumerate(mode.events) if event[0] in SECTION and event[0] != self._watching}
+            return mode.search(self._step, skip, lambda index: not (self._first and index in self._departing))
         h = mode.h
         size = mode.balanced_size(dX)
         best = None
@@ -420,7 +440,7 @@ class HybridSolver:
                 if fired > MAX_EVENTS_PER_STEP:
                     raise too_many_events(self.t, self._a + tau, kind)
                 t = self._a + tau
-                X = self._mode.state(self._X, self._dX, tau)
+                X = self._state_at(tau)
                 self._time_rounding = 4.0 * EPS * abs(t)
                 if kind in SECTION:  # not an event of the system: watch the other direction from here
                     if kind is SECTION_UP:
@@ -448,11 +468,12 @@ class HybridSolver:
             chunks += 1
             if chunks > MAX_CHUNKS_PER_STEP:
                 raise PlantError(f"more than {MAX_CHUNKS_PER_STEP} chunks of integration in one step from "
-                                 f"t = {self.t!r} (at t = {self._b:.6g} s a chunk is {self._mode.h:.3g} s): take "
-                                 f"smaller steps")
+                                 f"t = {self.t!r} (at t = {self._b:.6g} s a chunk is {self._b - self._a:.3g} s): "
+                                 f"take smaller steps")
             if self._budget is not None:
-                self._budget.spend(self._b, self._mode.h)
-            self._chunk_start(self._b, self._mode.step(self._X, self._dX))
+                self._budget.spend(self._b, self._b - self._a)
+            end = list(self._step[3]) if self._mode.integrated else self._mode.step(self._X, self._dX)
+            self._chunk_start(self._b, end)
         self.t = t_end
 
     def sample(self, times):
@@ -468,4 +489,10 @@ class HybridSolver:
         tau = self.t - self._a
         if tau == 0.0:
             return list(self._X)
+        return self._state_at(tau)
+
+    def _state_at(self, tau):
+        """X at self._a + tau within the chunk."""
+        if self._mode.integrated:
+            return self._mode.state(self._step, tau)
         return self._mode.state(self._X, self._dX, tau)

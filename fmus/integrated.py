@@ -50,7 +50,9 @@ import math
 
 from .exact import EPS, PlantError
 
-__all__ = ["Trajectory", "RTOL", "GAUSS_NODES", "GAUSS_WEIGHTS"]
+TREND_ROUNDING = 64.0 * EPS  # as hybrid.TREND_ROUNDING: a coefficient within this of its scale is zero
+
+__all__ = ["Trajectory", "IntegratedMode", "RTOL", "GAUSS_NODES", "GAUSS_WEIGHTS"]
 
 RTOL = 1e-9  # the family's default relative tolerance
 STEPS_PER_PERIOD = 32  # a step spans at most this fraction of the drive's period
@@ -62,6 +64,7 @@ MAX_STEPS = 1_000_000  # steps one call may take (an FMU's step costs seconds at
 STIFF_STEPS, STIFF_FRACTION = 15, 1e-3
 STEP_FLOOR = 64.0  # ulp of the time: a step below this is refused (the mode is stiff or singular)
 SAFETY, GROW, SHRINK = 0.9, 5.0, 0.2  # step control: h_new = h * clip(0.9 err^(-1/5), 0.2, 5)
+ROUNDING = 64.0 * EPS  # the error control's floor: a step's rounding of its derivative's terms
 EVENT_SAMPLES = 8  # an event function is sampled at this many points of each step before refinement
 REFINE_ITERATIONS = 200  # Illinois steps on one bracket (each at least halves it within 2 steps)
 
@@ -111,23 +114,26 @@ GAUSS_NODES, GAUSS_WEIGHTS = _gauss_legendre(9)
 class Trajectory:
     """The motion ``x' = v, v' = law(t, v)`` from ``(t0, x0, v0)``, integrated to its stop.
 
-    ``law`` is plain data with ``__call__(t, v)`` (the acceleration); the
+    ``law`` is plain data with ``__call__(t, v)`` (the acceleration) and
+    ``size(t, v)`` (the sum of its terms' magnitudes: its rounding); the
     stop is the first time after t0 where ``sign * v`` falls to zero (the
-    direction of motion, sign +-1). ``period`` is the drive's (it caps the
-    step), ``harmonics`` how many Fourier integrals a piece keeps.
+    direction of motion, sign +-1), the start's own zero excepted. ``omega``
+    is the drive's (a step spans at most 1/32 of its period), ``harmonics``
+    how many Fourier integrals a piece keeps.
 
-    It holds its steps from the one containing the earliest time still asked
-    for: a time before that is refused (the plant's time only increases).
+    It keeps only its last step: :meth:`first_zero` integrates no further
+    than the step containing ``hi``, and every time asked of it (the plant's,
+    which only increases) lies in that step. So its state has a fixed size.
     """
 
-    __slots__ = ("law", "t0", "x0", "v0", "sign", "omega", "harmonics", "rtol", "max_step", "steps", "h",
-                 "k_last", "peak", "error", "stopped", "taken", "stiff")
+    __slots__ = ("law", "t0", "x0", "v0", "sign", "omega", "harmonics", "rtol", "max_step", "h", "k_last", "peak",
+                 "error", "stopped", "taken", "stiff", "step")
 
     def __init__(self, law, t0, x0, v0, sign, omega, harmonics, rtol=RTOL, v_error=0.0):
         self.law, self.t0, self.x0, self.v0, self.sign = law, t0, x0, v0, sign
         self.omega, self.harmonics, self.rtol = omega, harmonics, rtol
         self.max_step = 2.0 * math.pi / omega / STEPS_PER_PERIOD
-        self.h = self.max_step / 64.0  # grown by the control within a few steps
+        self.h = self.max_step / 64.0  # the next step's trial size (grown by the control within a few steps)
         self.k_last = law(t0, v0)  # v' at the end of the last step (first same as last)
         self.peak = [0.0, abs(v0)]  # the largest |d|, |v| so far: the tolerance's scale
         # bounds on |error| of d and of v at the last step's end (v0's own error: ``v_error``, the plant's
@@ -136,16 +142,15 @@ class Trajectory:
         self.stopped = None  # the stop's time once found
         self.taken = 0  # steps taken (accepted)
         self.stiff = [0, 0]  # steps held by the pair's stability (Hairer's test), and calm steps since
-        # Each step: (a, h, d0, v0, the dense coefficients of d (5) and of v (4), the integrals [0..harmonics]
-        # of x from t0 to a, the error bound of int d dt from t0 to a, the bound on |err d| within the step).
-        # Starts with a step of zero length at t0.
-        self.steps = [(t0, 0.0, 0.0, v0, (0.0,) * 5, (0.0,) * 4, (0j,) * (harmonics + 1), 0.0, 0.0)]
+        # The last step: [a, h, d0, v0, the dense coefficients of d (5) and of v (4), the integrals
+        # [0..harmonics] of x from t0 to a, the error bound of int d dt from t0 to a, the bound on |err d|
+        # within the step]. At first a step of zero length at t0.
+        self.step = [t0, 0.0, 0.0, v0, (0.0,) * 5, (0.0,) * 4, (0j,) * (harmonics + 1), 0.0, 0.0]
 
     # -- the motion's interface (as exact.Motion) ------------------------------------------------
     def state(self, t):
-        """Position and velocity at t (t0 <= t <= the integrated end)."""
-        step = self._step_at(t)
-        d, v = _dense(step, t)
+        """Position and velocity at t (within the last step)."""
+        d, v = _dense(self._step_at(t), t)
         return self.x0 + d, v
 
     def acceleration(self, t, v):
@@ -153,11 +158,11 @@ class Trajectory:
 
     def integral(self, t):
         """Integral of x from t0 to t."""
-        return self._integrals(t, 0)[0].real
+        return self._step_integrals(self._step_at(t), 0, t)[0].real
 
     def fourier(self, t, harmonics, x1=None, v1=None):
         """[int_{t0}^{t} x(s) exp(-i k omega s) ds for k = 1..harmonics] (x1, v1: unused, for Motion's interface)."""
-        return self._integrals(t, harmonics)[1:]
+        return self._step_integrals(self._step_at(t), harmonics, t)[1:harmonics + 1]
 
     def position_error(self, t):
         """A bound on the error of the displacement at t (m)."""
@@ -176,31 +181,30 @@ class Trajectory:
     @property
     def end(self):
         """The time integrated to."""
-        a, h = self.steps[-1][0], self.steps[-1][1]
-        return a + h
+        return self.step[0] + self.step[1]
 
     def first_zero(self, lo, hi):
-        """The stop's time if it is in (lo, hi], integrating on as far as needed; else None.
+        """The stop's time if it is at most ``hi``, integrating on to the step containing ``hi``; else None.
 
-        A ``Search`` with K None calls this (see :class:`~.piecewise.PiecewisePlant`).
+        A ``Search`` with K None calls this (see :class:`~.piecewise.PiecewisePlant`, which asks up to its
+        step's end at most); a stop found beyond an earlier ``hi`` is returned now, whatever ``lo``.
         """
         if self.stopped is not None:
-            return self.stopped if lo < self.stopped <= hi else None
+            return self.stopped if self.stopped <= hi else None
         taken = 0
         while self.end < hi:
             taken += 1
             if taken > MAX_STEPS:
                 raise PlantError(f"more than {MAX_STEPS} integration steps between t = {lo!r} and t = {hi!r} s: "
-                                 f"the sliding motion is too stiff for the integrated solver (a light mass with "
-                                 f"strong damping); take smaller steps or a larger mass")
-            self._step()
+                                 f"the sliding motion is too slow to integrate (take smaller steps)")
+            self._take_step()
             if self.stopped is not None:
-                return self.stopped if lo < self.stopped <= hi else None
+                return self.stopped if self.stopped <= hi else None
         return None
 
-    def _step(self):
+    def _take_step(self):
         """One accepted step past the end (or the stop within it: then ``stopped`` is set)."""
-        last = self.steps[-1]
+        last = self.step
         a, d0, v0 = last[0] + last[1], last[2] + last[4][0], last[3] + last[5][0]  # its end
         law, rtol, sign = self.law, self.rtol, self.sign
         k1 = self.k_last
@@ -218,8 +222,10 @@ class Trajectory:
             d1 = d0 + h * sum(b * vi for b, vi in zip(A[6], vs))
             err_d = h * sum(e * vi for e, vi in zip(E, vs))
             err_v = h * sum(e * ki for e, ki in zip(E, kv))
+            # relative to the largest size so far, and never below the rounding of the forces' sum (a breakaway
+            # starts from u - Fs = 0: the net acceleration is all cancellation)
             scale_d = rtol * max(self.peak[0], abs(d1), abs(d0))
-            scale_v = rtol * max(self.peak[1], abs(v1), abs(v0))
+            scale_v = rtol * max(self.peak[1], abs(v1), abs(v0)) + ROUNDING * h * law.size(a, v0)
             ratio = max(abs(err_d) / scale_d if scale_d else (0.0 if err_d == 0.0 else math.inf),
                         abs(err_v) / scale_v if scale_v else (0.0 if err_v == 0.0 else math.inf))
             factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
@@ -254,57 +260,46 @@ class Trajectory:
         r2v = h * k1 - dv
         r3v = dv - h * kv[6] - r2v
         r4v = h * sum(c * k for c, k in zip(D, kv))
-        quintic = (d1 - d0, h * v0, h * h * k1, h * v1, h * h * kv[6])
+        dd = d1 - d0
+        quintic = (dd, h * v0, h * h * k1, h * v1, h * h * kv[6])
         # the interpolation's error, bounded by the quintic's distance to contd5's quartic for d (the cruder)
-        quartic_d = (d1 - d0, h * v0 - (d1 - d0), (d1 - d0) - h * v1 - (h * v0 - (d1 - d0)),
-                     h * sum(c * vi for c, vi in zip(D, vs)))
-        dense_error = max(abs(_quintic(0.0, quintic, theta) - _poly(0.0, quartic_d, theta))
+        r2d = h * v0 - dd
+        quartic = (dd, r2d, dd - h * v1 - r2d, h * sum(c * vi for c, vi in zip(D, vs)))
+        dense_error = max(abs(_quintic(0.0, quintic, theta) - _poly(0.0, quartic, theta))
                           for theta in (0.25, 0.5, 0.75))
-        last = self.steps[-1]
-        step_error = last[7] + last[8] * last[1]  # the bound on int |err d| from t0 to a
         integrals = self._step_integrals(last, self.harmonics, a)
+        integral_error = last[7] + last[8] * last[1]  # the bound on int |err d| from t0 to a
         # the error bounds at the step's end: the velocity's error moves the position by at most itself times h
         self.error = [self.error[0] + self.error[1] * h + abs(err_d), self.error[1] + abs(err_v)]
-        record = (a, h, d0, v0, quintic, (dv, r2v, r3v, r4v), integrals, step_error,
-                  self.error[0] + 1.5 * dense_error)  # |err d| anywhere in the step
+        step = [a, h, d0, v0, quintic, (dv, r2v, r3v, r4v), integrals, integral_error,
+                self.error[0] + 1.5 * dense_error]  # |err d| anywhere in the step
         self.peak = [max(self.peak[0], abs(d1)), max(self.peak[1], abs(v1))]
         self.k_last = kv[6]
         self.h = h * factor
+        self.step = step
         # the stop: the first sample of sign v at or below zero, past the start's own zero
         previous = (0.0, sign * v0)
         for j in range(1, EVENT_SAMPLES + 1):
             theta = j / EVENT_SAMPLES
-            g = sign * _dense_v(record, theta)
+            g = sign * _poly(v0, step[5], theta)
             if g <= 0.0 and previous[1] > 0.0:
-                self.stopped = a + h * _illinois(record, sign, previous[0], previous[1], theta, g)
+                self.stopped = a + h * _illinois(step, sign, previous[0], previous[1], theta, g)
                 break
             previous = (theta, g)
-        self.steps.append(record)
 
-    # -- reading the steps -------------------------------------------------------------------------------
+    # -- reading the step -------------------------------------------------------------------------------
     def _step_at(self, t):
-        """The step containing t; the steps before it are dropped (never asked for again)."""
-        steps = self.steps
-        if not steps[0][0] <= t:
-            raise PlantError(f"t = {t!r} is out of range: this piece's integrated motion starts at {steps[0][0]!r} s")
-        i = 0
-        while i + 1 < len(steps) and steps[i + 1][0] < t:
-            i += 1
-        step = steps[i]
-        if t > step[0] + step[1] and i == len(steps) - 1:
-            raise PlantError(f"t = {t!r} is out of range: the motion is integrated to {step[0] + step[1]!r} s")
-        if i:
-            del steps[:i]
+        """The last step, which must contain t (PlantError otherwise: a time the piece no longer holds)."""
+        step = self.step
+        if not step[0] <= t <= step[0] + step[1]:
+            raise PlantError(f"t = {t!r} is out of range: this integrated piece holds [{step[0]!r}, "
+                             f"{step[0] + step[1]!r}] s")
         return step
-
-    def _integrals(self, t, harmonics):
-        step = self._step_at(t)
-        return self._step_integrals(step, harmonics, t)[:harmonics + 1]
 
     def _step_integrals(self, step, harmonics, t):
         """The integrals of x from t0 to t (t within ``step``): the step's start's, plus Gauss on [a, t]."""
         a, h = step[0], step[1]
-        total = list(step[6])
+        total = list(step[6][:harmonics + 1])
         span = t - a
         if not span > 0.0 or not h:
             return total
@@ -332,10 +327,6 @@ def _dense(step, t):
     return _quintic(step[2], step[4], theta), _poly(step[3], step[5], theta)
 
 
-def _dense_v(step, theta):
-    return _poly(step[3], step[5], theta)
-
-
 def _quintic(y0, c, theta):
     """y0 plus the quintic Hermite of a step: c = (y1 - y0, h y0', h^2 y0'', h y1', h^2 y1'')."""
     t2 = theta * theta
@@ -354,7 +345,12 @@ def _poly(y0, r, theta):
 
 
 def _illinois(step, sign, lo, g_lo, hi, g_hi):
-    """The zero of sign v in (lo, hi] of a step's dense output (theta), g(lo) > 0 >= g(hi): Illinois."""
+    """The zero of sign v in (lo, hi] of a step's dense output (theta), g(lo) > 0 >= g(hi)."""
+    return _illinois_fn(lambda theta: sign * _poly(step[3], step[5], theta), lo, g_lo, hi, g_hi)
+
+
+def _illinois_fn(fun, lo, g_lo, hi, g_hi):
+    """The zero of fun in (lo, hi], fun(lo) = g_lo > 0 >= fun(hi) = g_hi: Illinois, at most REFINE_ITERATIONS."""
     if g_hi == 0.0:
         return hi
     side = 0
@@ -364,7 +360,7 @@ def _illinois(step, sign, lo, g_lo, hi, g_hi):
             mid = 0.5 * (lo + hi)
             if not lo < mid < hi:
                 break
-        g = sign * _dense_v(step, mid)
+        g = fun(mid)
         if g > 0.0:
             lo, g_lo = mid, g
             if side == 1:
@@ -380,3 +376,138 @@ def _illinois(step, sign, lo, g_lo, hi, g_hi):
         if hi - lo <= 2.0 * EPS * max(hi, 1.0):
             break
     return hi
+
+
+class IntegratedMode:
+    """A mode of a hybrid loop with no closed form: X' = A X + c + e_row law(X[col]), integrated by DOPRI5(4).
+
+    What :class:`~.hybrid.HybridSolver` needs of a mode (its ``Mode``'s
+    interface: the derivative, the first Taylor coefficients of an event
+    function for its trend, a time scale), plus :meth:`take`, one accepted
+    step from a state (a chunk of the loop's walk), and :meth:`search`, the
+    first event function falling to zero within it. The steps are chosen by
+    the error control from the piece's start, as the plant's
+    :class:`Trajectory`; the dense output is the quintic Hermite of each
+    component (its second derivative A X' + e_row law'(X[col]) X'[col] at both
+    ends). ``law`` is plain data with ``__call__(v)`` and ``slope(v)``.
+    """
+
+    __slots__ = ("key", "A", "c", "events", "row", "col", "law", "rtol", "n", "resolution", "max_step")
+    integrated = True
+
+    def __init__(self, key, A, c, events, nonlinear, rtol):
+        self.key, self.A, self.c, self.events = key, A, c, tuple(events)
+        self.row, self.col, self.law = nonlinear
+        self.rtol = rtol
+        self.n = len(A)
+        rho = max(sum(abs(a) for a in row) for row in A)
+        self.resolution = 1.0 / rho if rho > 0.0 else 1.0  # the time scale of the linear part
+        self.max_step = 4.0 * self.resolution  # a step spans a few of the linear part's time constants at most
+
+    def derivative(self, X):
+        dX = [sum(a * x for a, x in zip(row, X)) + ci for row, ci in zip(self.A, self.c)]
+        dX[self.row] += self.law(X[self.col])
+        return dX
+
+    def second(self, X, dX):
+        """X'' at X (X' = dX)."""
+        d2 = [sum(a * x for a, x in zip(row, dX)) for row in self.A]
+        d2[self.row] += self.law.slope(X[self.col]) * dX[self.col]
+        return d2
+
+    def coefficients(self, index, X, dX, dt=0.0):
+        """[g, g', g''/2] of event function ``index`` at X and their rounding scales (as ``Mode.coefficients``)."""
+        _kind, L, l0 = self.events[index]
+        d2 = self.second(X, dX)
+        coeffs = [sum(v * x for v, x in zip(L, X)) + l0, sum(v * x for v, x in zip(L, dX)),
+                  0.5 * sum(v * x for v, x in zip(L, d2))]
+        absL = [abs(v) for v in L]
+        scales = [sum(v * abs(x) for v, x in zip(absL, X)) + abs(l0), sum(v * abs(x) for v, x in zip(absL, dX)),
+                  0.5 * sum(v * abs(x) for v, x in zip(absL, d2))]
+        if dt:
+            shift = dt / TREND_ROUNDING
+            for k in range(len(coeffs) - 1):
+                scales[k] += (k + 1) * abs(coeffs[k + 1]) * shift
+        return coeffs, scales
+
+    def first_step(self):
+        """The trial size of a piece's first step."""
+        return self.max_step / 64.0
+
+    def take(self, a, X0, dX0, h, peak):
+        """One accepted step from (a, X0) with trial size h: the step [a, h, X0, X1, dX0, dX1, X0'', X1'', the
+        next trial size, the peaks] (``peak``: the largest |X_i| of the piece so far, the tolerance's scale)."""
+        n, rtol = self.n, self.rtol
+        h = min(h, self.max_step)
+        # the size of the terms summed into X0' (the rounding of a cancelling sum, as the plant's law.size)
+        gross = [sum(abs(a * x) for a, x in zip(row, X0)) + abs(ci) for row, ci in zip(self.A, self.c)]
+        gross[self.row] += abs(self.law(X0[self.col]))
+        for _ in range(MAX_REJECTIONS):
+            if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
+                break
+            stages, ks = [X0], [dX0]
+            for i in range(1, 7):
+                Xi = [X0[j] + h * sum(aij * k[j] for aij, k in zip(A[i], ks)) for j in range(n)]
+                stages.append(Xi)
+                ks.append(self.derivative(Xi))
+            X1 = stages[6]
+            ratio = 0.0
+            for j in range(n):
+                err = h * sum(e * k[j] for e, k in zip(E, ks))
+                scale = rtol * max(peak[j], abs(X0[j]), abs(X1[j])) + ROUNDING * h * gross[j]
+                ratio = max(ratio, abs(err) / scale if scale else (0.0 if err == 0.0 else math.inf))
+            factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
+            if ratio <= 1.0:
+                break
+            h *= factor
+        else:
+            ratio = math.inf
+        if not ratio <= 1.0:
+            raise PlantError(f"the integrated loop cannot resolve its motion at t = {a!r} s: its step fell below "
+                             f"{STEP_FLOOR:g} ulp of the time (a stiff or singular mode)")
+        dX1 = ks[6]
+        return [a, h, X0, X1, dX0, dX1, self.second(X0, dX0), self.second(X1, dX1), h * factor,
+                [max(p, abs(x)) for p, x in zip(peak, X1)]]
+
+    @staticmethod
+    def state(step, tau):
+        """X at a + tau within the step (its quintic Hermite)."""
+        a, h, X0, X1, dX0, dX1, d20, d21 = step[:8]
+        if tau == h:
+            return list(X1)
+        theta = tau / h
+        return [_quintic(x0, (x1 - x0, h * v0, h * h * w0, h * v1, h * h * w1), theta)
+                for x0, x1, v0, v1, w0, w1 in zip(X0, X1, dX0, dX1, d20, d21)]
+
+    def search(self, step, skip, armed_zero):
+        """(tau, kind) of the first event within the step, or None.
+
+        ``skip``: indices of functions not searched (the section's unwatched side). ``armed_zero(index)``:
+        whether a function at zero at the step's start may fire at once (False for a departing one: it must
+        be positive first).
+        """
+        best = None
+        h = step[1]
+        for index, (kind, L, l0) in enumerate(self.events):
+            if index in skip:
+                continue
+
+            def g(theta):
+                return sum(v * x for v, x in zip(L, self.state(step, theta * h))) + l0
+
+            previous = (0.0, g(0.0))
+            if previous[1] <= 0.0 and armed_zero(index):
+                return 0.0, kind
+            limit = 1.0 if best is None else best[0] / h
+            for j in range(1, EVENT_SAMPLES + 1):
+                theta = j / EVENT_SAMPLES
+                if theta > limit and previous[0] >= limit:
+                    break
+                value = g(theta)
+                if value <= 0.0 and previous[1] > 0.0:
+                    tau = h * _illinois_fn(g, previous[0], previous[1], theta, value)
+                    if best is None or tau < best[0]:
+                        best = (tau, kind)
+                    break
+                previous = (theta, value)
+        return best

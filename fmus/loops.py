@@ -130,7 +130,7 @@ class FeedbackLoop(HybridSolver):
         return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
 
     def system(self, key):
-        P, p, phi, events = self.plant_mode(key)
+        P, p, phi, events, *nonlinear = self.plant_mode(key)
         m, n, out = len(self.coordinates), self.order, self.OUTPUT
         # f = D y + C z: a row over the whole state
         f_row = [0.0] * (m + n)
@@ -149,9 +149,12 @@ class FeedbackLoop(HybridSolver):
         for kind, Lq, Lf, l0 in events:
             L = list(Lq) + [0.0] * n
             full.append((kind, [value + Lf * fv for value, fv in zip(L, f_row)], l0))
-        return A, c, full
+        return (A, c, full) + tuple(nonlinear)  # (row, col, law) of a mode integrated: plant coordinates first
 
     def plant_mode(self, key):
+        """(P, p, phi, events) of mode ``key``: q' = P q + p + phi f, and event functions (kind, Lq, Lf, l0);
+        or (P, p, phi, events, (row, col, law)) where law(q[col]) adds to q'[row] (a mode with no closed form,
+        integrated: :class:`~.integrated.IntegratedMode`)."""
         raise NotImplementedError
 
     def initial(self, X):

@@ -261,11 +261,14 @@ class PiecewisePlant:
                 # past an event already found the piece has ended: its functions need not (and, past a
                 # stop, may not: a force tending to zero) be resolved there
                 hi = b if self._found is None else self._found[0]
-                if lo < hi:  # K None: an integrated motion (.integrated) that locates its own event
+                if s.K is None:  # an integrated motion (.integrated) locates its own event; it keeps one step,
+                    hi = min(hi, t_end)  # so it goes no further than asked (its steps never depend on it)
+                if lo < hi:
                     root = first_root(s.fun, lo, hi, s.K) if s.K is not None else s.fun.first_zero(lo, hi)
                     if root is not None and (self._found is None or root < self._found[0]):
                         self._found = (root, s.kind)
-            self._searched = b
+            # an integrated motion was asked up to t_end at most: searched to there, the grid unchanged
+            self._searched = min(b, t_end) if any(s.K is None for s in self._searches) else b
         event = self._found
         if event is None or self._analytic <= event[0]:
             event = (self._analytic, self._analytic_kind)
