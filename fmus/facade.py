@@ -41,12 +41,13 @@ from . import state as _state
 from . import table as _table
 from .contract import EventKind
 from .exact import PHASE_LIMIT, Drive, Motion
+from .integrated import Trajectory
 from .linear_system import MAX_ORDER as _MAX_ORDER
 from .linear_system import LinearSystem as _LinearSystem
 from .piecewise import SEARCH_CLASSES, PlantError, check
 
 MAX_HARMONIC = 10
-STATE_BASE_CLASSES = (Drive, Motion, EventKind) + SEARCH_CLASSES
+STATE_BASE_CLASSES = (Drive, Motion, Trajectory, EventKind) + SEARCH_CLASSES
 """Classes any solver's state may hold (with the solver's own classes): what a serialized state may name."""
 EXCITATION = tuple((p.name, p.default, p.unit, p.description) for p in _table.EXCITATION)
 
@@ -376,6 +377,7 @@ class SolverFMU(Fmi2Slave):
             classes = set(STATE_BASE_CLASSES) | set(cls.state_classes)
             solver_class = getattr(cls, "solver_class", None) or _LinearSystem
             classes.update(klass for klass in solver_class.__mro__ if klass is not object)
+            classes.update(getattr(solver_class, "STATE_CLASSES", ()))  # its own plain data (an integrated law)
             if cls.native_solver:  # a solver of the compiled core is serialized as its checked bytes
                 classes.add(_state.NativeState)
             table = (cls, {(klass.__module__, klass.__qualname__): klass for klass in classes})

@@ -468,10 +468,10 @@ class HybridSolver:
             chunks += 1
             if chunks > MAX_CHUNKS_PER_STEP:
                 raise PlantError(f"more than {MAX_CHUNKS_PER_STEP} chunks of integration in one step from "
-                                 f"t = {self.t!r} (at t = {self._b:.6g} s a chunk is {self._b - self._a:.3g} s): "
+                                 f"t = {self.t!r} (at t = {self._b:.6g} s a chunk is {self._chunk_length():.3g} s): "
                                  f"take smaller steps")
             if self._budget is not None:
-                self._budget.spend(self._b, self._b - self._a)
+                self._budget.spend(self._b, self._chunk_length())
             end = list(self._step[3]) if self._mode.integrated else self._mode.step(self._X, self._dX)
             self._chunk_start(self._b, end)
         self.t = t_end
@@ -490,6 +490,10 @@ class HybridSolver:
         if tau == 0.0:
             return list(self._X)
         return self._state_at(tau)
+
+    def _chunk_length(self):
+        """The current chunk's length: the mode's (closed form), or the step's (integrated)."""
+        return self._step[1] if self._mode.integrated else self._mode.h
 
     def _state_at(self, tau):
         """X at self._a + tau within the chunk."""

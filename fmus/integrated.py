@@ -209,6 +209,8 @@ class Trajectory:
         law, rtol, sign = self.law, self.rtol, self.sign
         k1 = self.k_last
         h = min(self.h, self.max_step)
+        size = law.size(a, v0)
+        ratio = factor = math.inf  # a step below the floor from the start is refused as any other
         for _ in range(MAX_REJECTIONS):
             if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
                 break
@@ -222,10 +224,11 @@ class Trajectory:
             d1 = d0 + h * sum(b * vi for b, vi in zip(A[6], vs))
             err_d = h * sum(e * vi for e, vi in zip(E, vs))
             err_v = h * sum(e * ki for e, ki in zip(E, kv))
-            # relative to the largest size so far, and never below the rounding of the forces' sum (a breakaway
-            # starts from u - Fs = 0: the net acceleration is all cancellation)
-            scale_d = rtol * max(self.peak[0], abs(d1), abs(d0))
-            scale_v = rtol * max(self.peak[1], abs(v1), abs(v0)) + ROUNDING * h * law.size(a, v0)
+            # relative to the largest size so far, and never below what the rounding of the forces' sum moves
+            # (a breakaway starts from u - Fs = 0, the net acceleration all cancellation; a force a few ulp
+            # above Fs moves the mass by rounding alone)
+            scale_d = rtol * max(self.peak[0], abs(d1), abs(d0)) + ROUNDING * h * (abs(v0) + h * size)
+            scale_v = rtol * max(self.peak[1], abs(v1), abs(v0)) + ROUNDING * h * size
             ratio = max(abs(err_d) / scale_d if scale_d else (0.0 if err_d == 0.0 else math.inf),
                         abs(err_v) / scale_v if scale_v else (0.0 if err_v == 0.0 else math.inf))
             factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
@@ -277,13 +280,19 @@ class Trajectory:
         self.k_last = kv[6]
         self.h = h * factor
         self.step = step
-        # the stop: the first sample of sign v at or below zero, past the start's own zero
+        # The stop: the first sample of sign v at or below zero, past the start's own zero. A velocity against
+        # the direction beyond the rounding of the step's forces (a force a few ulp above Fs) means the mass
+        # never left: it stops at that sample (time goes on by h/8 at least).
+        floor = ROUNDING * h * size
         previous = (0.0, sign * v0)
         for j in range(1, EVENT_SAMPLES + 1):
             theta = j / EVENT_SAMPLES
             g = sign * _poly(v0, step[5], theta)
             if g <= 0.0 and previous[1] > 0.0:
                 self.stopped = a + h * _illinois(step, sign, previous[0], previous[1], theta, g)
+                break
+            if g < -floor:
+                self.stopped = a + h * theta
                 break
             previous = (theta, g)
 
@@ -430,6 +439,12 @@ class IntegratedMode:
                 scales[k] += (k + 1) * abs(coeffs[k + 1]) * shift
         return coeffs, scales
 
+    def gross(self, X):
+        """The size of the terms summed into X' (the rounding of a cancelling sum, as the plant's law.size)."""
+        gross = [sum(abs(a * x) for a, x in zip(row, X)) + abs(ci) for row, ci in zip(self.A, self.c)]
+        gross[self.row] += abs(self.law(X[self.col]))
+        return gross
+
     def first_step(self):
         """The trial size of a piece's first step."""
         return self.max_step / 64.0
@@ -439,9 +454,10 @@ class IntegratedMode:
         next trial size, the peaks] (``peak``: the largest |X_i| of the piece so far, the tolerance's scale)."""
         n, rtol = self.n, self.rtol
         h = min(h, self.max_step)
-        # the size of the terms summed into X0' (the rounding of a cancelling sum, as the plant's law.size)
-        gross = [sum(abs(a * x) for a, x in zip(row, X0)) + abs(ci) for row, ci in zip(self.A, self.c)]
-        gross[self.row] += abs(self.law(X0[self.col]))
+        gross = self.gross(X0)
+        # and what that rounding moves in a step through the coupling (a position, through its velocity's)
+        moved = [sum(abs(a) * g for a, g in zip(row, gross)) for row in self.A]
+        ratio = factor = math.inf  # a step below the floor from the start is refused as any other
         for _ in range(MAX_REJECTIONS):
             if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
                 break
@@ -454,7 +470,7 @@ class IntegratedMode:
             ratio = 0.0
             for j in range(n):
                 err = h * sum(e * k[j] for e, k in zip(E, ks))
-                scale = rtol * max(peak[j], abs(X0[j]), abs(X1[j])) + ROUNDING * h * gross[j]
+                scale = rtol * max(peak[j], abs(X0[j]), abs(X1[j])) + ROUNDING * h * (gross[j] + h * moved[j])
                 ratio = max(ratio, abs(err) / scale if scale else (0.0 if err == 0.0 else math.inf))
             factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
             if ratio <= 1.0:
@@ -484,13 +500,16 @@ class IntegratedMode:
 
         ``skip``: indices of functions not searched (the section's unwatched side). ``armed_zero(index)``:
         whether a function at zero at the step's start may fire at once (False for a departing one: it must
-        be positive first).
+        be positive first, and fires where it is negative beyond the rounding of the step's rates).
         """
         best = None
         h = step[1]
+        gross = self.gross(step[2])
         for index, (kind, L, l0) in enumerate(self.events):
             if index in skip:
                 continue
+            # a departing function that goes negative beyond the rounding of the step's rates never left
+            floor = ROUNDING * h * sum(abs(v) * g for v, g in zip(L, gross))
 
             def g(theta):
                 return sum(v * x for v, x in zip(L, self.state(step, theta * h))) + l0
@@ -508,6 +527,10 @@ class IntegratedMode:
                     tau = h * _illinois_fn(g, previous[0], previous[1], theta, value)
                     if best is None or tau < best[0]:
                         best = (tau, kind)
+                    break
+                if value < -floor:
+                    if best is None or h * theta < best[0]:
+                        best = (h * theta, kind)
                     break
                 previous = (theta, value)
         return best

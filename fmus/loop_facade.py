@@ -42,6 +42,7 @@ import math
 
 from . import facade as _facade
 from .hybrid import Mode
+from .integrated import IntegratedMode
 from .linear_system import MAX_ORDER
 from .piecewise import PlantError, check
 from .plants import MODULES
@@ -90,7 +91,8 @@ class LoopFMU(_facade.TableFMU):
     mode_keys = {}
     """{mode key of the solver: value of the mode output}: every mode the loop can be in."""
     fixed_solver_attributes = COMMON_FIXED
-    state_classes = (Mode,)  # the solver's modes (its own classes, EventKind and the base classes are added)
+    state_classes = (Mode, IntegratedMode)  # the solver's modes (its own classes, EventKind, its STATE_CLASSES and
+    # the base classes are added)
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -226,7 +228,7 @@ class LoopFMU(_facade.TableFMU):
         if not (type(modes) is dict and modes and all(key in self.mode_keys for key in modes)):
             self._fail("the state's modes are not modes of this loop")
         for key, mode in modes.items():
-            if not (type(mode) is Mode and _same_mode(mode, fresh.mode(key))):
+            if not _same_mode(mode, fresh.mode(key)):
                 self._fail(f"the state's mode {key!r} does not match its parameters")
         key = getattr(solver, "key", None)
         mode = modes.get(key) if type(key) is tuple and key in self.mode_keys else None
@@ -238,6 +240,8 @@ class LoopFMU(_facade.TableFMU):
             if not (type(vector) is list and len(vector) == size
                     and all(type(value) is float and math.isfinite(value) for value in vector)):
                 self._fail("the state's loop state does not match the loop's size or is not finite")
+        if mode.integrated and not _step_shape(getattr(solver, "_step", None), size):
+            self._fail("the state's integrated step is not one of this loop")
         if dX != mode.derivative(X):
             self._fail("the state's derivative does not match its state")
         a, b, t = getattr(solver, "_a", None), getattr(solver, "_b", None), solver.t
@@ -275,16 +279,31 @@ def _finite(values):
 
 
 def _same(mine, theirs):
-    """Equal values of the same types, all the way down (EventKind is not its str, 1 is not 1.0)."""
+    """Equal values of the same types, all the way down (EventKind is not its str, 1 is not 1.0; plain data
+    with slots, an integrated mode's law, slot by slot)."""
     if type(mine) is not type(theirs):
         return False
     if type(mine) in (list, tuple):
         return len(mine) == len(theirs) and all(_same(x, y) for x, y in zip(mine, theirs))
+    slots = getattr(type(mine), "__slots__", None)
+    if slots:
+        return all(_same(getattr(mine, slot, None), getattr(theirs, slot, None)) for slot in slots)
     return mine == theirs
 
 
 def _same_mode(mode, fresh):
-    return all(_same(getattr(mode, slot, None), getattr(fresh, slot)) for slot in Mode.__slots__)
+    return type(mode) in (Mode, IntegratedMode) and _same(mode, fresh)
+
+
+def _step_shape(step, size):
+    """Whether an integrated chunk's step is [a, h, X0, X1, dX0, dX1, X0'', X1'', next h, peaks] of finite
+    floats, its vectors of the loop's size (IntegratedMode.take)."""
+    if not (type(step) is list and len(step) == 10):
+        return False
+    scalars, vectors = (step[0], step[1], step[8]), step[2:8] + [step[9]]
+    return (all(type(v) is float and math.isfinite(v) for v in scalars) and step[1] > 0.0
+            and all(type(vector) is list and len(vector) == size
+                    and all(type(v) is float and math.isfinite(v) for v in vector) for vector in vectors))
 
 
 def loop_facade(module):

@@ -63,7 +63,7 @@ from .state import StateRefused
 __all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CAPACITY", "EVENT_KINDS",
            "NativeMode"]  # and each plant's classes by name: NativeFrictionMass, NativeFrictionLoop, ...
 
-ABI = 7  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 8  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 ERRLEN = 1024
 LOOP_KEYS = 9  # the mode keys a loop may have (DFWB_HY_MODES)
 LOOP_CONSTANTS = 9  # what dfwb_loop_parameters writes (DFWB_LOOP_PAR): a plant's loop holds at most these
@@ -144,6 +144,7 @@ class _PlantApi(_Functions):
             "advance": (c_int, [c_void_p, c_double, c_char_p, c_size_t]),
             "output": (None, [c_void_p, p_double]),
             "integrals": (c_int, [c_void_p, p_double, p_double, c_char_p, c_size_t]),
+            "integrals_error": (c_double, [c_void_p]),
             "harmonics": (c_int, [c_void_p]),
             "period": (c_double, [c_void_p]),
             "drive": (None, [c_void_p, p_double]),
@@ -481,6 +482,10 @@ class _NativeSolver(_Native):
         if code != OK:
             _raise(code, self._err)
         return list(map(complex, re[:], im[:]))
+
+    def integrals_error(self):
+        """A bound on the error of every running integral (0.0 for closed forms; see the Python solver's)."""
+        return self._api.integrals_error(self._handle)
 
     @classmethod
     def from_bytes(cls, data, *, core=None):

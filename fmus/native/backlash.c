@@ -389,7 +389,7 @@ static const char *const LOOP_COORDINATES[] = {"x1", "v1", "gap", "w"};
 
 static const dfwb_loop_class LOOP = {4, 0, DFWB_LOOP_BACKLASH_PARAMS, 6, "a two-mass backlash", LOOP_COORDINATES,
                                             "('x1', 'v1', 'gap', 'w')", loop_check, loop_check_state, loop_mode,
-                                            loop_initial, loop_fire, 3};
+                                            loop_initial, loop_fire, 3, NULL, NULL, -1};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* TwoMassBacklash.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */
@@ -460,4 +460,4 @@ static const dfwb_backlash zero_state = {0}; /* the state's size is counted on i
 
 const dfwb_plant_class dfwb_backlash_class = {
     DFWB_PLANT_BACKLASH, sizeof(dfwb_backlash), &zero_state, offsetof(dfwb_backlash, gap), fire, restart,
-    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same, &LOOP, NULL, NULL};
+    state_io, validate, DFWB_BACKLASH_PARAMS, 5, 2, init, output, counter, same, &LOOP, NULL, NULL, NULL, NULL};

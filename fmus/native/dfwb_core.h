@@ -93,7 +93,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 7
+#define DFWB_CORE_ABI 8
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -158,6 +158,9 @@ DFWB_API void dfwb_plant_output(const dfwb_plant *p, double *out);
 /* The running integrals I_k(t) = int_0^t y(s) exp(-i k omega s) ds of the output y (friction x, backlash x1,
  * static backlash y), k = 0..harmonics, into re[0..harmonics] and im[0..harmonics] (at most 11 each). */
 DFWB_API int dfwb_plant_integrals(const dfwb_plant *p, double *re, double *im, char *err, size_t errlen);
+/* A bound on the error of every integral (the unit of the signal times s): 0 for a plant of closed forms, the
+ * integrated pieces' bound otherwise (PiecewisePlant.integrals_error); NaN for NULL. */
+DFWB_API double dfwb_plant_integrals_error(const dfwb_plant *p);
 
 /* The current time (s), the events counted so far, the number of harmonics (0..10). */
 DFWB_API double dfwb_plant_time(const dfwb_plant *p);

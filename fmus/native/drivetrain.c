@@ -676,7 +676,7 @@ static const char *const LOOP_COORDINATES[] = {"x1", "v1", "gap", "w"};
 
 static const dfwb_loop_class LOOP = {4, 0, DFWB_LOOP_DRIVETRAIN_PARAMS, 9, "a drivetrain", LOOP_COORDINATES,
                                      "('x1', 'v1', 'gap', 'w')", loop_check, loop_check_state, loop_mode,
-                                     loop_initial, loop_fire, 9};
+                                     loop_initial, loop_fire, 9, NULL, NULL, -1};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* Drivetrain.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */
@@ -742,4 +742,4 @@ static const dfwb_drivetrain zero_state = {0}; /* the state's size is counted on
 const dfwb_plant_class dfwb_drivetrain_class = {
     DFWB_PLANT_DRIVETRAIN, sizeof(dfwb_drivetrain), &zero_state, offsetof(dfwb_drivetrain, pw.output), fire,
     restart, state_io, validate, DFWB_DRIVETRAIN_PARAMS, 5, 3, init, output, counter, same, &LOOP, search,
-    search_bound};
+    search_bound, NULL, NULL};

@@ -13,10 +13,11 @@
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "friction.h"
 #include "loop.h"
 #include "plant.h"
 
-enum { HOLD, SLIDE, PUSH };
+enum { HOLD = DFWB_FRICTION_HOLD, SLIDE = DFWB_FRICTION_SLIDE, PUSH = DFWB_FRICTION_PUSH };
 
 /* EventKind (fmus/contract.py, DFWB_EVENT_*); NONE: a piece without an analytic event */
 enum {
@@ -28,13 +29,6 @@ enum {
     BAND = DFWB_EVENT_BAND
 };
 
-typedef struct dfwb_friction dfwb_friction;
-
-struct dfwb_friction {
-    dfwb_pw pw; /* first: the piece machinery (its output, x, is also the searches' subject) */
-    double M, B, Fc, Fs, Dv, edge_force;
-    int mode, direction;
-};
 
 /* -- pieces ------------------------------------------------------------------------------- */
 /* _motion: the mass under a constant force plus the drive's harmonic part, damped by lam */
@@ -88,8 +82,21 @@ static int push(dfwb_friction *p, double t, double x, double v, int s, dfwb_err 
     return DFWB_OK;
 }
 
-/* Sliding in direction s until the velocity falls back to the band. */
+/* Sliding in direction s until the velocity falls back to the band: the friction mass's closed form, or the
+ * slide of a plant built on it (p->slide: the Stribeck mass's integrated one). */
+static int exact_slide(dfwb_friction *p, double t, double x, double v, int s, int departing, dfwb_err *err);
+
 static int slide(dfwb_friction *p, double t, double x, double v, int s, int departing, dfwb_err *err)
+{
+    if (p->slide != NULL) {
+        p->mode = SLIDE;
+        p->direction = s;
+        return p->slide(p, t, x, v, s, departing, err);
+    }
+    return exact_slide(p, t, x, v, s, departing, err);
+}
+
+static int exact_slide(dfwb_friction *p, double t, double x, double v, int s, int departing, dfwb_err *err)
 {
     dfwb_motion motion;
     double t_from = t, K;
@@ -113,7 +120,7 @@ static int slide(dfwb_friction *p, double t, double x, double v, int s, int depa
 
 /* Choose the mode from the state and the force at t; at_edge = s when v has just reached the band
  * edge s * Dv (up to rounding). The state stays continuous across the switch. */
-static int start(dfwb_friction *p, double t, double x, double v, int at_edge, dfwb_err *err)
+int dfwb_friction_start(dfwb_friction *p, double t, double x, double v, int at_edge, dfwb_err *err)
 {
     const double Dv = p->Dv;
     const dfwb_drive *d = &p->pw.drive;
@@ -137,13 +144,14 @@ static int start(dfwb_friction *p, double t, double x, double v, int at_edge, df
 }
 
 /* -- events ---------------------------------------------------------------------------- */
-static int fire(void *plant, double t, int kind, int *counted, dfwb_err *err)
+int dfwb_friction_fire(void *plant, double t, int kind, int *counted, dfwb_err *err)
 {
     dfwb_friction *p = (dfwb_friction *)plant;
     double x, v;
-    int s = p->direction;
+    int s = p->direction, rc;
     dfwb_pw_close_piece(&p->pw, t, err);
-    dfwb_motion_state(&p->pw.output, t, &x, &v);
+    if ((rc = dfwb_pw_state(&p->pw, t, &x, &v, err)) != DFWB_OK)
+        return rc;
     *counted = 1; /* every friction event changes the motion */
     switch (kind) {
     case BREAK_UP:
@@ -153,7 +161,7 @@ static int fire(void *plant, double t, int kind, int *counted, dfwb_err *err)
             return slide(p, t, x, (double)s * p->Dv, s, 1, err);
         return push(p, t, x, v, s, err);
     case RELEASE: /* |u| falls to Fs: hold, or (Fs = 0) a push the other way */
-        return start(p, t, x, v, 0, err);
+        return dfwb_friction_start(p, t, x, v, 0, err);
     case EDGE: { /* pushed through the band to its edge s * Dv (Dv > 0) */
         const double edge = (double)s * p->edge_force;
         if (s > 0 ? dfwb_drive_above(&p->pw.drive, t, edge) : dfwb_drive_below(&p->pw.drive, t, edge))
@@ -161,22 +169,23 @@ static int fire(void *plant, double t, int kind, int *counted, dfwb_err *err)
         return hold(p, t, x, (double)s * p->Dv, err);
     }
     default: /* BAND: the sliding velocity reached the band edge */
-        return start(p, t, x, v, s, err);
+        return dfwb_friction_start(p, t, x, v, s, err);
     }
 }
 
-static int restart(void *plant, double t, dfwb_err *err)
+int dfwb_friction_restart(void *plant, double t, dfwb_err *err)
 {
     dfwb_friction *p = (dfwb_friction *)plant;
     double x, v;
-    int at_edge;
-    dfwb_motion_state(&p->pw.output, t, &x, &v);
+    int at_edge, rc;
+    if ((rc = dfwb_pw_state(&p->pw, t, &x, &v, err)) != DFWB_OK)
+        return rc;
     at_edge = p->mode == SLIDE && fabs(v) <= p->Dv ? p->direction : 0;
-    return start(p, t, x, v, at_edge, err);
+    return dfwb_friction_start(p, t, x, v, at_edge, err);
 }
 
 /* -- state as bytes ---------------------------------------------------------------------------- */
-static void state_io(dfwb_io *io, void *plant)
+void dfwb_friction_io(dfwb_io *io, void *plant)
 {
     dfwb_friction *p = (dfwb_friction *)plant;
     dfwb_pw_io(io, &p->pw);
@@ -272,7 +281,7 @@ static int loop_check(dfwb_loop *L, const double *v, double *q0, dfwb_err *err)
 }
 
 /* FrictionLoop.plant_mode */
-static void loop_mode(const dfwb_loop *L, int key, dfwb_plant_mode *pm)
+void dfwb_friction_loop_mode(const dfwb_loop *L, int key, dfwb_plant_mode *pm)
 {
     const double M = L->par[0], B = L->par[1], Fc = L->par[2], Fs = L->par[3];
     const int s = key == DFWB_LOOP_SLIDE_UP ? 1 : -1;
@@ -314,7 +323,7 @@ static int loop_rest(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err
     return DFWB_OK;
 }
 
-static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
+int dfwb_friction_loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
 {
     const double v = X[1];
     if (v != 0.0) {
@@ -324,7 +333,7 @@ static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_
     return loop_rest(L, X, key, departing, err);
 }
 
-static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)
+int dfwb_friction_loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)
 {
     if (kind == DFWB_EVENT_BAND) {
         X[1] = 0.0;
@@ -338,7 +347,8 @@ static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing
 static const char *const LOOP_COORDINATES[] = {"x", "v"};
 
 static const dfwb_loop_class LOOP = {2, 0, DFWB_LOOP_FRICTION_PARAMS, 4, "a friction mass", LOOP_COORDINATES,
-                                            "('x', 'v')", loop_check, NULL, loop_mode, loop_initial, loop_fire, 3};
+                                            "('x', 'v')", loop_check, NULL, dfwb_friction_loop_mode, dfwb_friction_loop_initial,
+                                            dfwb_friction_loop_fire, 3, NULL, NULL, -1};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* FrictionMass.__init__, then PiecewisePlant's: the order of the Python constructor */
@@ -356,19 +366,22 @@ static int init(void *plant, const double *params, dfwb_err *err)
         return rc;
     dfwb_pw_init(&p->pw, F, omega, phi, f, harmonics);
     p->M = M, p->B = B, p->Fc = Fc, p->Fs = Fs, p->Dv = Dv;
+    p->slide = NULL;
     p->edge_force = Fc + B * Dv; /* friction just outside the band */
     p->mode = HOLD;
     p->direction = 0;
-    return dfwb_err_finish(err, start(p, 0.0, x0, v0, 0, err));
+    return dfwb_err_finish(err, dfwb_friction_start(p, 0.0, x0, v0, 0, err));
 }
 
 /* {x, v, Ff, mode} */
-static void output(const void *plant, double *out)
+void dfwb_friction_output(const void *plant, double *out)
 {
     const dfwb_friction *p = (const dfwb_friction *)plant;
     double x, v, acc;
-    dfwb_motion_state(&p->pw.output, p->pw.t, &x, &v);
-    acc = dfwb_motion_acceleration(&p->pw.output, p->pw.t, v);
+    dfwb_err err;
+    dfwb_err_init(&err, NULL, 0);
+    dfwb_pw_state(&p->pw, p->pw.t, &x, &v, &err); /* the current time is always in the piece */
+    acc = dfwb_pw_acceleration(&p->pw, p->pw.t, v);
     out[0] = x;
     out[1] = v;
     out[2] = dfwb_drive_u(&p->pw.drive, p->pw.t) - p->M * acc;
@@ -386,5 +399,6 @@ static int same(const void *one, const void *other)
 static const dfwb_friction zero_state = {0}; /* the state's size is counted on it */
 
 const dfwb_plant_class dfwb_friction_class = {
-    DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state, offsetof(dfwb_friction, pw.output), fire, restart,
-    state_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, output, NULL, same, &LOOP, NULL, NULL};
+    DFWB_PLANT_FRICTION, sizeof(dfwb_friction), &zero_state, offsetof(dfwb_friction, pw.output), dfwb_friction_fire,
+    dfwb_friction_restart, dfwb_friction_io, validate, DFWB_FRICTION_PARAMS, 4, 0, init, dfwb_friction_output, NULL, same,
+    &LOOP, NULL, NULL, NULL, NULL};

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "dfwb_core.h"
+#include "integrated.h"
 
 #define TAYLOR_RADIUS 1.0
 #define TAYLOR_TOLERANCE 0x1p-60
@@ -144,6 +145,20 @@ static int build_mode(dfwb_hy *hy, int key, dfwb_hy_mode *m, dfwb_err *err)
         m->nev += 2;
     }
     n = m->n;
+    if (m->integrated) { /* IntegratedMode.__init__: the linear part's time scale, the largest step */
+        for (i = 0; i < n; i++) {
+            double s = 0.0;
+            for (j = 0; j < n; j++)
+                s += fabs(m->A[i][j]);
+            if (i == 0 || s > rho)
+                rho = s;
+        }
+        m->resolution = rho > 0.0 ? 1.0 / rho : 1.0;
+        m->max_step = m->h = 4.0 * m->resolution;
+        m->terms = 2; /* its trend's coefficients: g, g', g''/2 */
+        dfwb_in_setup();
+        return DFWB_OK;
+    }
     balance(m, d);
     for (i = 0; i < n; i++) { /* rho = max(sum(|A_ij| d_j / d_i)) */
         double s = 0.0;
@@ -260,12 +275,23 @@ static int cannot_fire(const dfwb_hy_mode *m, int index, const double *X, const 
     return g > 1.001 * change + rounding;
 }
 
-/* Mode.derivative */
-static void derivative(const dfwb_hy_mode *m, const double *X, double *dX)
+/* Mode.derivative (IntegratedMode's: plus its nonlinear term) */
+static void derivative(const dfwb_hy *hy, const dfwb_hy_mode *m, const double *X, double *dX)
 {
     int i;
     for (i = 0; i < m->n; i++)
         dX[i] = dot(m->A[i], X, m->n) + m->c[i];
+    if (m->integrated)
+        dX[m->row] += hy->law(hy, m->sign, X[m->col]);
+}
+
+/* IntegratedMode.second: X'' at X (X' = dX) */
+static void second(const dfwb_hy *hy, const dfwb_hy_mode *m, const double *X, const double *dX, double *d2)
+{
+    int i;
+    for (i = 0; i < m->n; i++)
+        d2[i] = dot(m->A[i], dX, m->n);
+    d2[m->row] += hy->law_slope(hy, m->sign, X[m->col]) * dX[m->col];
 }
 
 /* Mode.state: X(a + tau) from X(a) and X'(a) by the Taylor series (Horner). */
@@ -300,13 +326,29 @@ static void mode_step(const dfwb_hy_mode *m, const double *X, const double *dX, 
 
 /* Mode.coefficients: the Taylor coefficients of event function ``index`` at X and their rounding scales
  * (terms + 1 of each). */
-static void coefficients(const dfwb_hy_mode *m, int index, const double *X, const double *dX, double dt,
-                         double *coeffs, double *scales)
+static void coefficients(const dfwb_hy *hy, const dfwb_hy_mode *m, int index, const double *X, const double *dX,
+                         double dt, double *coeffs, double *scales)
 {
     const dfwb_hy_event *ev = &m->ev[index];
     const int n = m->n;
     double size[DFWB_HY_DIM], absX[DFWB_HY_DIM];
     int i, k;
+    if (m->integrated) { /* IntegratedMode.coefficients: [g, g', g''/2] and their scales */
+        double d2[DFWB_HY_DIM];
+        second(hy, m, X, dX, d2);
+        coeffs[0] = dot(ev->L, X, n) + ev->l0;
+        coeffs[1] = dot(ev->L, dX, n);
+        coeffs[2] = 0.5 * dot(ev->L, d2, n);
+        scales[0] = dot_abs(ev->L, X, n) + fabs(ev->l0);
+        scales[1] = dot_abs(ev->L, dX, n);
+        scales[2] = 0.5 * dot_abs(ev->L, d2, n);
+        if (dt != 0.0) {
+            const double shift = dt / TREND_ROUNDING;
+            for (k = 0; k < 2; k++)
+                scales[k] += (double)(k + 1) * fabs(coeffs[k + 1]) * shift;
+        }
+        return;
+    }
     coeffs[0] = dot(ev->L, X, n) + ev->l0;
     for (k = 1; k <= m->terms; k++)
         coeffs[k] = dot(m->rows[index][k - 1], dX, n);
@@ -425,8 +467,8 @@ int dfwb_hy_after(dfwb_hy *hy, int key, int index, const double *X, int *sign, d
     const dfwb_hy_mode *m = dfwb_hy_mode_of(hy, key, err);
     if (m == NULL)
         return err->code != DFWB_OK ? err->code : DFWB_E_MATH;
-    derivative(m, X, dX);
-    coefficients(m, index, X, dX, hy->time_rounding, coeffs, scales);
+    derivative(hy, m, X, dX);
+    coefficients(hy, m, index, X, dX, hy->time_rounding, coeffs, scales);
     *sign = trend(coeffs, scales, m->terms + 1);
     return DFWB_OK;
 }
@@ -455,6 +497,194 @@ static void state_repr(const double *X, int n, char *out, size_t len)
     out[pos] = '\0';
 }
 
+/* -- IntegratedMode: a chunk is one DOPRI5 step ------------------------------------------------------------ */
+/* IntegratedMode.gross: the size of the terms summed into X' */
+static void gross_of(const dfwb_hy *hy, const dfwb_hy_mode *m, const double *X, double *gross)
+{
+    int i, j;
+    for (i = 0; i < m->n; i++) { /* sum(abs(a * x) for a, x in zip(row, X)) + abs(ci) */
+        double sum = 0.0;
+        for (j = 0; j < m->n; j++)
+            sum += fabs(m->A[i][j] * X[j]);
+        gross[i] = sum + fabs(m->c[i]);
+    }
+    gross[m->row] += fabs(hy->law(hy, m->sign, X[m->col]));
+}
+
+/* IntegratedMode.take: one accepted step from (a, X0 = hy->X, dX0 = hy->dX) with trial size h, into the chunk's
+ * step fields (peak: the piece's peaks so far, may be hy->peak) */
+static int take(dfwb_hy *hy, const dfwb_hy_mode *m, double a, double h, const double *peak, dfwb_err *err)
+{
+    const int n = m->n;
+    const double rtol = hy->rtol, *X0 = hy->X, *dX0 = hy->dX;
+    double gross[DFWB_HY_DIM], moved[DFWB_HY_DIM], stages[7][DFWB_HY_DIM], ks[7][DFWB_HY_DIM], ratio = INFINITY, factor = INFINITY;
+    double new_peak[DFWB_HY_DIM];
+    int it, i, j, q, broke = 0;
+    if (m->max_step < h)
+        h = m->max_step;
+    gross_of(hy, m, X0, gross);
+    for (i = 0; i < n; i++) { /* moved: sum(abs(a) * g for a, g in zip(row, gross)) */
+        double sum = 0.0;
+        for (j = 0; j < n; j++)
+            sum += fabs(m->A[i][j]) * gross[j];
+        moved[i] = sum;
+    }
+    for (it = 0; it < DFWB_IN_MAX_REJECTIONS; it++) {
+        const double floor_t = fabs(a) > 1.0 ? fabs(a) : 1.0;
+        if (!(h > DFWB_IN_STEP_FLOOR * DFWB_EPS * floor_t) || !(a + h > a)) {
+            broke = 1;
+            break;
+        }
+        memcpy(stages[0], X0, (size_t)n * sizeof *X0);
+        memcpy(ks[0], dX0, (size_t)n * sizeof *dX0);
+        for (i = 1; i < 7; i++) {
+            for (j = 0; j < n; j++) {
+                double sum = 0.0;
+                for (q = 0; q < i; q++)
+                    sum += dfwb_in_a[i][q] * ks[q][j];
+                stages[i][j] = X0[j] + h * sum;
+            }
+            derivative(hy, m, stages[i], ks[i]);
+        }
+        ratio = 0.0;
+        for (j = 0; j < n; j++) {
+            double sum = 0.0, e, scale, value;
+            for (q = 0; q < 7; q++)
+                sum += dfwb_in_e[q] * ks[q][j];
+            e = h * sum;
+            scale = rtol * dfwb_in_max3(peak[j], fabs(X0[j]), fabs(stages[6][j]))
+                    + DFWB_IN_ROUNDING * h * (gross[j] + h * moved[j]);
+            value = scale != 0.0 ? fabs(e) / scale : (e == 0.0 ? 0.0 : INFINITY);
+            if (value > ratio)
+                ratio = value;
+        }
+        if (ratio == 0.0)
+            factor = DFWB_IN_GROW;
+        else {
+            const double y = DFWB_IN_SAFETY * pow(ratio, -0.2), mm = y > DFWB_IN_SHRINK ? y : DFWB_IN_SHRINK;
+            factor = mm < DFWB_IN_GROW ? mm : DFWB_IN_GROW;
+        }
+        if (ratio <= 1.0) {
+            broke = 1;
+            break;
+        }
+        h *= factor;
+    }
+    if (!broke)
+        ratio = INFINITY;
+    if (!(ratio <= 1.0)) {
+        char ra[DFWB_REPR_SIZE];
+        dfwb_repr(a, ra);
+        return dfwb_fail(err, DFWB_E_VALUE, "the integrated loop cannot resolve its motion at t = %s s: its step "
+                         "fell below 64 ulp of the time (a stiff or singular mode)", ra);
+    }
+    for (j = 0; j < n; j++)
+        new_peak[j] = fabs(stages[6][j]) > peak[j] ? fabs(stages[6][j]) : peak[j];
+    hy->step_h = h;
+    memcpy(hy->X1, stages[6], (size_t)n * sizeof *X0);
+    memcpy(hy->dX1, ks[6], (size_t)n * sizeof *X0);
+    second(hy, m, X0, dX0, hy->d20);
+    second(hy, m, hy->X1, hy->dX1, hy->d21);
+    hy->next_h = h * factor;
+    memcpy(hy->peak, new_peak, (size_t)n * sizeof *X0);
+    return DFWB_OK;
+}
+
+/* IntegratedMode.state: X at a + tau within the step (each component's quintic Hermite) */
+static void integrated_state(const dfwb_hy *hy, double tau, double *out)
+{
+    const double h = hy->step_h;
+    double theta;
+    int i;
+    if (tau == h) {
+        memcpy(out, hy->X1, (size_t)hy->n * sizeof *out);
+        return;
+    }
+    theta = tau / h;
+    for (i = 0; i < hy->n; i++) {
+        double c[5];
+        c[0] = hy->X1[i] - hy->X[i];
+        c[1] = h * hy->dX[i];
+        c[2] = h * h * hy->d20[i];
+        c[3] = h * hy->dX1[i];
+        c[4] = h * h * hy->d21[i];
+        out[i] = dfwb_in_quintic(hy->X[i], c, theta);
+    }
+}
+
+typedef struct {
+    const dfwb_hy *hy;
+    const dfwb_hy_event *ev;
+} event_ctx;
+
+/* g(theta) of IntegratedMode.search: the event function at a + theta h */
+static double event_fun(const void *ctx, double theta)
+{
+    const event_ctx *c = (const event_ctx *)ctx;
+    double X[DFWB_HY_DIM];
+    integrated_state(c->hy, theta * c->hy->step_h, X);
+    return dot(c->ev->L, X, c->hy->n) + c->ev->l0;
+}
+
+/* IntegratedMode.search: the first event within the step (sampled 8 times, refined by Illinois) */
+static void integrated_search(const dfwb_hy *hy, const dfwb_hy_mode *m, int *found, double *best_tau,
+                              int *best_kind)
+{
+    const double h = hy->step_h;
+    double gross[DFWB_HY_DIM];
+    int index, i, j;
+    *found = 0;
+    gross_of(hy, m, hy->X, gross);
+    for (index = 0; index < m->nev; index++) {
+        const int kind = m->ev[index].kind;
+        int departing = 0;
+        double prev_theta = 0.0, prev_g, limit, floor_g;
+        event_ctx ctx;
+        if (is_section(kind) && kind != hy->watching)
+            continue;
+        floor_g = DFWB_IN_ROUNDING * h * dot_abs(m->ev[index].L, gross, m->n);
+        if (hy->first)
+            for (i = 0; i < hy->ndeparting; i++)
+                departing |= hy->departing[i] == index;
+        ctx.hy = hy;
+        ctx.ev = &m->ev[index];
+        prev_g = event_fun(&ctx, 0.0);
+        if (prev_g <= 0.0 && !departing) { /* armed at zero: fires at once */
+            *found = 1;
+            *best_tau = 0.0;
+            *best_kind = kind;
+            return;
+        }
+        limit = *found ? *best_tau / h : 1.0;
+        for (j = 1; j <= DFWB_IN_EVENT_SAMPLES; j++) {
+            const double theta = (double)j / (double)DFWB_IN_EVENT_SAMPLES;
+            double value;
+            if (theta > limit && prev_theta >= limit)
+                break;
+            value = event_fun(&ctx, theta);
+            if (value <= 0.0 && prev_g > 0.0) {
+                const double tau = h * dfwb_in_illinois(event_fun, &ctx, prev_theta, prev_g, theta, value);
+                if (!*found || tau < *best_tau) {
+                    *found = 1;
+                    *best_tau = tau;
+                    *best_kind = kind;
+                }
+                break;
+            }
+            if (value < -floor_g) { /* a departing function beyond rounding below zero: it never left */
+                if (!*found || h * theta < *best_tau) {
+                    *found = 1;
+                    *best_tau = h * theta;
+                    *best_kind = kind;
+                }
+                break;
+            }
+            prev_theta = theta;
+            prev_g = value;
+        }
+    }
+}
+
 /* _chunk_start */
 static int chunk_start(dfwb_hy *hy, double t, const double *X, int first, dfwb_err *err)
 {
@@ -471,8 +701,28 @@ static int chunk_start(dfwb_hy *hy, double t, const double *X, int first, dfwb_e
     hy->a = t;
     if (X != hy->X)
         memmove(hy->X, X, (size_t)hy->n * sizeof *X);
-    derivative(m, hy->X, hy->dX);
-    hy->b = t + m->h;
+    derivative(hy, m, hy->X, hy->dX);
+    if (m->integrated) { /* one accepted step, sized by the error control from the piece's start */
+        double peak[DFWB_HY_DIM];
+        int rc;
+        if (first)
+            for (i = 0; i < hy->n; i++)
+                peak[i] = fabs(hy->X[i]);
+        else
+            memcpy(peak, hy->peak, sizeof peak);
+        rc = take(hy, m, t, first ? m->max_step / 64.0 : hy->next_h, peak, err);
+        if (rc != DFWB_OK)
+            return rc;
+        hy->b = t + hy->step_h;
+    } else {
+        hy->step_h = hy->next_h = 0.0; /* canonical: a closed-form chunk holds no step */
+        memset(hy->X1, 0, sizeof hy->X1);
+        memset(hy->dX1, 0, sizeof hy->dX1);
+        memset(hy->d20, 0, sizeof hy->d20);
+        memset(hy->d21, 0, sizeof hy->d21);
+        memset(hy->peak, 0, sizeof hy->peak);
+        hy->b = t + m->h;
+    }
     hy->first = first;
     hy->has_event = 0;
     hy->searched = 0;
@@ -507,8 +757,8 @@ int dfwb_hy_start(dfwb_hy *hy, double t0, const double *X0, int key, int departi
         if (m == NULL)
             return err->code != DFWB_OK ? err->code : DFWB_E_MATH;
         up = m->nev - 2;
-        derivative(m, X0, dX);
-        coefficients(m, up, X0, dX, 0.0, coeffs, scales);
+        derivative(hy, m, X0, dX);
+        coefficients(hy, m, up, X0, dX, 0.0, coeffs, scales);
         hy->watching = trend(coeffs, scales, m->terms + 1) > 0 ? DFWB_HY_SECTION_UP : DFWB_HY_SECTION_DOWN;
         if (fabs(coeffs[0]) <= TREND_ROUNDING * scales[0])
             deps[ndeps++] = hy->watching == DFWB_HY_SECTION_UP ? up : up + 1;
@@ -525,6 +775,10 @@ static int search(dfwb_hy *hy, int *found, double *best_tau, int *best_kind, dfw
     double coeffs[DFWB_HY_MAX_TERMS + 1], scales[DFWB_HY_MAX_TERMS + 1];
     int index, i;
     *found = 0;
+    if (m->integrated) {
+        integrated_search(hy, m, found, best_tau, best_kind);
+        return DFWB_OK;
+    }
     for (index = 0; index < m->nev; index++) {
         const int kind = m->ev[index].kind;
         int departing = 0, j = 0, len = m->terms + 1, has_root, rc;
@@ -539,7 +793,7 @@ static int search(dfwb_hy *hy, int *found, double *best_tau, int *best_kind, dfw
                 departing |= hy->departing[i] == index;
         if (!departing && cannot_fire(m, index, X, dX, size))
             continue;
-        coefficients(m, index, X, dX, dt, coeffs, scales);
+        coefficients(hy, m, index, X, dX, dt, coeffs, scales);
         if (departing || fabs(coeffs[0]) <= TREND_ROUNDING * scales[0]) {
             j = 1;
             while (j < len && fabs(coeffs[j]) <= TREND_ROUNDING * scales[j])
@@ -667,7 +921,10 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
                                  kind_name(kind));
             }
             t = hy->a + tau;
-            mode_state(hy->modes[hy->key], hy->X, hy->dX, tau, X);
+            if (hy->modes[hy->key]->integrated)
+                integrated_state(hy, tau, X);
+            else
+                mode_state(hy->modes[hy->key], hy->X, hy->dX, tau, X);
             hy->time_rounding = 4.0 * DFWB_EPS * fabs(t);
             if (is_section(kind)) { /* not an event of the system: watch the other direction from here */
                 const dfwb_hy_mode *m = hy->modes[hy->key];
@@ -710,7 +967,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
             char r0[DFWB_REPR_SIZE], rt[40], rh[40];
             dfwb_repr(hy->t, r0);
             format_g(hy->b, 6, rt, sizeof rt);
-            format_g(hy->modes[hy->key]->h, 3, rh, sizeof rh);
+            format_g(hy->modes[hy->key]->integrated ? hy->step_h : hy->modes[hy->key]->h, 3, rh, sizeof rh);
             return dfwb_fail(err, DFWB_E_LIMIT, "more than %d chunks of integration in one step from t = %s (at "
                              "t = %s s a chunk is %s s): take smaller steps", DFWB_HY_MAX_CHUNKS_PER_STEP, r0, rt, rh);
         }
@@ -719,7 +976,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
             if (*budget_left < 0) {
                 char rt[40], rh[40];
                 format_g(hy->b, 6, rt, sizeof rt);
-                format_g(hy->modes[hy->key]->h, 3, rh, sizeof rh);
+                format_g(hy->modes[hy->key]->integrated ? hy->step_h : hy->modes[hy->key]->h, 3, rh, sizeof rh);
                 return dfwb_fail(err, DFWB_E_LIMIT, "the exact loop needed more than %lld chunks of integration (at "
                                  "t = %s s a chunk is %s s): this study's motions are too long for its work budget, or "
                                  "the fastest time scale too far below the motion's", budget_total, rt, rh);
@@ -727,7 +984,10 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
         }
         {
             double X[DFWB_HY_DIM];
-            mode_step(hy->modes[hy->key], hy->X, hy->dX, X);
+            if (hy->modes[hy->key]->integrated)
+                memcpy(X, hy->X1, sizeof X);
+            else
+                mode_step(hy->modes[hy->key], hy->X, hy->dX, X);
             rc = chunk_start(hy, hy->b, X, 0, err);
             if (rc != DFWB_OK)
                 return rc;
@@ -742,6 +1002,8 @@ void dfwb_hy_state(const dfwb_hy *hy, double *X)
     const double tau = hy->t - hy->a;
     if (tau == 0.0)
         memcpy(X, hy->X, (size_t)hy->n * sizeof *X);
+    else if (hy->modes[hy->key]->integrated)
+        integrated_state(hy, tau, X);
     else
         mode_state(hy->modes[hy->key], hy->X, hy->dX, tau, X);
 }
@@ -799,6 +1061,7 @@ void dfwb_hy_free(dfwb_hy *hy)
 int dfwb_hy_resume(dfwb_hy *hy, dfwb_err *err)
 {
     const dfwb_hy_mode *m = hy->modes[hy->key];
+    double chunk;
     char name[32];
     int i, rc, kind_ok = 0;
     if (m == NULL)
@@ -820,8 +1083,29 @@ int dfwb_hy_resume(dfwb_hy *hy, dfwb_err *err)
             != DFWB_OK)
             return rc;
     }
+    if (m->integrated) { /* the step: finite, of positive length (at most the mode's largest), peaks >= 0 */
+        int ok = isfinite(hy->step_h) && hy->step_h > 0.0 && hy->step_h <= m->max_step && isfinite(hy->next_h)
+                 && hy->next_h > 0.0;
+        for (i = 0; ok && i < DFWB_HY_DIM; i++)
+            ok = i < hy->n ? isfinite(hy->X1[i]) && isfinite(hy->dX1[i]) && isfinite(hy->d20[i])
+                                 && isfinite(hy->d21[i]) && isfinite(hy->peak[i]) && hy->peak[i] >= 0.0
+                           : hy->X1[i] == 0.0 && hy->dX1[i] == 0.0 && hy->d20[i] == 0.0 && hy->d21[i] == 0.0
+                                 && hy->peak[i] == 0.0;
+        if (!ok)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's integrated step is out of range: needs a length in (0, "
+                             "the mode's largest step], finite values and peaks >= 0 (0 beyond the state's size)");
+    } else {
+        int ok = hy->step_h == 0.0 && hy->next_h == 0.0;
+        for (i = 0; ok && i < DFWB_HY_DIM; i++)
+            ok = hy->X1[i] == 0.0 && hy->dX1[i] == 0.0 && hy->d20[i] == 0.0 && hy->d21[i] == 0.0
+                 && hy->peak[i] == 0.0;
+        if (!ok)
+            return dfwb_fail(err, DFWB_E_STATE, "the state's integrated step is out of range: must be zeros in a "
+                             "closed-form mode");
+    }
+    chunk = m->integrated ? hy->step_h : m->h;
     if ((rc = dfwb_state_check(err, "chunk start", hy->a, isfinite(hy->a) && 0.0 <= hy->a && hy->a <= hy->t
-                               && hy->t < hy->a + m->h, "must be in [0, t] with t < start + h of its mode"))
+                               && hy->t < hy->a + chunk, "must be in [0, t] with t < start + h of its mode"))
         != DFWB_OK)
         return rc;
     for (i = 0; i < DFWB_HY_DIM; i++) {
@@ -842,7 +1126,7 @@ int dfwb_hy_resume(dfwb_hy *hy, dfwb_err *err)
         kind_ok |= m->ev[i].kind == hy->event_kind;
     if (hy->has_event) {
         if ((rc = dfwb_state_check(err, "event tau", hy->event_tau, isfinite(hy->event_tau) && hy->event_tau >= 0.0
-                                   && hy->event_tau <= m->h, "must be in [0, h] of its mode")) != DFWB_OK
+                                   && hy->event_tau <= chunk, "must be in [0, h] of its mode")) != DFWB_OK
             || (rc = dfwb_state_check_int(err, "event kind", hy->event_kind, kind_ok,
                                           "must be an event of its mode")) != DFWB_OK)
             return rc;
@@ -851,7 +1135,7 @@ int dfwb_hy_resume(dfwb_hy *hy, dfwb_err *err)
                || (rc = dfwb_state_check_int(err, "event kind", hy->event_kind, hy->event_kind == 0,
                                              "must be 0 without an event")) != DFWB_OK)
         return rc;
-    derivative(m, hy->X, hy->dX);
-    hy->b = hy->a + m->h;
+    derivative(hy, m, hy->X, hy->dX);
+    hy->b = hy->a + chunk;
     return DFWB_OK;
 }

@@ -55,6 +55,10 @@ typedef struct {
     double reach[DFWB_HY_EVENTS][DFWB_HY_DIM];
     double norms[DFWB_HY_EVENTS];
     double tail, curvature_tail;
+    /* an integrated mode (integrated.py's IntegratedMode): law(sign, X[col]) added to X'[row]; its terms are 2
+     * (the Taylor coefficients of its trend), its h the largest step (max_step) */
+    int integrated, row, col, sign;
+    double max_step;
 } dfwb_hy_mode;
 
 struct dfwb_hy;
@@ -66,9 +70,14 @@ typedef int (*dfwb_hy_system_fn)(struct dfwb_hy *hy, int key, dfwb_hy_mode *mode
 typedef int (*dfwb_hy_fire_fn)(struct dfwb_hy *hy, double t, int kind, double *X, int *key, int *departing,
                                dfwb_err *err);
 
+/* The nonlinear term of an integrated mode and its slope, at the value v of the mode's column. */
+typedef double (*dfwb_hy_law_fn)(const struct dfwb_hy *hy, int sign, double v);
+
 typedef struct dfwb_hy {
     dfwb_hy_system_fn system;
     dfwb_hy_fire_fn fire;
+    dfwb_hy_law_fn law, law_slope; /* NULL: no integrated mode */
+    double rtol;                   /* the integrated modes' tolerance */
     int n;                              /* the state's size */
     double t;
     long long events;
@@ -84,6 +93,11 @@ typedef struct dfwb_hy {
     int first, searched, has_event;
     double event_tau;
     int event_kind;
+    /* an integrated mode's chunk, one step from (a, X, dX): its length, its end's state and derivative, the
+     * second derivatives at both ends, the next step's trial size, the piece's peaks (IntegratedMode.take);
+     * zeros in a closed-form mode */
+    double step_h, X1[DFWB_HY_DIM], dX1[DFWB_HY_DIM], d20[DFWB_HY_DIM], d21[DFWB_HY_DIM], next_h;
+    double peak[DFWB_HY_DIM];
     int stopped;                        /* the event kind the last advance stopped at (not state), 0: none */
     /* the upward crossings of the section not read yet: (t, X[n]) each */
     double *crossings;

@@ -40,6 +40,8 @@ typedef struct {
     double P[DFWB_LOOP_PLANT_MAX][DFWB_LOOP_PLANT_MAX], p[DFWB_LOOP_PLANT_MAX], phi[DFWB_LOOP_PLANT_MAX];
     int nev, kind[DFWB_LOOP_PLANT_EVENTS];
     double Lq[DFWB_LOOP_PLANT_EVENTS][DFWB_LOOP_PLANT_MAX], Lf[DFWB_LOOP_PLANT_EVENTS], l0[DFWB_LOOP_PLANT_EVENTS];
+    /* an integrated mode (plant_mode's fifth item): the class's law(sign, q[col]) added to q'[row] */
+    int nonlinear, row, col, sign;
 } dfwb_plant_mode;
 
 /* Append the event function l1 q0 + l2 q1 + l3 q2 + l4 q3 + Lf f + l0 of kind (DFWB_EVENT_*). */
@@ -66,6 +68,11 @@ struct dfwb_loop_class {
     int (*initial)(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err);
     int (*fire)(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err);
     int keys; /* its mode keys are 0..keys-1 (its LOOP.KEYS, at most DFWB_HY_MODES) */
+    /* The nonlinear term of its integrated modes and its slope (NULL: none), and the index in par of their
+     * tolerance rtol (-1: none) */
+    double (*law)(const dfwb_loop *L, int sign, double v);
+    double (*law_slope)(const dfwb_loop *L, int sign, double v);
+    int rtol;
 };
 
 #endif /* DFWB_LOOP_H */

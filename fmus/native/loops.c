@@ -65,7 +65,26 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
             mode->ev[e].L[j] = (j < m ? pm.Lq[e][j] : 0.0) + pm.Lf[e] * L->f_row[j];
         mode->ev[e].l0 = pm.l0[e];
     }
+    if (pm.nonlinear) { /* (row, col, law): plant coordinates first, so the same indices in the loop's state */
+        mode->integrated = 1;
+        mode->row = pm.row;
+        mode->col = pm.col;
+        mode->sign = pm.sign;
+    }
     return DFWB_OK;
+}
+
+/* The class's law of its integrated modes, seen from the hybrid solver (the loop's first member). */
+static double loop_law(const dfwb_hy *hy, int sign, double v)
+{
+    const dfwb_loop *L = (const dfwb_loop *)(const void *)hy;
+    return L->cls->law(L, sign, v);
+}
+
+static double loop_law_slope(const dfwb_hy *hy, int sign, double v)
+{
+    const dfwb_loop *L = (const dfwb_loop *)(const void *)hy;
+    return L->cls->law_slope(L, sign, v);
 }
 
 double dfwb_loop_feedback(const dfwb_loop *L, const double *X)
@@ -166,6 +185,11 @@ static void setup(dfwb_loop *L, const double *section)
     L->section = section != NULL ? *section : 0.0;
     dfwb_hy_init(&L->hy, L->m + L->order, loop_system, loop_fire, section != NULL ? section_L : NULL,
                  section != NULL ? -*section : 0.0);
+    if (L->cls->law != NULL) {
+        L->hy.law = loop_law;
+        L->hy.law_slope = loop_law_slope;
+    }
+    L->hy.rtol = L->cls->rtol >= 0 ? L->par[L->cls->rtol] : 0.0;
 }
 
 int dfwb_loop_new(int plant, const double *params, size_t nparams, const double *b, size_t nb, const double *a,
@@ -498,6 +522,15 @@ static void loop_io(dfwb_io *io, dfwb_loop *L, int *mask)
     dfwb_io_int(io, &hy->has_event);
     dfwb_io_f64(io, &hy->event_tau);
     dfwb_io_int(io, &hy->event_kind);
+    dfwb_io_f64(io, &hy->step_h);
+    for (i = 0; i < DFWB_HY_DIM; i++) {
+        dfwb_io_f64(io, &hy->X1[i]);
+        dfwb_io_f64(io, &hy->dX1[i]);
+        dfwb_io_f64(io, &hy->d20[i]);
+        dfwb_io_f64(io, &hy->d21[i]);
+        dfwb_io_f64(io, &hy->peak[i]);
+    }
+    dfwb_io_f64(io, &hy->next_h);
 }
 
 static size_t loop_payload(void)
@@ -652,6 +685,13 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     L->hy.has_event = s.hy.has_event;
     L->hy.event_tau = s.hy.event_tau;
     L->hy.event_kind = s.hy.event_kind;
+    L->hy.step_h = s.hy.step_h;
+    memcpy(L->hy.X1, s.hy.X1, sizeof L->hy.X1);
+    memcpy(L->hy.dX1, s.hy.dX1, sizeof L->hy.dX1);
+    memcpy(L->hy.d20, s.hy.d20, sizeof L->hy.d20);
+    memcpy(L->hy.d21, s.hy.d21, sizeof L->hy.d21);
+    memcpy(L->hy.peak, s.hy.peak, sizeof L->hy.peak);
+    L->hy.next_h = s.hy.next_h;
     rc = dfwb_hy_resume(&L->hy, &err);
     if (rc != DFWB_OK) {
         dfwb_loop_free(L);

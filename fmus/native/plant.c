@@ -484,9 +484,40 @@ void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double anal
 {
     pw->t_piece = t;
     pw->output = *output;
+    pw->integrated = 0;
+    memset(&pw->traj, 0, sizeof pw->traj);
     pw->analytic = analytic;
     pw->analytic_kind = analytic_kind;
     dfwb_pw_set_searches(pw, t);
+}
+
+void dfwb_pw_begin_integrated(dfwb_pw *pw, double t, double x, double v, int sign, double rtol, int kind)
+{
+    pw->t_piece = t;
+    /* the motion is not the output: a body at rest at the start, its bytes canonical */
+    dfwb_motion_init(&pw->output, t, x, 0.0, 0.0, 0.0, 0.0, pw->drive.omega, pw->drive.phi);
+    pw->integrated = 1;
+    dfwb_traj_init(&pw->traj, pw->cls->law, pw, t, x, v, sign, pw->drive.omega, pw->harmonics, rtol,
+                   pw->velocity_error);
+    pw->analytic = INFINITY;
+    pw->analytic_kind = 0;
+    dfwb_pw_set_searches(pw, t);
+    dfwb_pw_add_search(pw, DFWB_SEARCH_TRAJECTORY, 1.0, 0, 0.0, 0.0, 0, t, kind);
+}
+
+int dfwb_pw_state(const dfwb_pw *pw, double t, double *x, double *v, dfwb_err *err)
+{
+    if (pw->integrated)
+        return dfwb_traj_state(&pw->traj, t, x, v, err);
+    dfwb_motion_state(&pw->output, t, x, v);
+    return DFWB_OK;
+}
+
+double dfwb_pw_acceleration(const dfwb_pw *pw, double t, double v)
+{
+    if (pw->integrated)
+        return pw->cls->law(pw, pw->traj.sign, t, v);
+    return dfwb_motion_acceleration(&pw->output, t, v);
 }
 
 void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K, int bounded,
@@ -512,9 +543,13 @@ static void piece_integrals(const dfwb_pw *pw, double t, dfwb_cx *out, dfwb_err 
     const dfwb_motion *m = &pw->output;
     double x, v;
     int k;
-    if (t <= m->t0) {
+    if (t <= (pw->integrated ? pw->traj.t0 : m->t0)) {
         for (k = 0; k <= pw->harmonics; k++)
             out[k] = dfwb_cx_make(0.0, 0.0);
+        return;
+    }
+    if (pw->integrated) {
+        dfwb_traj_integrals(&pw->traj, t, out, err);
         return;
     }
     dfwb_motion_state(m, t, &x, &v);
@@ -529,6 +564,17 @@ void dfwb_pw_close_piece(dfwb_pw *pw, double t, dfwb_err *err)
     piece_integrals(pw, t, piece, err);
     for (k = 0; k <= pw->harmonics; k++)
         pw->integrals[k] = dfwb_cx_add(pw->integrals[k], piece[k]);
+    /* the errors (a closed form adds none): as PiecewisePlant._close_piece */
+    pw->integral_error += (pw->integrated ? dfwb_traj_integral_error(&pw->traj, t) : 0.0)
+                          + pw->position_error * (t - pw->t_piece);
+    pw->position_error += pw->integrated ? dfwb_traj_position_error(&pw->traj) : 0.0;
+    pw->velocity_error = pw->integrated ? dfwb_traj_velocity_error(&pw->traj, t) : 0.0;
+}
+
+double dfwb_pw_integrals_error(const dfwb_pw *pw)
+{
+    return pw->integral_error + (pw->integrated ? dfwb_traj_integral_error(&pw->traj, pw->t) : 0.0)
+           + pw->position_error * (pw->t - pw->t_piece);
 }
 
 void dfwb_pw_integrals(const dfwb_pw *pw, double *re, double *im, dfwb_err *err)
@@ -619,6 +665,7 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
     while (!pw->has_found && pw->searched < (t_end < pw->analytic ? t_end : pw->analytic)) {
         const double a = pw->searched;
         double b;
+        int integrated = 0;
         rc = chunk_end(pw, a, &b, err);
         if (rc != DFWB_OK)
             return rc;
@@ -628,7 +675,25 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
             const dfwb_search *s = &pw->searches[i];
             const double lo = s->t_from > a ? s->t_from : a;
             /* past an event already found the piece has ended: its functions need not be resolved there */
-            const double hi = pw->has_found ? pw->found_t : b;
+            double hi = pw->has_found ? pw->found_t : b;
+            if (s->type == DFWB_SEARCH_TRAJECTORY) { /* it keeps one step: no further than asked */
+                int found;
+                double root;
+                hi = t_end < hi ? t_end : hi;
+                integrated = 1;
+                if (lo < hi) {
+                    rc = dfwb_traj_first_zero(&pw->traj, pw->cls->law, pw->cls->law_size, pw, lo, hi, &found, &root,
+                                              err);
+                    if (rc != DFWB_OK)
+                        return rc;
+                    if (found && (!pw->has_found || root < pw->found_t)) {
+                        pw->has_found = 1;
+                        pw->found_t = root;
+                        pw->found_kind = s->kind;
+                    }
+                }
+                continue;
+            }
             if (lo < hi) {
                 search_ctx ctx;
                 int found;
@@ -647,7 +712,7 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
                 }
             }
         }
-        pw->searched = b;
+        pw->searched = integrated && t_end < b ? t_end : b; /* an integrated search was asked to t_end at most */
     }
     if (!pw->has_found || pw->analytic <= pw->found_t) {
         event_t = pw->analytic;
@@ -754,6 +819,84 @@ int dfwb_pw_same_parameters(const dfwb_pw *a, const dfwb_pw *b)
 }
 
 /* -- the common part of a state ----------------------------------------------------------- */
+/* The trajectory's fields (zeros when the piece is not integrated: dfwb_pw_begin clears it). */
+static void traj_io(dfwb_io *io, dfwb_trajectory *tr)
+{
+    int k;
+    dfwb_io_int(io, &tr->sign);
+    dfwb_io_int(io, &tr->harmonics);
+    dfwb_io_f64(io, &tr->t0);
+    dfwb_io_f64(io, &tr->x0);
+    dfwb_io_f64(io, &tr->v0);
+    dfwb_io_f64(io, &tr->omega);
+    dfwb_io_f64(io, &tr->rtol);
+    dfwb_io_f64(io, &tr->max_step);
+    dfwb_io_f64(io, &tr->h);
+    dfwb_io_f64(io, &tr->k_last);
+    dfwb_io_f64(io, &tr->peak[0]);
+    dfwb_io_f64(io, &tr->peak[1]);
+    dfwb_io_f64(io, &tr->error[0]);
+    dfwb_io_f64(io, &tr->error[1]);
+    dfwb_io_int(io, &tr->has_stopped);
+    dfwb_io_f64(io, &tr->stopped);
+    dfwb_io_i64(io, &tr->taken);
+    dfwb_io_int(io, &tr->stiff[0]);
+    dfwb_io_int(io, &tr->stiff[1]);
+    dfwb_io_f64(io, &tr->a);
+    dfwb_io_f64(io, &tr->sh);
+    dfwb_io_f64(io, &tr->d0);
+    dfwb_io_f64(io, &tr->sv0);
+    for (k = 0; k < 5; k++)
+        dfwb_io_f64(io, &tr->quintic[k]);
+    for (k = 0; k < 4; k++)
+        dfwb_io_f64(io, &tr->vc[k]);
+    for (k = 0; k <= DFWB_HARMONICS_MAX; k++) {
+        dfwb_io_f64(io, &tr->integrals[k].re);
+        dfwb_io_f64(io, &tr->integrals[k].im);
+    }
+    dfwb_io_f64(io, &tr->int_err);
+    dfwb_io_f64(io, &tr->pos_err);
+}
+
+/* A trajectory read from a state: every field in range and consistent with its piece (DFWB_E_STATE). */
+static int traj_validate(const dfwb_pw *pw, dfwb_err *err)
+{
+    const dfwb_trajectory *tr = &pw->traj;
+    const double end = tr->a + tr->sh;
+    int ok, k;
+    if (!pw->integrated) {
+        static const dfwb_trajectory zero = {0};
+        return memcmp(tr, &zero, sizeof zero) == 0 ? DFWB_OK
+               : dfwb_fail(err, DFWB_E_STATE, "the state's trajectory is out of range: must be zeros when the piece "
+                           "is not integrated");
+    }
+    ok = (tr->sign == 1 || tr->sign == -1) && tr->harmonics == pw->harmonics && tr->t0 == pw->t_piece
+         && isfinite(tr->x0) && isfinite(tr->v0) && tr->omega == pw->drive.omega && tr->rtol >= 1e-12
+         && tr->rtol <= 1e-3 && tr->max_step == DFWB_TWO_PI / tr->omega / DFWB_IN_STEPS_PER_PERIOD
+         && isfinite(tr->h) && tr->h > 0.0 && isfinite(tr->k_last) && isfinite(tr->peak[0]) && tr->peak[0] >= 0.0
+         && isfinite(tr->peak[1]) && tr->peak[1] >= 0.0 && isfinite(tr->error[0]) && tr->error[0] >= 0.0
+         && isfinite(tr->error[1]) && tr->error[1] >= 0.0 && tr->taken >= 0 && 0 <= tr->stiff[0]
+         && tr->stiff[0] < DFWB_IN_STIFF_STEPS && 0 <= tr->stiff[1] && tr->stiff[1] < 6 && isfinite(tr->a)
+         && isfinite(tr->sh) && tr->sh >= 0.0 && tr->a >= tr->t0 && tr->a <= pw->t && end >= pw->t
+         && (tr->has_stopped == 0 ? tr->stopped == 0.0 : tr->has_stopped == 1 && tr->stopped >= tr->a
+             && tr->stopped <= end)
+         && isfinite(tr->d0) && isfinite(tr->sv0) && isfinite(tr->int_err) && tr->int_err >= 0.0
+         && isfinite(tr->pos_err) && tr->pos_err >= 0.0;
+    for (k = 0; ok && k < 5; k++)
+        ok = isfinite(tr->quintic[k]);
+    for (k = 0; ok && k < 4; k++)
+        ok = isfinite(tr->vc[k]);
+    for (k = 0; ok && k <= DFWB_HARMONICS_MAX; k++)
+        ok = isfinite(tr->integrals[k].re) && isfinite(tr->integrals[k].im)
+             && (k <= tr->harmonics || (tr->integrals[k].re == 0.0 && tr->integrals[k].im == 0.0));
+    if (!ok)
+        return dfwb_fail(err, DFWB_E_STATE, "the state's trajectory is out of range: needs a direction +-1, the "
+                         "piece's start, the drive's omega, rtol in [1e-12, 1e-3], finite steps, errors >= 0 and "
+                         "a last step that holds the current time");
+    dfwb_in_setup();
+    return DFWB_OK;
+}
+
 void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw)
 {
     /* writing: canonical bytes, nothing stale (unused searches and a missing found are zeros) */
@@ -772,8 +915,13 @@ void dfwb_pw_io(dfwb_io *io, dfwb_pw *pw)
         dfwb_io_f64(io, &pw->integrals[k].re);
         dfwb_io_f64(io, &pw->integrals[k].im);
     }
+    dfwb_io_f64(io, &pw->integral_error);
+    dfwb_io_f64(io, &pw->position_error);
+    dfwb_io_f64(io, &pw->velocity_error);
     dfwb_io_f64(io, &pw->t_piece);
     dfwb_io_motion(io, &pw->output);
+    dfwb_io_int(io, &pw->integrated);
+    traj_io(io, &pw->traj);
     dfwb_io_f64(io, &pw->analytic);
     dfwb_io_int(io, &pw->analytic_kind);
     dfwb_io_int(io, &pw->nsearch);
@@ -821,7 +969,17 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
         || (rc = dfwb_state_check(err, "output motion's t0", pw->output.t0, pw->output.t0 == pw->t_piece,
                                   "must be the piece's start t_piece")) != DFWB_OK
         || (rc = dfwb_state_check_int(err, "nsearch", pw->nsearch, 0 <= pw->nsearch
-                                      && pw->nsearch <= DFWB_MAX_SEARCHES, "must be in 0..3")) != DFWB_OK)
+                                      && pw->nsearch <= DFWB_MAX_SEARCHES, "must be in 0..3")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "integral_error", pw->integral_error, isfinite(pw->integral_error)
+                                  && pw->integral_error >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "position_error", pw->position_error, isfinite(pw->position_error)
+                                  && pw->position_error >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "velocity_error", pw->velocity_error, isfinite(pw->velocity_error)
+                                  && pw->velocity_error >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check_int(err, "integrated", pw->integrated, pw->integrated == 0
+                                      || (pw->integrated == 1 && pw->cls->law != NULL),
+                                      "must be 0, or 1 for a plant with integrated pieces")) != DFWB_OK
+        || (rc = traj_validate(pw, err)) != DFWB_OK)
         return rc;
     if (!isinf(pw->analytic) && pw->analytic_kind == 0)
         return dfwb_fail(err, DFWB_E_STATE, "the state's analytic event is out of range: a finite one has a kind");
@@ -836,8 +994,11 @@ int dfwb_pw_validate(dfwb_pw *pw, dfwb_err *err)
                                  "must be zeros", i);
             continue;
         }
+        if ((s->type == DFWB_SEARCH_TRAJECTORY) != (pw->integrated && i == 0))
+            return dfwb_fail(err, DFWB_E_STATE, "the state's search %d is out of range: an integrated piece's one "
+                             "search is its trajectory's stop, and only its", i);
         if (!((s->type == DFWB_SEARCH_VELOCITY || s->type == DFWB_SEARCH_POSITION || s->type == DFWB_SEARCH_EDGE
-               || (s->type >= DFWB_SEARCH_PLANT && pw->cls->search != NULL))
+               || s->type == DFWB_SEARCH_TRAJECTORY || (s->type >= DFWB_SEARCH_PLANT && pw->cls->search != NULL))
               && (s->sign == 1.0 || s->sign == -1.0) && (s->has_level == 0 || s->has_level == 1)
               && isfinite(s->level) && (s->has_level || s->level == 0.0) && s->K >= 0.0 /* +inf allowed */
               && (s->bounded == 0
@@ -969,6 +1130,8 @@ int dfwb_plant_integrals(const dfwb_plant *p, double *re, double *im, char *errb
     dfwb_pw_integrals(&p->pw, re, im, &err);
     return dfwb_err_finish(&err, DFWB_OK);
 }
+
+double dfwb_plant_integrals_error(const dfwb_plant *p) { return p == NULL ? NAN : dfwb_pw_integrals_error(&p->pw); }
 
 double dfwb_plant_time(const dfwb_plant *p) { return p == NULL ? NAN : p->pw.t; }
 

@@ -11,6 +11,7 @@
 
 #include "dfwb_core.h"
 #include "exact.h"
+#include "integrated.h"
 
 /* -- errors ------------------------------------------------------------------------- */
 void dfwb_err_init(dfwb_err *err, char *buf, size_t len);
@@ -109,7 +110,7 @@ int dfwb_state_check_piece(double t, double period, double t_piece, double searc
                            int has_found, double found_t, dfwb_err *err);
 
 /* -- the piece machinery (fmus/piecewise.py) ------------------------------------------------ */
-enum { DFWB_SEARCH_VELOCITY = 1, DFWB_SEARCH_POSITION = 2, DFWB_SEARCH_EDGE = 3 };
+enum { DFWB_SEARCH_VELOCITY = 1, DFWB_SEARCH_POSITION = 2, DFWB_SEARCH_EDGE = 3, DFWB_SEARCH_TRAJECTORY = 4 };
 #define DFWB_SEARCH_PLANT 8 /* types from here on are the plant's own (its class's search function) */
 #define DFWB_MAX_SEARCHES 3
 
@@ -117,6 +118,8 @@ enum { DFWB_SEARCH_VELOCITY = 1, DFWB_SEARCH_POSITION = 2, DFWB_SEARCH_EDGE = 3 
  *   VELOCITY (VelocitySearch): g = sign v (level + sign v when has_level: the offset), g' = sign v'
  *   POSITION (PositionSearch): g = x, g' = v; with has_level (a wall): g = level - x, g' = -v
  *   EDGE (EdgeSearch):         g = sign (level - x), g' = -sign v
+ *   TRAJECTORY (a Search with K None): the stop of the piece's integrated trajectory (pw->traj), found by
+ *              integrating it (dfwb_traj_first_zero), no further than the step containing the advance's end
  *   DFWB_SEARCH_PLANT and above: the plant's own, evaluated by its class's search function (sign, level and
  *   has_level are the plant's to use; sign is +-1, the state's check asks)
  * with |g''| <= K (a number) or, when bounded, a function of t (K is then 0): for a VELOCITY search the
@@ -142,9 +145,14 @@ typedef struct {
     double t;
     long long events;
     dfwb_cx integrals[DFWB_HARMONICS_MAX + 1];
-    /* the piece */
+    /* bounds on the errors of integrated pieces (PiecewisePlant's _integral_error, _position_error,
+     * _velocity_error: 0 for a plant of closed forms) */
+    double integral_error, position_error, velocity_error;
+    /* the piece: its output is the motion, or (integrated) the trajectory */
     double t_piece;
     dfwb_motion output;
+    int integrated;
+    dfwb_trajectory traj;
     double analytic;
     int analytic_kind;
     int nsearch;
@@ -166,6 +174,15 @@ typedef int (*dfwb_restart_fn)(void *plant, double t, dfwb_err *err);
 void dfwb_pw_init(dfwb_pw *pw, double F, double omega, double phi, double f, double harmonics);
 /* _begin: a piece from t with the output's motion and an analytic event (inf, 0: none); no search yet. */
 void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double analytic, int analytic_kind);
+/* _begin of a piece whose output is a trajectory (its class's law of direction sign, from (t, x, v), the
+ * velocity's error carried in) with no analytic event and its stop as the one search, of event kind. */
+void dfwb_pw_begin_integrated(dfwb_pw *pw, double t, double x, double v, int sign, double rtol, int kind);
+/* The output's position and velocity at t (the motion's, or the trajectory's: DFWB_E_VALUE out of its step),
+ * and its acceleration there. */
+int dfwb_pw_state(const dfwb_pw *pw, double t, double *x, double *v, dfwb_err *err);
+double dfwb_pw_acceleration(const dfwb_pw *pw, double t, double v);
+/* PiecewisePlant.integrals_error: a bound on the error of every running integral (0: closed forms). */
+double dfwb_pw_integrals_error(const dfwb_pw *pw);
 /* _set_searches(t, []): the searches are then added in order. */
 void dfwb_pw_set_searches(dfwb_pw *pw, double t);
 void dfwb_pw_add_search(dfwb_pw *pw, int type, double sign, int has_level, double level, double K, int bounded,
@@ -215,6 +232,9 @@ struct dfwb_plant_class {
     void (*search)(const void *plant, const dfwb_search *s, double t, double *g, double *dg);
     /* |g''| on [t, inf) of such a search when it is bounded, or NULL: none of its searches is */
     double (*search_bound)(const void *plant, const dfwb_search *s, double t);
+    /* The acceleration of its integrated slides (direction s) and the magnitude of its terms, or NULL: a plant
+     * of closed forms (.integrated's law and law.size) */
+    dfwb_law_fn law, law_size;
 };
 
 /* The class of a plant kind (DFWB_PLANT_*), NULL for a kind the core does not know. */

@@ -307,7 +307,7 @@ static const char *const LOOP_COORDINATES[] = {"x", "v", "y"};
 
 static const dfwb_loop_class LOOP = {3, 2, DFWB_LOOP_STATIC_BACKLASH_PARAMS, 3, "a static backlash",
                                                    LOOP_COORDINATES, "('x', 'v', 'y')", loop_check, loop_check_state,
-                                                   loop_mode, loop_initial, loop_fire, 3};
+                                                   loop_mode, loop_initial, loop_fire, 3, NULL, NULL, -1};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* StaticBacklash.__init__, then PiecewisePlant's: the order of the Python constructor */
@@ -359,4 +359,4 @@ static const dfwb_static_backlash zero_state = {0}; /* the state's size is count
 const dfwb_plant_class dfwb_static_backlash_class = {
     DFWB_PLANT_STATIC_BACKLASH, sizeof(dfwb_static_backlash), &zero_state, offsetof(dfwb_static_backlash, mass),
     fire, restart, state_io, validate, DFWB_STATIC_BACKLASH_PARAMS, 3, 1, init, output, counter, same,
-    &LOOP, NULL, NULL};
+    &LOOP, NULL, NULL, NULL, NULL};
