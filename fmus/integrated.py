@@ -64,6 +64,7 @@ MAX_STEPS = 1_000_000  # steps one call may take (an FMU's step costs seconds at
 STIFF_STEPS, STIFF_FRACTION = 15, 1e-3
 STEP_FLOOR = 64.0  # ulp of the time: a step below this is refused (the mode is stiff or singular)
 SAFETY, GROW, SHRINK = 0.9, 5.0, 0.2  # step control: h_new = h * clip(0.9 err^(-1/5), 0.2, 5)
+NEAR = 3.0  # |v| < NEAR law.scale: the law's feature (the Stribeck drop), crossed a quarter scale a step
 ROUNDING = 64.0 * EPS  # the error control's floor: a step's rounding of its derivative's terms
 EVENT_SAMPLES = 8  # an event function is sampled at this many points of each step before refinement
 REFINE_ITERATIONS = 200  # Illinois steps on one bracket (each at least halves it within 2 steps)
@@ -114,8 +115,10 @@ GAUSS_NODES, GAUSS_WEIGHTS = _gauss_legendre(9)
 class Trajectory:
     """The motion ``x' = v, v' = law(t, v)`` from ``(t0, x0, v0)``, integrated to its stop.
 
-    ``law`` is plain data with ``__call__(t, v)`` (the acceleration) and
-    ``size(t, v)`` (the sum of its terms' magnitudes: its rounding); the
+    ``law`` is plain data with ``__call__(t, v)`` (the acceleration),
+    ``size(t, v)`` (the sum of its terms' magnitudes: its rounding) and
+    ``scale`` (the velocity over which it varies, near zero: a step there
+    crosses a quarter of it at most; inf for none); the
     stop is the first time after t0 where ``sign * v`` falls to zero (the
     direction of motion, sign +-1), the start's own zero excepted. ``omega``
     is the drive's (a step spans at most 1/32 of its period), ``harmonics``
@@ -208,7 +211,7 @@ class Trajectory:
         a, d0, v0 = last[0] + last[1], last[2] + last[4][0], last[3] + last[5][0]  # its end
         law, rtol, sign = self.law, self.rtol, self.sign
         k1 = self.k_last
-        h = min(self.h, self.max_step)
+        h = min(self.h, self.max_step, _feature_step(law.scale, v0, k1))
         size = law.size(a, v0)
         ratio = factor = math.inf  # a step below the floor from the start is refused as any other
         for _ in range(MAX_REJECTIONS):
@@ -327,6 +330,14 @@ class Trajectory:
         return total
 
 
+def _feature_step(scale, v, rate):
+    """The largest step that resolves the law's feature at velocity ``scale`` (the Stribeck velocity) from
+    velocity v at the current ``rate`` (an error estimate can step over a feature much narrower than the step:
+    a stop mislocated by 1e-3 s at rtol 1e-9): within NEAR scales of zero, a step changes v by a quarter scale
+    at most; farther, by half the distance to that region (so it is approached, never jumped over)."""
+    return max(0.5 * (abs(v) - NEAR * scale), 0.25 * scale) / abs(rate) if rate else math.inf
+
+
 def _dense(step, t):
     """(d, v) of a step at t, by its dense output."""
     a, h = step[0], step[1]
@@ -398,7 +409,8 @@ class IntegratedMode:
     the error control from the piece's start, as the plant's
     :class:`Trajectory`; the dense output is the quintic Hermite of each
     component (its second derivative A X' + e_row law'(X[col]) X'[col] at both
-    ends). ``law`` is plain data with ``__call__(v)`` and ``slope(v)``.
+    ends). ``law`` is plain data with ``__call__(v)``, ``slope(v)`` and ``scale``
+    (as the Trajectory's law's).
     """
 
     __slots__ = ("key", "A", "c", "events", "row", "col", "law", "rtol", "n", "resolution", "max_step")
@@ -453,7 +465,7 @@ class IntegratedMode:
         """One accepted step from (a, X0) with trial size h: the step [a, h, X0, X1, dX0, dX1, X0'', X1'', the
         next trial size, the peaks] (``peak``: the largest |X_i| of the piece so far, the tolerance's scale)."""
         n, rtol = self.n, self.rtol
-        h = min(h, self.max_step)
+        h = min(h, self.max_step, _feature_step(self.law.scale, X0[self.col], dX0[self.col]))
         gross = self.gross(X0)
         # and what that rounding moves in a step through the coupling (a position, through its velocity's)
         moved = [sum(abs(a) * g for a, g in zip(row, gross)) for row in self.A]

@@ -17,6 +17,8 @@ from dfwb.fmus.piecewise import Search
 class Linear:
     """v' = -lam v + a + b cos(omega t + phi): the law of a closed-form Motion."""
 
+    scale = math.inf  # no feature in v
+
     def __init__(self, lam, a, b, omega, phi):
         self.lam, self.a, self.b, self.omega, self.phi = lam, a, b, omega, phi
 
@@ -141,6 +143,8 @@ def test_a_law_it_cannot_integrate_is_refused_in_one_line(law, message):
 
 class Damping:
     """law(v) = -lam v: the viscous term, moved out of a mode's matrix into its nonlinear term."""
+
+    scale = math.inf
 
     def __init__(self, lam):
         self.lam = lam

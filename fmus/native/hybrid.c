@@ -520,8 +520,7 @@ static int take(dfwb_hy *hy, const dfwb_hy_mode *m, double a, double h, const do
     double gross[DFWB_HY_DIM], moved[DFWB_HY_DIM], stages[7][DFWB_HY_DIM], ks[7][DFWB_HY_DIM], ratio = INFINITY, factor = INFINITY;
     double new_peak[DFWB_HY_DIM];
     int it, i, j, q, broke = 0;
-    if (m->max_step < h)
-        h = m->max_step;
+    h = dfwb_in_min3(h, m->max_step, dfwb_in_feature_step(m->feature, X0[m->col], dX0[m->col]));
     gross_of(hy, m, X0, gross);
     for (i = 0; i < n; i++) { /* moved: sum(abs(a) * g for a, g in zip(row, gross)) */
         double sum = 0.0;

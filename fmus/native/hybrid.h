@@ -58,7 +58,7 @@ typedef struct {
     /* an integrated mode (integrated.py's IntegratedMode): law(sign, X[col]) added to X'[row]; its terms are 2
      * (the Taylor coefficients of its trend), its h the largest step (max_step) */
     int integrated, row, col, sign;
-    double max_step;
+    double max_step, feature; /* its largest step; the law's velocity scale (law.scale) */
 } dfwb_hy_mode;
 
 struct dfwb_hy;

@@ -86,6 +86,23 @@ double dfwb_in_max3(double a, double b, double c)
     return m;
 }
 
+double dfwb_in_min3(double a, double b, double c)
+{
+    double m = a;
+    if (b < m)
+        m = b;
+    if (c < m)
+        m = c;
+    return m;
+}
+
+double dfwb_in_feature_step(double scale, double v, double rate)
+{
+    /* max(0.5 * (abs(v) - NEAR * scale), 0.25 * scale) / abs(rate) */
+    const double far = 0.5 * (fabs(v) - DFWB_IN_NEAR * scale), near = 0.25 * scale;
+    return rate != 0.0 ? (near > far ? near : far) / fabs(rate) : INFINITY;
+}
+
 double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo, double hi, double g_hi)
 {
     int side = 0, i;
@@ -122,7 +139,7 @@ double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo
 
 /* -- the trajectory ------------------------------------------------------------------------------------ */
 void dfwb_traj_init(dfwb_trajectory *tr, dfwb_law_fn law, const void *plant, double t0, double x0, double v0,
-                    int sign, double omega, int harmonics, double rtol, double v_error)
+                    int sign, double omega, int harmonics, double rtol, double scale, double v_error)
 {
     int k;
     dfwb_in_setup();
@@ -134,6 +151,7 @@ void dfwb_traj_init(dfwb_trajectory *tr, dfwb_law_fn law, const void *plant, dou
     tr->omega = omega;
     tr->harmonics = harmonics;
     tr->rtol = rtol;
+    tr->scale = scale;
     tr->max_step = DFWB_TWO_PI / omega / DFWB_IN_STEPS_PER_PERIOD;
     tr->h = tr->max_step / 64.0;
     tr->k_last = law(plant, sign, t0, v0);
@@ -210,7 +228,7 @@ static int take_step(dfwb_trajectory *tr, dfwb_law_fn law, dfwb_law_fn size, con
 {
     const double a = tr->a + tr->sh, d0 = tr->d0 + tr->quintic[0], v0 = tr->sv0 + tr->vc[0];
     const double rtol = tr->rtol, k1 = tr->k_last;
-    double h = tr->h < tr->max_step ? tr->h : tr->max_step; /* min(self.h, max_step) */
+    double h = dfwb_in_min3(tr->h, tr->max_step, dfwb_in_feature_step(tr->scale, v0, k1));
     const double size_a = size(plant, tr->sign, a, v0);
     double ratio = INFINITY, factor = INFINITY, kv[7], vs[7], v1 = 0.0, d1 = 0.0, err_d = 0.0, err_v = 0.0;
     double spread, dv, dd, r2d, quartic[4], dense_error, integral_error, sum;

@@ -26,6 +26,7 @@
 #define DFWB_IN_EVENT_SAMPLES 8
 #define DFWB_IN_REFINE_ITERATIONS 200
 #define DFWB_IN_GAUSS 9
+#define DFWB_IN_NEAR 3.0 /* NEAR: the law's feature within NEAR scales of zero */
 
 /* The tableau (integrated.py's C, A, E, D) and the 9-point Gauss-Legendre rule on [0, 1]. */
 extern const double dfwb_in_c[7], dfwb_in_a[7][6], dfwb_in_e[7], dfwb_in_d[7];
@@ -40,15 +41,18 @@ double dfwb_in_poly(double y0, const double r[4], double theta);
 /* The zero of fun in (lo, hi], fun(lo) = g_lo > 0 >= fun(hi) = g_hi: Illinois (_illinois_fn). */
 typedef double (*dfwb_in_fun)(const void *ctx, double theta);
 double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo, double hi, double g_hi);
-/* Python's max(a, b, c): the first of the largest. */
+/* Python's max(a, b, c): the first of the largest; min(a, b, c): the first of the smallest. */
 double dfwb_in_max3(double a, double b, double c);
+double dfwb_in_min3(double a, double b, double c);
+/* _feature_step: the largest step from velocity v at rate that resolves the law's feature at scale. */
+double dfwb_in_feature_step(double scale, double v, double rate);
 
 /* The acceleration of a slide of direction s, and the magnitude of its terms (the error control's floor). */
 typedef double (*dfwb_law_fn)(const void *plant, int s, double t, double v);
 
 typedef struct {
     int sign, harmonics;
-    double t0, x0, v0, omega, rtol, max_step, h, k_last, peak[2], error[2];
+    double t0, x0, v0, omega, rtol, scale, max_step, h, k_last, peak[2], error[2];
     int has_stopped;
     double stopped;
     long long taken;
@@ -62,7 +66,7 @@ typedef struct {
 
 /* Trajectory.__init__ (k_last = law(t0, v0)). */
 void dfwb_traj_init(dfwb_trajectory *tr, dfwb_law_fn law, const void *plant, double t0, double x0, double v0,
-                    int sign, double omega, int harmonics, double rtol, double v_error);
+                    int sign, double omega, int harmonics, double rtol, double scale, double v_error);
 /* Trajectory.first_zero: *found = 1 and *t the stop when it is <= hi, integrating on to the step containing hi. */
 int dfwb_traj_first_zero(dfwb_trajectory *tr, dfwb_law_fn law, dfwb_law_fn size, const void *plant, double lo,
                          double hi, int *found, double *t, dfwb_err *err);

@@ -42,6 +42,7 @@ typedef struct {
     double Lq[DFWB_LOOP_PLANT_EVENTS][DFWB_LOOP_PLANT_MAX], Lf[DFWB_LOOP_PLANT_EVENTS], l0[DFWB_LOOP_PLANT_EVENTS];
     /* an integrated mode (plant_mode's fifth item): the class's law(sign, q[col]) added to q'[row] */
     int nonlinear, row, col, sign;
+    double feature; /* the law's velocity scale (law.scale; inf for none) */
 } dfwb_plant_mode;
 
 /* Append the event function l1 q0 + l2 q1 + l3 q2 + l4 q3 + Lf f + l0 of kind (DFWB_EVENT_*). */

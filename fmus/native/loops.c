@@ -70,6 +70,7 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
         mode->row = pm.row;
         mode->col = pm.col;
         mode->sign = pm.sign;
+        mode->feature = pm.feature;
     }
     return DFWB_OK;
 }

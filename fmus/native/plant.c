@@ -491,13 +491,14 @@ void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double anal
     dfwb_pw_set_searches(pw, t);
 }
 
-void dfwb_pw_begin_integrated(dfwb_pw *pw, double t, double x, double v, int sign, double rtol, int kind)
+void dfwb_pw_begin_integrated(dfwb_pw *pw, double t, double x, double v, int sign, double rtol, double scale,
+                              int kind)
 {
     pw->t_piece = t;
     /* the motion is not the output: a body at rest at the start, its bytes canonical */
     dfwb_motion_init(&pw->output, t, x, 0.0, 0.0, 0.0, 0.0, pw->drive.omega, pw->drive.phi);
     pw->integrated = 1;
-    dfwb_traj_init(&pw->traj, pw->cls->law, pw, t, x, v, sign, pw->drive.omega, pw->harmonics, rtol,
+    dfwb_traj_init(&pw->traj, pw->cls->law, pw, t, x, v, sign, pw->drive.omega, pw->harmonics, rtol, scale,
                    pw->velocity_error);
     pw->analytic = INFINITY;
     pw->analytic_kind = 0;
@@ -830,6 +831,7 @@ static void traj_io(dfwb_io *io, dfwb_trajectory *tr)
     dfwb_io_f64(io, &tr->v0);
     dfwb_io_f64(io, &tr->omega);
     dfwb_io_f64(io, &tr->rtol);
+    dfwb_io_f64(io, &tr->scale);
     dfwb_io_f64(io, &tr->max_step);
     dfwb_io_f64(io, &tr->h);
     dfwb_io_f64(io, &tr->k_last);
@@ -872,7 +874,7 @@ static int traj_validate(const dfwb_pw *pw, dfwb_err *err)
     }
     ok = (tr->sign == 1 || tr->sign == -1) && tr->harmonics == pw->harmonics && tr->t0 == pw->t_piece
          && isfinite(tr->x0) && isfinite(tr->v0) && tr->omega == pw->drive.omega && tr->rtol >= 1e-12
-         && tr->rtol <= 1e-3 && tr->max_step == DFWB_TWO_PI / tr->omega / DFWB_IN_STEPS_PER_PERIOD
+         && tr->rtol <= 1e-3 && tr->scale > 0.0 /* +inf allowed: no feature */ && tr->max_step == DFWB_TWO_PI / tr->omega / DFWB_IN_STEPS_PER_PERIOD
          && isfinite(tr->h) && tr->h > 0.0 && isfinite(tr->k_last) && isfinite(tr->peak[0]) && tr->peak[0] >= 0.0
          && isfinite(tr->peak[1]) && tr->peak[1] >= 0.0 && isfinite(tr->error[0]) && tr->error[0] >= 0.0
          && isfinite(tr->error[1]) && tr->error[1] >= 0.0 && tr->taken >= 0 && 0 <= tr->stiff[0]

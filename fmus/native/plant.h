@@ -174,9 +174,11 @@ typedef int (*dfwb_restart_fn)(void *plant, double t, dfwb_err *err);
 void dfwb_pw_init(dfwb_pw *pw, double F, double omega, double phi, double f, double harmonics);
 /* _begin: a piece from t with the output's motion and an analytic event (inf, 0: none); no search yet. */
 void dfwb_pw_begin(dfwb_pw *pw, double t, const dfwb_motion *output, double analytic, int analytic_kind);
-/* _begin of a piece whose output is a trajectory (its class's law of direction sign, from (t, x, v), the
- * velocity's error carried in) with no analytic event and its stop as the one search, of event kind. */
-void dfwb_pw_begin_integrated(dfwb_pw *pw, double t, double x, double v, int sign, double rtol, int kind);
+/* _begin of a piece whose output is a trajectory (its class's law of direction sign and velocity scale, from
+ * (t, x, v), the velocity's error carried in) with no analytic event and its stop as the one search, of event
+ * kind. */
+void dfwb_pw_begin_integrated(dfwb_pw *pw, double t, double x, double v, int sign, double rtol, double scale,
+                              int kind);
 /* The output's position and velocity at t (the motion's, or the trajectory's: DFWB_E_VALUE out of its step),
  * and its acceleration there. */
 int dfwb_pw_state(const dfwb_pw *pw, double t, double *x, double *v, dfwb_err *err);
