@@ -8,7 +8,9 @@ dfwb's solvers:
     stuck (v = 0):     held while |u| <= Fs, breaking away in the direction of u above it (Karnopp's stick,
                        as the friction mass's with Dv = 0).
 
-Each phase is integrated by solve_ivp (DOP853, rtol 1e-12, steps of at most 1/64 of the drive's period) to
+Each phase is integrated by solve_ivp (DOP853, rtol 1e-12, steps of at most 1/64 of the drive's period; within
+|v| < 3 vs, where the friction drops, a phase of its own with steps of at most half of vs: an error estimate
+steps over a drop much narrower than its step, and a stop was once 3e-4 s late at vs = 0.01 m/s) to
 its first event: a sliding phase ends where v reaches 0 (then it sticks while |u| <= Fs, else it slides on in
 the direction of u), a stuck phase where |u| rises through Fs.
 
@@ -35,7 +37,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 RTOL, ATOL = 1e-12, 1e-14
-LOOP_MAX_STEP = 0.05  # s: the steps' bound in closed loop (with the drive's period / 64 when F != 0)
+NEAR = 3.0  # |v| < NEAR vs: the Stribeck drop's region, integrated apart with steps of at most half of vs
+LOOP_MAX_STEP = 0.05  # s: the slides' steps' bound in closed loop (with the drive's period / 64 when F != 0)
 
 
 def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omega=1.0, phi=0.0, f=0.0, x0=0.0,
@@ -70,7 +73,7 @@ def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omeg
     times = np.linspace(0.0, t_end, 2001) if times is None else np.asarray(times, float)
     out = np.full((len(times), 2 + n), np.nan)
     events = []
-    max_step = 2 * math.pi / omega / 64 if F else math.inf
+    stuck_step = max_step = 2 * math.pi / omega / 64 if F else math.inf  # stuck: the force is smooth in time
     if n:
         max_step = min(max_step, LOOP_MAX_STEP)
 
@@ -84,9 +87,11 @@ def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omeg
 
     t, y = 0.0, [x0, v0] + ([0.0] * n if z0 is None else [float(value) for value in z0])
     s = (1 if v0 > 0.0 else -1) if v0 != 0.0 else at_rest(0.0, y)
+    inside = abs(v0) < NEAR * vs  # within the drop's region (decided by the events crossing its edge after t = 0)
     for _step in range(max_events):
         if t >= t_end:
             break
+        step, watch = (max_step if s else stuck_step), []
         if s:
             def rhs(t, y, s=s):
                 y = y.tolist()
@@ -97,6 +102,25 @@ def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omeg
 
             stop.terminal, stop.direction = True, -s
             event = stop
+            if Fs > Fc:  # the drop happens within |v| ~ vs: resolved apart, half of vs a step at most
+                push = 2.0 * (abs(force(t, y)) + abs(F) + Fs + B * abs(y[1])) / M  # |v'| at most, with margin
+                # outside: phases ending where |v| halves (or reaches NEAR vs), each in 4 steps at least, so that
+                # no step jumps over the region; inside: steps of half of vs, until |v| leaves it again
+                edge = NEAR * vs if inside else max(NEAR * vs, 0.5 * abs(y[1]))
+
+                def near(t, y, edge=edge):
+                    return abs(y[1]) - edge
+
+                near.terminal, near.direction = True, (1 if inside else -1)
+                span = 0.5 * vs if inside else 0.25 * max(abs(y[1]) - edge, 0.1 * vs)
+                step = min(max_step, span / push) if push > 0.0 else max_step
+                watch = [near]
+                if not inside:  # speeding away: a new phase, with larger steps, where |v| doubles
+                    def far(t, y, edge=2.0 * max(abs(y[1]), NEAR * vs)):
+                        return abs(y[1]) - edge
+
+                    far.terminal, far.direction = True, 1
+                    watch.append(far)
         else:
             def rhs(t, y):
                 return [0.0, 0.0] + controller(y.tolist())
@@ -106,8 +130,8 @@ def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omeg
 
             breakaway.terminal, breakaway.direction = True, -1
             event = breakaway
-        sol = solve_ivp(rhs, (t, t_end), y, method="DOP853", rtol=RTOL, atol=ATOL, events=[event],
-                        dense_output=True, max_step=max_step)
+        sol = solve_ivp(rhs, (t, t_end), y, method="DOP853", rtol=RTOL, atol=ATOL, events=[event] + watch,
+                        dense_output=True, max_step=step)
         mask = (times >= t) & (times <= sol.t[-1])
         if mask.any():
             out[mask] = sol.sol(times[mask]).T
@@ -115,6 +139,10 @@ def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omeg
             break
         t = float(sol.t[-1])
         y = [float(value) for value in sol.y[:, -1]]
+        if watch and len(sol.t_events[0]) == 0:  # nearer the region, into it or out of it: the slide goes on
+            inside = not inside and len(sol.t_events[1]) > 0 and abs(y[1]) <= NEAR * vs * (1.0 + 1e-9)
+            continue
+        inside = True  # a stop (v = 0) or a breakaway (from v = 0)
         if s:
             y[1] = 0.0
         events.append((t, event.__name__))
