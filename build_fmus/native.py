@@ -203,6 +203,8 @@ def model_header(model, root):
             role, position = "ROLE_COUNTER", counters.index(name)
         elif name[:2] in ("Ic", "Is") and name[2:].isdigit():
             role, position = ("ROLE_COSINE" if name[1] == "c" else "ROLE_SINE"), int(name[2:])
+        elif name == "I_error" and table.integrated:
+            role, position = "ROLE_ERROR", 0
         else:
             raise BuildError(f"{model.__name__}: the native wrapper knows no role for the variable {name!r}")
         rows.append(f"    {{{_c_string(name)}, {integer}, {role}, {position}, {start!r}}},")

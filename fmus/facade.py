@@ -48,6 +48,7 @@ from .piecewise import SEARCH_CLASSES, PlantError, check
 
 MAX_HARMONIC = 10
 STATE_BASE_CLASSES = (Drive, Motion, Trajectory, EventKind) + SEARCH_CLASSES
+ERROR_OUTPUT = "I_error"  # an integrated plant's bound on its Fourier integrals' error (PlantTable.integrated)
 """Classes any solver's state may hold (with the solver's own classes): what a serialized state may name."""
 EXCITATION = tuple((p.name, p.default, p.unit, p.description) for p in _table.EXCITATION)
 
@@ -742,7 +743,12 @@ class PlantFMU(TableFMU):
                                 f"running integral of {signal}(t) {wave}({k} omega t) dt from the start time "
                                 f"(absolute phase)", False))
         events = ("events", None, "number of events (mode changes, impacts) so far", True)
-        return tuple(cls.outputs) + (events,) + tuple(fourier)
+        table = getattr(cls, "table", None)
+        error = ()
+        if table is not None and table.integrated:
+            error = ((ERROR_OUTPUT, f"{unit}.s", f"a bound on the error of every running Fourier integral of "
+                                                 f"{signal} (its integrated modes' tolerance)", False),)
+        return tuple(cls.outputs) + (events,) + tuple(fourier) + error
 
     @classmethod
     def units(cls):
@@ -831,6 +837,8 @@ class PlantFMU(TableFMU):
             return
         new = dict(zip((name for name, *_ in self.outputs), self.output_values()))
         new["events"] = self.solver.events
+        if self.table is not None and self.table.integrated:
+            new[ERROR_OUTPUT] = self.solver.integrals_error()
         self._overflow = not all(math.isfinite(value) for value in new.values())
         if self._overflow:
             return  # never NaN: the outputs stay those of the last good point (none yet at the start: zeros)

@@ -146,11 +146,15 @@ class PlantTable:
         The parameter that translates the whole plant.
     counter : str
         The integer output that counts engagements (``"events"``: every event).
+    integrated : bool
+        Its solver integrates some modes (:mod:`.integrated`) and bounds the error of its Fourier integrals
+        (``integrals_error()``): its FMU outputs that bound as ``I_error``, the engine reports ``N_error``.
     """
 
     def __init__(self, name, constants, initial, outputs=(), signal=None, section=(), modes=(), starts=None,
-                 shifts=None, position=None, counter="events", model=None, summary=""):
+                 shifts=None, position=None, counter="events", model=None, summary="", integrated=False):
         self.name, self.model, self.summary = name, model, summary
+        self.integrated = bool(integrated)
         self.constants, self.initial = tuple(constants), tuple(initial)
         self.section, self.modes, self.position, self.counter = tuple(section), tuple(modes), position, counter
         self.starts, self.shifts = dict(starts or {}), dict(shifts or {})

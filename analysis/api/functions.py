@@ -71,6 +71,15 @@ def resolve_plant(plant: Any):
     return find_plant(plant)
 
 
+def _tolerance(spec, rtol, params):
+    """(rtol, params): for a plant of dfwb's integrated family (a table with a parameter rtol, the Stribeck
+    mass), ``rtol`` is that parameter, as it is a user's FMU's tolerance; elsewhere it stays what it was."""
+    table = getattr(getattr(spec, "model", None), "table", None)
+    if rtol is None or getattr(spec, "foreign", False) or table is None or "rtol" not in table.names:
+        return rtol, params
+    return None, dict(params, rtol=rtol)
+
+
 def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: str = "internal",
                         samples_per_period: int = 64, max_periods: int = 150, harmonics: int = HARMONICS,
                         fmu_dir: Optional[Union[str, Path]] = None, rtol: Optional[float] = None,
@@ -136,6 +145,7 @@ def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: st
     (10.0, 0.5, {'M': 1.0})
     """
     spec = resolve_plant(plant)
+    rtol, params = _tolerance(spec, rtol, params)
     checked = spec.checked(params)
     F_grid, omega_grid = _grid(F, omega)
     for F_value, omega_value in zip(F_grid.flat, omega_grid.flat):  # every point before anything runs
@@ -274,6 +284,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     samples_per_period = _integer("samples_per_period", samples_per_period)
     flags(exact=exact, verify=verify, progress=progress)
     spec = resolve_plant(plant)
+    rtol, params = _tolerance(spec, rtol, params)
     engine = engine_for(spec, rtol=rtol, timeout=timeout) if getattr(spec, "foreign", False) else None
     if engine is None:
         fmu_only({"rtol": (rtol, None), "timeout": (timeout, None)}, "dfwb's own plants are computed exactly")
@@ -347,6 +358,7 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
 
     flags(progress=progress)
     spec = resolve_plant(plant)
+    rtol, params = _tolerance(spec, rtol, params)
     with _reporter(f"continuation of {spec.name} in {parameter}", progress) as report:
         return follow(spec, G, parameter, start, stop, params, sources=sources, max_points=max_points,
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
@@ -422,6 +434,7 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     if out_dir is not None:
         _folder("out_dir", out_dir)
     spec = resolve_plant(plant)
+    rtol, params = _tolerance(spec, rtol, params)
     with _reporter(f"hunting map of {spec.name}", progress) as report:
         return run_map(spec, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
                        amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None,
@@ -485,8 +498,10 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
     from dfwb.studies.margin import gain_margin
 
     flags(df=df, progress=progress)
+    spec = resolve_plant(plant)
+    rtol, params = _tolerance(spec, rtol, params)
     with _reporter(f"limit-cycle margin of {plant}", progress) as report:
-        return gain_margin(resolve_plant(plant), G, params, k_range=k_range, count=_integer("count", count), df=df,
+        return gain_margin(spec, G, params, k_range=k_range, count=_integer("count", count), df=df,
                            fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
                            omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
                            rtol=rtol, timeout=timeout)

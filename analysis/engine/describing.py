@@ -67,7 +67,8 @@ class DFResult:
     note: str = ""
     orbit_periods: int = 1  # the orbit's period in forcing periods (1: harmonic response)
     X: list = field(default_factory=list, repr=False)  # complex X_k, k = 0..10
-    N_error: object = None  # estimated |error| of N [m/N]; None: exact (this engine, to its 1e-11 section)
+    N_error: object = None  # estimated |error| of N [m/N]; None: exact (this engine, to its 1e-11 section); an
+    # integrated plant's (PlantTable.integrated): a bound from its FMU's I_error
 
     @property
     def minus_inverse(self):
@@ -247,7 +248,9 @@ class DFEngine:
         path = fmu if fmu is not None else fmu_path(self.plant, fmu_dir)
         self._sessions = [FMUSession(path), FMUSession(path)]  # the run from rest, and shooting
         fourier = [f"I{part}{k}" for k in range(harmonics + 1) for part in "cs"]
-        self._real_names = list(self.plant.section) + fourier
+        # an integrated plant's FMU bounds its integrals' error (read last); an exact one has no such output
+        self._error = "I_error" in [name for name, *_ in getattr(self.plant.model, "all_outputs", tuple)()]
+        self._real_names = list(self.plant.section) + fourier + (["I_error"] if self._error else [])
         self._integer_names = list(self.plant.modes) + [self.plant.counter]
         self._readers = {session: session.reader(self._real_names, self._integer_names) for session in self._sessions}
         self._setups = {}
@@ -318,6 +321,15 @@ class DFEngine:
               for k in range(self.harmonics + 1)]
         return [dI[0] / width] + [2.0 * dI[k] / width for k in range(1, self.harmonics + 1)]
 
+    def spectrum_error(self, window):
+        """A bound on the error of each X_k, k >= 1, of one window (None for an exact plant): twice the bound
+        on the integrals' error accumulated over the window, over its length (the FMU's I_error is the
+        integral of a bound on the output's error, so the window's part is its increase)."""
+        if not self._error:
+            return None
+        previous, current, width = window
+        return 2.0 * abs(current[-1] - previous[-1]) / width
+
     def _read(self, read):
         """((section, modes), the reals read (section, then Ic_k, Is_k), engagement count): two FMI calls."""
         n = len(self.plant.section)
@@ -375,11 +387,12 @@ class _Search:
         previous = self.drift(sections[-2], sections[-2 - lag]) if len(sections) > lag + 1 else None
         return d if previous is not None and abs(previous - d) <= 1e-6 * abs(d) else None
 
-    def result(self, X, periodic, orbit, note=""):
+    def result(self, X, periodic, orbit, note="", X_error=None):
         X = [X[0] + self.offset] + X[1:]
         N = X[1] / self.F
         return DFResult(plant="", F=self.F, omega=self.omega, params={}, N=N, harmonics=[abs(x) for x in X],
-                        periodic=periodic, periods=self.periods, seconds=0.0, note=note, orbit_periods=orbit, X=X)
+                        periodic=periodic, periods=self.periods, seconds=0.0, note=note, orbit_periods=orbit, X=X,
+                        N_error=None if X_error is None else X_error / self.F)
 
     def run(self):
         engine = self.engine
@@ -419,6 +432,8 @@ class _Search:
         """The result from the orbit's periods (windows); ``engagements``: impacts or events within the orbit."""
         spectra = [self.engine.spectrum(window) for window in windows]
         X = [sum(column) / len(spectra) for column in zip(*spectra)]
+        errors = [self.engine.spectrum_error(window) for window in windows]
+        X_error = None if errors[0] is None else max(errors)  # an average's error is at most the largest
         if drift:
             # remove the ramp drift * t / T of each window: (2/T) int_0^T (c s) exp(-j k w s) ds = 2 j c / (k w)
             c = drift * self.omega / (2 * math.pi)
@@ -429,7 +444,7 @@ class _Search:
         # that move the output by rounding: the output is constant, its harmonics are 0.
         if never and (engagements == 0 or abs(X[1]) <= 1e-12 * self.scales[0]):
             X, note = [X[0]] + [0j] * (len(X) - 1), never
-        return self.result(X, periodic, orbit, note)
+        return self.result(X, periodic, orbit, note, X_error)
 
     def extrapolate(self, sections):
         """Aitken-Steffensen start parameters from a geometric tail of sections, or None."""

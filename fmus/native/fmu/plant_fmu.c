@@ -57,7 +57,8 @@ enum {
     ROLE_COUNTER, /* index: the plant's counter (dfwb_plant_counter) */
     ROLE_COSINE, /* index: k of Ick */
     ROLE_SINE,   /* index: k of Isk */
-    ROLE_TIME    /* the independent variable (FMI 3.0 declares it) */
+    ROLE_TIME,   /* the independent variable (FMI 3.0 declares it) */
+    ROLE_ERROR   /* I_error: an integrated plant's bound on its Fourier integrals' error */
 };
 
 typedef struct {
@@ -257,6 +258,7 @@ static void refresh(instance *c)
         case ROLE_OUTPUT: value = state[v->index]; break;
         case ROLE_EVENTS: value = (double)dfwb_plant_events(c->solver); break;
         case ROLE_COUNTER: value = (double)dfwb_plant_counter(c->solver, (size_t)v->index); break;
+        case ROLE_ERROR: value = dfwb_plant_integrals_error(c->solver); break;
         default: continue;
         }
         fresh[i] = value;
