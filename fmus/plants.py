@@ -19,11 +19,11 @@ Examples
 (['friction', 'backlash', 'static-backlash'], 2)
 """
 
-from . import backlash, drivetrain, friction, static_backlash
+from . import backlash, drivetrain, friction, static_backlash, stribeck
 
 __all__ = ["MODULES", "TABLES", "KINDS", "c_name"]
 
-MODULES = (friction, backlash, static_backlash, drivetrain)
+MODULES = (friction, backlash, static_backlash, drivetrain, stribeck)
 TABLES = tuple(module.TABLE for module in MODULES)
 KINDS = {table.name: kind for kind, table in enumerate(TABLES, start=1)}
 """{plant name: its kind in the C core (DFWB_PLANT_*)}."""
