@@ -213,10 +213,8 @@ class Trajectory:
         k1 = self.k_last
         h = min(self.h, self.max_step, _feature_step(law.scale, v0, k1))
         size = law.size(a, v0)
-        ratio = factor = math.inf  # a step below the floor from the start is refused as any other
-        for _ in range(MAX_REJECTIONS):
-            if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
-                break
+
+        def attempt(h):
             kv = [k1]  # the stages of v' (the stages of d' are the stages' velocities)
             vs = [v0]
             for i in range(1, 7):
@@ -232,17 +230,10 @@ class Trajectory:
             # above Fs moves the mass by rounding alone)
             scale_d = rtol * max(self.peak[0], abs(d1), abs(d0)) + ROUNDING * h * (abs(v0) + h * size)
             scale_v = rtol * max(self.peak[1], abs(v1), abs(v0)) + ROUNDING * h * size
-            ratio = max(abs(err_d) / scale_d if scale_d else (0.0 if err_d == 0.0 else math.inf),
-                        abs(err_v) / scale_v if scale_v else (0.0 if err_v == 0.0 else math.inf))
-            factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
-            if ratio <= 1.0:
-                break
-            h *= factor
-        else:
-            ratio = math.inf
-        if not ratio <= 1.0:
-            raise PlantError(f"the integrated solver cannot resolve the motion at t = {a!r} s: its step fell below "
-                             f"{STEP_FLOOR:g} ulp of the time (a stiff or singular sliding law)")
+            return max(_ratio(err_d, scale_d), _ratio(err_v, scale_v)), (kv, vs, v1, d1, err_d, err_v)
+
+        h, factor, (kv, vs, v1, d1, err_d, err_v) = _controlled(attempt, a, h, "solver cannot resolve the motion",
+                                                                  "a stiff or singular sliding law")
         self.taken += 1
         # Hairer's stiffness test: h |lambda| ~ h |k7 - k6| / |v7 - v6|; 6 calm steps in a row reset the count
         spread = abs(vs[6] - vs[5])
@@ -328,6 +319,33 @@ class Trajectory:
                     total[k] += x * zk
                     zk *= z
         return total
+
+
+def _ratio(error, scale):
+    """|error| / scale, the step's error against its tolerance (0 for no error, inf for no tolerance)."""
+    return abs(error) / scale if scale else (0.0 if error == 0.0 else math.inf)
+
+
+def _controlled(attempt, a, h, what, why):
+    """(h, the next step's factor, the values) of the first step from a, from trial size h, whose
+    ``attempt(h) -> (error ratio, values)`` is at most 1: Hairer's control, h times 0.9 ratio^(-1/5) within
+    [0.2, 5], at most MAX_REJECTIONS times; a step below STEP_FLOOR ulp of the time is refused (PlantError)."""
+    ratio = factor = math.inf  # a step below the floor from the start is refused as any other
+    values = None
+    for _ in range(MAX_REJECTIONS):
+        if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
+            break
+        ratio, values = attempt(h)
+        factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
+        if ratio <= 1.0:
+            break
+        h *= factor
+    else:
+        ratio = math.inf
+    if not ratio <= 1.0:
+        raise PlantError(f"the integrated {what} at t = {a!r} s: its step fell below {STEP_FLOOR:g} ulp of the time "
+                         f"({why})")
+    return h, factor, values
 
 
 def _feature_step(scale, v, rate):
@@ -469,10 +487,8 @@ class IntegratedMode:
         gross = self.gross(X0)
         # and what that rounding moves in a step through the coupling (a position, through its velocity's)
         moved = [sum(abs(a) * g for a, g in zip(row, gross)) for row in self.A]
-        ratio = factor = math.inf  # a step below the floor from the start is refused as any other
-        for _ in range(MAX_REJECTIONS):
-            if not h > STEP_FLOOR * EPS * max(abs(a), 1.0) or not a + h > a:
-                break
+
+        def attempt(h):
             stages, ks = [X0], [dX0]
             for i in range(1, 7):
                 Xi = [X0[j] + h * sum(aij * k[j] for aij, k in zip(A[i], ks)) for j in range(n)]
@@ -483,16 +499,10 @@ class IntegratedMode:
             for j in range(n):
                 err = h * sum(e * k[j] for e, k in zip(E, ks))
                 scale = rtol * max(peak[j], abs(X0[j]), abs(X1[j])) + ROUNDING * h * (gross[j] + h * moved[j])
-                ratio = max(ratio, abs(err) / scale if scale else (0.0 if err == 0.0 else math.inf))
-            factor = GROW if ratio == 0.0 else min(GROW, max(SHRINK, SAFETY * ratio ** -0.2))
-            if ratio <= 1.0:
-                break
-            h *= factor
-        else:
-            ratio = math.inf
-        if not ratio <= 1.0:
-            raise PlantError(f"the integrated loop cannot resolve its motion at t = {a!r} s: its step fell below "
-                             f"{STEP_FLOOR:g} ulp of the time (a stiff or singular mode)")
+                ratio = max(ratio, _ratio(err, scale))
+            return ratio, (X1, ks)
+
+        h, factor, (X1, ks) = _controlled(attempt, a, h, "loop cannot resolve its motion", "a stiff or singular mode")
         dX1 = ks[6]
         return [a, h, X0, X1, dX0, dX1, self.second(X0, dX0), self.second(X1, dX1), h * factor,
                 [max(p, abs(x)) for p, x in zip(peak, X1)]]

@@ -513,13 +513,54 @@ static void gross_of(const dfwb_hy *hy, const dfwb_hy_mode *m, const double *X, 
 
 /* IntegratedMode.take: one accepted step from (a, X0 = hy->X, dX0 = hy->dX) with trial size h, into the chunk's
  * step fields (peak: the piece's peaks so far, may be hy->peak) */
+/* take's attempt: the stages of one step of size h from (hy->X, hy->dX), and its error ratio */
+typedef struct {
+    const dfwb_hy *hy;
+    const dfwb_hy_mode *m;
+    const double *peak, *gross, *moved;
+    double stages[7][DFWB_HY_DIM], ks[7][DFWB_HY_DIM];
+} step_try;
+
+static double attempt_step(void *ctx, double h)
+{
+    step_try *s = (step_try *)ctx;
+    const dfwb_hy *hy = s->hy;
+    const int n = s->m->n;
+    const double *X0 = hy->X;
+    double ratio = 0.0;
+    int i, j, q;
+    memcpy(s->stages[0], X0, (size_t)n * sizeof *X0);
+    memcpy(s->ks[0], hy->dX, (size_t)n * sizeof *X0);
+    for (i = 1; i < 7; i++) {
+        for (j = 0; j < n; j++) {
+            double sum = 0.0;
+            for (q = 0; q < i; q++)
+                sum += dfwb_in_a[i][q] * s->ks[q][j];
+            s->stages[i][j] = X0[j] + h * sum;
+        }
+        derivative(hy, s->m, s->stages[i], s->ks[i]);
+    }
+    for (j = 0; j < n; j++) { /* ratio = max(ratio, _ratio(err, scale)) */
+        double sum = 0.0, scale, value;
+        for (q = 0; q < 7; q++)
+            sum += dfwb_in_e[q] * s->ks[q][j];
+        scale = hy->rtol * dfwb_in_max3(s->peak[j], fabs(X0[j]), fabs(s->stages[6][j]))
+                + DFWB_IN_ROUNDING * h * (s->gross[j] + h * s->moved[j]);
+        value = dfwb_in_ratio(h * sum, scale);
+        if (value > ratio)
+            ratio = value;
+    }
+    return ratio;
+}
+
 static int take(dfwb_hy *hy, const dfwb_hy_mode *m, double a, double h, const double *peak, dfwb_err *err)
 {
     const int n = m->n;
-    const double rtol = hy->rtol, *X0 = hy->X, *dX0 = hy->dX;
-    double gross[DFWB_HY_DIM], moved[DFWB_HY_DIM], stages[7][DFWB_HY_DIM], ks[7][DFWB_HY_DIM], ratio = INFINITY, factor = INFINITY;
-    double new_peak[DFWB_HY_DIM];
-    int it, i, j, q, broke = 0;
+    const double *X0 = hy->X, *dX0 = hy->dX;
+    double gross[DFWB_HY_DIM], moved[DFWB_HY_DIM], factor, new_peak[DFWB_HY_DIM];
+    double (*stages)[DFWB_HY_DIM], (*ks)[DFWB_HY_DIM];
+    int i, j, rc;
+    step_try s;
     h = dfwb_in_min3(h, m->max_step, dfwb_in_feature_step(m->feature, X0[m->col], dX0[m->col]));
     gross_of(hy, m, X0, gross);
     for (i = 0; i < n; i++) { /* moved: sum(abs(a) * g for a, g in zip(row, gross)) */
@@ -528,55 +569,17 @@ static int take(dfwb_hy *hy, const dfwb_hy_mode *m, double a, double h, const do
             sum += fabs(m->A[i][j]) * gross[j];
         moved[i] = sum;
     }
-    for (it = 0; it < DFWB_IN_MAX_REJECTIONS; it++) {
-        const double floor_t = fabs(a) > 1.0 ? fabs(a) : 1.0;
-        if (!(h > DFWB_IN_STEP_FLOOR * DFWB_EPS * floor_t) || !(a + h > a)) {
-            broke = 1;
-            break;
-        }
-        memcpy(stages[0], X0, (size_t)n * sizeof *X0);
-        memcpy(ks[0], dX0, (size_t)n * sizeof *dX0);
-        for (i = 1; i < 7; i++) {
-            for (j = 0; j < n; j++) {
-                double sum = 0.0;
-                for (q = 0; q < i; q++)
-                    sum += dfwb_in_a[i][q] * ks[q][j];
-                stages[i][j] = X0[j] + h * sum;
-            }
-            derivative(hy, m, stages[i], ks[i]);
-        }
-        ratio = 0.0;
-        for (j = 0; j < n; j++) {
-            double sum = 0.0, e, scale, value;
-            for (q = 0; q < 7; q++)
-                sum += dfwb_in_e[q] * ks[q][j];
-            e = h * sum;
-            scale = rtol * dfwb_in_max3(peak[j], fabs(X0[j]), fabs(stages[6][j]))
-                    + DFWB_IN_ROUNDING * h * (gross[j] + h * moved[j]);
-            value = scale != 0.0 ? fabs(e) / scale : (e == 0.0 ? 0.0 : INFINITY);
-            if (value > ratio)
-                ratio = value;
-        }
-        if (ratio == 0.0)
-            factor = DFWB_IN_GROW;
-        else {
-            const double y = DFWB_IN_SAFETY * pow(ratio, -0.2), mm = y > DFWB_IN_SHRINK ? y : DFWB_IN_SHRINK;
-            factor = mm < DFWB_IN_GROW ? mm : DFWB_IN_GROW;
-        }
-        if (ratio <= 1.0) {
-            broke = 1;
-            break;
-        }
-        h *= factor;
-    }
-    if (!broke)
-        ratio = INFINITY;
-    if (!(ratio <= 1.0)) {
-        char ra[DFWB_REPR_SIZE];
-        dfwb_repr(a, ra);
-        return dfwb_fail(err, DFWB_E_VALUE, "the integrated loop cannot resolve its motion at t = %s s: its step "
-                         "fell below 64 ulp of the time (a stiff or singular mode)", ra);
-    }
+    s.hy = hy;
+    s.m = m;
+    s.peak = peak;
+    s.gross = gross;
+    s.moved = moved;
+    rc = dfwb_in_control(attempt_step, &s, a, &h, &factor, "loop cannot resolve its motion",
+                         "a stiff or singular mode", err);
+    if (rc != DFWB_OK)
+        return rc;
+    stages = s.stages;
+    ks = s.ks;
     for (j = 0; j < n; j++)
         new_peak[j] = fabs(stages[6][j]) > peak[j] ? fabs(stages[6][j]) : peak[j];
     hy->step_h = h;

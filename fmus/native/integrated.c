@@ -103,6 +103,47 @@ double dfwb_in_feature_step(double scale, double v, double rate)
     return rate != 0.0 ? (near > far ? near : far) / fabs(rate) : INFINITY;
 }
 
+double dfwb_in_ratio(double error, double scale)
+{
+    return scale != 0.0 ? fabs(error) / scale : (error == 0.0 ? 0.0 : INFINITY);
+}
+
+int dfwb_in_control(dfwb_in_attempt attempt, void *ctx, double a, double *h, double *factor, const char *what,
+                    const char *why, dfwb_err *err)
+{
+    double ratio = INFINITY;
+    int it, broke = 0; /* the loop ended by a break (Python's for ... else) */
+    *factor = INFINITY;
+    for (it = 0; it < DFWB_IN_MAX_REJECTIONS; it++) {
+        const double floor_t = fabs(a) > 1.0 ? fabs(a) : 1.0;
+        if (!(*h > DFWB_IN_STEP_FLOOR * DFWB_EPS * floor_t) || !(a + *h > a)) {
+            broke = 1; /* ratio stays what it was */
+            break;
+        }
+        ratio = attempt(ctx, *h);
+        if (ratio == 0.0)
+            *factor = DFWB_IN_GROW;
+        else {
+            const double y = DFWB_IN_SAFETY * pow(ratio, -0.2), m = y > DFWB_IN_SHRINK ? y : DFWB_IN_SHRINK;
+            *factor = m < DFWB_IN_GROW ? m : DFWB_IN_GROW;
+        }
+        if (ratio <= 1.0) {
+            broke = 1;
+            break;
+        }
+        *h *= *factor;
+    }
+    if (!broke)
+        ratio = INFINITY;
+    if (!(ratio <= 1.0)) {
+        char ra[DFWB_REPR_SIZE];
+        dfwb_repr(a, ra);
+        return dfwb_fail(err, DFWB_E_VALUE, "the integrated %s at t = %s s: its step fell below 64 ulp of the time "
+                         "(%s)", what, ra, why);
+    }
+    return DFWB_OK;
+}
+
 double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo, double hi, double g_hi)
 {
     int side = 0, i;
@@ -223,70 +264,82 @@ static double stop_fun(const void *ctx, double theta)
     return (double)tr->sign * dfwb_in_poly(tr->sv0, tr->vc, theta);
 }
 
+/* _take_step's attempt: the stages of one step of size h, and its error ratio */
+typedef struct {
+    const dfwb_trajectory *tr;
+    dfwb_law_fn law;
+    const void *plant;
+    double a, d0, v0, k1, size;
+    double kv[7], vs[7], v1, d1, err_d, err_v;
+} step_try;
+
+static double attempt_step(void *ctx, double h)
+{
+    step_try *s = (step_try *)ctx;
+    const dfwb_trajectory *tr = s->tr;
+    double sum, scale_d, scale_v, rd, rv;
+    int i, j;
+    s->kv[0] = s->k1;
+    s->vs[0] = s->v0;
+    for (i = 1; i < 7; i++) {
+        sum = 0.0;
+        for (j = 0; j < i; j++)
+            sum += dfwb_in_a[i][j] * s->kv[j];
+        s->vs[i] = s->v0 + h * sum;
+        s->kv[i] = s->law(s->plant, tr->sign, s->a + dfwb_in_c[i] * h, s->vs[i]);
+    }
+    s->v1 = s->vs[6];
+    sum = 0.0;
+    for (j = 0; j < 6; j++)
+        sum += dfwb_in_a[6][j] * s->vs[j];
+    s->d1 = s->d0 + h * sum;
+    sum = 0.0;
+    for (j = 0; j < 7; j++)
+        sum += dfwb_in_e[j] * s->vs[j];
+    s->err_d = h * sum;
+    sum = 0.0;
+    for (j = 0; j < 7; j++)
+        sum += dfwb_in_e[j] * s->kv[j];
+    s->err_v = h * sum;
+    scale_d = tr->rtol * dfwb_in_max3(tr->peak[0], fabs(s->d1), fabs(s->d0))
+              + DFWB_IN_ROUNDING * h * (fabs(s->v0) + h * s->size);
+    scale_v = tr->rtol * dfwb_in_max3(tr->peak[1], fabs(s->v1), fabs(s->v0)) + DFWB_IN_ROUNDING * h * s->size;
+    rd = dfwb_in_ratio(s->err_d, scale_d);
+    rv = dfwb_in_ratio(s->err_v, scale_v);
+    return rv > rd ? rv : rd; /* max(rd, rv) */
+}
+
 /* _take_step: one accepted step past the end (or the stop within it) */
 static int take_step(dfwb_trajectory *tr, dfwb_law_fn law, dfwb_law_fn size, const void *plant, dfwb_err *err)
 {
     const double a = tr->a + tr->sh, d0 = tr->d0 + tr->quintic[0], v0 = tr->sv0 + tr->vc[0];
-    const double rtol = tr->rtol, k1 = tr->k_last;
+    const double k1 = tr->k_last;
     double h = dfwb_in_min3(tr->h, tr->max_step, dfwb_in_feature_step(tr->scale, v0, k1));
     const double size_a = size(plant, tr->sign, a, v0);
-    double ratio = INFINITY, factor = INFINITY, kv[7], vs[7], v1 = 0.0, d1 = 0.0, err_d = 0.0, err_v = 0.0;
+    double factor, *kv, *vs, v1, d1, err_d, err_v;
     double spread, dv, dd, r2d, quartic[4], dense_error, integral_error, sum;
     dfwb_cx integrals[DFWB_HARMONICS_MAX + 1];
-    int it, i, j, k, broke = 0; /* the loop ended by a break (Python's for ... else) */
+    int j, k, rc;
     char ra[DFWB_REPR_SIZE];
-    for (it = 0; it < DFWB_IN_MAX_REJECTIONS; it++) {
-        double scale_d, scale_v, rd, rv, floor_t = fabs(a) > 1.0 ? fabs(a) : 1.0;
-        if (!(h > DFWB_IN_STEP_FLOOR * DFWB_EPS * floor_t) || !(a + h > a)) {
-            broke = 1; /* ratio stays what it was */
-            break;
-        }
-        kv[0] = k1;
-        vs[0] = v0;
-        for (i = 1; i < 7; i++) {
-            sum = 0.0;
-            for (j = 0; j < i; j++)
-                sum += dfwb_in_a[i][j] * kv[j];
-            vs[i] = v0 + h * sum;
-            kv[i] = law(plant, tr->sign, a + dfwb_in_c[i] * h, vs[i]);
-        }
-        v1 = vs[6];
-        sum = 0.0;
-        for (j = 0; j < 6; j++)
-            sum += dfwb_in_a[6][j] * vs[j];
-        d1 = d0 + h * sum;
-        sum = 0.0;
-        for (j = 0; j < 7; j++)
-            sum += dfwb_in_e[j] * vs[j];
-        err_d = h * sum;
-        sum = 0.0;
-        for (j = 0; j < 7; j++)
-            sum += dfwb_in_e[j] * kv[j];
-        err_v = h * sum;
-        scale_d = rtol * dfwb_in_max3(tr->peak[0], fabs(d1), fabs(d0)) + DFWB_IN_ROUNDING * h * (fabs(v0) + h * size_a);
-        scale_v = rtol * dfwb_in_max3(tr->peak[1], fabs(v1), fabs(v0)) + DFWB_IN_ROUNDING * h * size_a;
-        rd = scale_d != 0.0 ? fabs(err_d) / scale_d : (err_d == 0.0 ? 0.0 : INFINITY);
-        rv = scale_v != 0.0 ? fabs(err_v) / scale_v : (err_v == 0.0 ? 0.0 : INFINITY);
-        ratio = rv > rd ? rv : rd;
-        if (ratio == 0.0)
-            factor = DFWB_IN_GROW;
-        else {
-            const double y = DFWB_IN_SAFETY * pow(ratio, -0.2), m = y > DFWB_IN_SHRINK ? y : DFWB_IN_SHRINK;
-            factor = m < DFWB_IN_GROW ? m : DFWB_IN_GROW;
-        }
-        if (ratio <= 1.0) {
-            broke = 1;
-            break;
-        }
-        h *= factor;
-    }
-    if (!broke)
-        ratio = INFINITY;
-    if (!(ratio <= 1.0)) {
-        dfwb_repr(a, ra);
-        return dfwb_fail(err, DFWB_E_VALUE, "the integrated solver cannot resolve the motion at t = %s s: its step "
-                         "fell below 64 ulp of the time (a stiff or singular sliding law)", ra);
-    }
+    step_try s;
+    s.tr = tr;
+    s.law = law;
+    s.plant = plant;
+    s.a = a;
+    s.d0 = d0;
+    s.v0 = v0;
+    s.k1 = k1;
+    s.size = size_a;
+    rc = dfwb_in_control(attempt_step, &s, a, &h, &factor, "solver cannot resolve the motion",
+                         "a stiff or singular sliding law", err);
+    if (rc != DFWB_OK)
+        return rc;
+    kv = s.kv;
+    vs = s.vs;
+    v1 = s.v1;
+    d1 = s.d1;
+    err_d = s.err_d;
+    err_v = s.err_v;
     tr->taken += 1;
     spread = fabs(vs[6] - vs[5]);
     if (spread != 0.0 && h * fabs(kv[6] - kv[5]) > 3.25 * spread) {

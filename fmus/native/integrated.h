@@ -38,6 +38,14 @@ void dfwb_in_setup(void);
 double dfwb_in_quintic(double y0, const double c[5], double theta);
 /* y0 + theta (r0 + (1 - theta) (r1 + theta (r2 + (1 - theta) r3))): contd5's dense output. */
 double dfwb_in_poly(double y0, const double r[4], double theta);
+/* _ratio: |error| / scale (0 for no error, inf for no tolerance). */
+double dfwb_in_ratio(double error, double scale);
+/* _controlled: from trial size *h, the first step from a whose attempt(ctx, h) (its error ratio; the stages
+ * left in ctx) is at most 1, *factor the next step's; DFWB_E_VALUE "the integrated <what> at t = ... (<why>)"
+ * below STEP_FLOOR ulp of the time. */
+typedef double (*dfwb_in_attempt)(void *ctx, double h);
+int dfwb_in_control(dfwb_in_attempt attempt, void *ctx, double a, double *h, double *factor, const char *what,
+                    const char *why, dfwb_err *err);
 /* The zero of fun in (lo, hi], fun(lo) = g_lo > 0 >= fun(hi) = g_hi: Illinois (_illinois_fn). */
 typedef double (*dfwb_in_fun)(const void *ctx, double theta);
 double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo, double hi, double g_hi);
