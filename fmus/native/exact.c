@@ -103,26 +103,7 @@ void dfwb_repr(double x, char out[DFWB_REPR_SIZE])
     out[pos] = '\0';
 }
 
-/* -- complex numbers: CPython's complex type ---------------------------------------- */
-dfwb_cx dfwb_cx_make(double re, double im)
-{
-    dfwb_cx z;
-    z.re = re;
-    z.im = im;
-    return z;
-}
-
-dfwb_cx dfwb_cx_real(double x) { return dfwb_cx_make(x, 0.0); }
-
-dfwb_cx dfwb_cx_add(dfwb_cx a, dfwb_cx b) { return dfwb_cx_make(a.re + b.re, a.im + b.im); }
-
-dfwb_cx dfwb_cx_sub(dfwb_cx a, dfwb_cx b) { return dfwb_cx_make(a.re - b.re, a.im - b.im); }
-
-/* _Py_c_prod */
-dfwb_cx dfwb_cx_mul(dfwb_cx a, dfwb_cx b)
-{
-    return dfwb_cx_make(a.re * b.re - a.im * b.im, a.re * b.im + a.im * b.re);
-}
+/* -- complex numbers: CPython's complex type (make, real, add, sub, mul: inline in exact.h) ---------------- */
 
 /* _Py_c_quot: divide top and bottom by the larger of b.re, b.im (Smith). b = 0 never occurs here
  * (the solvers divide by lam + i nu with nu > 0); it gives 0, NaN b gives NaN, as CPython. */
