@@ -20,11 +20,14 @@ typedef struct {
     double vs, delta, rtol;
 } dfwb_stribeck;
 
+/* _power: w ** delta, delta = 2 as w * w */
+static double power(double w, double delta) { return delta == 2.0 ? w * w : pow(w, delta); }
+
 /* stribeck_factor: exp(-(|v|/vs)^delta), 0.0 far beyond vs */
 static double factor(double v, double vs, double delta)
 {
     const double w = fabs(v) / vs;
-    return w > FAR ? 0.0 : exp(-pow(w, delta));
+    return w > FAR ? 0.0 : exp(-power(w, delta));
 }
 
 /* StribeckSlide: (u - s (Fc + (Fs - Fc) factor) - B v) / M, the drive the plant's own */
@@ -200,7 +203,7 @@ static double drop_slope(const dfwb_loop *L, int s, double v)
         return 0.0;
     if (w == 0.0)
         return delta == 1.0 ? (double)(-s) * scale / vs : 0.0;
-    return -scale * delta * pow(w, delta - 1.0) / vs * (v > 0.0 ? 1.0 : -1.0) * exp(-pow(w, delta));
+    return -scale * delta * pow(w, delta - 1.0) / vs * (v > 0.0 ? 1.0 : -1.0) * exp(-power(w, delta));
 }
 
 /* StribeckLoop.plant_mode: FrictionLoop's, a slide with its drop as the nonlinear term on v' of v */
