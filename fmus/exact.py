@@ -220,6 +220,11 @@ class Motion:
     def velocity_error(self, t):
         return 0.0
 
+    def integrals(self, t, harmonics):
+        """[int x ds, then int x exp(-i k omega s) ds for k = 1..harmonics] from t0 to t (a piece's share)."""
+        x, v = self.state(t)
+        return [complex(self.integral(t))] + self.fourier(t, harmonics, x, v)
+
     def integral(self, t):
         """Integral of x from t0 to t."""
         tau = t - self.t0

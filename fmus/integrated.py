@@ -14,7 +14,7 @@ with local extrapolation (the 5th-order solution is kept) and dense output.
 
 A :class:`Trajectory` is a piece's motion: it has the interface of
 :class:`~.exact.Motion` that :class:`~.piecewise.PiecewisePlant` reads
-(``state``, ``acceleration``, ``integral``, ``fourier``), and it finds its
+(``state``, ``acceleration``, ``integrals`` and the error bounds), and it finds its
 own event (the velocity falling to zero in the direction of motion) by
 integrating to it: :class:`~.piecewise.PiecewisePlant` asks it through a
 :class:`~.piecewise.Search` whose bound ``K`` is None.
@@ -159,13 +159,10 @@ class Trajectory:
     def acceleration(self, t, v):
         return self.law(t, v)
 
-    def integral(self, t):
-        """Integral of x from t0 to t."""
-        return self._step_integrals(self._step_at(t), 0, t)[0].real
-
-    def fourier(self, t, harmonics, x1=None, v1=None):
-        """[int_{t0}^{t} x(s) exp(-i k omega s) ds for k = 1..harmonics] (x1, v1: unused, for Motion's interface)."""
-        return self._step_integrals(self._step_at(t), harmonics, t)[1:harmonics + 1]
+    def integrals(self, t, harmonics):
+        """[int x ds, then int x exp(-i k omega s) ds for k = 1..harmonics] from t0 to t: one Gauss pass."""
+        total = self._step_integrals(self._step_at(t), harmonics, t)
+        return [complex(total[0].real)] + total[1:]
 
     def position_error(self, t):
         """A bound on the error of the displacement at t (m)."""

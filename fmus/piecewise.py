@@ -287,8 +287,7 @@ class PiecewisePlant:
         out = self._output
         if t <= out.t0:
             return [0j] * (self.harmonics + 1)
-        x, v = out.state(t)
-        return [complex(out.integral(t))] + out.fourier(t, self.harmonics, x, v)
+        return out.integrals(t, self.harmonics)
 
     # -- stepping ---------------------------------------------------------
     def advance(self, t_end):
