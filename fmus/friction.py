@@ -44,12 +44,18 @@ DEFAULT = TABLE.default  # the keyword defaults below
 HOLD, SLIDE, PUSH = "hold", "slide", "push"
 
 
-def check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=False):
-    """The friction mass's parameter checks, in order (shared with its closed loop, where ``exact_stick``: Dv = 0)."""
+def check_forces(M, B, Fc, Fs):
+    """The checks of the mass and its friction forces, in order (the friction mass's first, a plant built on it
+    too)."""
     check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
     check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
     check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
     check("Fs", Fs, lambda: Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
+
+
+def check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=False):
+    """The friction mass's parameter checks, in order (shared with its closed loop, where ``exact_stick``: Dv = 0)."""
+    check_forces(M, B, Fc, Fs)
     if exact_stick:
         check("Dv", Dv, lambda: Dv == 0.0, "Dv must be 0 in the exact closed loop (the CVS model: exact stick)")
     else:

@@ -18,7 +18,7 @@ to it.
 import math
 
 from .contract import EventKind
-from .friction import SLIDE, FrictionLoop, FrictionMass
+from .friction import SLIDE, FrictionLoop, FrictionMass, check_forces
 from .integrated import Trajectory
 from .piecewise import Search, check
 from .table import FORCE, MASS, START, Output, Parameter, PlantTable
@@ -52,10 +52,7 @@ DEFAULT = TABLE.default
 
 def check_stribeck(M, B, Fc, Fs, vs, delta, rtol, x0, v0):
     """The Stribeck mass's parameter checks, in order (shared with its closed loop)."""
-    check("M", M, lambda: M > 0.0, "M must be > 0 (kg)")
-    check("B", B, lambda: B >= 0.0, "B must be >= 0 (N.s/m)")
-    check("Fc", Fc, lambda: Fc >= 0.0, "Fc must be >= 0 (N)")
-    check("Fs", Fs, lambda: Fs >= Fc, f"Fs must be >= Fc = {Fc!r} (N)")
+    check_forces(M, B, Fc, Fs)
     check("vs", vs, lambda: vs > 0.0, "vs must be > 0 (m/s)")
     check("delta", delta, lambda: 0.5 <= delta <= 10.0, "delta must be in [0.5, 10]")
     check("rtol", rtol, lambda: 1e-12 <= rtol <= 1e-3, "rtol must be in [1e-12, 1e-3]")

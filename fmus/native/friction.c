@@ -205,10 +205,7 @@ static int validate(void *plant, dfwb_err *err)
     const dfwb_pw *pw = &p->pw;
     const dfwb_search *s = &pw->searches[0];
     int rc;
-    if ((rc = dfwb_state_check(err, "M", p->M, isfinite(p->M) && p->M > 0.0, "must be > 0")) != DFWB_OK
-        || (rc = dfwb_state_check(err, "B", p->B, isfinite(p->B) && p->B >= 0.0, "must be >= 0")) != DFWB_OK
-        || (rc = dfwb_state_check(err, "Fc", p->Fc, isfinite(p->Fc) && p->Fc >= 0.0, "must be >= 0")) != DFWB_OK
-        || (rc = dfwb_state_check(err, "Fs", p->Fs, isfinite(p->Fs) && p->Fs >= p->Fc, "must be >= Fc")) != DFWB_OK
+    if ((rc = dfwb_friction_state_forces(p, err)) != DFWB_OK
         || (rc = dfwb_state_check(err, "Dv", p->Dv, isfinite(p->Dv) && p->Dv >= 0.0, "must be >= 0")) != DFWB_OK
         || (rc = dfwb_state_check_int(err, "mode", p->mode, p->mode == HOLD || p->mode == SLIDE || p->mode == PUSH,
                                       "must be 0 (hold), 1 (slide) or 2 (push)")) != DFWB_OK
@@ -237,9 +234,7 @@ static int validate(void *plant, dfwb_err *err)
     return DFWB_OK;
 }
 
-/* The parameter checks, in the Python check's order: shared by the plant and its closed loop. */
-static int check_parameters(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
-                            int exact_stick)
+int dfwb_friction_check_forces(dfwb_err *err, double M, double B, double Fc, double Fs)
 {
     char rFc[DFWB_REPR_SIZE], allowed[96];
     int rc;
@@ -251,8 +246,27 @@ static int check_parameters(dfwb_err *err, double M, double B, double Fc, double
     }
     if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
         || (rc = dfwb_check(err, "B", B, B >= 0.0, "B must be >= 0 (N.s/m)")) != DFWB_OK
-        || (rc = dfwb_check(err, "Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")) != DFWB_OK
-        || (rc = dfwb_check(err, "Fs", Fs, Fs >= Fc, allowed)) != DFWB_OK)
+        || (rc = dfwb_check(err, "Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")) != DFWB_OK)
+        return rc;
+    return dfwb_check(err, "Fs", Fs, Fs >= Fc, allowed);
+}
+
+int dfwb_friction_state_forces(const dfwb_friction *p, dfwb_err *err)
+{
+    int rc;
+    if ((rc = dfwb_state_check(err, "M", p->M, isfinite(p->M) && p->M > 0.0, "must be > 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "B", p->B, isfinite(p->B) && p->B >= 0.0, "must be >= 0")) != DFWB_OK
+        || (rc = dfwb_state_check(err, "Fc", p->Fc, isfinite(p->Fc) && p->Fc >= 0.0, "must be >= 0")) != DFWB_OK)
+        return rc;
+    return dfwb_state_check(err, "Fs", p->Fs, isfinite(p->Fs) && p->Fs >= p->Fc, "must be >= Fc");
+}
+
+/* The parameter checks, in the Python check's order: shared by the plant and its closed loop. */
+static int check_parameters(dfwb_err *err, double M, double B, double Fc, double Fs, double Dv, double x0, double v0,
+                            int exact_stick)
+{
+    int rc = dfwb_friction_check_forces(err, M, B, Fc, Fs);
+    if (rc != DFWB_OK)
         return rc;
     rc = exact_stick ? dfwb_check(err, "Dv", Dv, Dv == 0.0,
                                   "Dv must be 0 in the exact closed loop (the CVS model: exact stick)")

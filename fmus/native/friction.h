@@ -27,6 +27,11 @@ struct dfwb_friction {
     dfwb_friction_slide_fn slide; /* not state: NULL for the friction mass, its own slide for a derived plant */
 };
 
+/* check_forces: M, B, Fc, Fs, in order, refused with the Python texts (DFWB_E_VALUE). */
+int dfwb_friction_check_forces(dfwb_err *err, double M, double B, double Fc, double Fs);
+/* The same constants read from a state (DFWB_E_STATE). */
+int dfwb_friction_state_forces(const dfwb_friction *p, dfwb_err *err);
+
 /* FrictionMass._start, _fire, _restart, output: the class's functions, for a derived plant's class. */
 int dfwb_friction_start(dfwb_friction *p, double t, double x, double v, int at_edge, dfwb_err *err);
 int dfwb_friction_fire(void *plant, double t, int kind, int *counted, dfwb_err *err);

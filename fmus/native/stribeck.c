@@ -4,7 +4,6 @@
  */
 #include <math.h>
 #include <stddef.h>
-#include <string.h>
 
 #include "dfwb_core.h"
 #include "exact.h"
@@ -64,18 +63,8 @@ static int slide(dfwb_friction *f, double t, double x, double v, int s, int depa
 static int check_parameters(dfwb_err *err, double M, double B, double Fc, double Fs, double vs, double delta,
                             double rtol, double x0, double v0)
 {
-    char rFc[DFWB_REPR_SIZE], allowed[96];
     int rc;
-    strcpy(allowed, "Fs must be >= Fc = ");
-    if (!(isfinite(Fs) && Fs >= Fc)) {
-        dfwb_repr(Fc, rFc);
-        strcat(allowed, rFc);
-        strcat(allowed, " (N)");
-    }
-    if ((rc = dfwb_check(err, "M", M, M > 0.0, "M must be > 0 (kg)")) != DFWB_OK
-        || (rc = dfwb_check(err, "B", B, B >= 0.0, "B must be >= 0 (N.s/m)")) != DFWB_OK
-        || (rc = dfwb_check(err, "Fc", Fc, Fc >= 0.0, "Fc must be >= 0 (N)")) != DFWB_OK
-        || (rc = dfwb_check(err, "Fs", Fs, Fs >= Fc, allowed)) != DFWB_OK
+    if ((rc = dfwb_friction_check_forces(err, M, B, Fc, Fs)) != DFWB_OK
         || (rc = dfwb_check(err, "vs", vs, vs > 0.0, "vs must be > 0 (m/s)")) != DFWB_OK
         || (rc = dfwb_check(err, "delta", delta, 0.5 <= delta && delta <= 10.0, "delta must be in [0.5, 10]"))
                != DFWB_OK
@@ -102,10 +91,7 @@ static int validate(void *plant, dfwb_err *err)
     dfwb_friction *f = &p->base;
     const dfwb_pw *pw = &f->pw;
     int rc;
-    if ((rc = dfwb_state_check(err, "M", f->M, isfinite(f->M) && f->M > 0.0, "must be > 0")) != DFWB_OK
-        || (rc = dfwb_state_check(err, "B", f->B, isfinite(f->B) && f->B >= 0.0, "must be >= 0")) != DFWB_OK
-        || (rc = dfwb_state_check(err, "Fc", f->Fc, isfinite(f->Fc) && f->Fc >= 0.0, "must be >= 0")) != DFWB_OK
-        || (rc = dfwb_state_check(err, "Fs", f->Fs, isfinite(f->Fs) && f->Fs >= f->Fc, "must be >= Fc")) != DFWB_OK
+    if ((rc = dfwb_friction_state_forces(f, err)) != DFWB_OK
         || (rc = dfwb_state_check(err, "Dv", f->Dv, f->Dv == 0.0, "must be 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "vs", p->vs, isfinite(p->vs) && p->vs > 0.0, "must be > 0")) != DFWB_OK
         || (rc = dfwb_state_check(err, "delta", p->delta, 0.5 <= p->delta && p->delta <= 10.0,
