@@ -26,6 +26,7 @@ h -> 0 with eps = 0 it tends to the friction mass of mass M1 + M2, its distance 
 import math
 
 import numpy as np
+from reference_controller import canonical
 from scipy.integrate import solve_ivp
 
 RTOL, ATOL = 1e-12, 1e-14
@@ -39,17 +40,12 @@ def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0
     M = M1 + M2
     n = 0 if b is None else len(a)
     if n:
-        a_, b_ = np.asarray(a, float), np.zeros(n + 1)
-        b_[n + 1 - len(b):] = b  # b0..bn, leading zeros for a proper G
-        Ac = np.zeros((n, n))
-        Ac[:-1, 1:] = np.eye(n - 1)
-        Ac[-1, :] = -a_[::-1]
-        Cz = b_[:0:-1] - a_[::-1] * b_[0]  # (bn - an b0, ..., b1 - a1 b0)
+        Ac, Cz, b0 = canonical(b, a)
     excitation = lambda t: f + F * math.cos(omega * t + phi)  # noqa: E731
 
     def force(t, y):
         """u at (t, y): the excitation, less G(s) x1 under control."""
-        return excitation(t) - (float(Cz @ np.asarray(y[4:])) + b_[0] * y[0] if n else 0.0)
+        return excitation(t) - (float(Cz @ np.asarray(y[4:])) + b0 * y[0] if n else 0.0)
 
     times = np.linspace(0.0, t_end, 2001) if times is None else np.asarray(times, float)
     out = np.full((len(times), 4 + n), np.nan)

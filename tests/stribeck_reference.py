@@ -34,6 +34,7 @@ Stribeck drop then happens at v = 0).
 import math
 
 import numpy as np
+from reference_controller import canonical
 from scipy.integrate import solve_ivp
 
 RTOL, ATOL = 1e-12, 1e-14
@@ -47,13 +48,8 @@ def simulate(t_end, M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, delta=2.0, F=0.0, omeg
     most ``max_events`` events (a run that needs more stops there, its later rows NaN)."""
     n = 0 if b is None else len(a)
     if n:
-        a_, b_ = np.asarray(a, float), np.zeros(n + 1)
-        b_[n + 1 - len(b):] = b  # b0..bn, leading zeros for a proper G
-        Ac = np.zeros((n, n))
-        Ac[:-1, 1:] = np.eye(n - 1)
-        Ac[-1, :] = -a_[::-1]
-        Cz = b_[:0:-1] - a_[::-1] * b_[0]  # (bn - an b0, ..., b1 - a1 b0)
-        Ac, Cz, b0 = Ac.tolist(), Cz.tolist(), float(b_[0])  # plain floats: they serve every evaluation
+        Ac, Cz, b0 = canonical(b, a)
+        Ac, Cz = Ac.tolist(), Cz.tolist()  # plain floats: they serve every evaluation
     else:
         Ac, Cz, b0 = [], [], 0.0
     excitation = lambda t: f + F * math.cos(omega * t + phi)  # noqa: E731
