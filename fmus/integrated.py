@@ -37,6 +37,13 @@ What makes it a solver dfwb can stand behind:
   far (its absolute error, m s): the local error estimates of each step,
   with the velocity's propagated into the position without credit for
   damping. The describing-function engine turns it into ``N_error``.
+- **Stops that are motion, not rounding.** An event function is sampled
+  EVENT_SAMPLES times a step and its zero refined by Illinois, but a fall to
+  zero counts only once the function has risen above what the rounding of
+  the step's rates moves it (:func:`_stop`). A mass at its breakaway
+  threshold (a loop creeping to rest, the net force within rounding of zero)
+  has a velocity of rounding: a stop there fired again and again, millions of
+  events without motion.
 - **Bounded.** At most MAX_REJECTIONS rejections in a row, MAX_STEPS steps
   in one call, and a step never below STEP_FLOOR ulp of the time: beyond,
   PlantError (the mode is too stiff for an explicit pair: a light mass with
@@ -271,21 +278,11 @@ class Trajectory:
         self.k_last = kv[6]
         self.h = h * factor
         self.step = step
-        # The stop: the first sample of sign v at or below zero, past the start's own zero. A velocity against
-        # the direction beyond the rounding of the step's forces (a force a few ulp above Fs) means the mass
-        # never left: it stops at that sample (time goes on by h/8 at least).
-        floor = ROUNDING * h * size
-        previous = (0.0, sign * v0)
-        for j in range(1, EVENT_SAMPLES + 1):
-            theta = j / EVENT_SAMPLES
-            g = sign * _poly(v0, step[5], theta)
-            if g <= 0.0 and previous[1] > 0.0:
-                self.stopped = a + h * _illinois(step, sign, previous[0], previous[1], theta, g)
-                break
-            if g < -floor:
-                self.stopped = a + h * theta
-                break
-            previous = (theta, g)
+        # The stop (see _stop): the velocity against the slide's direction, from the start's own zero on.
+        self.stopped = _stop(lambda theta: sign * _poly(v0, step[5], theta), sign * v0, ROUNDING * h * size,
+                             left=self.taken > 1)
+        if self.stopped is not None:
+            self.stopped = a + h * self.stopped
 
     # -- reading the step -------------------------------------------------------------------------------
     def _step_at(self, t):
@@ -379,9 +376,34 @@ def _poly(y0, r, theta):
     return y0 + theta * (r[0] + one * (r[1] + theta * (r[2] + one * r[3])))
 
 
-def _illinois(step, sign, lo, g_lo, hi, g_hi):
-    """The zero of sign v in (lo, hi] of a step's dense output (theta), g(lo) > 0 >= g(hi)."""
-    return _illinois_fn(lambda theta: sign * _poly(step[3], step[5], theta), lo, g_lo, hi, g_hi)
+def _stop(fun, g0, floor, limit=1.0, left=True):
+    """The first stop of an event function over a step, as theta in [0, limit], or None.
+
+    ``fun(theta)``: the function along the step, ``g0`` at its start, ``floor`` what the rounding of the
+    step's rates moves it. A fall to zero or below counts once the function is *resolved*: above its floor
+    at the step's start or at a sample since (EVENT_SAMPLES a step). Within the floor its sign is rounding:
+    a mass at its breakaway threshold creeps with the net force within rounding of zero, and a stop there
+    would fire at once and again, events without motion. A fall below -floor always counts: refined from
+    the last positive sample; if there is none, at the step's start, or where the step may not stop at its
+    start (``left`` False: the first step of a departure), at that sample (it never left; time goes on).
+    """
+    if g0 < -floor and left:
+        return 0.0
+    armed = g0 > floor
+    positive = (0.0, g0) if g0 > 0.0 else None
+    for j in range(1, EVENT_SAMPLES + 1):
+        if (j - 1) / EVENT_SAMPLES >= limit:
+            return None
+        theta = j / EVENT_SAMPLES
+        g = fun(theta)
+        if g <= 0.0 and (armed or g < -floor):
+            if positive is not None:
+                return _illinois_fn(fun, positive[0], positive[1], theta, g)
+            return 0.0 if left else theta
+        if g > 0.0:
+            positive = (theta, g)
+            armed = armed or g > floor
+    return None
 
 
 def _illinois_fn(fun, lo, g_lo, hi, g_hi):
@@ -533,23 +555,7 @@ class IntegratedMode:
             def g(theta):
                 return sum(v * x for v, x in zip(L, self.state(step, theta * h))) + l0
 
-            previous = (0.0, g(0.0))
-            if previous[1] <= 0.0 and armed_zero(index):
-                return 0.0, kind
-            limit = 1.0 if best is None else best[0] / h
-            for j in range(1, EVENT_SAMPLES + 1):
-                theta = j / EVENT_SAMPLES
-                if theta > limit and previous[0] >= limit:
-                    break
-                value = g(theta)
-                if value <= 0.0 and previous[1] > 0.0:
-                    tau = h * _illinois_fn(g, previous[0], previous[1], theta, value)
-                    if best is None or tau < best[0]:
-                        best = (tau, kind)
-                    break
-                if value < -floor:
-                    if best is None or h * theta < best[0]:
-                        best = (h * theta, kind)
-                    break
-                previous = (theta, value)
+            theta = _stop(g, g(0.0), floor, 1.0 if best is None else best[0] / h, armed_zero(index))
+            if theta is not None and (best is None or h * theta < best[0]):
+                best = (h * theta, kind)
         return best

@@ -10,7 +10,7 @@ import pytest
 from dfwb.fmus.contract import EventKind
 from dfwb.fmus.exact import Motion, PlantError
 from dfwb.fmus.friction import SLIDE, FrictionLoop, FrictionMass
-from dfwb.fmus.integrated import GAUSS_NODES, GAUSS_WEIGHTS, Trajectory
+from dfwb.fmus.integrated import GAUSS_NODES, GAUSS_WEIGHTS, Trajectory, _stop
 from dfwb.fmus.piecewise import Search
 
 
@@ -194,3 +194,22 @@ def test_an_integrated_loop_does_not_depend_on_the_communication_step():
             loop.advance(k / n)
         runs.append((loop.state(), loop.events, loop.key))
     assert runs[0] == runs[1] == runs[2]
+
+
+@pytest.mark.parametrize("fun, g0, left, expected", [
+    (lambda th: 1.0 - 2.0 * th, 1.0, True, 0.5),  # resolved from the start: the zero, refined
+    (lambda th: 1e-17 * math.sin(20.0 * th), 0.0, True, None),  # within the floor throughout: rounding, no stop
+    (lambda th: 1e-17 - 4.0 * th * th + 3.0 * th, 1e-17, True, 0.75 + 1e-17 / 3.0),  # armed by a sample
+    (lambda th: -th, 0.0, False, 0.125),  # a departure that never left: at the first sample beyond the floor
+    (lambda th: -th, 0.0, True, 0.0),  # later in the piece: from the step's start
+    (lambda th: -1e-15 - th, -1e-15, True, 0.0),  # below the floor at the start already
+    (lambda th: 1e-17 - th, 1e-17, True, 1e-17),  # unresolved at the start, falls through: from the last positive
+])
+def test_a_stop_counts_once_its_function_is_resolved(fun, g0, left, expected):
+    """_stop (the slides' and the loop's modes' stop, C's dfwb_in_stop): a fall to zero within the floor (1e-16
+    here) is rounding, not a stop; below it, or after the function was resolved, it is one."""
+    theta = _stop(fun, g0, 1e-16, left=left)
+    if expected is None:
+        assert theta is None
+    else:
+        assert theta == pytest.approx(expected, rel=0.0, abs=1e-15)

@@ -151,6 +151,27 @@ def test_its_hunting_cycle_is_confirmed_by_the_independent_reference():
     assert len(events) == 16  # a stop and a breakaway each way per period
 
 
+def test_under_a_stiff_pi_it_creeps_to_rest_and_stays_there(core):
+    """Under 40 + 2/s the mass creeps to rest at x = 0 after 32 stick-slips: a slide at the breakaway threshold
+    (the friction Fs + B v to second order in v) follows the linear loop M s^3 + B s^2 + Kp s + Ki, its slow
+    real root. Below rounding it creeps on without events: stops at the rounding of v (a net force within
+    rounding of zero) fired every 1.5 ms before, five million events in 8000 s. The reference agrees to
+    100 s; the creep's rate is the root's; C follows Python bit for bit."""
+    python, c = StribeckLoop([40.0, 2.0], [0.0], x0=0.175), core.StribeckLoop([40.0, 2.0], [0.0], x0=0.175)
+    _, reference, events = simulate(100.0, b=[40.0, 2.0], a=[0.0], x0=0.175, times=np.array([100.0]))
+    states = {}
+    for t in (100.0, 200.0, 400.0, 8000.0):
+        python.advance(t)
+        c.advance(t)
+        assert c.state() == python.state() and c.events == python.events
+        states[t] = python.state()
+    assert np.max(np.abs(np.array(states[100.0]) - reference[0])) < 1e-9
+    assert python.events == len(events) - 1 == 64  # the reference counts the start's breakaway
+    slow = max(r.real for r in np.roots([1.0, 0.5, 40.0, 2.0]))  # -0.050028
+    assert abs(math.log(states[400.0][0] / states[200.0][0]) / 200.0 / slow - 1.0) < 1e-6
+    assert abs(states[8000.0][0]) < 1e-14 and python.key == ("slide", -1)
+
+
 @pytest.mark.parametrize("name, value, text", [
     ("vs", 0.0, "vs must be > 0"), ("vs", float("inf"), "vs must be > 0"), ("delta", 0.1, "delta must be in [0.5, 10]"),
     ("rtol", 1.0, "rtol must be in [1e-12, 1e-3]"), ("rtol", 1e-16, "rtol must be in [1e-12, 1e-3]"),

@@ -634,13 +634,13 @@ static void integrated_search(const dfwb_hy *hy, const dfwb_hy_mode *m, int *fou
 {
     const double h = hy->step_h;
     double gross[DFWB_HY_DIM];
-    int index, i, j;
+    int index, i;
     *found = 0;
     gross_of(hy, m, hy->X, gross);
     for (index = 0; index < m->nev; index++) {
         const int kind = m->ev[index].kind;
         int departing = 0;
-        double prev_theta = 0.0, prev_g, limit, floor_g;
+        double floor_g, theta;
         event_ctx ctx;
         if (is_section(kind) && kind != hy->watching)
             continue;
@@ -650,39 +650,11 @@ static void integrated_search(const dfwb_hy *hy, const dfwb_hy_mode *m, int *fou
                 departing |= hy->departing[i] == index;
         ctx.hy = hy;
         ctx.ev = &m->ev[index];
-        prev_g = event_fun(&ctx, 0.0);
-        if (prev_g <= 0.0 && !departing) { /* armed at zero: fires at once */
+        if (dfwb_in_stop(event_fun, &ctx, event_fun(&ctx, 0.0), floor_g, *found ? *best_tau / h : 1.0, !departing,
+                         &theta) && (!*found || h * theta < *best_tau)) {
             *found = 1;
-            *best_tau = 0.0;
+            *best_tau = h * theta;
             *best_kind = kind;
-            return;
-        }
-        limit = *found ? *best_tau / h : 1.0;
-        for (j = 1; j <= DFWB_IN_EVENT_SAMPLES; j++) {
-            const double theta = (double)j / (double)DFWB_IN_EVENT_SAMPLES;
-            double value;
-            if (theta > limit && prev_theta >= limit)
-                break;
-            value = event_fun(&ctx, theta);
-            if (value <= 0.0 && prev_g > 0.0) {
-                const double tau = h * dfwb_in_illinois(event_fun, &ctx, prev_theta, prev_g, theta, value);
-                if (!*found || tau < *best_tau) {
-                    *found = 1;
-                    *best_tau = tau;
-                    *best_kind = kind;
-                }
-                break;
-            }
-            if (value < -floor_g) { /* a departing function beyond rounding below zero: it never left */
-                if (!*found || h * theta < *best_tau) {
-                    *found = 1;
-                    *best_tau = h * theta;
-                    *best_kind = kind;
-                }
-                break;
-            }
-            prev_theta = theta;
-            prev_g = value;
         }
     }
 }

@@ -144,6 +144,35 @@ int dfwb_in_control(dfwb_in_attempt attempt, void *ctx, double a, double *h, dou
     return DFWB_OK;
 }
 
+int dfwb_in_stop(dfwb_in_fun fun, const void *ctx, double g0, double floor_g, double limit, int left,
+                 double *theta)
+{
+    int armed = g0 > floor_g, positive = g0 > 0.0, j;
+    double pos_theta = 0.0, pos_g = g0;
+    if (g0 < -floor_g && left) {
+        *theta = 0.0;
+        return 1;
+    }
+    for (j = 1; j <= DFWB_IN_EVENT_SAMPLES; j++) {
+        const double th = (double)j / (double)DFWB_IN_EVENT_SAMPLES;
+        double g;
+        if ((double)(j - 1) / (double)DFWB_IN_EVENT_SAMPLES >= limit)
+            return 0;
+        g = fun(ctx, th);
+        if (g <= 0.0 && (armed || g < -floor_g)) {
+            *theta = positive ? dfwb_in_illinois(fun, ctx, pos_theta, pos_g, th, g) : left ? 0.0 : th;
+            return 1;
+        }
+        if (g > 0.0) {
+            positive = 1;
+            pos_theta = th;
+            pos_g = g;
+            armed = armed || g > floor_g;
+        }
+    }
+    return 0;
+}
+
 double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo, double hi, double g_hi)
 {
     int side = 0, i;
@@ -410,27 +439,15 @@ static int take_step(dfwb_trajectory *tr, dfwb_law_fn law, dfwb_law_fn size, con
     tr->peak[1] = fabs(v1) > tr->peak[1] ? fabs(v1) : tr->peak[1];
     tr->k_last = kv[6];
     tr->h = h * factor;
-    /* the stop: the first sample of sign v at or below zero, past the start's own zero */
+    /* the stop (dfwb_in_stop): the velocity against the slide's direction, from the start's own zero on */
     {
-        const double floor_g = DFWB_IN_ROUNDING * h * size_a; /* against the direction beyond it: never left */
-        double prev_theta = 0.0, prev_g = (double)tr->sign * v0;
-        for (j = 1; j <= DFWB_IN_EVENT_SAMPLES; j++) {
-            const double theta = (double)j / (double)DFWB_IN_EVENT_SAMPLES;
-            const double g = (double)tr->sign * dfwb_in_poly(v0, tr->vc, theta);
-            if (g <= 0.0 && prev_g > 0.0) {
-                stop_ctx ctx;
-                ctx.tr = tr;
-                tr->has_stopped = 1;
-                tr->stopped = a + h * dfwb_in_illinois(stop_fun, &ctx, prev_theta, prev_g, theta, g);
-                break;
-            }
-            if (g < -floor_g) {
-                tr->has_stopped = 1;
-                tr->stopped = a + h * theta;
-                break;
-            }
-            prev_theta = theta;
-            prev_g = g;
+        stop_ctx ctx;
+        double theta;
+        ctx.tr = tr;
+        if (dfwb_in_stop(stop_fun, &ctx, (double)tr->sign * v0, DFWB_IN_ROUNDING * h * size_a, 1.0,
+                         tr->taken > 1, &theta)) {
+            tr->has_stopped = 1;
+            tr->stopped = a + h * theta;
         }
     }
     return DFWB_OK;

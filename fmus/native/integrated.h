@@ -49,6 +49,11 @@ int dfwb_in_control(dfwb_in_attempt attempt, void *ctx, double a, double *h, dou
 /* The zero of fun in (lo, hi], fun(lo) = g_lo > 0 >= fun(hi) = g_hi: Illinois (_illinois_fn). */
 typedef double (*dfwb_in_fun)(const void *ctx, double theta);
 double dfwb_in_illinois(dfwb_in_fun fun, const void *ctx, double lo, double g_lo, double hi, double g_hi);
+/* _stop: the first stop of an event function over a step (1, *theta in [0, limit]) or none (0): a fall to
+ * zero counts once the function rose above floor_g in the step; below -floor_g always (refined from the last
+ * positive sample; none: at the start, or at the sample where the step may not stop at its start, !left). */
+int dfwb_in_stop(dfwb_in_fun fun, const void *ctx, double g0, double floor_g, double limit, int left,
+                 double *theta);
 /* Python's max(a, b, c): the first of the largest; min(a, b, c): the first of the smallest. */
 double dfwb_in_max3(double a, double b, double c);
 double dfwb_in_min3(double a, double b, double c);
