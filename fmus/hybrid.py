@@ -126,7 +126,9 @@ class Mode:
         rho = max(sum(abs(A[i][j]) * d[j] / d[i] for j in range(n)) for i in range(n))
         self.scale = d
         # the time scale the mode resolves (A = 0: none; 1 s serves the time limits)
-        self.resolution = h = TAYLOR_RADIUS / rho if rho > 0.0 else 1.0
+        self.resolution = TAYLOR_RADIUS / rho if rho > 0.0 else 1.0
+        # a chunk of at most NILPOTENT_CHUNK: rho h <= 1 still, and h^k stays finite (a mass of 1e300 kg)
+        h = min(self.resolution, NILPOTENT_CHUNK)
         terms, term = 1, 1.0
         while rho > 0.0 and terms < MAX_TERMS and term > TAYLOR_TOLERANCE:
             terms += 1

@@ -18,6 +18,8 @@ import pytest
 from test_native_core import trace
 
 from dfwb.fmus import facade, loop_facade, native_core, plants
+from dfwb.fmus.exact import PlantError
+from dfwb.fmus.table import MASS
 from dfwb.plants import registry
 
 MODULES = {module.TABLE.name: module for module in plants.MODULES}
@@ -135,3 +137,27 @@ def test_the_c_classes_take_and_refuse_arguments_as_python(module, core):
             make(*PI if make is not getattr(core, table.model) else (), nonsense=1.0)
     with pytest.raises(TypeError, match=f"^Native{loop.__name__}\\(\\): missing a required argument: 'b'"):
         getattr(core, loop.__name__)()
+
+
+@pytest.mark.needs_cc
+@pytest.mark.parametrize("value", [1e300, 1e-300])
+def test_a_loop_with_an_extreme_mass_runs_or_refuses_in_one_line(module, core, value):
+    """Masses far outside the engine's range (which the solvers' classes take): each loop, Python and C, runs
+    from a displaced start or refuses with PlantError, the same way. A mass of 1e300 kg once overflowed
+    the chunk's Taylor bounds (h ** k with h = 1/rho = 1e300 s)."""
+    table, loop = module.TABLE, module.LOOP
+    masses = [p.name for p in table.constants if p.accepted == MASS]
+    assert masses
+    for name in masses:
+        params = {table.position: 0.3, name: value}
+        outcomes = []
+        for cls in (loop, getattr(core, loop.__name__)):
+            try:
+                solver = cls(*PI, **params)
+                solver.advance(10.0)
+                outcomes.append(solver.state())
+            except PlantError as error:
+                assert "\n" not in str(error)
+                outcomes.append(type(error))
+        assert outcomes[0] == outcomes[1], (name, outcomes)
+        assert not isinstance(outcomes[0], list) or all(math.isfinite(x) for x in outcomes[0])

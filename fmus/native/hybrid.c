@@ -169,7 +169,9 @@ static int build_mode(dfwb_hy *hy, int key, dfwb_hy_mode *m, dfwb_err *err)
     }
     for (i = 0; i < n; i++)
         m->scale[i] = d[i];
-    m->resolution = m->h = rho > 0.0 ? TAYLOR_RADIUS / rho : 1.0;
+    m->resolution = rho > 0.0 ? TAYLOR_RADIUS / rho : 1.0;
+    /* a chunk of at most NILPOTENT_CHUNK: rho h <= 1 still, and h^k stays finite (a mass of 1e300 kg) */
+    m->h = m->resolution < DFWB_HY_NILPOTENT_CHUNK ? m->resolution : DFWB_HY_NILPOTENT_CHUNK;
     m->terms = 1;
     term = 1.0;
     while (rho > 0.0 && m->terms < DFWB_HY_MAX_TERMS && term > TAYLOR_TOLERANCE) {
