@@ -97,7 +97,7 @@ def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
     57.26 s that the DF cannot represent; the hunting branch in Ki ends in a nonsmooth fold near 24.77 and
     at infinity at the linear boundary Ki = 5; the PID's margin: it hunts for any larger gain, the DF says not;
     with a gear's play in front of the load (drivetrain), every stabilizing PI still hunts and the DF misses
-    most of that.
+    most of that; with Stribeck friction (stribeck) a stiff Kp with a weak Ki comes to rest from every start.
     """
     nbformat = pytest.importorskip("nbformat")
     import matplotlib
@@ -133,6 +133,12 @@ def test_the_hunting_notebook_answers(fmus, tmp_path, monkeypatch):
     assert linear.any() and truth[linear].all(), "gear_map: a stabilizing setting that does not hunt"
     assert (truth & linear & ~df).sum() > (truth & linear).sum() / 2, "gear_map: the DF sees most of the hunting"
     assert not (df & ~truth).any(), "gear_map: the DF predicts hunting the truth does not find"
+    stribeck = namespace["stribeck_map"]  # the Stribeck fall: stiff Kp with weak Ki comes to rest
+    linear, truth, df = _hunting(stribeck)
+    assert truth[linear].any() and not truth[0, -1], "stribeck_map: no hunting, or hunting at Kp 40, Ki 2"
+    assert stribeck.cells[0][-1]["truth"]["class"] == "none"
+    assert set(stribeck.cells[0][-1]["truth"]["coverage"]["outcomes"]) == {"rest"}  # every start, proven
+    assert not (df & ~truth).any(), "stribeck_map: the DF predicts hunting the truth does not find"
     for name in ("pi_coulomb", "pid_coulomb"):  # Fs = Fc = 5 N
         linear, truth, df = _hunting(namespace[name])
         assert linear.any() and not truth.any(), f"{name}: hunts without static friction"
