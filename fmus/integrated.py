@@ -94,8 +94,9 @@ D = (-12715105075 / 11282082432, 0.0, 87487479700 / 32700410799, -10690763975 / 
 
 
 def _gauss_legendre(n):
-    """Nodes in [0, 1] and weights of the n-point Gauss-Legendre rule (Newton on P_n, to rounding)."""
-    nodes, weights = [], []
+    """The roots z of P_n in [-1, 1], descending, and the weights of the n-point Gauss-Legendre rule on [0, 1]
+    (nodes (1 - z) / 2) by Newton on P_n, to rounding."""
+    roots, weights = [], []
     for i in range(1, n + 1):
         z = math.cos(math.pi * (i - 0.25) / (n + 0.5))
         for _ in range(100):
@@ -111,12 +112,17 @@ def _gauss_legendre(n):
         for k in range(2, n + 1):
             p0, p1 = p1, ((2 * k - 1) * z * p1 - (k - 1) * p0) / k
         dp = n * (z * p1 - p0) / (z * z - 1.0)
-        nodes.append(0.5 * (1.0 - z))
+        roots.append(z)
         weights.append(1.0 / ((1.0 - z * z) * dp * dp))  # 2 / ((1 - z^2) P_n'^2), halved for [0, 1]
-    return tuple(nodes), tuple(weights)
+    return tuple(roots), tuple(weights)
 
 
-GAUSS_NODES, GAUSS_WEIGHTS = _gauss_legendre(9)
+_ROOTS, GAUSS_WEIGHTS = _gauss_legendre(9)
+GAUSS_NODES = tuple(0.5 * (1.0 - z) for z in _ROOTS)
+# The rule as a centre node and 4 pairs mid -+ z half (z > 0, the pair's weight the lower node's): the pairs'
+# exponentials are the centre's times exp(+-i omega z half), 5 of them a step instead of 9
+GAUSS_PAIRS = tuple(zip(_ROOTS[:4], GAUSS_WEIGHTS[:4]))
+GAUSS_CENTRE = GAUSS_WEIGHTS[4]
 
 
 class Trajectory:
@@ -300,18 +306,30 @@ class Trajectory:
         span = t - a
         if not span > 0.0 or not h:
             return total
-        omega = self.omega
-        for node, weight in zip(GAUSS_NODES, GAUSS_WEIGHTS):
-            s = a + node * span
-            d, _v = _dense(step, s)
-            x = (self.x0 + d) * weight * span
-            total[0] += x
-            if harmonics:
-                z = cmath.exp(-1j * omega * s)
-                zk = z
-                for k in range(1, harmonics + 1):
-                    total[k] += x * zk
-                    zk *= z
+        x0, omega, half = self.x0, self.omega, 0.5 * span
+        mid = a + half
+        centre = (x0 + _dense(step, mid)[0]) * GAUSS_CENTRE * span
+        total[0] += centre
+        sums, differences = [], []
+        for z, weight in GAUSS_PAIRS:
+            low = (x0 + _dense(step, mid - half * z)[0]) * weight * span
+            high = (x0 + _dense(step, mid + half * z)[0]) * weight * span
+            total[0] += low + high
+            sums.append(low + high)
+            differences.append(low - high)
+        if harmonics:
+            # low exp(-i k omega (mid - z half)) + high exp(-i k omega (mid + z half))
+            #   = exp(-i k omega mid) ((low + high) cos(k theta) + i (low - high) sin(k theta)),  theta = omega z half
+            turns = [cmath.exp(complex(0.0, omega * (half * z))) for z, _weight in GAUSS_PAIRS]
+            centre_turn = cmath.exp(-1j * omega * mid)
+            turn_k, powers = centre_turn, list(turns)
+            for k in range(1, harmonics + 1):
+                acc = complex(centre, 0.0)
+                for total_pair, difference, power in zip(sums, differences, powers):
+                    acc += complex(total_pair * power.real, difference * power.imag)
+                total[k] += turn_k * acc
+                turn_k *= centre_turn
+                powers = [power * turn for power, turn in zip(powers, turns)]
         return total
 
 

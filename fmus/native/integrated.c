@@ -21,7 +21,7 @@ const double dfwb_in_d[7] = {-12715105075.0 / 11282082432.0, 0.0, 87487479700.0 
                              -10690763975.0 / 1880347072.0, 701980252875.0 / 199316789632.0,
                              -1453857185.0 / 822651844.0, 69997945.0 / 29380423.0};
 
-double dfwb_in_gauss_nodes[DFWB_IN_GAUSS], dfwb_in_gauss_weights[DFWB_IN_GAUSS];
+double dfwb_in_gauss_nodes[DFWB_IN_GAUSS], dfwb_in_gauss_weights[DFWB_IN_GAUSS], dfwb_in_gauss_roots[DFWB_IN_GAUSS];
 static int gauss_ready;
 
 /* _gauss_legendre(9): Newton on P_n from Chebyshev-like guesses, as the Python does, step by step. */
@@ -56,6 +56,7 @@ void dfwb_in_setup(void)
             p1 = p2;
         }
         dp = (double)n * (z * p1 - p0) / (z * z - 1.0);
+        dfwb_in_gauss_roots[i - 1] = z;
         dfwb_in_gauss_nodes[i - 1] = 0.5 * (1.0 - z);
         dfwb_in_gauss_weights[i - 1] = 1.0 / ((1.0 - z * z) * dp * dp);
     }
@@ -256,30 +257,49 @@ static void dense(const dfwb_trajectory *tr, double t, double *d, double *v)
     *v = dfwb_in_poly(tr->sv0, tr->vc, theta);
 }
 
-/* _step_integrals(step, harmonics, t): the step's start's integrals plus Gauss on [a, t] */
+/* _step_integrals(step, harmonics, t): the step's start's integrals plus Gauss on [a, t], as a centre node and
+ * DFWB_IN_GAUSS_PAIRS pairs mid -+ z half whose exponentials are the centre's times exp(+-i omega z half) */
 static void step_integrals(const dfwb_trajectory *tr, int harmonics, double t, dfwb_cx *out)
 {
     static const dfwb_cx NEG_I = {-0.0, -1.0}; /* -1j */
-    const double a = tr->a, span = t - a;
+    const double a = tr->a, span = t - a, half = 0.5 * span, mid = a + half;
+    double d, v, centre, sums[DFWB_IN_GAUSS_PAIRS], differences[DFWB_IN_GAUSS_PAIRS];
+    dfwb_cx turns[DFWB_IN_GAUSS_PAIRS], powers[DFWB_IN_GAUSS_PAIRS], centre_turn, turn_k;
     int k, j;
     for (k = 0; k <= harmonics; k++)
         out[k] = tr->integrals[k];
     if (!(span > 0.0) || !(tr->sh != 0.0))
         return;
-    for (j = 0; j < DFWB_IN_GAUSS; j++) {
-        const double s = a + dfwb_in_gauss_nodes[j] * span;
-        double d, v, x;
-        dense(tr, s, &d, &v);
-        x = (tr->x0 + d) * dfwb_in_gauss_weights[j] * span;
-        out[0] = dfwb_cx_add(out[0], dfwb_cx_real(x));
-        if (harmonics) {
-            const dfwb_cx z = dfwb_cx_exp(dfwb_cx_mul(dfwb_cx_mul(NEG_I, dfwb_cx_real(tr->omega)), dfwb_cx_real(s)));
-            dfwb_cx zk = z;
-            for (k = 1; k <= harmonics; k++) {
-                out[k] = dfwb_cx_add(out[k], dfwb_cx_mul(dfwb_cx_real(x), zk));
-                zk = dfwb_cx_mul(zk, z);
-            }
+    dense(tr, mid, &d, &v);
+    centre = (tr->x0 + d) * dfwb_in_gauss_weights[DFWB_IN_GAUSS_PAIRS] * span;
+    out[0] = dfwb_cx_add(out[0], dfwb_cx_real(centre));
+    for (j = 0; j < DFWB_IN_GAUSS_PAIRS; j++) {
+        const double z = dfwb_in_gauss_roots[j], weight = dfwb_in_gauss_weights[j];
+        double low, high;
+        dense(tr, mid - half * z, &d, &v);
+        low = (tr->x0 + d) * weight * span;
+        dense(tr, mid + half * z, &d, &v);
+        high = (tr->x0 + d) * weight * span;
+        out[0] = dfwb_cx_add(out[0], dfwb_cx_real(low + high));
+        sums[j] = low + high;
+        differences[j] = low - high;
+    }
+    if (!harmonics)
+        return;
+    for (j = 0; j < DFWB_IN_GAUSS_PAIRS; j++)
+        powers[j] = turns[j] = dfwb_cx_exp(dfwb_cx_make(0.0, tr->omega * (half * dfwb_in_gauss_roots[j])));
+    centre_turn = dfwb_cx_exp(dfwb_cx_mul(dfwb_cx_mul(NEG_I, dfwb_cx_real(tr->omega)), dfwb_cx_real(mid)));
+    turn_k = centre_turn;
+    for (k = 1; k <= harmonics; k++) {
+        dfwb_cx acc = dfwb_cx_make(centre, 0.0);
+        for (j = 0; j < DFWB_IN_GAUSS_PAIRS; j++) {
+            acc.re = acc.re + sums[j] * powers[j].re;
+            acc.im = acc.im + differences[j] * powers[j].im;
         }
+        out[k] = dfwb_cx_add(out[k], dfwb_cx_mul(turn_k, acc));
+        turn_k = dfwb_cx_mul(turn_k, centre_turn);
+        for (j = 0; j < DFWB_IN_GAUSS_PAIRS; j++)
+            powers[j] = dfwb_cx_mul(powers[j], turns[j]);
     }
 }
 

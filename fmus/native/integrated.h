@@ -30,7 +30,9 @@
 
 /* The tableau (integrated.py's C, A, E, D) and the 9-point Gauss-Legendre rule on [0, 1]. */
 extern const double dfwb_in_c[7], dfwb_in_a[7][6], dfwb_in_e[7], dfwb_in_d[7];
-extern double dfwb_in_gauss_nodes[DFWB_IN_GAUSS], dfwb_in_gauss_weights[DFWB_IN_GAUSS];
+#define DFWB_IN_GAUSS_PAIRS 4 /* the rule's pairs mid -+ z half (the centre node is the next) */
+extern double dfwb_in_gauss_nodes[DFWB_IN_GAUSS], dfwb_in_gauss_weights[DFWB_IN_GAUSS],
+    dfwb_in_gauss_roots[DFWB_IN_GAUSS]; /* roots z of P_9, descending: nodes (1 - z) / 2 */
 /* Compute the Gauss rule as _gauss_legendre does (once; idempotent). */
 void dfwb_in_setup(void);
 
