@@ -186,3 +186,18 @@ def test_a_refused_read_is_an_fmu_error_naming_it(fmus, monkeypatch):
     session.start({"F": 10.0, "omega": 1.0})  # reset, as after any refused call
     session.step(0.5, {"f": 0.0})
     assert read()[1] == [0] and read()[0][0] != 0.0
+
+
+def test_a_tail_of_two_rates_is_extrapolated_to_the_same_orbit(fmus, monkeypatch):
+    """The drivetrain at F 50 N, omega 20 rad/s converges at two rates (the gear's rattle, the load's creep):
+    Aitken cannot take that tail and plain iteration needs 68 periods; the degree-2 extrapolation and one
+    shooting period close the orbit in at most 25, at the N that plain iteration reaches (within 1e-9)."""
+    from dfwb.engine import describing
+
+    engine = DFEngine("drivetrain")
+    fast = engine.point(50.0, 20.0, {"eps": 0.5})
+    assert fast.periodic and fast.periods <= 25 and "confirmed by shooting" in fast.note
+    monkeypatch.setattr(describing._Search, "extrapolate", lambda self, sections, counts: None)
+    plain = engine.point(50.0, 20.0, {"eps": 0.5})
+    assert plain.periodic and plain.periods > 50
+    assert abs(fast.N - plain.N) < 1e-9 * abs(plain.N)
