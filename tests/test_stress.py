@@ -50,7 +50,9 @@ def _checks(case):
 FRICTION = dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=10.0, omega=1.0)
 BACKLASH = dict(M1=1.0, M2=1.0, h=0.1, eps=0.5, F=50.0, omega=20.0)
 STATIC = dict(M=2.0, k=1.0, h=0.1, F=50.0, omega=20.0)
-REFERENCE_CASES = {"friction": FRICTION, "backlash": BACKLASH, "static-backlash": STATIC}  # plant: a plain case
+STRIBECK = dict(M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, F=10.0, omega=1.0)
+REFERENCE_CASES = {"friction": FRICTION, "backlash": BACKLASH, "static-backlash": STATIC,
+                   "stribeck": STRIBECK}  # plant: a plain case
 STRESSED = [entry.name for entry in PLANTS.values() if entry.stress is not None]
 
 
@@ -82,6 +84,23 @@ def test_every_plant_is_stressed(plant):
 @pytest.mark.parametrize("plant", STRESSED)
 def test_the_reference_cases_pass_unbroken(plant):
     assert _checks(_case(plant, REFERENCE_CASES[plant])) == set()
+
+
+def test_a_wrong_stribeck_law_is_caught(monkeypatch):
+    """The Stribeck mass sliding on Coulomb friction alone (its fall lost) breaks the observer's law."""
+    from dfwb.fmus import stribeck
+
+    monkeypatch.setattr(stribeck, "stribeck_factor", lambda v, vs, delta: 0.0)
+    assert "slide" in _checks(_case("stribeck", STRIBECK))
+
+
+def test_a_stribeck_mass_gaining_energy_is_caught(monkeypatch):
+    """A slide pushed on by its friction (the fall's sign flipped) gains energy the force did not give."""
+    from dfwb.fmus import stribeck
+
+    monkeypatch.setattr(stribeck.StribeckSlide, "friction",
+                        lambda self, v: -self.s * (self.Fc + self.drop) + self.B * v)
+    assert "energy" in _checks(_case("stribeck", dict(STRIBECK, B=0.0)))
 
 
 def test_a_nan_output_is_caught(monkeypatch):

@@ -15,6 +15,7 @@ from dfwb.plants.registry import Demo, Plant, names, register
 from dfwb.plants.stress_profiles import BACKLASH as BACKLASH_STRESS
 from dfwb.plants.stress_profiles import FRICTION as FRICTION_STRESS
 from dfwb.plants.stress_profiles import STATIC_BACKLASH as STATIC_BACKLASH_STRESS
+from dfwb.plants.stress_profiles import STRIBECK as STRIBECK_STRESS
 
 
 def _reference(plant):
@@ -93,6 +94,8 @@ STATIC_BACKLASH = register(Plant(
               (("x", "mass position x [m]"), ("y", "backlash output y [m]"))),
 ))
 
+STRESS = {"stribeck": STRIBECK_STRESS}  # the stress profiles of the plants registered with their table's facts
+
 for _facade in facade.PLANTS:  # a plant of dfwb.fmus.plants without an entry above: its table's facts
     if _facade.table.name not in names():
-        register(Plant(_facade.table.name, _facade))
+        register(Plant(_facade.table.name, _facade, stress=STRESS.get(_facade.table.name)))
