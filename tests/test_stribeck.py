@@ -172,6 +172,29 @@ def test_under_a_stiff_pi_it_creeps_to_rest_and_stays_there(core):
     assert abs(states[8000.0][0]) < 1e-14 and python.key == ("slide", -1)
 
 
+def test_beside_the_region_of_rest_it_hunts_from_some_starts_only():
+    """Under 32.9 + 5.45/s (a cell of the hunting notebook's map beside the settings that come to rest) the
+    loop is bistable: the cycle search reaches a stable stick-slip cycle of period 72.762 s from some starts
+    and rest from others. The reference started on the cycle returns to it each period (within 1e-8); from
+    x0 = 0.175 m the loop creeps to rest, as the reference does from there."""
+    Kp, Ki = 32.90909090909091, 5.454545454545455
+    found = dfwb.limit_cycles("stribeck", f"{Kp!r} + {Ki!r}/s", exact=True)
+    assert len(found.cycles) == 1 and found.cycles[0].stable
+    assert set(found.coverage.outcomes) == {"cycle", "rest"}
+    cycle = found.cycles[0]
+    assert cycle.period == pytest.approx(72.7622, abs=1e-3)
+    start = np.array(cycle.sections[0])
+    times = np.array([cycle.period * k for k in (1, 2, 3)])
+    _, states, _events = simulate(times[-1], b=[Kp, Ki], a=[0.0], x0=start[0], v0=start[1], z0=list(start[2:]),
+                                  times=times)
+    assert np.max(np.abs(states - start)) < 1e-8
+    loop = StribeckLoop([Kp, Ki], [0.0], x0=0.175)
+    loop.advance(150.0)
+    events = loop.events
+    loop.advance(400.0)
+    assert loop.events == events and abs(loop.state()[0]) < 1e-12
+
+
 @pytest.mark.parametrize("name, value, text", [
     ("vs", 0.0, "vs must be > 0"), ("vs", float("inf"), "vs must be > 0"), ("delta", 0.1, "delta must be in [0.5, 10]"),
     ("rtol", 1.0, "rtol must be in [1e-12, 1e-3]"), ("rtol", 1e-16, "rtol must be in [1e-12, 1e-3]"),
