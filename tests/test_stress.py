@@ -51,8 +51,9 @@ FRICTION = dict(M=1.0, B=0.0, Fc=5.0, Fs=5.0, F=10.0, omega=1.0)
 BACKLASH = dict(M1=1.0, M2=1.0, h=0.1, eps=0.5, F=50.0, omega=20.0)
 STATIC = dict(M=2.0, k=1.0, h=0.1, F=50.0, omega=20.0)
 STRIBECK = dict(M=1.0, B=0.5, Fc=5.0, Fs=7.0, vs=0.1, F=10.0, omega=1.0)
+DRIVETRAIN = dict(BACKLASH, B=0.5, Fc=5.0, Fs=7.0)
 REFERENCE_CASES = {"friction": FRICTION, "backlash": BACKLASH, "static-backlash": STATIC,
-                   "stribeck": STRIBECK}  # plant: a plain case
+                   "stribeck": STRIBECK, "drivetrain": DRIVETRAIN}  # plant: a plain case
 STRESSED = [entry.name for entry in PLANTS.values() if entry.stress is not None]
 
 
@@ -101,6 +102,29 @@ def test_a_stribeck_mass_gaining_energy_is_caught(monkeypatch):
     monkeypatch.setattr(stribeck.StribeckSlide, "friction",
                         lambda self, v: -self.s * (self.Fc + self.drop) + self.B * v)
     assert "energy" in _checks(_case("stribeck", dict(STRIBECK, B=0.0)))
+
+
+def test_a_stuck_load_that_moves_is_caught(monkeypatch):
+    """The drivetrain reporting its load stuck (slip 0) while it slides breaks the load's stick check."""
+    from dfwb.fmus import drivetrain
+
+    original = drivetrain.Drivetrain.output
+
+    def output(self):
+        values = original(self)
+        return values._replace(v1=values.v1 + 1e-3) if self.slip == 0 else values
+
+    monkeypatch.setattr(drivetrain.Drivetrain, "output", output)
+    assert "stick" in _checks(_case("drivetrain", DRIVETRAIN))
+
+
+def test_a_drivetrain_in_contact_while_pulled_apart_is_caught(monkeypatch):
+    """Contact kept while the motor side pulls away from the load (its pressing force negated) is caught."""
+    from dfwb.fmus import drivetrain
+
+    monkeypatch.setattr(drivetrain.Drivetrain, "_pressing", lambda self, t, s, v: -(
+        self.M1 * self.drive.u(t) + self.M2 * (self.Fc * s + self.B * v)))
+    assert "gap" in _checks(_case("drivetrain", dict(DRIVETRAIN, eps=0.0)))
 
 
 def test_a_nan_output_is_caught(monkeypatch):

@@ -13,6 +13,7 @@ import math
 from dfwb.fmus import facade, naive_facade
 from dfwb.plants.registry import Demo, Plant, names, register
 from dfwb.plants.stress_profiles import BACKLASH as BACKLASH_STRESS
+from dfwb.plants.stress_profiles import DRIVETRAIN as DRIVETRAIN_STRESS
 from dfwb.plants.stress_profiles import FRICTION as FRICTION_STRESS
 from dfwb.plants.stress_profiles import STATIC_BACKLASH as STATIC_BACKLASH_STRESS
 from dfwb.plants.stress_profiles import STRIBECK as STRIBECK_STRESS
@@ -94,7 +95,8 @@ STATIC_BACKLASH = register(Plant(
               (("x", "mass position x [m]"), ("y", "backlash output y [m]"))),
 ))
 
-STRESS = {"stribeck": STRIBECK_STRESS}  # the stress profiles of the plants registered with their table's facts
+# the stress profiles of the plants registered with their table's facts
+STRESS = {"drivetrain": DRIVETRAIN_STRESS, "stribeck": STRIBECK_STRESS}
 
 for _facade in facade.PLANTS:  # a plant of dfwb.fmus.plants without an entry above: its table's facts
     if _facade.table.name not in names():

@@ -11,6 +11,7 @@ parameters. The suite that runs them is :mod:`dfwb.verify.stress`.
 import math
 
 from dfwb.fmus.backlash import TABLE as BACKLASH_TABLE
+from dfwb.fmus.drivetrain import TABLE as DRIVETRAIN_TABLE
 from dfwb.fmus.friction import TABLE as FRICTION_TABLE
 from dfwb.fmus.static_backlash import TABLE as STATIC_BACKLASH_TABLE
 from dfwb.fmus.stribeck import TABLE as STRIBECK_TABLE
@@ -29,7 +30,7 @@ from dfwb.plants.stress_kit import (
     uniform,
 )
 
-__all__ = ["FRICTION", "STRIBECK", "BACKLASH", "STATIC_BACKLASH", "EPS_VALUES"]
+__all__ = ["FRICTION", "STRIBECK", "BACKLASH", "DRIVETRAIN", "STATIC_BACKLASH", "EPS_VALUES"]
 
 EPS_VALUES = (0.0, 1e-9, 0.5, 1.0 - 1e-9, 1.0)  # restitution coefficients every backlash case family covers
 # An integrated plant's balances hold to its tolerance rtol, not to rounding: their allowance is this many rtol of
@@ -436,13 +437,19 @@ def _random_backlash(name, rng, i):
 class BacklashObserver(StressObserver):
     """The gap, contact, momentum and (free elastic flight) kinetic energy at every point."""
 
+    TABLE = BACKLASH_TABLE
+
     def setup(self):
-        p = dict(BACKLASH_TABLE.defaults, **self.case.params)
+        p = dict(self.TABLE.defaults, **self.case.params)
         self.M1, self.M2, self.h = p["M1"], p["M2"], p["h"]
         self.eps = p["eps"]
         self.p0 = self.M1 * p["v1_0"] + self.M2 * p["v2_0"]
         self.ke0 = 0.5 * self.M1 * p["v1_0"] ** 2 + 0.5 * self.M2 * p["v2_0"] ** 2
         self.free_elastic = (self.eps == 1.0 and self.F == 0.0 and self.f_max == 0.0)
+
+    def pressing(self, plant, t, f, v):
+        """(what presses the masses together in contact, its rounding): u."""
+        return self.u(t, f), self.u_rounding(t, f, 0.0)
 
     def sample(self, plant, t, f, values):
         x1, v1, x2, v2, g = values
@@ -460,9 +467,9 @@ class BacklashObserver(StressObserver):
             if g != edge or v1 != v2:
                 fail("gap", t=t, contact=contact, gap=g, v1=v1, v2=v2,
                      why="contact with a gap off the edge or two velocities")
-            r = self.u_rounding(t, f, 0.0)
-            if not sigma * u >= -r:
-                fail("gap", t=t, contact=contact, u=u, tol=r, why="contact while u pulls the masses apart")
+            N, r = self.pressing(plant, t, f, v1)
+            if not sigma * N >= -r:
+                fail("gap", t=t, contact=contact, u=u, N=N, tol=r, why="contact while u pulls the masses apart")
         self.momentum(plant, t, self.M1 * v1 + self.M2 * v2, self.p0, self.M1 * abs(v1) + self.M2 * abs(v2))
         if self.free_elastic:
             ke = 0.5 * self.M1 * v1 * v1 + 0.5 * self.M2 * v2 * v2
@@ -488,8 +495,8 @@ def _backlash_bounds(p, F, f_max, dy_max):
     return dy_max, (f_max + abs(F)) / (p["M1"] + p["M2"])
 
 
-def _backlash_balances(case, out, n, sums):
-    p = dict(BACKLASH_TABLE.defaults, **case.params)
+def _backlash_balances(case, out, n, sums, table=BACKLASH_TABLE):
+    p = dict(table.defaults, **case.params)
     F = p.get("F", 0.0)
     M1, M2 = p["M1"], p["M2"]
     ke0 = 0.5 * M1 * p["v1_0"] ** 2 + 0.5 * M2 * p["v2_0"] ** 2
@@ -518,6 +525,106 @@ BACKLASH = StressProfile(
              ("h", 1e-300), ("h", math.inf), ("eps", -1e-12), ("eps", 1.0 + 1e-12), ("eps", math.nan),
              ("gap0", -1e-12), ("gap0", 0.1 * (1 + 1e-12)), ("gap0", math.nan), ("x1_0", math.nan),
              ("v1_0", math.inf), ("v2_0", -math.inf), ("h", None)),
+)
+
+
+# -- drivetrain: a gear with play (the two-mass backlash) driving a load with stick-slip friction -------
+def _drivetrain_cases(name, rng, quick):
+    """The two-mass backlash's cases with the load's friction scaled to the force and to the load's share of
+    the mass (Fc = F M1 / (M1 + M2) / 10, Fs = 1.4 Fc, B = 0: it sticks and slips without drowning the play;
+    a friction far above that on a light load rattles it, an elastic impact and a stop every microsecond, beyond
+    the event bound), and the friction's own: none (the backlash), a rigid coupling (h = 0: the friction mass
+    of M1 + M2), a load that never moves, Fs at the force's peak."""
+    cases = []
+    for case in _backlash_cases(name, rng, quick):
+        p = dict(DRIVETRAIN_TABLE.defaults, **case.params)
+        scale = abs(p.get("F", 0.0)) + abs(p.get("f", 0.0)) + (max(abs(v) for v in case.inputs) if case.inputs
+                                                                else 0.0)
+        Fc = 0.1 * scale * p["M1"] / (p["M1"] + p["M2"])
+        case.params = dict(case.params, B=0.0, Fc=Fc, Fs=1.4 * Fc)
+        cases.append(case)
+    add = adder(name, cases)
+    base = dict(M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=50.0, omega=20.0)
+    add(base, note="defaults, the paper's play")
+    add(dict(base, B=0.0, Fc=0.0, Fs=0.0), note="no load friction: the two-mass backlash")
+    add(dict(base, h=0.0), note="h = 0: rigid, the friction mass of M1 + M2")
+    add(dict(base, h=0.0, v1_0=1.0, v2_0=-1.0), note="h = 0, the masses start apart in speed")
+    add(dict(base, F=10.0, omega=1.0, Fs=1e6, Fc=1e6), note="a load that never moves: M2 rattles in the play")
+    add(dict(base, F=7.0, omega=0.1, h=1e-3), note="slow drive, the force's peak at Fs")
+    add(dict(base, eps=1.0, Fs=5.0), note="eps = 1, Fs = Fc")
+    add(dict(base, F=0.0, f=-10.0), n_periods=2, note="constant press f = -10")
+    return cases
+
+
+class DrivetrainObserver(BacklashObserver):
+    """The play's gap and contact (the two-mass backlash's), the load's stick, and momentum without friction."""
+
+    TABLE = DRIVETRAIN_TABLE
+
+    def setup(self):
+        super().setup()
+        p = dict(self.TABLE.defaults, **self.case.params)
+        self.B, self.Fc, self.rigid = p["B"], p["Fc"], p["h"] == 0.0
+        self.frictionless = p["B"] == 0.0 and p["Fc"] == 0.0 and p["Fs"] == 0.0
+        self.free_elastic = self.free_elastic and self.frictionless
+
+    def pressing(self, plant, t, f, v):
+        """sigma N >= -rounding: in contact the motor side presses on the load, the force on M2 being
+        (M1 u + M2 (Fc s + B v)) / (M1 + M2) sliding together, u stuck together; a rigid coupling never parts."""
+        if self.rigid:
+            return 0.0, 0.0
+        u, s = self.u(t, f), plant.slip
+        if s == 0:
+            return u, self.u_rounding(t, f, 0.0)
+        N = self.M1 * u + self.M2 * (self.Fc * s + self.B * v)
+        return N, self.M1 * self.u_rounding(t, f, 0.0) + 16.0 * EPS * self.M2 * (self.Fc + self.B * abs(v))
+
+    def sample(self, plant, t, f, values):
+        super().sample(plant, t, f, values)
+        x1, v1, x2, v2, g = values
+        slip = plant.slip
+        if slip not in (-1, 0, 1):
+            self.failures.add("stick", t=t, slip=slip, why="unknown slip state")
+        elif slip == 0 and v1 != 0.0:
+            self.failures.add("stick", t=t, v1=v1, why="the load stuck (slip 0) with v1 != 0")
+        elif slip and not slip * v1 >= -64.0 * EPS * (plant.events + 1) * (abs(v1) + abs(v2)):
+            self.failures.add("slide", t=t, v1=v1, slip=slip, why="the load sliding against its direction")
+
+    def momentum(self, plant, t, p, p0, scale_now):
+        """Only without the load's friction (which takes momentum); the scale is M1 |v1| + M2 (|v1| + |w|):
+        the drivetrain carries v2 as v1 + w, accurate to ulps of |v1| + |w| (relative 1e-4 of a v2 of 2e-15
+        beside a v1 of 1e-3), where the two-mass backlash's centre of mass keeps M2 v2 to its own ulps."""
+        if self.frictionless:
+            v1, v2 = plant.output()[1], plant.output()[3]
+            super().momentum(plant, t, p, p0, self.M1 * abs(v1) + self.M2 * (abs(v1) + abs(v2 - v1)))
+
+
+def _drivetrain_bounds(p, F, f_max, dy_max):
+    """The two-mass backlash's, and the load alone decelerated by its friction (a light load: x1'' of 1e11)."""
+    p = dict(DRIVETRAIN_TABLE.defaults, **p)
+    return dy_max, (f_max + abs(F)) / (p["M1"] + p["M2"]) + (p["Fs"] + p["B"] * dy_max) / p["M1"]
+
+
+def _drivetrain_balances(case, out, n, sums):
+    """The two-mass backlash's energy balance: never more than the work of u (equal only at eps = 1 without
+    the load's friction)."""
+    p = dict(DRIVETRAIN_TABLE.defaults, **case.params)
+    (check, err, tol, detail), = _backlash_balances(case, out, n, sums, DRIVETRAIN_TABLE)
+    if p["eps"] == 1.0 and not (p["B"] == 0.0 and p["Fc"] == 0.0 and p["Fs"] == 0.0):
+        check, err, tol, detail = energy_balance(detail["kinetic_change"], detail["work"], tol, equal=False)
+    return [(check, err, tol, detail)]
+
+
+DRIVETRAIN = StressProfile(
+    cases=_drivetrain_cases, observer=DrivetrainObserver, output=0, velocity=3, rate=1,
+    bounds=_drivetrain_bounds, balances=_drivetrain_balances, random_held=_backlash_held,
+    long=((dict(_PAPER, eps=0.5), "1e5 periods eps=0.5, the load's default friction"),
+          (dict(_PAPER, eps=0.5, F=5.0, omega=2.0), "1e5 periods, the load stuck and slipping")),
+    invalid=(("M1", 0.0), ("M1", math.nan), ("M2", -1.0), ("M2", math.inf), ("h", -0.1), ("h", math.nan),
+             ("h", 1e-300), ("h", math.inf), ("eps", -1e-12), ("eps", 1.0 + 1e-12), ("eps", math.nan),
+             ("gap0", -1e-12), ("gap0", 0.1 * (1 + 1e-12)), ("gap0", math.nan), ("x1_0", math.nan),
+             ("v1_0", math.inf), ("v2_0", -math.inf), ("B", -0.1), ("B", math.nan), ("Fc", -1.0), ("Fs", 4.0),
+             ("Fs", math.nan), ("h", None)),
 )
 
 

@@ -71,8 +71,8 @@ integrated plant (``stribeck``) is accurate to its tolerance, not to
 rounding: its profile adds 100 rtol of the scale to its balances, and the
 Fourier check adds the plant's own bound on its integrals' error.
 
-Cases (``quick``: 465, of which 163 invalid inputs; ~50 s on this
-two-core machine): every restitution eps in
+Cases (``quick``: 625, of which 211 invalid inputs; ~80 s on one core of
+this two-core machine): every restitution eps in
 {0, 1e-9, 0.5, 1 - 1e-9, 1}; h from 1e-9 to 10 m, F from 1e-6 to 1e6 N,
 w from 1e-4 to 1e4 rad/s, masses from 1e-6 to 1e6 kg (the other parameters
 chosen so the case stays in the regime it probes: for the backlash the
@@ -82,8 +82,8 @@ Fs exactly at the force's peak, a constant force equal to +-Fs; steps from
 (a sampled sine, step patterns that stop, reverse and press again, and
 random runs of values with exact zeros, repeats and +-Fs, as a controller
 feeds them); seeded random parameters (``random.Random(seed)``,
-reproducible); invalid parameters. The full set (``quick=False``, 1202
-cases, ~10 min on one core, ~5 min as 4 parts on two cores) adds more
+reproducible); invalid parameters. The full set (``quick=False``, 1548
+cases) adds more
 random cases, every eps on every axis and 1e5-period horizons;
 ``part``/``parts`` split it for CI.
 
