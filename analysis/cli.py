@@ -755,7 +755,7 @@ def parser():
     bench.set_defaults(run=cmd_bench)
 
     stress = commands.add_parser("stress", help="the numerical stress suite: invariants at the edges")
-    stress.add_argument("--quick", action="store_true", help="the quick set (625 cases, about 80 s)")
+    stress.add_argument("--quick", action="store_true", help="the quick set (649 cases, about 80 s)")
     stress.add_argument("--json", action="store_true", help="print one JSON object (cases, failed, failures)")
     stress.add_argument("--part", action=_Once, type=_integer(1, 10_000), default=1,
                         help="run only this piece of the set (default: %(default)s)")
