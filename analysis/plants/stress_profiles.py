@@ -107,17 +107,25 @@ def _friction_cases(name, rng, quick):
 
 
 def _random_friction(name, rng, i):
-    M, F, w = loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-6, 1e6), loguniform(rng, 1e-4, 1e4)
-    Fc = F * rng.uniform(0.0, 1.5)
-    Fs = Fc if rng.random() < 0.5 else Fc * (1 + rng.uniform(0, 0.5))
+    params = _random_mass_with_friction(rng, (1e-6, 1e6), (1e-6, 1e6), (1e-4, 1e4), 1.5, 0.5)
+    times, stepping = random_stepping(rng, TWO_PI / params["omega"], rng.randint(2, 10))
+    return Case(name, params, times, stepping, note=f"random #{i}")
+
+
+def _random_mass_with_friction(rng, masses, forces, omegas, most_fc, equal):
+    """Random parameters of a mass with friction: M, F and w log-uniform in their ranges, Fc up to most_fc F, Fs
+    = Fc with probability ``equal`` (else up to 1.5 Fc), B at most M w (half the time 0), a random phase, and
+    (each 3 times in 10) an offset f and a start velocity."""
+    M, F, w = loguniform(rng, *masses), loguniform(rng, *forces), loguniform(rng, *omegas)
+    Fc = F * rng.uniform(0.0, most_fc)
+    Fs = Fc if rng.random() < equal else Fc * (1 + rng.uniform(0, 0.5))
     B = 0.0 if rng.random() < 0.5 else M * w * rng.uniform(0, 1)  # decay rate B/M <= w
     params = dict(M=M, B=B, Fc=Fc, Fs=Fs, F=F, omega=w, phi=rng.uniform(-math.pi, math.pi))
     if rng.random() < 0.3:
         params["f"] = F * rng.uniform(-0.5, 0.5)
     if rng.random() < 0.3:
         params["v0"] = F / (M * w) * rng.uniform(-1, 1)
-    times, stepping = random_stepping(rng, TWO_PI / w, rng.randint(2, 10))
-    return Case(name, params, times, stepping, note=f"random #{i}")
+    return params
 
 
 class FrictionObserver(StressObserver):
@@ -274,17 +282,10 @@ def _stribeck_cases(name, rng, quick):
 
 
 def _random_stribeck(name, rng, i):
-    M, F, w = loguniform(rng, 1e-3, 1e3), loguniform(rng, 1e-3, 1e3), loguniform(rng, 1e-2, 1e2)
-    Fc = F * rng.uniform(0.0, 1.2)
-    Fs = Fc if rng.random() < 0.3 else Fc * (1 + rng.uniform(0, 0.5))
-    B = 0.0 if rng.random() < 0.5 else M * w * rng.uniform(0, 1)  # decay rate B/M <= w
-    vs = F / (M * w) * loguniform(rng, 1e-3, 10.0)  # the fall's speed against the motion's
-    params = dict(M=M, B=B, Fc=Fc, Fs=Fs, vs=vs, delta=rng.choice((1.0, 2.0, 3.5)), F=F, omega=w,
-                  phi=rng.uniform(-math.pi, math.pi), rtol=rng.choice((1e-6, 1e-9)))
-    if rng.random() < 0.3:
-        params["f"] = F * rng.uniform(-0.5, 0.5)
-    if rng.random() < 0.3:
-        params["v0"] = F / (M * w) * rng.uniform(-1, 1)
+    params = _random_mass_with_friction(rng, (1e-3, 1e3), (1e-3, 1e3), (1e-2, 1e2), 1.2, 0.3)
+    M, F, w = params["M"], params["F"], params["omega"]
+    params.update(vs=F / (M * w) * loguniform(rng, 1e-3, 10.0),  # the fall's speed against the motion's
+                  delta=rng.choice((1.0, 2.0, 3.5)), rtol=rng.choice((1e-6, 1e-9)))
     times, stepping = random_stepping(rng, TWO_PI / w, rng.randint(2, 6))
     return Case(name, params, times, stepping, note=f"random #{i}")
 
