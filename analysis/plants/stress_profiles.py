@@ -620,7 +620,7 @@ DRIVETRAIN = StressProfile(
     cases=_drivetrain_cases, observer=DrivetrainObserver, output=0, velocity=3, rate=1,
     bounds=_drivetrain_bounds, balances=_drivetrain_balances, random_held=_backlash_held,
     long=((dict(_PAPER, eps=0.5), "1e5 periods eps=0.5, the load's default friction"),
-          (dict(_PAPER, eps=0.5, F=5.0, omega=2.0), "1e5 periods, the load stuck and slipping")),
+          (dict(_PAPER, h=0.0, F=20.0, omega=1.0), "1e5 periods rigid (h = 0), the load sticking and slipping")),
     invalid=(("M1", 0.0), ("M1", math.nan), ("M2", -1.0), ("M2", math.inf), ("h", -0.1), ("h", math.nan),
              ("h", 1e-300), ("h", math.inf), ("eps", -1e-12), ("eps", 1.0 + 1e-12), ("eps", math.nan),
              ("gap0", -1e-12), ("gap0", 0.1 * (1 + 1e-12)), ("gap0", math.nan), ("x1_0", math.nan),
