@@ -10,9 +10,9 @@ converges geometrically but slowly (a lightly damped linear mode), an
 Aitken-Steffensen step extrapolates the fixed point (a degree-2 minimal
 polynomial extrapolation where it converges at two rates) and one shooting
 period from it confirms the orbit; a shot that lands farther from its return
-than the run's last period moved is dropped and the run goes on. A response that does not repeat within
-``max_periods`` (quasi-periodic or chaotic) gets the average over its last 20
-periods, flagged ``periodic = False``.
+than the run's last period moved is dropped and the run goes on. A response
+that does not repeat within ``max_periods`` (quasi-periodic or chaotic) gets
+the average over its last 20 periods, flagged ``periodic = False``.
 
 The engine accepts F in F_RANGE and omega in OMEGA_RANGE (and the plant
 parameters in :data:`dfwb.plants.registry.RANGES`), checked before anything runs. The
