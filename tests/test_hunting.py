@@ -359,25 +359,3 @@ def test_the_boundarys_stacked_roots_are_numpys_one_by_one():
     polynomials += [[0.0, 0.0, 1.0, 2.0, 0.0], [1.0, 0.0, 0.0], [0.0, 3.0], [2.0], [0.0, 1.0, -1.0], [1.0, np.nan]]
     expected = [max(np.roots(p).real) if len(np.roots(p)) else np.inf for p in polynomials[:-1]] + [np.inf]
     assert largest_real_parts(polynomials).tolist() == expected
-
-
-def test_a_cell_that_hunts_from_some_starts_only_is_marked(coarse_boundary):
-    """Stribeck friction beside its region of rest (Kp 32.9, Ki 5.45, tests/test_stribeck.py): the cell hunts from
-    some starts and comes to rest from others; the summary counts it and the figure marks it, beside a cell that
-    comes to rest from every start (Kp 36.5)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    response = dfwb.hunting_map("stribeck", PI, ("Kp", 32.90909090909091, 36.45454545454545, 2),
-                                ("Ki", 5.454545454545455, 5.454545454545455 + 1e-9, 2), jobs=1, curves=False,
-                                cache=False)
-    partly, rest = response.cells[0]
-    assert partly["truth"]["class"] == "stable" and set(partly["truth"]["coverage"]["outcomes"]) == {"cycle", "rest"}
-    assert rest["truth"]["class"] == "none" and set(rest["truth"]["coverage"]["outcomes"]) == {"rest"}
-    assert "hunt from some starts and come to rest from others" in response.summary()
-    axes = response.plot()
-    labels = [text.get_text() for legend in axes[0].figure.legends for text in legend.get_texts()]
-    assert "hunts from some starts, comes to rest from others" in labels
-    plt.close(axes[0].figure)

@@ -129,12 +129,6 @@ def _cycle(c):
             "multipliers": c.multipliers, "events": c.signature}
 
 
-def partly_hunting(cell):
-    """Whether the truth finds the cell hunting from some starts while others come to rest (bistable)."""
-    truth = cell.get("truth") or {}
-    return truth.get("class") == "stable" and bool(truth.get("coverage", {}).get("outcomes", {}).get("rest"))
-
-
 def valid_cell(cell):
     """Whether ``cell`` (read back from a file or a cache) has the shape :func:`classify` gives, at a point
     (x, y): a crafted or damaged cell is recomputed, never drawn or counted."""

@@ -383,7 +383,7 @@ def hunting_map(response, axes=None):
     from matplotlib import colors
     from matplotlib.patches import Patch
 
-    from dfwb.engine.hunting import LABELS, hunting, partly_hunting
+    from dfwb.engine.hunting import LABELS, hunting
 
     if axes is None:
         _, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
@@ -405,10 +405,6 @@ def hunting_map(response, axes=None):
                 rgba[j, i] = cmap(norm(best["amplitude_x"])) if best is not None else colors.to_rgba(
                     CLASS_COLOURS.get(kind, "w"))
         ax.imshow(rgba, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
-        partly = [(xs[i], ys[j]) for j, row in enumerate(response.cells) for i, cell in enumerate(row)
-                  if source == "truth" and partly_hunting(cell)]
-        if partly:
-            ax.plot(*zip(*partly), "o", mfc="none", mec="white", ms=6, mew=1.4)
         linear = response.linear
         growth = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["growth"]], dtype=float)
         if np.isfinite(growth).any() and np.nanmin(growth) < 0.0 < np.nanmax(growth):
@@ -426,9 +422,6 @@ def hunting_map(response, axes=None):
     shown = set(response.classes("truth").ravel()) | set(response.classes("df").ravel())
     handles = [Patch(color=CLASS_COLOURS[k], label=LABELS.get(k, "the plant or G refuses the values"))
                for k in ("unstable", "diverges", "none", "incomplete", "error") if k in shown or k == "none"]
-    if any(partly_hunting(cell) for row in response.cells for cell in row):
-        handles.append(plt.Line2D([], [], ls="", marker="o", mfc="none", mec="k", mew=1.4,
-                                  label="hunts from some starts, comes to rest from others"))
     if response.linear["growth"]:  # (a user's FMU has no linear loop dfwb knows)
         handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))
     for source in sorted({c.source for c in response.curves}):

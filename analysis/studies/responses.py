@@ -640,7 +640,7 @@ class HuntingMapResponse(_Shown):
         """Counts of each class, truth and DF, and where they disagree."""
         from collections import Counter
 
-        from dfwb.engine.hunting import LABELS, partly_hunting
+        from dfwb.engine.hunting import LABELS
 
         truth, df = self.classes("truth"), self.classes("df")
         lines = [f"{self.plant} under G = {self.G}" + (f" ({_values(self.values)})" if self.values else "")
@@ -651,10 +651,6 @@ class HuntingMapResponse(_Shown):
             counted = Counter(classes.ravel().tolist())
             lines.append(f"  {source}: " + ", ".join(f"{n} {LABELS.get(k, k)}" for k, n in counted.most_common()))
         hunts = truth == "stable"
-        partly = sum(partly_hunting(cell) for row in self.cells for cell in row)
-        if partly:
-            lines.append(f"  of the {int(hunts.sum())} cells that hunt, {partly} hunt from some starts and come to "
-                         "rest from others")
         missed = int(np.sum(hunts & (df != "stable")))
         false = int(np.sum(~hunts & (df == "stable")))
         lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting in "
