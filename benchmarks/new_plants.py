@@ -18,6 +18,8 @@ fewer rounds (about 20 s); the full run takes about a minute.
 """
 
 import argparse
+import os
+import platform
 import statistics
 import time
 from pathlib import Path
@@ -104,7 +106,11 @@ def main():
             "sweeping every plant's set point after point (each point twice in a row, the second timed); a "
             "point's time is its median over the rounds. stribeck and friction: the 40-point friction set (F = "
             "10..50 N, w = 0.03..100 rad/s); drivetrain and backlash: backlash's benchmark points.", ""]
-    text += table + [""] + verdicts + ["", f"Benchmark run time: {time.perf_counter() - started:.0f} s."]
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    text += table + [""] + verdicts + ["", f"Benchmark run time: {time.perf_counter() - started:.0f} s. Machine: "
+                                       f"{os.cpu_count()} shared, noisy cores ({platform.platform()}, Python "
+                                       f"{platform.python_version()}"
+                                       + (f"; load average {load[0]:.2f} at the end" if load else "") + ")."]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "new_plants.md").write_text("\n".join(text) + "\n")
     print("\n".join(table + verdicts))
