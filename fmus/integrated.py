@@ -93,6 +93,14 @@ D = (-12715105075 / 11282082432, 0.0, 87487479700 / 32700410799, -10690763975 / 
      701980252875 / 199316789632, -1453857185 / 822651844, 69997945 / 29380423)
 
 
+def _legendre(n, z):
+    """P_n(z) and P_n'(z), by the three-term recurrence."""
+    p0, p1 = 1.0, z
+    for k in range(2, n + 1):
+        p0, p1 = p1, ((2 * k - 1) * z * p1 - (k - 1) * p0) / k
+    return p1, n * (z * p1 - p0) / (z * z - 1.0)
+
+
 def _gauss_legendre(n):
     """The roots z of P_n in [-1, 1], descending, and the weights of the n-point Gauss-Legendre rule on [0, 1]
     (nodes (1 - z) / 2) by Newton on P_n, to rounding."""
@@ -100,18 +108,12 @@ def _gauss_legendre(n):
     for i in range(1, n + 1):
         z = math.cos(math.pi * (i - 0.25) / (n + 0.5))
         for _ in range(100):
-            p0, p1 = 1.0, z
-            for k in range(2, n + 1):
-                p0, p1 = p1, ((2 * k - 1) * z * p1 - (k - 1) * p0) / k
-            dp = n * (z * p1 - p0) / (z * z - 1.0)
-            step = p1 / dp
+            p, dp = _legendre(n, z)
+            step = p / dp
             z -= step
             if abs(step) <= 4.0 * EPS:
                 break
-        p0, p1 = 1.0, z  # P_n' at the final node
-        for k in range(2, n + 1):
-            p0, p1 = p1, ((2 * k - 1) * z * p1 - (k - 1) * p0) / k
-        dp = n * (z * p1 - p0) / (z * z - 1.0)
+        dp = _legendre(n, z)[1]  # P_n' at the final node
         roots.append(z)
         weights.append(1.0 / ((1.0 - z * z) * dp * dp))  # 2 / ((1 - z^2) P_n'^2), halved for [0, 1]
     return tuple(roots), tuple(weights)

@@ -596,7 +596,7 @@ class DrivetrainObserver(BacklashObserver):
         the drivetrain carries v2 as v1 + w, accurate to ulps of |v1| + |w| (relative 1e-4 of a v2 of 2e-15
         beside a v1 of 1e-3), where the two-mass backlash's centre of mass keeps M2 v2 to its own ulps."""
         if self.frictionless:
-            v1, v2 = plant.output()[1], plant.output()[3]
+            _x1, v1, _x2, v2, _g = plant.output()
             super().momentum(plant, t, p, p0, self.M1 * abs(v1) + self.M2 * (abs(v1) + abs(v2 - v1)))
 
 

@@ -24,38 +24,36 @@ const double dfwb_in_d[7] = {-12715105075.0 / 11282082432.0, 0.0, 87487479700.0 
 double dfwb_in_gauss_nodes[DFWB_IN_GAUSS], dfwb_in_gauss_weights[DFWB_IN_GAUSS], dfwb_in_gauss_roots[DFWB_IN_GAUSS];
 static int gauss_ready;
 
+/* _legendre(n, z): P_n(z), and P_n'(z) into *dp, by the three-term recurrence. */
+static double legendre(int n, double z, double *dp)
+{
+    double p0 = 1.0, p1 = z;
+    int k;
+    for (k = 2; k <= n; k++) {
+        const double p2 = ((double)(2 * k - 1) * z * p1 - (double)(k - 1) * p0) / (double)k;
+        p0 = p1;
+        p1 = p2;
+    }
+    *dp = (double)n * (z * p1 - p0) / (z * z - 1.0);
+    return p1;
+}
+
 /* _gauss_legendre(9): Newton on P_n from Chebyshev-like guesses, as the Python does, step by step. */
 void dfwb_in_setup(void)
 {
     const int n = DFWB_IN_GAUSS;
-    int i, k, it;
+    int i, it;
     if (gauss_ready)
         return;
     for (i = 1; i <= n; i++) {
-        double z = cos(DFWB_PI * ((double)i - 0.25) / ((double)n + 0.5)), p0, p1, dp = 0.0;
+        double z = cos(DFWB_PI * ((double)i - 0.25) / ((double)n + 0.5)), dp;
         for (it = 0; it < 100; it++) {
-            double step;
-            p0 = 1.0;
-            p1 = z;
-            for (k = 2; k <= n; k++) {
-                const double p2 = ((double)(2 * k - 1) * z * p1 - (double)(k - 1) * p0) / (double)k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = (double)n * (z * p1 - p0) / (z * z - 1.0);
-            step = p1 / dp;
+            const double step = legendre(n, z, &dp) / dp;
             z -= step;
             if (fabs(step) <= 4.0 * DFWB_EPS)
                 break;
         }
-        p0 = 1.0; /* P_n' at the final node */
-        p1 = z;
-        for (k = 2; k <= n; k++) {
-            const double p2 = ((double)(2 * k - 1) * z * p1 - (double)(k - 1) * p0) / (double)k;
-            p0 = p1;
-            p1 = p2;
-        }
-        dp = (double)n * (z * p1 - p0) / (z * z - 1.0);
+        legendre(n, z, &dp); /* P_n' at the final node */
         dfwb_in_gauss_roots[i - 1] = z;
         dfwb_in_gauss_nodes[i - 1] = 0.5 * (1.0 - z);
         dfwb_in_gauss_weights[i - 1] = 1.0 / ((1.0 - z * z) * dp * dp);

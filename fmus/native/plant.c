@@ -657,6 +657,16 @@ static int chunk_end(const dfwb_pw *pw, double t, double *end, dfwb_err *err)
     return DFWB_OK;
 }
 
+/* A search's zero at root: the piece's found event if it is the earliest so far. */
+static void keep_earliest(dfwb_pw *pw, double root, int kind)
+{
+    if (!pw->has_found || root < pw->found_t) {
+        pw->has_found = 1;
+        pw->found_t = root;
+        pw->found_kind = kind;
+    }
+}
+
 /* The piece's next event if it is <= t_end (*has = 1), searching chunk by chunk up to it. */
 static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int *has, double *t_event, int *kind,
                       dfwb_err *err)
@@ -687,11 +697,8 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
                                               err);
                     if (rc != DFWB_OK)
                         return rc;
-                    if (found && (!pw->has_found || root < pw->found_t)) {
-                        pw->has_found = 1;
-                        pw->found_t = root;
-                        pw->found_kind = s->kind;
-                    }
+                    if (found)
+                        keep_earliest(pw, root, s->kind);
                 }
                 continue;
             }
@@ -706,11 +713,8 @@ static int next_event(dfwb_pw *pw, const dfwb_motion *subject, double t_end, int
                                      &found, &root, err);
                 if (rc != DFWB_OK)
                     return rc;
-                if (found && (!pw->has_found || root < pw->found_t)) {
-                    pw->has_found = 1;
-                    pw->found_t = root;
-                    pw->found_kind = s->kind;
-                }
+                if (found)
+                    keep_earliest(pw, root, s->kind);
             }
         }
         pw->searched = integrated && t_end < b ? t_end : b; /* an integrated search was asked to t_end at most */
