@@ -97,6 +97,10 @@ def main():
     parser.add_argument("--quick", action="store_true", help="fewer rounds")
     parser.add_argument("--out", type=Path, default=Path("out/bench"))
     args = parser.parse_args()
+    try:  # before anything runs: a folder that cannot be written costs one line, not the measurement
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        parser.error(f"--out {str(args.out)!r} cannot be made: {error.strerror}")
     rounds = 3 if args.quick else 9
     started = time.perf_counter()
     medians, results = measure(rounds, report=lambda line: print(line, flush=True))
@@ -111,7 +115,6 @@ def main():
                                        f"{os.cpu_count()} shared, noisy cores ({platform.platform()}, Python "
                                        f"{platform.python_version()}"
                                        + (f"; load average {load[0]:.2f} at the end" if load else "") + ")."]
-    args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "new_plants.md").write_text("\n".join(text) + "\n")
     print("\n".join(table + verdicts))
     print(f"{args.out / 'new_plants.md'} written")

@@ -29,3 +29,12 @@ def test_the_report_holds_every_plant_and_both_verdicts(fmus, tmp_path):
     assert re.search(r"stribeck, mean DF point at rtol 1e-9: [0-9.]+ ms \(target <= 1 ms\): \*\*(PASS|FAIL)\*\*", text)
     assert re.search(r"drivetrain against backlash, mean DF point: [0-9.]+x .*\*\*(PASS|FAIL)\*\*", text)
     assert "Machine:" in text
+
+
+def test_an_output_folder_that_cannot_be_made_is_one_line_before_anything_runs(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    done = subprocess.run([sys.executable, str(SCRIPT), "--quick", "--out", str(blocker / "out")], capture_output=True,
+                          text=True, timeout=120, cwd=tmp_path)
+    assert done.returncode == 2 and "Traceback" not in done.stderr and "round" not in done.stdout
+    assert done.stderr.strip().splitlines()[-1].startswith("new_plants.py: error: --out ")
