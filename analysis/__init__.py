@@ -46,8 +46,8 @@ _PUBLIC = {
     "continuation": "dfwb.api.functions", "ContinuationResponse": "dfwb.studies.responses",
     "hunting_map": "dfwb.api.functions", "HuntingMapResponse": "dfwb.studies.responses",
     "limit_cycle_margin": "dfwb.api.functions", "MarginResponse": "dfwb.studies.responses",
-    "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.functions",
-    "sweep": "dfwb.api.functions", "grid": "dfwb.api.functions",
+    "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.studies",
+    "sweep": "dfwb.api.studies", "grid": "dfwb.api.studies",
     "DescribingFunctionResponse": "dfwb.studies.responses", "LimitCycleResponse": "dfwb.studies.responses",
     "DfwbError": "dfwb.base.errors", "InputError": "dfwb.base.errors",
     "PlantError": "dfwb.base.errors", "RunError": "dfwb.base.errors",
@@ -86,12 +86,12 @@ if TYPE_CHECKING:  # the names as static analysers and IDEs see them
     from dfwb.api.functions import (
         continuation,
         describing_function,
-        grid,
+        hunting_map,
+        limit_cycle_margin,
         limit_cycles,
-        run_scene,
-        sweep,
         transfer_function,
     )
+    from dfwb.api.studies import grid, run_scene, sweep
     from dfwb.base.errors import DfwbError, InputError, PlantError, RunError
     from dfwb.plants import Plant, names, plant, register, unregister
     from dfwb.studies.responses import (

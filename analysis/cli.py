@@ -240,24 +240,45 @@ def _own_fmu(args):
     from dfwb.foreign.plant import fmu_plant, is_fmu_path
 
     if not is_fmu_path(args.plant):
-        given = [f"--{name}" for name in ("input", "output", "kind", "rtol", "timeout")
-                 if getattr(args, name, None) is not None]
+        given = [f"--{name}" for name in ("input", "output", "kind") if getattr(args, name, None) is not None]
         if given:
             raise InputError(f"{', '.join(given)}: only for a plant given as the path of an FMU")
         return None
     return fmu_plant(args.plant, input=args.input, output=args.output, kind=args.kind)
 
 
-def cmd_df(args):
-    from dfwb.foreign.engine import engine_for
-    from dfwb.plants.registry import plant
+def _plant(args):
+    """The plant to hand to :mod:`dfwb.api`: a registered plant's name, or the user's FMU (--input, --output,
+    --kind)."""
+    return _own_fmu(args) or args.plant
 
-    own = _own_fmu(args)
-    params = (own or plant(args.plant)).check(_assignments(args.set, "--set"))
+
+def _params(args, function):
+    """--set's {name: value}; a name that is one of ``function``'s own keywords cannot be a parameter there, and
+    says so (``rtol`` is --rtol's, which sets the Stribeck mass's tolerance as it sets a user's FMU's)."""
+    import inspect
+
+    values = _assignments(args.set, "--set")
+    taken = sorted(set(values) & set(inspect.signature(function).parameters))
+    if taken:
+        name = taken[0]
+        option = {"rtol": "--rtol", "timeout": "--timeout"}.get(name)
+        raise InputError(f"--set {name}={values[name]}: " + (f"give it as {option} {values[name]}" if option else
+                         f"{name} names an option of dfwb.{function.__name__}, so no parameter can take it here"))
+    return values
+
+
+def cmd_df(args):
+    import numpy as np
+
+    from dfwb.api.functions import describing_function
+
+    params = _params(args, describing_function)
     forces, omegas = _points(args)
-    engine = engine_for(own or plant(args.plant), fmu_dir=args.fmus, drive=args.drive,
-                       samples_per_period=args.samples_per_period, rtol=args.rtol, timeout=args.timeout)
-    results = [engine.point(F, omega, params).as_dict() for F in forces for omega in omegas]
+    response = describing_function(_plant(args), np.array(forces)[:, None], np.array(omegas)[None, :],
+                                   drive=args.drive, samples_per_period=args.samples_per_period, fmu_dir=args.fmus,
+                                   rtol=args.rtol, timeout=args.timeout, **params)
+    results = response.points
     failed = [r for r in results if r["note"].startswith("failed:")]
     if args.json:
         json.dump(results, sys.stdout, indent=1)
@@ -287,21 +308,18 @@ def _table(results):
 
 
 def cmd_sweep(args):
-    from dfwb.plants.registry import plant
-    from dfwb.studies.sweep import grid, run_sweep
+    from dfwb.api.studies import grid, sweep
 
-    spec = _own_fmu(args) or plant(args.plant)
-    params = spec.check(_assignments(args.set, "--set"))
+    params = _params(args, sweep)
     grids = _grid_values(args.grid)
     both = sorted(set(params) & set(grids))
     if both:
         raise InputError(f"{both[0]} is given both by --set and by --grid: give it in one of them")
     forces, omegas = _points(args)
     cache = _cache(args)
-    points = grid(forces, omegas, params, grids)  # counted before it is built; each set checked by run_sweep
-    rows = run_sweep(spec, points, args.out, args.jobs, args.drive, args.samples_per_period, args.fmus,
-                     progress=not args.quiet, resume=not args.no_resume, rtol=args.rtol, timeout=args.timeout,
-                     cache=cache)
+    rows = sweep(_plant(args), grid(forces, omegas, params, grids), args.out, jobs=args.jobs, drive=args.drive,
+                 samples_per_period=args.samples_per_period, fmu_dir=args.fmus, progress=not args.quiet,
+                 resume=not args.no_resume, rtol=args.rtol, timeout=args.timeout, cache=cache)
     failed = [r for r in rows if r["note"].startswith("failed:")]
     png = rows.figure(args.out / "nyquist.png") if args.plot and rows.drawable() else None
     print(f"{len(rows)} points in {args.out}/results.csv and results.json ({rows.computed} computed, "
@@ -325,19 +343,13 @@ def _controller(args):
 
 
 def cmd_limit_cycle(args):
-    from dfwb.foreign.engine import engine_for
-    from dfwb.studies.limit_cycles import analyse
-    from dfwb.studies.progress import Reporter
+    from dfwb.api.functions import limit_cycles
 
     plot = _plot_path(args.plot) if args.plot else None
-    G, values = _controller(args), _assignments(args.set, "--set")
-    own = _own_fmu(args)
-    engine = engine_for(own, rtol=args.rtol, timeout=args.timeout) if own is not None else None
-    with Reporter(f"limit cycles of {args.plant}", not args.json) as report:
-        response = analyse(own or args.plant, G, values, F_range=args.F_range, omega_range=args.omega_range,
-                           n_F=args.map_size[0], n_omega=args.map_size[1], exact=args.exact, verify=args.verify,
-                           samples_per_period=args.samples_per_period,
-                           fmu_dir=args.fmus, engine=engine, progress=report)
+    response = limit_cycles(_plant(args), _controller(args), F_range=args.F_range, omega_range=args.omega_range,
+                            n_F=args.map_size[0], n_omega=args.map_size[1], exact=args.exact, verify=args.verify,
+                            samples_per_period=args.samples_per_period, fmu_dir=args.fmus, progress=not args.json,
+                            rtol=args.rtol, timeout=args.timeout, **_params(args, limit_cycles))
     return _answer(args, response, plot)
 
 
@@ -363,8 +375,7 @@ def _range(text, option):
 
 
 def cmd_continue(args):
-    from dfwb.studies.continuation import follow
-    from dfwb.studies.progress import Reporter
+    from dfwb.api.functions import continuation
 
     plot = _plot_path(args.plot) if args.plot else None
     name, bounds = _range(args.parameter, "--parameter")
@@ -377,16 +388,14 @@ def cmd_continue(args):
             raise InputError("--samples: only for a plant given as the path of an FMU (dfwb's own plants' cycles "
                              "are continued, not sampled)")
         ranges["samples"] = args.samples
-    with Reporter(f"continuation of {args.plant} in {name}", not args.json) as report:
-        response = follow(own or args.plant, _controller(args), name, *bounds, _assignments(args.set, "--set"),
-                          sources=sources, max_points=args.max_points, fmu_dir=args.fmus, progress=report,
-                          **ranges)
+    response = continuation(own or args.plant, _controller(args), name, *bounds, sources=sources,
+                            max_points=args.max_points, fmu_dir=args.fmus, progress=not args.json, **ranges,
+                            **_params(args, continuation))
     return _answer(args, response, plot)
 
 
 def cmd_map(args):
-    from dfwb.studies.hunting import run_map
-    from dfwb.studies.progress import Reporter
+    from dfwb.api.functions import hunting_map
 
     axes = []
     for option, text in (("--x", args.x), ("--y", args.y)):
@@ -397,23 +406,21 @@ def cmd_map(args):
     own, ranges = _own_fmu_ranges(args)
     name = Path(args.plant).stem if own is not None else args.plant
     out = args.out or Path("out/maps") / f"{name}_{axes[0][0]}_{axes[1][0]}"
-    with Reporter(f"hunting map of {args.plant}", not args.json) as report:
-        response = run_map(own or args.plant, _controller(args), axes[0], axes[1], _assignments(args.set, "--set"),
-                           out_dir=out, jobs=args.jobs, dask=args.dask, cache=_cache(args), fmu_dir=args.fmus,
-                           curves=not args.no_curves, resume=not args.no_resume, progress=report, **ranges)
+    response = hunting_map(own or args.plant, _controller(args), *axes, out_dir=out, jobs=args.jobs, dask=args.dask,
+                           cache=_cache(args), fmu_dir=args.fmus, curves=not args.no_curves,
+                           resume=not args.no_resume, progress=not args.json, **ranges,
+                           **_params(args, hunting_map))
     return _answer(args, response)
 
 
 def cmd_margin(args):
-    from dfwb.studies.margin import gain_margin
-    from dfwb.studies.progress import Reporter
+    from dfwb.api.functions import limit_cycle_margin
 
     plot = _plot_path(args.plot) if args.plot else None
     own, ranges = _own_fmu_ranges(args)
-    with Reporter(f"limit-cycle margin of {args.plant}", not args.json) as report:
-        response = gain_margin(own or args.plant, _controller(args), _assignments(args.set, "--set"),
-                               k_range=tuple(args.k_range), count=args.count, fmu_dir=args.fmus, progress=report,
-                               **ranges)
+    response = limit_cycle_margin(own or args.plant, _controller(args), k_range=tuple(args.k_range),
+                                  count=args.count, fmu_dir=args.fmus, progress=not args.json, **ranges,
+                                  **_params(args, limit_cycle_margin))
     return _answer(args, response, plot)
 
 
@@ -424,7 +431,7 @@ def _own_fmu_ranges(args):
         if (args.F_range, args.omega_range, args.map_size) != (None, None, None):
             raise InputError("--F-range, --omega-range, --map-size: only for a plant given as the path of an FMU "
                              "(dfwb's own plants derive their ranges)")
-        return None, {}
+        return None, {"rtol": args.rtol, "timeout": args.timeout}
     ranges = {"F_range": args.F_range, "omega_range": args.omega_range, "rtol": args.rtol, "timeout": args.timeout}
     if args.map_size:
         ranges.update(n_F=args.map_size[0], n_omega=args.map_size[1])
@@ -481,8 +488,9 @@ def _cache(args):
 
 
 def cmd_run(args):
+    from dfwb.api.studies import run_scene
     from dfwb.base.files import UnsafePath, inside
-    from dfwb.studies.runner import phase_times, run_scene
+    from dfwb.studies.runner import phase_times
     from dfwb.studies.scene import load_scene
 
     scenes = [(path, load_scene(path)) for path in args.scenes]  # every scene is checked before any runs
@@ -498,7 +506,8 @@ def cmd_run(args):
                              "separately with --out")
         folders[out] = path
     for (path, scene), out in zip(scenes, folders):
-        o = run_scene(scene, out, args.jobs, args.dask, _cache(args), args.fmus, progress=not args.quiet)
+        o = run_scene(scene, out, jobs=args.jobs, dask=args.dask, cache=_cache(args), fmu_dir=args.fmus,
+                      progress=not args.quiet)
         if o.up_to_date or o.copied:
             how = "up to date" if o.up_to_date else "copied from the cache (the same scene, code and FMUs)"
             print(f"{o.out_dir}/summary.md: {how} ({o.points} points, {len(o.figures)} figure(s)), {o.seconds:.2f} s")
@@ -595,7 +604,8 @@ def parser():
                              help="which interface of your FMU runs (default: model exchange if it has it)")
         command.add_argument("--rtol", action=_Once, type=float, default=None,
                              help="accuracy aimed at with your FMU: the integrator's tolerance for model exchange "
-                                  "(default 1e-10), the extrapolated DF's for co-simulation (default 1e-6)")
+                                  "(default 1e-10), the extrapolated DF's for co-simulation (default 1e-6); with an "
+                                  "integrated plant of dfwb's (stribeck), its parameter rtol")
         command.add_argument("--timeout", action=_Once, type=float, default=None,
                              help="seconds one point of your FMU may take; a point cut is tried once more with twice "
                                   "the limit, then skipped (default: 120 s per 150 periods allowed, and at least 10 "

@@ -1,4 +1,4 @@
-"""The public functions of dfwb: describing functions, limit cycles, scenes and sweeps.
+"""The public functions of dfwb's analyses: describing functions, limit cycles, continuation, maps, margins.
 
 Every function checks its whole input (plant, parameters, every point)
 before anything runs; a problem raises a :class:`dfwb.DfwbError` subclass
@@ -9,21 +9,20 @@ the plant's FMU names them (``M``, ``Fc``, ``eps``, ...; see
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 
+from dfwb.api.studies import folder as _folder
 from dfwb.base.errors import InputError, fmu_only
 from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.base.values import flags, reals
 from dfwb.base.values import integer as _integer
-from dfwb.base.values import short as _short
 from dfwb.engine.describing import HARMONICS, check_point
 from dfwb.engine.margin import K_RANGE, SCAN
 from dfwb.foreign.engine import engine_for
-from dfwb.plants import plant as find_plant
+from dfwb.foreign.plant import resolve_plant
 from dfwb.studies.responses import (
     ContinuationResponse,
     DescribingFunctionResponse,
@@ -34,7 +33,7 @@ from dfwb.studies.responses import (
 from dfwb.studies.sweep import MAX_POINTS
 
 __all__ = ["describing_function", "limit_cycles", "continuation", "hunting_map", "limit_cycle_margin",
-           "transfer_function", "run_scene", "sweep", "grid"]
+           "transfer_function"]
 
 ArrayLike = Union[float, Sequence, np.ndarray]
 
@@ -58,17 +57,6 @@ def _grid(F: ArrayLike, omega: ArrayLike) -> tuple:
     if F.size > MAX_POINTS:
         raise InputError(f"{F.size} points: at most {MAX_POINTS} in one call (split it, or use dfwb.sweep)")
     return np.array(F), np.array(omega)
-
-
-def resolve_plant(plant: Any):
-    """A registered plant (by name or entry), or a user's FMU: an FMUPlant, or the path of an .fmu file."""
-    from dfwb.foreign.plant import FMUPlant, fmu_plant, is_fmu_path
-
-    if isinstance(plant, FMUPlant):
-        return plant
-    if is_fmu_path(plant):
-        return fmu_plant(plant)
-    return find_plant(plant)
 
 
 def _tolerance(spec, rtol, params):
@@ -500,21 +488,11 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
     flags(df=df, progress=progress)
     spec = resolve_plant(plant)
     rtol, params = _tolerance(spec, rtol, params)
-    with _reporter(f"limit-cycle margin of {plant}", progress) as report:
+    with _reporter(f"limit-cycle margin of {spec.name}", progress) as report:
         return gain_margin(spec, G, params, k_range=k_range, count=_integer("count", count), df=df,
                            fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
                            omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
                            rtol=rtol, timeout=timeout)
-
-
-def _folder(name, value):
-    """An output folder given to the API: a path, never empty ('' is the current folder to pathlib, as the
-    command line's --out '' would be: refused there too)."""
-    if not isinstance(value, (str, os.PathLike)):
-        raise InputError(f"{name} = {_short(value)} is not a folder: give a path")
-    if not os.fspath(value).strip():
-        raise InputError(f"{name} = {_short(value)} is empty: give a folder ('.' for the current one)")
-    return value
 
 
 def _reporter(title, enabled):
@@ -522,128 +500,3 @@ def _reporter(title, enabled):
     from dfwb.studies.progress import Reporter
 
     return Reporter(title, enabled)
-
-
-def run_scene(scene: Union[str, Path, Any], out_dir: Optional[Union[str, Path]] = None, *,
-              jobs: Optional[int] = None, dask: Optional[str] = None, cache: Union[bool, str, Path] = True,
-              fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False):
-    """Run a scene file (or a parsed :class:`dfwb.studies.scene.Scene`): compute what it needs, write its results.
-
-    Parameters
-    ----------
-    scene : path or Scene
-        A scene TOML file (see ``scenes/`` and the README), or ``dfwb.studies.scene.parse_scene(text)``.
-    out_dir : path, optional
-        Default ``out/scenes/<file stem>`` (required for a Scene object).
-    jobs : int, optional, keyword-only
-        Local worker processes (default: all cores); 1 computes in this process.
-    dask : str, optional, keyword-only
-        ``"local"`` or the address of a dask.distributed scheduler.
-    cache : bool or path, keyword-only
-        True: the user's cache folder; a path; False: no cache.
-    fmu_dir : path, optional, keyword-only
-        Where the FMUs are.
-    progress : bool, keyword-only
-        Show a progress display.
-
-    Returns
-    -------
-    dfwb.studies.runner.Outcome
-        Counts (``points``, ``computed``, ``cache_hits``, ``resumed``), ``seconds``, ``out_dir``
-        and the figures written. ``out_dir`` holds ``results.csv`` (one flattened DF record per
-        row, units in the column names), ``results.json`` (the records) and ``summary.md``.
-
-    Examples
-    --------
-    >>> import tempfile, dfwb
-    >>> from dfwb.studies.scene import parse_scene
-    >>> scene = parse_scene('title = "t"\\n[[series]]\\nname = "s"\\nplant = "friction"\\nF = [10]\\nomega = [1, 2]\\n')
-    >>> with tempfile.TemporaryDirectory() as out:
-    ...     outcome = dfwb.run_scene(scene, out, jobs=1, cache=False)
-    >>> outcome.points, outcome.computed
-    (2, 2)
-    """
-    import os
-
-    from dfwb.fmi.location import fmu_folder
-    from dfwb.studies.runner import run_scene as run
-    from dfwb.studies.scene import Scene
-
-    paths = (str, os.PathLike)
-    if not isinstance(scene, paths + (Scene,)):
-        raise InputError(f"scene = {_short(scene)} is not a scene: give a path to a scene file, or a Scene")
-    if out_dir is not None:
-        _folder("out_dir", out_dir)
-    if not isinstance(cache, paths + (bool,)):
-        raise InputError(f"cache = {_short(cache)}: give True, False or a folder")
-    if not isinstance(cache, bool):
-        _folder("cache", cache)
-    return run(scene, out_dir, jobs, dask, cache, None if fmu_dir is None else fmu_folder(fmu_dir), progress)
-
-
-def grid(F: Sequence[float], omega: Sequence[float], params: Optional[dict] = None,
-         grid_params: Optional[dict] = None) -> list:
-    """The points of a sweep, F the outer loop: ``[(F, omega, {name: value})]``.
-
-    ``grid_params`` maps a parameter to the values it takes (every combination is swept).
-
-    Examples
-    --------
-    >>> import dfwb
-    >>> dfwb.grid([10.0], [1.0, 2.0], grid_params={"B": [0.5, 1.0]})
-    [(10.0, 1.0, {'B': 0.5}), (10.0, 2.0, {'B': 0.5}), (10.0, 1.0, {'B': 1.0}), (10.0, 2.0, {'B': 1.0})]
-    """
-    from dfwb.studies.sweep import grid as make
-
-    return make(F, omega, params, grid_params)
-
-
-def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Optional[int] = None,
-          drive: str = "internal", samples_per_period: int = 64, fmu_dir: Optional[Union[str, Path]] = None,
-          progress: bool = False, resume: bool = True, rtol: Optional[float] = None,
-          timeout: Optional[float] = None, cache: Union[bool, str, Path] = True) -> list:
-    """A resumable, parallel sweep of DF points into ``out_dir``; returns the record of every point.
-
-    Parameters
-    ----------
-    plant : str or FMUPlant
-        A registered plant, or your own FMU (:func:`fmu_plant`, or the path of an FMU).
-    points : list of (F, omega, params)
-        Usually from :func:`grid`.
-    out_dir : path
-        Gets ``results.csv`` (one flattened record per row, appended as points finish),
-        ``results.json`` (the records) and ``sweep.json`` (the definition, for resuming).
-    jobs : int, optional, keyword-only
-        Worker processes (default: all cores); 1 computes in this process.
-    drive, samples_per_period, fmu_dir, rtol, timeout : keyword-only
-        As for :func:`describing_function`.
-    progress : bool, keyword-only
-        Show a progress bar.
-    resume : bool, keyword-only
-        Keep the points ``out_dir`` already holds (False: start afresh).
-    cache : bool or path, keyword-only
-        As for :func:`run_scene`: True, the user's cache folder; a folder; False, none. A point not in
-        ``out_dir`` is taken from the cache if a sweep or a scene computed it before, and a computed
-        point is stored there (a scene over the same points then computes none of them).
-
-    Returns
-    -------
-    dfwb.studies.sweep.Sweep
-        The records (:meth:`dfwb.engine.describing.DFResult.as_dict`), a list in the order of ``points``;
-        ``.computed``, ``.cached`` and ``.resumed`` count where they came from, and ``.plot()`` draws the
-        -1/N curves (``.figure(path)`` writes them to a PNG and an SVG).
-
-    Examples
-    --------
-    >>> import tempfile, dfwb
-    >>> with tempfile.TemporaryDirectory() as out:
-    ...     records = dfwb.sweep("friction", dfwb.grid([10.0], [1.0, 2.0]), out, jobs=1, cache=False)
-    >>> [(r["F"], r["omega"], round(r["N_re"], 9)) for r in records]
-    [(10.0, 1.0, -0.235053392), (10.0, 2.0, -0.082036929)]
-    >>> records.computed, records.cached, records.resumed
-    (2, 0, 0)
-    """
-    from dfwb.studies.sweep import run_sweep
-
-    return run_sweep(resolve_plant(plant), points, _folder("out_dir", out_dir), jobs, drive, samples_per_period,
-                     fmu_dir, cache=cache, progress=progress, resume=resume, rtol=rtol, timeout=timeout)

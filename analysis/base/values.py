@@ -9,8 +9,6 @@ back from a cache or a log (which anyone can write) is used only if it
 
 import math
 
-import numpy as np
-
 from dfwb.base.errors import InputError
 
 __all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive"]
@@ -24,6 +22,8 @@ def short(value, width=80):
 
 def leaves(value, limit):
     """The numbers in a nested list/tuple/range, counted without building them (stops past ``limit``)."""
+    import numpy as np  # here, not at the top: a message or a schema check needs no numpy
+
     total, stack = 0, [value]
     while stack and total <= limit:
         item = stack.pop()
@@ -40,6 +40,8 @@ def leaves(value, limit):
 
 def reals(name, value, limit, advice=""):
     """``value`` as a float array: real numbers only (no bool, complex, text or objects), at most ``limit``."""
+    import numpy as np
+
     if leaves(value, limit) > limit:
         raise InputError(f"{name} has more than {limit} numbers: at most {limit}{advice}")
     try:
@@ -56,6 +58,8 @@ def reals(name, value, limit, advice=""):
 
 def integer(name, value):
     """An integer option (a Python or numpy integer, not a bool), as int."""
+    import numpy as np
+
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise InputError(f"{name} = {short(value)} is not an integer")
     return int(value)

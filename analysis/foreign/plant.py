@@ -7,7 +7,7 @@ from typing import Mapping
 from dfwb.base.errors import PlantError
 from dfwb.foreign.description import KINDS, FMUInfo, describe
 
-__all__ = ["FMUPlant", "fmu_plant"]
+__all__ = ["FMUPlant", "fmu_plant", "resolve_plant"]
 
 
 @dataclass(frozen=True)
@@ -174,3 +174,13 @@ def is_fmu_path(plant):
     """True for a plant given as the path of an FMU (a string ending in .fmu, or a Path)."""
     return isinstance(plant, Path) or (isinstance(plant, str) and plant.lower().endswith(".fmu"))
 
+
+def resolve_plant(plant):
+    """A registered plant (by name or entry), or a user's FMU: an FMUPlant, or the path of an .fmu file."""
+    from dfwb.plants import plant as registered
+
+    if isinstance(plant, FMUPlant):
+        return plant
+    if is_fmu_path(plant):
+        return fmu_plant(plant)
+    return registered(plant)
