@@ -154,11 +154,11 @@ def test_a_refused_run_keeps_its_instance_and_the_next_run_is_exact(fmus):
     abandoned = len(_ABANDONED)
     with pytest.raises(FMUError, match="M = -1.0 is out of range"):
         session.start({"M": -1.0})
-    instance = session._fmu
+    instance = session._instance
     session.start({"F": 10.0})
     with pytest.raises(FMUError, match="the input f must be a finite number"):
         session.step(0.25, {"f": math.nan})
-    assert session._fmu is instance and len(_ABANDONED) == abandoned
+    assert session._instance is instance and len(_ABANDONED) == abandoned
     assert run(session, {"F": 10.0, "omega": 1.5}) == run(fresh, {"F": 10.0, "omega": 1.5})
 
 
@@ -167,7 +167,7 @@ def test_a_refused_read_is_an_fmu_error_naming_it(fmus, monkeypatch):
     instance is reset before the next run (dfwb.fmi.status's rule)."""
     from fmpy.fmi1 import FMICallException
 
-    from dfwb.fmi import session as session_module
+    from dfwb.fmi import instance as instance_module
     from dfwb.fmi.session import FMUSession
     from dfwb.fmi.simulation import FMUError
 
@@ -179,7 +179,7 @@ def test_a_refused_read_is_an_fmu_error_naming_it(fmus, monkeypatch):
     def refuse(function, status):
         raise FMICallException(function=function, status=3)
 
-    monkeypatch.setattr(session_module, "check", refuse)
+    monkeypatch.setattr(instance_module, "check", refuse)
     with pytest.raises(FMUError, match=r"^FrictionMass: reading the outputs failed at t = 0\.0: fmi2GetReal failed"):
         read()
     monkeypatch.undo()
