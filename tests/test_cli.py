@@ -47,6 +47,11 @@ def test_df_set_and_table(fmus, capsys):
     (["df", "friction", "--F", "1", "--omega", "1", "--set", "Fs"], "expected NAME=VALUE"),
     (["df", "gearbox", "--F", "1", "--omega", "1"], "unknown plant 'gearbox' (allowed: friction"),
     (["df", "friction", "--F", "1"], "give --omega"),
+    (["df", "friction", "--F", "1", "--omega", "1", "--rtol", "1e-8"],
+     "rtol: for a user's FMU only (dfwb's own plants are computed exactly)"),
+    (["df", "stribeck", "--F", "10", "--omega", "1", "--set", "rtol=1e-8"], "--set rtol=1e-8: give it as --rtol 1e-8"),
+    (["limit-cycle", "friction", "--G", "Kp", "--set", "Kp=1", "exact=1"],
+     "--set exact=1: exact names an option of dfwb.limit_cycles, so no parameter can take it here"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(capsys, argv, message):
     with pytest.raises(SystemExit) as stop:
@@ -55,6 +60,19 @@ def test_bad_input_is_one_line_and_exit_code_2(capsys, argv, message):
     err = capsys.readouterr().err.strip().splitlines()
     assert message in err[-1]
     assert all("Traceback" not in line for line in err)
+
+
+def test_the_command_line_is_the_api(fmus, capsys):
+    """dfwb df is dfwb.describing_function: the same records, bit for bit, --rtol setting the Stribeck mass's
+    tolerance as rtol= does."""
+    import dfwb
+
+    code, out = run_cli(capsys, "df", "stribeck", "--F", "10", "20", "--omega", "1", "--rtol", "1e-8", "--json")
+    api = dfwb.describing_function("stribeck", F=[[10.0], [20.0]], omega=[1.0], rtol=1e-8)
+    keep = ("F", "omega", "params", "N_re", "N_im", "N_error", "harmonics", "periods")
+    assert code == 0 and [{k: r[k] for k in keep} for r in json.loads(out.out)] == \
+        [{k: r[k] for k in keep} for r in api.points]
+    assert api.points[0]["params"] == {"rtol": 1e-8}
 
 
 def test_bad_sweep_writes_nothing(tmp_path, capsys):
