@@ -16,8 +16,8 @@ import traceback
 import warnings
 from pathlib import Path
 
+from dfwb.base.defaults import BRANCH_POINTS, DF_MAP_SIZE, JUDGE_SAMPLES, K_COUNT, K_RANGE, SAMPLES_PER_PERIOD
 from dfwb.base.errors import InputError, RunError
-from dfwb.base.grids import DF_MAP_SIZE
 
 EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --help
     "build": "dfwb build --native --fmi-version 3 --out out/fmus",
@@ -622,7 +622,8 @@ def parser():
         command.add_argument("--drive", action=_Once, choices=("internal", "input"), default="internal",
                              help="internal: the FMU's exact built-in excitation; input: the sine sampled by the "
                                   "master into the input f, held over each step (default: %(default)s)")
-        command.add_argument("--samples-per-period", action=_Once, type=_integer(4, 100_000), default=64,
+        command.add_argument("--samples-per-period", action=_Once, type=_integer(4, 100_000),
+                             default=SAMPLES_PER_PERIOD,
                              help="communication steps per period with --drive input (default: %(default)s)")
         own_fmu_options(command)
         fmu_options(command)
@@ -674,7 +675,7 @@ def parser():
     cycle.add_argument("--exact", action="store_true",
                        help="find the true cycles of the exact closed loop (shooting, Floquet stability) and the "
                             "DF's errors against them")
-    cycle.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
+    cycle.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=JUDGE_SAMPLES,
                        help="co-simulation steps per predicted period with --verify (default: %(default)s)")
     cycle.add_argument("--plot", action=_Once, type=_PNG,
                        help="write the Nyquist (and time-response) figure to this PNG")
@@ -709,7 +710,7 @@ def parser():
                         help="the parameter followed and its range, e.g. Ki=1:30")
     follow.add_argument("--source", action=_Once, choices=("both", "truth", "df"), default="both",
                         help="follow the true cycles, the DF's predictions, or both (default: %(default)s)")
-    follow.add_argument("--max-points", action=_Once, type=_integer(2, 10_000), default=200,
+    follow.add_argument("--max-points", action=_Once, type=_integer(2, 10_000), default=BRANCH_POINTS,
                         help="points per branch, at most (default: %(default)s)")
     follow.add_argument("--samples", action=_Once, type=_integer(2, 1000), default=None,
                         help="your FMU only: the values where its true cycles are searched (default: 11)")
@@ -739,9 +740,9 @@ def parser():
                                                 "more gain before it hunts")
     controller_options(margin, own=True)
     own_map_options(margin)
-    margin.add_argument("--k-range", action=_Once, type=float, nargs=2, default=(0.01, 100.0), metavar=("LO", "HI"),
-                        help="gain factors searched, LO < 1 < HI (default: 0.01 100)")
-    margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=25,
+    margin.add_argument("--k-range", action=_Once, type=float, nargs=2, default=K_RANGE, metavar=("LO", "HI"),
+                        help=f"gain factors searched, LO < 1 < HI (default: {K_RANGE[0]:g} {K_RANGE[1]:g})")
+    margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=K_COUNT,
                         help="gain factors scanned, log-spaced (default: %(default)s)")
     margin.add_argument("--plot", action=_Once, type=_PNG,
                         help="write the plot to this PNG")
@@ -752,7 +753,7 @@ def parser():
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
     examples.add_argument("--out", action=_Once, type=_folder, default=Path("out/examples"),
                           help="output folder (default: %(default)s)")
-    examples.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=512,
+    examples.add_argument("--samples-per-period", action=_Once, type=_integer(16, 100_000), default=JUDGE_SAMPLES,
                           help="co-simulation steps per predicted period (default: %(default)s)")
     fmu_options(examples)
     examples.set_defaults(run=cmd_examples)

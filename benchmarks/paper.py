@@ -45,7 +45,8 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 SOLVER = """
 import json, sys, time
-from dfwb.engine.describing import HARMONICS, DFEngine
+from dfwb.base.defaults import HARMONICS
+from dfwb.engine.describing import DFEngine
 from dfwb.fmi.location import fmu_path
 from dfwb.studies.reproduce import paper_scenes
 

@@ -15,12 +15,20 @@ from typing import Any, Optional, Sequence, Union
 import numpy as np
 
 from dfwb.api.studies import folder as _folder
+from dfwb.base.defaults import (
+    BRANCH_POINTS,
+    DF_MAP_SIZE,
+    DF_PERIODS,
+    HARMONICS,
+    JUDGE_SAMPLES,
+    K_COUNT,
+    K_RANGE,
+    SAMPLES_PER_PERIOD,
+)
 from dfwb.base.errors import InputError, fmu_only
-from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.base.values import flags, reals
 from dfwb.base.values import integer as _integer
-from dfwb.engine.describing import HARMONICS, check_point
-from dfwb.engine.margin import K_RANGE, SCAN
+from dfwb.engine.describing import check_point
 from dfwb.foreign.engine import engine_for
 from dfwb.foreign.plant import resolve_plant
 from dfwb.studies.responses import (
@@ -69,7 +77,8 @@ def _tolerance(spec, rtol, params):
 
 
 def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: str = "internal",
-                        samples_per_period: int = 64, max_periods: int = 150, harmonics: int = HARMONICS,
+                        samples_per_period: int = SAMPLES_PER_PERIOD, max_periods: int = DF_PERIODS,
+                        harmonics: int = HARMONICS,
                         fmu_dir: Optional[Union[str, Path]] = None, rtol: Optional[float] = None,
                         timeout: Optional[float] = None, **params: float) -> DescribingFunctionResponse:
     """The describing function N(F, omega) of a plant, at every point of a broadcast grid.
@@ -192,7 +201,7 @@ def transfer_function(G: Any):
 
 def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
                  n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], exact: bool = False, verify: bool = False,
-                 samples_per_period: int = 512, amplitudes: Optional[Sequence[float]] = None,
+                 samples_per_period: int = JUDGE_SAMPLES, amplitudes: Optional[Sequence[float]] = None,
                  fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                  rtol: Optional[float] = None, timeout: Optional[float] = None,
                  **params: float) -> LimitCycleResponse:
@@ -283,7 +292,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
 
 
 def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, *,
-                 sources: Union[str, Sequence[str]] = ("truth", "df"), max_points: int = 200,
+                 sources: Union[str, Sequence[str]] = ("truth", "df"), max_points: int = BRANCH_POINTS,
                  starts: Optional[Sequence[float]] = None, fmu_dir: Optional[Union[str, Path]] = None,
                  progress: bool = False, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
                  n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None,
@@ -430,7 +439,7 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
                        n_omega=_integer("n_omega", n_omega), rtol=rtol, timeout=timeout)
 
 
-def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: int = SCAN, df: bool = True,
+def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: int = K_COUNT, df: bool = True,
                        fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                        F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
                        n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None,

@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 from typing import Any, Optional, Sequence, Union
 
+from dfwb.base.defaults import SAMPLES_PER_PERIOD
 from dfwb.base.errors import InputError
 from dfwb.base.values import short as _short
 
@@ -100,7 +101,8 @@ def grid(F: Sequence[float], omega: Sequence[float], params: Optional[dict] = No
 
 
 def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Optional[int] = None,
-          drive: str = "internal", samples_per_period: int = 64, fmu_dir: Optional[Union[str, Path]] = None,
+          drive: str = "internal", samples_per_period: int = SAMPLES_PER_PERIOD,
+          fmu_dir: Optional[Union[str, Path]] = None,
           progress: bool = False, resume: bool = True, rtol: Optional[float] = None,
           timeout: Optional[float] = None, cache: Union[bool, str, Path] = True) -> list:
     """A resumable, parallel sweep of DF points into ``out_dir``; returns the record of every point.

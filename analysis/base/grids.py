@@ -17,7 +17,6 @@ Examples
 import math
 
 DIGITS = 12  # significant digits of a grid value
-DF_MAP_SIZE = (16, 48)  # (n_F, n_omega): the DF map on which limit cycles are located, by default everywhere
 
 
 def log_grid(lo, hi, n):

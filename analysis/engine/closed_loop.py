@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from dfwb.base.defaults import JUDGE_SAMPLES
 from dfwb.base.errors import InputError
 from dfwb.fmi.location import fmu_path
 from dfwb.fmi.session import FMUSession
@@ -268,7 +269,7 @@ def _fate(force, block):
     return ""
 
 
-def verify(plant, G, cycle, params=None, samples_per_period=512, periods=MIN_PERIODS, perturbation=0.5,
+def verify(plant, G, cycle, params=None, samples_per_period=JUDGE_SAMPLES, periods=MIN_PERIODS, perturbation=0.5,
            fmu_dir=None, max_periods=MAX_PERIODS, rtol=1e-3):
     """Co-simulate from near a predicted cycle and from a perturbed start; compare.
 

@@ -36,6 +36,7 @@ import math
 import time
 from dataclasses import dataclass, field
 
+from dfwb.base.defaults import DF_PERIODS, HARMONICS, SAMPLES_PER_PERIOD
 from dfwb.fmi.location import fmu_path
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import check_range
@@ -46,7 +47,6 @@ from dfwb.plants import plant as find_plant
 F_RANGE = (1e-6, 1e9)
 OMEGA_RANGE = (1e-4, 1e5)
 MAX_PERIODS = 100_000  # the most max_periods may be: a point's run is bounded
-HARMONICS = 10
 AVERAGE_PERIODS = 20
 MAX_LAG = 4
 SECTION_RTOL = 1e-11
@@ -227,8 +227,8 @@ class DFEngine:
         by default the plant's FMU in ``fmu_dir``.
     """
 
-    def __init__(self, plant, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,
-                 model=None, harmonics=HARMONICS, fmu=None):
+    def __init__(self, plant, fmu_dir=None, drive="internal", samples_per_period=SAMPLES_PER_PERIOD,
+                 max_periods=DF_PERIODS, model=None, harmonics=HARMONICS, fmu=None):
         self.plant = find_plant(plant)
         if model is not None:  # the plant's other FMU of the same interface (its fixed-step twin)
             variants = [m for m in (self.plant.model, self.plant.naive) if m is not None]

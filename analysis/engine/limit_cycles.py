@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dfwb.base.grids import DF_MAP_SIZE
+from dfwb.base.defaults import DF_MAP_SIZE
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE, DFEngine
 from dfwb.engine.transfer import check_transfer_function
 from dfwb.fmus.piecewise import PlantError

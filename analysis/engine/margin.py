@@ -18,13 +18,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dfwb.base.defaults import K_COUNT, K_RANGE
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.hunting import MAP_AMPLITUDES, TRACKED, classify, df_map_for, hunting
 
 GAIN = "gain factor"  # the gain factor k's name inside: no name of G or of a plant (no identifier has a space)
-K_RANGE = (1e-2, 1e2)
+
 K_LIMITS = (1e-6, 1e6)  # a gain scaled further is another controller: give it as G
-SCAN = 25  # gain factors scanned, log-spaced
+
 BISECTIONS = 12  # halvings of a boundary's bracket in log k by the search, at most
 
 
@@ -70,7 +71,7 @@ class Margin:
                 "scan": [{"k": k, "class": kind, "amplitude_x": a, "omega": w} for k, kind, a, w in self.scan]}
 
 
-def margins(family, k_range=K_RANGE, count=SCAN, fmu_dir=None, engine=None, progress=None, classifier=None):
+def margins(family, k_range=K_RANGE, count=K_COUNT, fmu_dir=None, engine=None, progress=None, classifier=None):
     """(truth Margin, DF Margin) of the family's G scaled by k over ``k_range`` (a LoopFamily without k).
 
     ``classifier(scaled, ks)``: makes ``classify_at(k, truth, df)``, a setting's cell as

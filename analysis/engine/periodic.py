@@ -44,6 +44,7 @@ from functools import cached_property
 
 import numpy as np
 
+from dfwb.base.defaults import HARMONICS
 from dfwb.base.errors import InputError
 from dfwb.engine.transfer import check_transfer_function
 from dfwb.fmus.exact import PlantError
@@ -54,7 +55,6 @@ RESIDUAL_TOL = 1e-10  # |P(X) - X| / swing, at convergence
 MAX_NEWTON = 40
 FD_STEP = 1e-7  # relative to each coordinate's swing (forward differences during Newton)
 FD_STEP_FINAL = 1e-5  # central differences for the multipliers
-HARMONICS = 10
 GAUSS_NODES = 16
 MAX_CHUNKS = 10_000_000  # a problem's work (seconds in C): a search of a slow hunting loop needs 1e5 to 2e6
 

@@ -17,8 +17,9 @@ import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
+from dfwb.base.defaults import DF_PERIODS, HARMONICS, SAMPLES_PER_PERIOD
 from dfwb.base.errors import InputError, PlantError, fmu_only
-from dfwb.engine.describing import HARMONICS, MAX_PERIODS, DFEngine, DFResult, check_point
+from dfwb.engine.describing import MAX_PERIODS, DFEngine, DFResult, check_point
 from dfwb.foreign import native_flow
 from dfwb.foreign.worker import TIMEOUT, PointFailed, PointTimedOut, borrowed
 
@@ -47,7 +48,7 @@ class FMUEngine:
         Worker processes :meth:`points` may use at once (default: the machine's cores).
     """
 
-    def __init__(self, plant, harmonics=HARMONICS, max_periods=150, rtol=None, timeout=None, jobs=None):
+    def __init__(self, plant, harmonics=HARMONICS, max_periods=DF_PERIODS, rtol=None, timeout=None, jobs=None):
         if not (isinstance(harmonics, int) and 1 <= harmonics <= HARMONICS):
             raise PlantError(f"harmonics = {harmonics!r} is out of range: an integer from 1 to {HARMONICS}")
         if not (isinstance(max_periods, int) and 1 <= max_periods <= MAX_PERIODS):
@@ -177,7 +178,7 @@ class FMUEngine:
             return list(pool.map(call, items))
 
 
-def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=64, max_periods=150,
+def engine_for(plant, *, fmu_dir=None, drive="internal", samples_per_period=SAMPLES_PER_PERIOD, max_periods=DF_PERIODS,
                harmonics=HARMONICS, rtol=None, timeout=None):
     """The engine of DF points for a plant: the exact built-in engine, or a user's FMU's (in worker processes).
 

@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from dfwb.base.defaults import DF_PERIODS, HARMONICS
 from dfwb.foreign.steady import Sections
 
 __all__ = ["point", "richardson", "FIRST_STEPS", "MAX_STEPS"]
@@ -240,7 +241,7 @@ class _Held:
         return np.array([samples[-1]]), X, np.array([np.max(np.abs(samples))])
 
 
-def point(instance, F, omega, params, harmonics=10, rtol=1e-6, max_periods=150):
+def point(instance, F, omega, params, harmonics=HARMONICS, rtol=1e-6, max_periods=DF_PERIODS):
     """(X_k, N error, periodic, periods, orbit periods, note) of one DF point of a co-simulation FMU."""
     interpolate = instance.info.can_interpolate_inputs and instance.info.major == "2"
     held = _Held(instance, F, omega, harmonics, interpolate, instance.info.can_save_state.get("co-simulation", False))

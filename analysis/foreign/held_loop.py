@@ -23,6 +23,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from dfwb.base.defaults import HARMONICS
 from dfwb.foreign.held import richardson
 
 __all__ = ["settle_and_refine", "discretise"]
@@ -32,7 +33,6 @@ MAX_STEPS = 4096  # ... and at the finest (about)
 RESETTLE = 6  # periods a finer level runs before it is measured
 MEASURE = 4  # periods measured at each level
 MAX_CROSSINGS = 400  # quarter periods a level waits for its crossings before the run counts as not settled
-HARMONICS = 10
 TRACE = 200  # samples of the trace over one period
 
 

@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 
+from dfwb.base.defaults import DF_MAP_SIZE
 from dfwb.base.errors import OWN_PLANTS, InputError, fmu_only
-from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine import cycles as search
 from dfwb.engine.hunting import DFMap, df_cell, truth_cell
 from dfwb.engine.limit_cycles import balance, df_map

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from dfwb.base.defaults import HARMONICS
 from dfwb.fmi.simulation import FMUError
 from dfwb.foreign import held_loop, model_exchange
 from dfwb.foreign.flow import Flow
@@ -31,7 +32,6 @@ __all__ = ["cycles", "realization", "merge"]
 SETTLE = 40  # reference periods a start runs before its swing is read
 MAX_RETURNS = 200  # section returns before a start counts as not settled
 NEWTON = 12  # shooting iterations
-HARMONICS = 10
 TRACE = 200  # samples of a cycle's period in its trace
 REST = 1e-6  # a swing below this fraction of the largest output seen is rest (a decay, not a cycle)
 SEED_RESIDUAL = 1e-8  # a cycle shot from a DF prediction counts only if Newton got this close

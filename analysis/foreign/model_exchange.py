@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from dfwb.base.defaults import DF_PERIODS, HARMONICS
 from dfwb.foreign.flow import Flow
 from dfwb.foreign.native_flow import Drive
 from dfwb.foreign.steady import Sections, ramp
@@ -112,12 +113,12 @@ class _Period:
         return s, runs
 
 
-def point(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150):
+def point(instance, F, omega, params, harmonics=HARMONICS, rtol=1e-10, max_periods=DF_PERIODS):
     """(X_k, N error, periodic, periods, orbit periods, note) of one DF point of a model-exchange FMU."""
     return periodic_response(instance, F, omega, params, harmonics, rtol, max_periods)[:6]
 
 
-def periodic_response(instance, F, omega, params, harmonics=10, rtol=1e-10, max_periods=150):
+def periodic_response(instance, F, omega, params, harmonics=HARMONICS, rtol=1e-10, max_periods=DF_PERIODS):
     """:func:`point`'s answer, then the time (a whole number of periods) and the FMU's continuous states
     where its runs ended: on the periodic response, the force at its crest."""
     period, orbit, t, x, periods = settle(instance, F, omega, params, harmonics, rtol, max_periods)

@@ -10,8 +10,8 @@ prediction that lies on a branch already followed is not followed again.
 
 import math
 
+from dfwb.base.defaults import DF_MAP_SIZE
 from dfwb.base.errors import DfwbError, InputError
-from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily, number
 from dfwb.foreign.hunting import no_fmu_options

@@ -21,6 +21,7 @@ extrapolation; it writes ``example_<name>.png``, ``examples.md`` and
 import json
 from pathlib import Path
 
+from dfwb.base.defaults import JUDGE_SAMPLES
 from dfwb.engine.closed_loop import judge_errors, step_study
 from dfwb.engine.cycles import relative_errors
 from dfwb.studies.limit_cycles import analyse
@@ -38,7 +39,7 @@ def _percent(value):
     return "-" if value is None else f"{value:+.2%}"
 
 
-def run_examples(out_dir="out/examples", samples_per_period=512, report=print, fmu_dir=None):
+def run_examples(out_dir="out/examples", samples_per_period=JUDGE_SAMPLES, report=print, fmu_dir=None):
     """Predict, judge, find the truth, study the judge's step and plot every example; return examples.md's path.
 
     ``fmu_dir``: the FMU folder (default: :func:`dfwb.fmi.location.default_fmu_dir`)."""

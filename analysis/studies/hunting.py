@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+from dfwb.base.defaults import DF_MAP_SIZE
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
-from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.base.runlog import RunLog
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.hunting import (

@@ -19,8 +19,8 @@ given (a scene's reads its points from the run and the cache).
 
 import math
 
+from dfwb.base.defaults import DF_MAP_SIZE, JUDGE_SAMPLES
 from dfwb.base.errors import InputError
-from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
 from dfwb.engine.transfer import num_den
@@ -32,7 +32,7 @@ from dfwb.studies.responses import LimitCycleResponse
 
 def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
             exact=False, verify=False,
-            samples_per_period=512, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None):
+            samples_per_period=JUDGE_SAMPLES, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None):
     """The limit cycles of ``plant`` under ``G``: :class:`~dfwb.studies.responses.LimitCycleResponse`.
 
     ``values``: G's parameters and the plant's; ``progress``: ``progress(stage, done, total)`` or None;

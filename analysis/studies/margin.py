@@ -2,18 +2,18 @@
 :func:`gain_margin`): the gain factors k for which k G hunts, by the truth and by the DF
 (:mod:`dfwb.engine.margin`), for dfwb's own plants and for a user's FMU (:mod:`dfwb.foreign.hunting`)."""
 
+from dfwb.base.defaults import DF_MAP_SIZE, K_COUNT, K_RANGE
 from dfwb.base.errors import InputError
-from dfwb.base.grids import DF_MAP_SIZE
 from dfwb.engine.describing import DFEngine
 from dfwb.engine.family import LoopFamily
-from dfwb.engine.margin import K_RANGE, SCAN, margins
+from dfwb.engine.margin import margins
 from dfwb.foreign.hunting import classifier, no_fmu_options, study
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.continuation import _text
 from dfwb.studies.responses import MarginResponse
 
 
-def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=SCAN, df=True, fmu_dir=None, progress=None,
+def gain_margin(plant, G, values=None, *, k_range=K_RANGE, count=K_COUNT, df=True, fmu_dir=None, progress=None,
                 F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1], rtol=None, timeout=None):
     """The :class:`~dfwb.studies.responses.MarginResponse` of ``plant`` under k ``G`` for k in ``k_range``.
 

@@ -27,13 +27,12 @@ Examples
 ('FrictionMass', {'drive': 'internal', 'harmonics': 1, 'max_periods': 150}, 10.0)
 """
 
-from dfwb.engine.describing import HARMONICS
-
-MAX_PERIODS = 150  # periods before a point counts as not periodic: the engine's default, a scene's and a sweep's
+from dfwb.base.defaults import DF_PERIODS as MAX_PERIODS
+from dfwb.base.defaults import HARMONICS, SAMPLES_PER_PERIOD
 
 
 def df_key(spec, F, omega, params, *, fmu, code, drive="internal", harmonics=HARMONICS, max_periods=MAX_PERIODS,
-           samples_per_period=64, rtol=None):
+           samples_per_period=SAMPLES_PER_PERIOD, rtol=None):
     """The cache key of the DF point of ``spec`` at (F, omega, params).
 
     Parameters

@@ -32,11 +32,12 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from dfwb.base.defaults import HARMONICS
 from dfwb.base.errors import InputError, RunError
 from dfwb.base.files import ensure_folder, file_digest, folder_lock, inside, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
 from dfwb.base.text import parameters
-from dfwb.engine.describing import COLUMNS, HARMONICS, DFEngine, DFResult, from_row, to_row
+from dfwb.engine.describing import COLUMNS, DFEngine, DFResult, from_row, to_row
 from dfwb.fmi.location import fmu_path
 from dfwb.studies.cache import (
     MAX_ENTRY,

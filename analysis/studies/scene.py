@@ -40,9 +40,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Optional
 
+from dfwb.base.defaults import DF_MAP_SIZE
 from dfwb.base.errors import InputError, fmu_only
 from dfwb.base.files import read_bytes
-from dfwb.base.grids import DF_MAP_SIZE, log_grid
+from dfwb.base.grids import log_grid
 from dfwb.base.schema import (
     Boolean,
     Checked,

@@ -37,10 +37,11 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
+from dfwb.base.defaults import HARMONICS, SAMPLES_PER_PERIOD
 from dfwb.base.errors import RunError, fmu_only
 from dfwb.base.files import folder_lock, read_bytes, write_atomic
 from dfwb.base.runlog import RunLog
-from dfwb.engine.describing import COLUMNS, DRIVES, HARMONICS, check_point, from_row, to_row
+from dfwb.engine.describing import COLUMNS, DRIVES, check_point, from_row, to_row
 from dfwb.fmi.location import fmu_folder, fmu_path
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import plant as find_plant
@@ -177,7 +178,7 @@ class Sweep(list):
         return drawn(path, lambda ax: self.plot(ax, marks), figsize=(6.5, 5))
 
 
-def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=64,
+def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_period=SAMPLES_PER_PERIOD,
               fmu_dir=None, progress=True, resume=True, rtol=None, timeout=None, cache=True):
     """Compute every point not yet in ``out_dir`` nor in the cache; return the records of all points in grid order.
 
