@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dfwb.base.defaults import BRANCH_POINTS
 from dfwb.base.errors import DfwbError, InputError
 from dfwb.engine.periodic import jacobian, same_events
 from dfwb.fmus.exact import PlantError
@@ -61,7 +62,6 @@ LOCATE = 1e-7  # a bifurcation is located when the step onto it is this small (s
 RELATIVE = 30.0  # the parameter's scale is at most this many times its size where the branch is ...
 FLOOR = 1e-3  # ... or than this, near 0 (and at most the range's width)
 AMPLITUDE_LIMIT = 1e3  # a branch whose amplitude grows (falls) this many times its start's goes to infinity (rest)
-MAX_POINTS = 200  # per branch
 TURN = 1e-3  # a step this small without a solution: look for the other side of a kink (see _turn)
 COS_TURN = 0.9  # a step whose tangent turns more than this (cosine) is halved, unless it is already that small
 TURN_REACH = (1e-3, 1e-2, 3e-2)  # how far past the last point it is looked for (scaled)
@@ -353,7 +353,7 @@ def _node(system, y, r, extra, J, previous_tangent):
     return _Node(y, J, _tangent(J, previous_tangent), point, detail, extra)
 
 
-def follow(system, y0, direction, bounds, max_points=MAX_POINTS, limit=AMPLITUDE_LIMIT, progress=None):
+def follow(system, y0, direction, bounds, max_points=BRANCH_POINTS, limit=AMPLITUDE_LIMIT, progress=None):
     """The branch from the solution y0 in the direction of the parameter's sign ``direction``, within ``bounds``.
 
     Returns (nodes, reason): the accepted nodes in order (y0's first) and why the branch stopped (SPENT
@@ -705,7 +705,7 @@ def linear_boundary(family, name, value, direction, bounds, fmu_dir=None):
     return None
 
 
-def trace(system_of, y0, bounds, max_points=MAX_POINTS, progress=None):
+def trace(system_of, y0, bounds, max_points=BRANCH_POINTS, progress=None):
     """The branch through the solution y0, followed both ways: (nodes, [(system, nodes, reason)] per half).
 
     ``system_of()`` makes a fresh system (each half carries its own scales)."""
@@ -769,7 +769,7 @@ def distinct(bifurcations):
     return kept
 
 
-def continue_cycles(family, name, bounds, starts, fmu_dir=None, max_points=MAX_POINTS, progress=None):
+def continue_cycles(family, name, bounds, starts, fmu_dir=None, max_points=BRANCH_POINTS, progress=None):
     """Branches of true cycles through each start ``(value, TrueCycle)``, and their bifurcations.
 
     A start on a branch already followed is skipped. All problems of one branch share one work budget.
@@ -801,7 +801,7 @@ def _df_end(system, nodes, reason):
     return reason
 
 
-def continue_predictions(family, name, bounds, starts, engine, F_range, max_points=MAX_POINTS, progress=None):
+def continue_predictions(family, name, bounds, starts, engine, F_range, max_points=BRANCH_POINTS, progress=None):
     """Branches of DF predictions through each start ``(value, Cycle)``, and their folds."""
     span = bounds[1] - bounds[0]
     branches, found = [], []

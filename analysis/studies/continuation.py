@@ -10,9 +10,9 @@ prediction that lies on a branch already followed is not followed again.
 
 import math
 
-from dfwb.base.defaults import DF_MAP_SIZE
+from dfwb.base.defaults import BRANCH_POINTS, DF_MAP_SIZE
 from dfwb.base.errors import DfwbError, InputError
-from dfwb.engine.continuation import MAX_POINTS, continue_cycles, continue_predictions
+from dfwb.engine.continuation import continue_cycles, continue_predictions
 from dfwb.engine.family import LoopFamily, number
 from dfwb.foreign.hunting import no_fmu_options
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
@@ -62,7 +62,7 @@ def check_somewhere(family, settings, where):
     raise InputError(f"{first}, at {where} ({'; '.join(labels)}): the loop must be defined at one at least")
 
 
-def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=MAX_POINTS, starts=None,
+def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=BRANCH_POINTS, starts=None,
            fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
            rtol=None, timeout=None, samples=SAMPLES):
     """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.

@@ -40,7 +40,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Optional
 
-from dfwb.base.defaults import DF_MAP_SIZE
+from dfwb.base.defaults import BRANCH_POINTS, DF_MAP_SIZE, DF_PERIODS, JUDGE_SAMPLES, SAMPLES_PER_PERIOD
 from dfwb.base.errors import InputError, fmu_only
 from dfwb.base.files import read_bytes
 from dfwb.base.grids import log_grid
@@ -362,7 +362,7 @@ class LimitCycle(_Loop):
 
     verify: bool = rule(Boolean(), False)
     exact: bool = rule(Boolean(), False)
-    samples_per_period: int = rule(Integer(ge=16, le=100_000), 512)
+    samples_per_period: int = rule(Integer(ge=16, le=100_000), JUDGE_SAMPLES)
 
     def __post_init__(self):
         spec = section_plant(self)
@@ -386,7 +386,7 @@ class Continuation(_Loop):
     start: float = rule(Finite)
     stop: float = rule(Finite)
     sources: list = rule(ListOf(OneOf("truth", "df"), min_length=1, max_length=2), ["truth", "df"])
-    max_points: int = rule(Integer(ge=2, le=10_000), 200)
+    max_points: int = rule(Integer(ge=2, le=10_000), BRANCH_POINTS)
     samples: int = rule(Integer(ge=2, le=1000), 11)  # a user's FMU: the values its true cycles are searched at
 
     def __post_init__(self):
@@ -477,8 +477,8 @@ class Engine:
     """Settings of the DF engine (see :class:`dfwb.engine.describing.DFEngine`)."""
 
     drive: str = rule(OneOf("internal", "input"), "internal")
-    samples_per_period: int = rule(Integer(ge=4, le=100_000), 64)
-    max_periods: int = rule(Integer(ge=25, le=100_000), 150)
+    samples_per_period: int = rule(Integer(ge=4, le=100_000), SAMPLES_PER_PERIOD)
+    max_periods: int = rule(Integer(ge=25, le=100_000), DF_PERIODS)
     rtol: Optional[float] = rule(Number(ge=1e-13, le=1e-2), None)  # a user's FMU's tolerance (None: its kind's)
 
 
