@@ -24,10 +24,12 @@ def test_the_report_holds_every_plant_and_both_verdicts(fmus, tmp_path):
                           text=True, timeout=900, env=env, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-4000:]
     text = (out / "new_plants.md").read_text()
-    for plant, points in (("stribeck", 40), ("friction", 40), ("drivetrain", 5), ("backlash", 5)):
+    for plant, points in (("stribeck", 40), ("friction", 40), ("drivetrain", 5), ("drivetrain, Fc = Fs = B = 0", 5),
+                          ("backlash", 5)):
         assert re.search(rf"^\| {plant} \| {points} \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \|", text, re.M), plant
     assert re.search(r"stribeck, mean DF point at rtol 1e-9: [0-9.]+ ms \(target <= 1 ms\): \*\*(PASS|FAIL)\*\*", text)
     assert re.search(r"drivetrain against backlash, mean DF point: [0-9.]+x .*\*\*(PASS|FAIL)\*\*", text)
+    assert re.search(r"With the load.s friction off \(drivetrain, Fc = Fs = B = 0\) it is [0-9.]+x, in [0-9]+ periods", text)
     assert "Machine:" in text
 
 
