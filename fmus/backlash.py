@@ -257,13 +257,13 @@ class BacklashLoop(FeedbackLoop):
 
     def __init__(self, b, a, M1=DEFAULT.M1, M2=DEFAULT.M2, h=DEFAULT.h, eps=DEFAULT.eps, x1_0=DEFAULT.x1_0,
                  v1_0=DEFAULT.v1_0, v2_0=DEFAULT.v2_0, gap0=DEFAULT.gap0, z0=None, state=None, section=None,
-                 modes=None, budget=None):
+                 modes=None, budget=None, compensation=None):
         gap0 = check_backlash(M1, M2, h, eps, x1_0, v1_0, v2_0, gap0)
         self.M1, self.M2, self.h, self.eps = M1, M2, h, eps
         self.r2 = M2 / (M1 + M2)
         self.tol_h = 1e-12 * h
         self.impacts = 0
-        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget)
+        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget, compensation)
 
     def check_coordinates(self, q):
         check("gap", q[2], lambda: 0.0 <= q[2] <= self.h, f"the gap must be in [0, h] = [0, {self.h!r}] (m)")

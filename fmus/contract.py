@@ -72,6 +72,8 @@ class EventKind(str, enum.Enum):
     ENGAGE_UP = "engage+"  # x reaches the upper edge of the play and drags y
     ENGAGE_DOWN = "engage-"  # ... the lower edge
     REVERSE = "reverse"  # the engaged mass's velocity reverses: y is let go
+    # compensators in the closed loop (.compensation)
+    COULOMB = "coulomb"  # the controller's force crosses zero: the Coulomb feedforward of its sign switches
 
     def __str__(self):
         return self.value

@@ -355,13 +355,13 @@ class DrivetrainLoop(FeedbackLoop):
 
     def __init__(self, b, a, M1=DEFAULT.M1, M2=DEFAULT.M2, h=DEFAULT.h, eps=DEFAULT.eps, B=DEFAULT.B, Fc=DEFAULT.Fc,
                  Fs=DEFAULT.Fs, x1_0=DEFAULT.x1_0, v1_0=DEFAULT.v1_0, v2_0=DEFAULT.v2_0, gap0=DEFAULT.gap0, z0=None,
-                 state=None, section=None, modes=None, budget=None):
+                 state=None, section=None, modes=None, budget=None, compensation=None):
         gap0 = check_drivetrain(M1, M2, h, eps, B, Fc, Fs, x1_0, v1_0, v2_0, gap0)
         self.M1, self.M2, self.h, self.eps, self.B, self.Fc, self.Fs = M1, M2, h, eps, B, Fc, Fs
         self.r2 = M2 / (M1 + M2)
         self.tol_h = 1e-12 * h
         self.impacts = 0
-        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget)
+        super().__init__(b, a, (x1_0, v1_0, gap0, v2_0 - v1_0), z0, state, section, modes, budget, compensation)
 
     def plant_mode(self, key):
         M1, M2, B, Fc = self.M1, self.M2, self.B, self.Fc

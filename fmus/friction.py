@@ -226,11 +226,11 @@ class FrictionLoop(FeedbackLoop):
         return [output.x, output.v]
 
     def __init__(self, b, a, M=DEFAULT.M, B=DEFAULT.B, Fc=DEFAULT.Fc, Fs=DEFAULT.Fs, Dv=DEFAULT.Dv, x0=DEFAULT.x0,
-                 v0=DEFAULT.v0, z0=None, state=None, section=None, modes=None, budget=None):
+                 v0=DEFAULT.v0, z0=None, state=None, section=None, modes=None, budget=None, compensation=None):
         check_friction(M, B, Fc, Fs, Dv, x0, v0, exact_stick=True)
         self.M, self.B, self.Fc, self.Fs = M, B, Fc, Fs
         self.sticks = 0
-        super().__init__(b, a, (x0, v0), z0, state, section, modes, budget)
+        super().__init__(b, a, (x0, v0), z0, state, section, modes, budget, compensation)
 
     def plant_mode(self, key):
         M = self.M
@@ -250,12 +250,26 @@ class FrictionLoop(FeedbackLoop):
 
     def _rest(self, X):
         """At v = 0: stick while -Fs <= f <= Fs, else slide in the direction of f."""
-        if self.after(STICK, 0, X) < 0:
-            return ("slide", 1), X, 0
-        if self.after(STICK, 1, X) < 0:
-            return ("slide", -1), X, 0
+        slide = self._breakaway(X)
+        if slide is not None:
+            return slide, X, 0
         self.sticks += 1
         return STICK, X, None
+
+    def _breakaway(self, X):
+        """The slide a mass at rest at X breaks into (the force on it beyond Fs), or None: it sticks."""
+        if self.after(STICK, 0, X) < 0:
+            return ("slide", 1)
+        if self.after(STICK, 1, X) < 0:
+            return ("slide", -1)
+        return None
+
+    def slip(self, key):
+        return 0 if key == STICK else key[1]
+
+    def settle(self, key, X):
+        slide = self._breakaway(X) if key == STICK else None
+        return (key, X, None) if slide is None else (slide, X, 0)
 
     def _fire(self, t, kind, X):
         if kind is EventKind.BAND:

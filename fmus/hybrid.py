@@ -331,6 +331,10 @@ class HybridSolver:
     def _fire(self, t, kind, X):
         raise NotImplementedError
 
+    def _switch(self, t, kind, X):
+        """(key, X, departing) after an event of ``kind`` at X: the system's switching logic, :meth:`_fire`."""
+        return self._fire(t, kind, X)
+
     def after(self, key, index, X):
         """Sign of event function ``index`` of mode ``key`` just after X (its trend where it is zero).
 
@@ -454,7 +458,7 @@ class HybridSolver:
                         break
                     continue
                 fired_from = self.key
-                key, X, departing = self._fire(t, kind, X)
+                key, X, departing = self._switch(t, kind, X)
                 departing = () if departing is None else (departing,)
                 self.events += 1
                 if self.event_log is not None:

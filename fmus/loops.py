@@ -14,6 +14,9 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
+from .compensation import Coulomb
+from .contract import EventKind
+from .exact import PlantError
 from .hybrid import HybridSolver
 from .linear_system import LinearSystem
 from .piecewise import check
@@ -41,7 +44,8 @@ class FeedbackLoop(HybridSolver):
     ``state`` (the whole loop state) overrides the initial values; ``section``
     watches the output rising through that level (``crossings``); ``modes``
     (a dict) and ``budget`` (a :class:`~.hybrid.Budget`) are shared by the
-    solvers of one study.
+    solvers of one study. ``compensation``: a compensator between the
+    controller and the plant (:class:`~.compensation.Coulomb`), or None.
     """
 
     coordinates = ()
@@ -98,7 +102,13 @@ class FeedbackLoop(HybridSolver):
         """Whether F cos(omega t) leaves the output still (its describing function is 0 there)."""
         raise NotImplementedError
 
-    def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None):
+    def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None, compensation=None):
+        if compensation is not None and not isinstance(compensation, Coulomb):
+            raise PlantError(f"compensation = {compensation!r} is not a compensator of the loop (a Coulomb)")
+        self.compensation = compensation
+        # the Coulomb feedforward of the controller's sign: its current sign, a discrete state of the loop
+        self._on_control = compensation is not None and compensation.signal == "control" and compensation.F_hat > 0
+        self.sigma = 0
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
@@ -120,7 +130,13 @@ class FeedbackLoop(HybridSolver):
             L[self.OUTPUT] = 1.0
             watch = (L, -float(section))
         super().__init__(watch, modes, budget)
-        key, X0, departing = self.initial(list(q0) + z0)
+        X0 = list(q0) + z0
+        if self._on_control:  # its sign at t = 0; where the force is 0 there, its trend in the plant's mode
+            f = self.force(X0)
+            self.sigma = (f > 0.0) - (f < 0.0)
+        key, X0, departing = self.initial(X0)
+        if self._on_control and self.sigma == 0:
+            self.sigma = self._control_sign(key, X0)
         self.start(0.0, X0, key, departing)
 
     # -- the loop's equations --------------------------------------------------------
@@ -129,7 +145,20 @@ class FeedbackLoop(HybridSolver):
         m = len(self.coordinates)
         return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
 
+    def mode(self, key):
+        """The mode of plant key ``key``; with the controller's sign compensated, of ``key`` at the current sign."""
+        return super().mode((key, self.sigma) if self._on_control else key)
+
+    def slip(self, key):
+        """The plant's sliding direction in mode ``key`` (-1, 0 stuck, +1): the velocity's sign the Coulomb
+        feedforward takes; a plant without friction has none (PlantError)."""
+        raise PlantError(f"the Coulomb feedforward of the velocity needs a plant with friction; "
+                         f"{type(self).__name__} has none (use the controller's signal)")
+
     def system(self, key):
+        sign = None
+        if self._on_control:
+            key, sign = key
         P, p, phi, events, *nonlinear = self.plant_mode(key)
         m, n, out = len(self.coordinates), self.order, self.OUTPUT
         # f = D y + C z: a row over the whole state
@@ -144,12 +173,50 @@ class FeedbackLoop(HybridSolver):
             row = [0.0] * m + list(self.Ac[i])
             row[out] += self.Bc[i]
             A.append(row)
-        c = list(p) + [0.0] * n
+        # the compensator's force k, constant in the mode: the plant sees f + k
+        k = 0.0 if self.compensation is None else \
+            self.compensation.F_hat * (sign if sign is not None else self.slip(key))
+        c = [value + phi_i * k for value, phi_i in zip(p, phi)] + [0.0] * n
         full = []
         for kind, Lq, Lf, l0 in events:
             L = list(Lq) + [0.0] * n
-            full.append((kind, [value + Lf * fv for value, fv in zip(L, f_row)], l0))
+            full.append((kind, [value + Lf * fv for value, fv in zip(L, f_row)], l0 + Lf * k))
+        if sign:  # the controller's force keeps its sign: sign * f > 0 until it reaches 0
+            full.append((EventKind.COULOMB, [sign * fv for fv in f_row], 0.0))
         return (A, c, full) + tuple(nonlinear)  # (row, col, law) of a mode integrated: plant coordinates first
+
+    def _control_sign(self, key, X):
+        """The controller's force's sign just after X in plant mode ``key`` (its trend where it is 0), the
+        feedforward of either sign tried: +1 or -1 where one keeps the force's sign, 0 where it stays 0."""
+        held, found = self.sigma, []
+        try:
+            for sign in (1, -1):
+                self.sigma = sign
+                found.append(self.after(key, self.function_index(key, EventKind.COULOMB), X))
+        finally:
+            self.sigma = held
+        if found[0] > 0:
+            return 1
+        if found[1] > 0:
+            return -1
+        if found == [0, 0]:
+            return 0
+        raise PlantError(f"the controller's force slides along 0 at t = {self.t!r} (the Coulomb feedforward of its "
+                         "sign would chatter: a sliding mode, not solved)")
+
+    def _switch(self, t, kind, X):
+        if kind is not EventKind.COULOMB:
+            key, X, departing = self._fire(t, kind, X)
+            if self._on_control and self.sigma == 0:
+                self.sigma = self._control_sign(key, X)
+            return key, X, departing
+        self.sigma = self._control_sign(self.key, X)
+        return self.settle(self.key, X)
+
+    def settle(self, key, X):
+        """(key, X, departing) after the force on the plant jumped at X in mode ``key`` (a compensator
+        switched): a stuck plant may break away. Default: the mode goes on."""
+        return key, X, None
 
     def plant_mode(self, key):
         """(P, p, phi, events) of mode ``key``: q' = P q + p + phi f, and event functions (kind, Lq, Lf, l0);

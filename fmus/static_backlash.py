@@ -188,11 +188,11 @@ class StaticBacklashLoop(FeedbackLoop):
         return q
 
     def __init__(self, b, a, M=DEFAULT.M, k=DEFAULT.k, h=DEFAULT.h, x0=DEFAULT.x0, v0=DEFAULT.v0, z0=None, state=None,
-                 section=None,                  modes=None, budget=None):
+                 section=None, modes=None, budget=None, compensation=None):
         check_static_backlash(M, k, h, x0, v0)
         self.M, self.k, self.h = M, k, h
         self.engagements = 0
-        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes, budget)
+        super().__init__(b, a, (x0, v0, k * x0), z0, state, section, modes, budget, compensation)
 
     def check_coordinates(self, q):
         play = q[0] - q[2] / self.k

@@ -174,10 +174,10 @@ class StribeckLoop(FrictionLoop):
 
     def __init__(self, b, a, M=DEFAULT.M, B=DEFAULT.B, Fc=DEFAULT.Fc, Fs=DEFAULT.Fs, vs=DEFAULT.vs,
                  delta=DEFAULT.delta, rtol=DEFAULT.rtol, x0=DEFAULT.x0, v0=DEFAULT.v0, z0=None, state=None,
-                 section=None, modes=None, budget=None):
+                 section=None, modes=None, budget=None, compensation=None):
         check_stribeck(M, B, Fc, Fs, vs, delta, rtol, x0, v0)
         self.vs, self.delta, self.rtol = vs, delta, rtol
-        super().__init__(b, a, M, B, Fc, Fs, 0.0, x0, v0, z0, state, section, modes, budget)
+        super().__init__(b, a, M, B, Fc, Fs, 0.0, x0, v0, z0, state, section, modes, budget, compensation)
 
     def plant_mode(self, key):
         mode = super().plant_mode(key)

@@ -487,7 +487,7 @@ class LoopProblem:
         widths = []
         for a in breaks[:-1]:
             walker.advance(a)
-            widths.append(min(T / 32.0, 2.0 * walker._modes[walker.key].h))
+            widths.append(min(T / 32.0, 2.0 * walker.mode(walker.key).h))
         nodes, weights = _gauss(GAUSS_NODES)
         edges = np.concatenate([np.linspace(a, b, max(1, math.ceil((b - a) / width)) + 1)[:-1]
                                 for a, b, width in zip(breaks[:-1], breaks[1:], widths)] + [[T]])

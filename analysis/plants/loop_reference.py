@@ -193,12 +193,19 @@ class _Loop:
 
 
 class _Friction(_Loop):
-    """Mass with CVS friction: modes "stick" (v = 0 held), +1 / -1 (sliding with sgn v)."""
+    """Mass with CVS friction: modes "stick" (v = 0 held), +1 / -1 (sliding with sgn v).
+
+    With a Coulomb feedforward ``F_hat sgn(signal)`` the mass feels f plus it: the signal is its velocity
+    (nothing while it sticks) or the controller's force f, whose sign changes at an event ``"coulomb"``.
+    """
 
     OUTPUT = 0
 
     def __init__(self, *args):
         super().__init__(*args)
+        self.F_hat, self.signal = self.p.get("coulomb") or (0.0, None)
+        f = self.force(self.X)
+        self.sign = 1 if f > 0.0 else -1 if f < 0.0 else 0  # the controller's force's sign (signal "control")
         self.counts = {"sticks": 0}
         if self.X[1] != 0.0:
             self.mode = 1 if self.X[1] > 0.0 else -1
@@ -211,8 +218,13 @@ class _Friction(_Loop):
     def length(self):
         return self.p["Fs"] / max(1.0, abs(self.D))  # the play of x while the force stays below Fs
 
+    def feedforward(self, s):
+        """The compensator's force in mode s (constant between events)."""
+        return self.F_hat * (s if self.signal == "velocity" else self.sign if self.signal == "control" else 0)
+
     def rhs_for(self, s):
         M, B, Fc = self.p["M"], self.p["B"], self.p["Fc"]
+        k = self.feedforward(s)
 
         def rhs(t, X):
             dX = np.empty_like(X)
@@ -220,7 +232,7 @@ class _Friction(_Loop):
                 dX[0] = dX[1] = 0.0
             else:
                 dX[0] = X[1]
-                dX[1] = (self.force(X) - s * Fc - B * X[1]) / M
+                dX[1] = (self.force(X) + k - s * Fc - B * X[1]) / M
             dX[2:] = self.controller(X)
             return dX
         return rhs
@@ -228,25 +240,41 @@ class _Friction(_Loop):
     def rest(self):
         """v = 0: stick while |f| <= Fs, else slide in the direction of f (|f| = Fs: the way f is heading)."""
         self.X[1] = 0.0
-        f, Fs = self.force(self.X), self.p["Fs"]
+        if not self.breaks_away():
+            self.mode = 0
+            self.counts["sticks"] += 1
+
+    def breaks_away(self):
+        """At rest: slide (True) where the force on the mass, f and the feedforward, is beyond Fs."""
+        f, Fs = self.force(self.X) + self.feedforward(0), self.p["Fs"]
         if abs(f) == Fs:
             f += self.force_rate(self.X, self.rhs_for(0)(self.t, self.X))
         if abs(f) > Fs:
             self.mode = 1 if f > 0.0 else -1
-        else:
-            self.mode = 0
-            self.counts["sticks"] += 1
+            return True
+        return False
 
     def system(self):
         s = self.mode
+        k = self.feedforward(s)
         if s == 0:
             Fs = self.p["Fs"]
-            events = [_event(lambda t, X: self.force(X) - Fs, 1), _event(lambda t, X: self.force(X) + Fs, -1)]
-            return self.rhs_for(0), events, ["break+", "break-"]
-        return self.rhs_for(s), [_event(lambda t, X: X[1], -s)], ["band"]
+            events = [_event(lambda t, X: self.force(X) + k - Fs, 1), _event(lambda t, X: self.force(X) + k + Fs, -1)]
+            kinds = ["break+", "break-"]
+        else:
+            events, kinds = [_event(lambda t, X: X[1], -s)], ["band"]
+        if self.signal == "control":  # the controller's force crossing 0 switches the feedforward
+            events.append(_event(lambda t, X: self.force(X), -self.sign))
+            kinds.append("coulomb")
+        return self.rhs_for(s), events, kinds
 
     def fire(self, kind):
-        if kind == "band":
+        if kind == "coulomb":
+            rate = self.force_rate(self.X, self.rhs_for(self.mode)(self.t, self.X))
+            self.sign = -self.sign if self.sign else (1 if rate > 0.0 else -1)
+            if self.mode == 0:
+                self.breaks_away()  # the force on the stuck mass jumped by 2 F_hat
+        elif kind == "band":
             self.rest()
         else:
             self.X[1] = 0.0
@@ -489,7 +517,7 @@ def _times(t_eval, t_end):
 
 
 def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
-                          max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None):
+                          max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None, coulomb=None):
     """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
 
     Parameters
@@ -541,6 +569,11 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         "engaged-", "engaged+"). When it returns True the run stops right
         there: ``state`` and ``mode`` are those the event left, ``t`` is the
         event's time, and the samples of later times are NaN.
+    coulomb : (float, str), optional
+        friction only: a Coulomb feedforward ``F_hat sgn(signal)`` added to the
+        force, ``(F_hat, "velocity")`` (the mass's velocity: nothing while it
+        sticks) or ``(F_hat, "control")`` (the controller's force; its sign
+        changes at events "coulomb").
 
     Returns
     -------
@@ -601,6 +634,11 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
     if until is not None and not callable(until):
         raise PlantError(f"until = {until!r} is out of range: a callable until(kind, mode_before) or None")
     p = _parameters(plant, params)
+    if coulomb is not None:
+        if plant != "friction" or not (isinstance(coulomb, tuple) and len(coulomb) == 2
+                                       and coulomb[1] in ("velocity", "control")):
+            raise PlantError(f"coulomb = {coulomb!r} is out of range: (F_hat, 'velocity' or 'control'), friction only")
+        p["coulomb"] = (_check("F_hat", coulomb[0], lambda v: v >= 0.0, "must be >= 0"), coulomb[1])
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
     loop.run(float(t_end), t_eval, until)

@@ -1,0 +1,92 @@
+"""Compensators in the exact closed loop (issue 33): the Coulomb feedforward, against an independent reference.
+
+The reference is :func:`dfwb.plants.loop_reference.closed_loop_reference` with its own Coulomb feedforward
+(solve_ivp between events, the switching written apart from dfwb's loop); the friction mass under PI,
+``G = 10 + 2/s``, which hunts uncompensated (Olsson and Astrom, 2001: an integrator and stiction), from a
+displaced start.
+"""
+
+import math
+
+import pytest
+
+from dfwb.fmus.compensation import Coulomb
+from dfwb.fmus.exact import PlantError
+from dfwb.fmus.friction import FrictionLoop
+from dfwb.fmus.loops import STICK
+from dfwb.plants.loop_reference import closed_loop_reference
+
+PI = ([10.0, 2.0], [0.0])  # 10 + 2/s
+START = {"x0": 0.3}
+T = 60.0
+
+
+def run(compensation, T=T, **params):
+    loop = FrictionLoop(*PI, **dict(START, **params), compensation=compensation)
+    loop.event_log = []
+    loop.advance(T)
+    return loop
+
+
+@pytest.mark.parametrize("F_hat, signal", [(3.0, "velocity"), (5.0, "velocity"), (8.0, "velocity"),
+                                           (3.0, "control"), (6.0, "control")])
+def test_the_compensated_loop_is_the_reference_event_for_event(F_hat, signal):
+    """Under-, exact and over-compensation of Fc = 5 N by the velocity's sign; the controller's sign below Fs -
+    Fc and beyond it: the same events in the same order, their times within 1e-9 s, the state at 60 s within
+    1e-8 (the reference's tolerance, rtol 1e-12, over up to 61 events)."""
+    loop = run(Coulomb(F_hat, signal))
+    ref = closed_loop_reference("friction", *PI, T, START, coulomb=(F_hat, signal), max_events=10_000)
+    assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
+    assert len(loop.event_log) >= 10
+    assert max(abs(t - r) for (t, _), (r, _) in zip(loop.event_log, ref["events"])) < 1e-9
+    assert max(abs(x - r) for x, r in zip(loop.state(), ref["state"])) < 1e-8
+    if signal == "control":
+        assert "coulomb" in [str(kind) for _t, kind in loop.event_log]
+
+
+def test_no_feedforward_is_the_uncompensated_loop_bit_for_bit():
+    plain = FrictionLoop(*PI, **START)
+    plain.event_log = []
+    plain.advance(T)
+    for signal in ("velocity", "control"):
+        loop = run(Coulomb(0.0, signal))
+        assert loop.state() == plain.state() and loop.event_log == plain.event_log
+
+
+def test_the_velocitys_feedforward_is_a_lower_coulomb_level():
+    """F_hat sgn(v) added to the force is Fc - F_hat in every slide, and nothing at rest: the loop with Fc = 5,
+    F_hat = 2 is the loop with Fc = 3 (M = 1: the same numbers to the bit)."""
+    loop = run(Coulomb(2.0, "velocity"))
+    lower = FrictionLoop(*PI, **START, Fc=3.0)
+    lower.event_log = []
+    lower.advance(T)
+    assert loop.state() == lower.state() and loop.event_log == lower.event_log
+
+
+def test_the_controllers_feedforward_acts_on_a_stuck_mass():
+    """At rest at x0 = 0.3 the controller pushes f = -3 N: with the feedforward of its sign, -3 - 5 = -8 N is
+    beyond Fs = 7 N and the mass breaks away at once; without it, it stays stuck until the integrator has wound
+    up (t = 2 s)."""
+    loop = FrictionLoop(*PI, **START, compensation=Coulomb(5.0, "control"))
+    assert loop.key == ("slide", -1) and loop.sigma == -1
+    assert FrictionLoop(*PI, **START).key == STICK
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: Coulomb(-1.0), "F_hat = -1.0 is out of range"),
+    (lambda: Coulomb(math.nan), "F_hat = nan is out of range"),
+    (lambda: Coulomb(True), "F_hat = True is out of range"),
+    (lambda: Coulomb(1.0, "position"), "signal = 'position' is not a signal"),
+    (lambda: FrictionLoop(*PI, compensation="coulomb"), "is not a compensator of the loop"),
+])
+def test_a_bad_compensator_is_one_line(make, message):
+    with pytest.raises(PlantError, match=message):
+        make()
+
+
+def test_the_velocitys_feedforward_needs_friction():
+    from dfwb.fmus.backlash import BacklashLoop
+
+    with pytest.raises(PlantError, match="needs a plant with friction"):
+        BacklashLoop([200.0, 400.0], [20.0], compensation=Coulomb(1.0, "velocity"))
+    BacklashLoop([200.0, 400.0], [20.0], compensation=Coulomb(1.0, "control")).advance(1.0)
