@@ -90,3 +90,41 @@ def test_the_velocitys_feedforward_needs_friction():
     with pytest.raises(PlantError, match="needs a plant with friction"):
         BacklashLoop([200.0, 400.0], [20.0], compensation=Coulomb(1.0, "velocity"))
     BacklashLoop([200.0, 400.0], [20.0], compensation=Coulomb(1.0, "control")).advance(1.0)
+
+
+def test_a_velocity_feedforward_finds_the_cycles_of_the_lower_coulomb_level():
+    """The systematic search over the compensated loop (the Python loop) finds what it finds over the friction
+    mass with Fc - F_hat (the compiled loop): the same cycle to the bit."""
+    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine.periodic import LoopProblem
+
+    compensated = find_cycles(LoopProblem("friction", "10 + 2/s", compensation=Coulomb(2.0, "velocity"))).cycles
+    lower = find_cycles(LoopProblem("friction", "10 + 2/s", {"Fc": 3.0})).cycles
+    assert [(c.period, c.amplitude_x, c.stable) for c in compensated] == \
+        [(c.period, c.amplitude_x, c.stable) for c in lower]
+    assert len(lower) == 1 and lower[0].stable
+
+
+@pytest.mark.parametrize("F_hat", [1.0, 3.0])
+def test_the_controllers_feedforward_hunts_on_a_cycle_the_reference_confirms(F_hat):
+    """Under 10 + 2/s the mass hunts with the feedforward of the controller's sign too, faster (57.3 s
+    uncompensated; 46.5 s at F_hat = 1 N, 25.0 s at 3 N) at about the same amplitude. The reference,
+    started on the cycle's section state, returns to it after one period: time and state within 1e-7."""
+    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine.periodic import LoopProblem
+
+    cycles = find_cycles(LoopProblem("friction", "10 + 2/s", compensation=Coulomb(F_hat, "control"))).cycles
+    assert len(cycles) == 1 and cycles[0].stable
+    cycle = cycles[0]
+    assert cycle.period < 50.0 and 0.2 < cycle.amplitude_x < 0.3
+    armed = []
+
+    def stop(kind, before):  # the section: x at a minimum (band from slide-), then at a maximum (from slide+)
+        armed.append(kind == "band" and before == "slide-")
+        return any(armed) and kind == "band" and before == "slide+"
+
+    ref = closed_loop_reference("friction", *PI, 10 * cycle.period, state=cycle.state, coulomb=(F_hat, "control"),
+                                until=stop, max_events=10_000)
+    assert abs(ref["t"] - cycle.period) < 1e-7 * cycle.period
+    swing = [max(s, 1e-12) for s in cycle.swing]
+    assert max(abs(x - y) / s for x, y, s in zip(ref["state"], cycle.state, swing)) < 1e-7

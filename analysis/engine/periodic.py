@@ -227,9 +227,11 @@ class LoopProblem:
         the core cannot be built, the Python loop (``dfwb.fmus.loops``) runs.
     budget : dfwb.fmus.hybrid.Budget, optional
         A budget shared with other problems (a continuation's), instead of one of ``max_chunks``.
+    compensation : dfwb.fmus.compensation.Coulomb, optional
+        A compensator between the controller and the plant; for now the Python loop runs it.
     """
 
-    def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS, fmu_dir=None, budget=None):
+    def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS, fmu_dir=None, budget=None, compensation=None):
         spec = find_plant(plant)
         if spec.loop is None:
             raise InputError(f"plant {spec.name!r} has no exact closed loop (--exact): it is available for "
@@ -239,7 +241,8 @@ class LoopProblem:
 
             G = parse_transfer_function(G)
         self.G = check_transfer_function(G)
-        self.spec, self.cls, self.fmu_dir = spec, _loop_class(spec, fmu_dir), fmu_dir
+        self.spec, self.fmu_dir, self.compensation = spec, fmu_dir, compensation
+        self.cls = _loop_class(spec, fmu_dir) if compensation is None else spec.loop  # compiled: not yet
         self.b, self.a = _coefficients(self.G)
         checked = spec.check(dict(params or {}))
         self.params = {k: v for k, v in checked.items() if k not in self.cls.initial_parameters}
@@ -278,7 +281,8 @@ class LoopProblem:
 
     def _make(self, state):
         state = None if state is None else [float(x) for x in state]  # numpy scalars would slow the solver
-        return self.cls(self.b, self.a, **self.params, state=state, modes=self._modes, budget=self.budget)
+        more = {} if self.compensation is None else {"compensation": self.compensation}
+        return self.cls(self.b, self.a, **self.params, state=state, modes=self._modes, budget=self.budget, **more)
 
     def exhausted(self):
         """Whether the problem's budget of work is spent (every later run would be refused)."""
