@@ -14,6 +14,15 @@ Canudas de Wit, Automatica 30(7), 1994, section 6.1). Its ``signal`` is
   switches where the controller's force crosses zero: an event of the loop
   (:attr:`~.contract.EventKind.COULOMB`), located as exactly as the plant's.
 
+:class:`Reset` clears the controller's integrator when the mass comes to
+rest, before it sticks or breaks away (integrator management, the same
+survey's section 6.3; Olsson and Astrom, 2001). The integrator is the
+controller's mode of its pole at 0: in the controllable canonical form
+(:mod:`.linear_system`) its coordinate is ``xi = w . z`` with
+``w = (a_(n-1), ..., a_1, 1)`` (``xi' = y``), and the reset removes it along
+its direction ``e_1``, leaving the controller's other modes as they are
+(:func:`integrator`).
+
 The loop (:class:`~.loops.FeedbackLoop`) stays piecewise affine: the
 compensator's force is constant between its switches, so every mode is still
 integrated in closed form.
@@ -25,7 +34,7 @@ import math
 
 from .exact import PlantError
 
-__all__ = ["Coulomb", "SIGNALS"]
+__all__ = ["Coulomb", "Reset", "SIGNALS", "compensators", "integrator"]
 
 SIGNALS = ("velocity", "control")
 
@@ -54,3 +63,36 @@ class Coulomb:
 
     def __repr__(self):
         return f"Coulomb(F_hat={self.F_hat!r}, signal={self.signal!r})"
+
+
+class Reset:
+    """The integrator reset: the controller's integrator cleared when the mass comes to rest."""
+
+    name = "reset"
+
+    def __repr__(self):
+        return "Reset()"
+
+
+def compensators(compensation):
+    """(the Coulomb or None, whether to reset) of ``compensation``: None, a compensator, or a list of them
+    (each kind at most once); PlantError otherwise."""
+    given = [] if compensation is None else list(compensation) if isinstance(compensation, (list, tuple)) \
+        else [compensation]
+    kinds = [type(c) for c in given]
+    if any(kind not in (Coulomb, Reset) for kind in kinds) or len(set(kinds)) != len(kinds):
+        raise PlantError(f"compensation = {compensation!r:.120} is not a compensator of the loop (a Coulomb, a "
+                         "Reset, or a list of them, each once)")
+    coulomb = next((c for c in given if isinstance(c, Coulomb)), None)
+    return coulomb, Reset in kinds
+
+
+def integrator(a):
+    """The integrator's coordinate ``w`` of a controller with denominator ``s^n + a_1 s^(n-1) + ... + a_n``
+    (``a``): ``xi = w . z``, ``w = (a_(n-1), ..., a_1, 1)``; PlantError unless it has one integrator (a_n = 0,
+    a_(n-1) != 0; a_0 = 1)."""
+    a = list(a)
+    if not a or a[-1] != 0.0 or (len(a) > 1 and a[-2] == 0.0):
+        raise PlantError(f"the integrator reset needs a controller with one integrator, a simple pole at 0 (its "
+                         f"denominator's a_n = 0 and a_(n-1) != 0): a = {a!r}")
+    return list(reversed(a[:-1])) + [1.0]

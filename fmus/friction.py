@@ -191,6 +191,7 @@ class FrictionLoop(FeedbackLoop):
     initial_parameters = ("x0", "v0")
     plant = FrictionMass
     KEYS = (STICK, ("slide", 1), ("slide", -1))
+    REST_EVENTS = (EventKind.BAND,)  # v reaches 0
     MODE_VALUES = {STICK: 0, ("slide", 1): 1, ("slide", -1): -1}
     CONSTANTS = ("M", "B", "Fc", "Fs")
     FMU_OUTPUTS = (Output("x", "m", "position (the output y fed back to the controller)"),

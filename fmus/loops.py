@@ -14,7 +14,7 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
-from .compensation import Coulomb
+from .compensation import compensators, integrator
 from .contract import EventKind
 from .exact import PlantError
 from .hybrid import HybridSolver
@@ -45,7 +45,8 @@ class FeedbackLoop(HybridSolver):
     watches the output rising through that level (``crossings``); ``modes``
     (a dict) and ``budget`` (a :class:`~.hybrid.Budget`) are shared by the
     solvers of one study. ``compensation``: a compensator between the
-    controller and the plant (:class:`~.compensation.Coulomb`), or None.
+    controller and the plant (:class:`~.compensation.Coulomb`,
+    :class:`~.compensation.Reset`), a list of them, or None.
     """
 
     coordinates = ()
@@ -53,6 +54,7 @@ class FeedbackLoop(HybridSolver):
     initial_parameters = ()  # the plant parameters that set q at t = 0 (superseded by ``state``)
     plant = None  # the plant's open-loop solver (:mod:`.friction` ...): its orbits start a shooting
     KEYS = ()  # the mode keys, in the compiled core's order
+    REST_EVENTS = ()  # the event kinds where the plant comes to rest (the integrator reset acts there)
     # The Poincare section every periodic orbit crosses: legs, each the (mode key, event kind) pairs that end it
     # (an event of the first leg, then one of the second: a lower turn, then an upper one). A point of the
     # section is the state the last leg's event leaves; there coordinate PIVOT is fixed by the others (pivot()).
@@ -103,11 +105,14 @@ class FeedbackLoop(HybridSolver):
         raise NotImplementedError
 
     def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None, compensation=None):
-        if compensation is not None and not isinstance(compensation, Coulomb):
-            raise PlantError(f"compensation = {compensation!r} is not a compensator of the loop (a Coulomb)")
-        self.compensation = compensation
+        self.coulomb, reset = compensators(compensation)
+        coulomb = self.coulomb
         # the Coulomb feedforward of the controller's sign: its current sign, a discrete state of the loop
-        self._on_control = compensation is not None and compensation.signal == "control" and compensation.F_hat > 0
+        self._on_control = coulomb is not None and coulomb.signal == "control" and coulomb.F_hat > 0
+        self._integrator = integrator(a) if reset else None  # xi = w . z, reset when the mass comes to rest
+        if reset and not self.REST_EVENTS:
+            raise PlantError(f"the integrator reset needs a plant that comes to rest; {type(self).__name__} "
+                             "has no such event")
         self.sigma = 0
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         self.order = n = len(self.Ac)
@@ -174,8 +179,7 @@ class FeedbackLoop(HybridSolver):
             row[out] += self.Bc[i]
             A.append(row)
         # the compensator's force k, constant in the mode: the plant sees f + k
-        k = 0.0 if self.compensation is None else \
-            self.compensation.F_hat * (sign if sign is not None else self.slip(key))
+        k = 0.0 if self.coulomb is None else self.coulomb.F_hat * (sign if sign is not None else self.slip(key))
         c = [value + phi_i * k for value, phi_i in zip(p, phi)] + [0.0] * n
         full = []
         for kind, Lq, Lf, l0 in events:
@@ -206,12 +210,21 @@ class FeedbackLoop(HybridSolver):
 
     def _switch(self, t, kind, X):
         if kind is not EventKind.COULOMB:
+            if self._integrator is not None and kind in self.REST_EVENTS:
+                self._reset(X)  # the controller's force jumps: the feedforward of its sign follows it
+                if self._on_control:
+                    self.sigma = self._control_sign(self.key, X)
             key, X, departing = self._fire(t, kind, X)
             if self._on_control and self.sigma == 0:
                 self.sigma = self._control_sign(key, X)
             return key, X, departing
         self.sigma = self._control_sign(self.key, X)
         return self.settle(self.key, X)
+
+    def _reset(self, X):
+        """Clear the controller's integrator in X, its other modes kept: z -= (w . z / w_1) e_1."""
+        m, w = len(self.coordinates), self._integrator
+        X[m] -= sum(wi * zi for wi, zi in zip(w, X[m:])) / w[0]
 
     def settle(self, key, X):
         """(key, X, departing) after the force on the plant jumped at X in mode ``key`` (a compensator

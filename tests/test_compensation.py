@@ -128,3 +128,68 @@ def test_the_controllers_feedforward_hunts_on_a_cycle_the_reference_confirms(F_h
     assert abs(ref["t"] - cycle.period) < 1e-7 * cycle.period
     swing = [max(s, 1e-12) for s in cycle.swing]
     assert max(abs(x - y) / s for x, y, s in zip(ref["state"], cycle.state, swing)) < 1e-7
+
+
+def pid(Kp, Ki, Kd, Tf):
+    """Kp + Ki/s + Kd s/(Tf s + 1) as (b, a)."""
+    return [(Kp * Tf + Kd) / Tf, (Kp + Ki * Tf) / Tf, Ki / Tf], [1.0 / Tf, 0.0]
+
+
+@pytest.mark.parametrize("b, a", [PI, ([30.0, 20.0], [0.0]), pid(20.0, 10.0, 2.0, 0.1)], ids=["PI", "stiff PI", "PID"])
+@pytest.mark.parametrize("coulomb", [None, (3.0, "control")])
+def test_the_integrator_reset_is_the_reference_event_for_event(b, a, coulomb):
+    """The reset clears the integrator's mode of the controller (dfwb: its closed form in the canonical
+    coordinates; the reference: the null spaces of Ac, numerically) each time the mass comes to rest, before it
+    sticks or breaks away; with the controller's feedforward, its sign follows the force's jump."""
+    from dfwb.fmus.compensation import Reset
+
+    compensation = Reset() if coulomb is None else [Reset(), Coulomb(*coulomb)]
+    loop = FrictionLoop(b, a, **START, compensation=compensation)
+    loop.event_log = []
+    loop.advance(T)
+    ref = closed_loop_reference("friction", b, a, T, START, coulomb=coulomb, reset=True, max_events=10_000)
+    assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
+    assert max(abs(t - r) for (t, _), (r, _) in zip(loop.event_log, ref["events"])) < 1e-8
+    assert max(abs(x - r) for x, r in zip(loop.state(), ref["state"])) < 1e-8
+
+
+def test_a_reset_integrator_still_hunts_twice_as_fast():
+    """Under 10 + 2/s the reset at rest does not stop the hunting: the stuck mass's integrator winds up again from
+    0, so it breaks away sooner (period 29.6 s against 57.3 s) at the same amplitude. The reference confirms the
+    cycle: from its section state it returns there after one period, within 1e-7."""
+    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine.periodic import LoopProblem
+    from dfwb.fmus.compensation import Reset
+
+    cycles = find_cycles(LoopProblem("friction", "10 + 2/s", compensation=Reset())).cycles
+    assert len(cycles) == 1 and cycles[0].stable
+    cycle = cycles[0]
+    assert abs(cycle.period - 29.64) < 0.01 and abs(cycle.amplitude_x - 0.2365) < 1e-3
+    armed = []
+
+    def stop(kind, before):
+        armed.append(kind == "band" and before == "slide-")
+        return any(armed) and kind == "band" and before == "slide+"
+
+    ref = closed_loop_reference("friction", *PI, 10 * cycle.period, state=cycle.state, reset=True, until=stop,
+                                max_events=10_000)
+    assert abs(ref["t"] - cycle.period) < 1e-7 * cycle.period
+    assert max(abs(x - y) / max(s, 1e-12) for x, y, s in zip(ref["state"], cycle.state, cycle.swing)) < 1e-7
+
+
+@pytest.mark.parametrize("a", [[1.0], [0.0, 0.0], [2.0, 1.0, 0.0, 0.0]])
+def test_the_reset_needs_one_integrator(a):
+    from dfwb.fmus.compensation import Reset
+
+    with pytest.raises(PlantError, match="needs a controller with one integrator"):
+        FrictionLoop([1.0] * (len(a) + 1), a, compensation=Reset())
+
+
+def test_the_reset_needs_a_plant_that_comes_to_rest_and_each_compensator_once():
+    from dfwb.fmus.backlash import BacklashLoop
+    from dfwb.fmus.compensation import Reset
+
+    with pytest.raises(PlantError, match="needs a plant that comes to rest"):
+        BacklashLoop([200.0, 400.0], [0.0], compensation=Reset())
+    with pytest.raises(PlantError, match="each once"):
+        FrictionLoop(*PI, compensation=[Reset(), Reset()])

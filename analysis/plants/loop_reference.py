@@ -204,6 +204,7 @@ class _Friction(_Loop):
     def __init__(self, *args):
         super().__init__(*args)
         self.F_hat, self.signal = self.p.get("coulomb") or (0.0, None)
+        self.integrator = self.integrator_mode() if self.p.get("reset") else None
         f = self.force(self.X)
         self.sign = 1 if f > 0.0 else -1 if f < 0.0 else 0  # the controller's force's sign (signal "control")
         self.counts = {"sticks": 0}
@@ -217,6 +218,18 @@ class _Friction(_Loop):
 
     def length(self):
         return self.p["Fs"] / max(1.0, abs(self.D))  # the play of x while the force stays below Fs
+
+    def integrator_mode(self):
+        """(w, e): the controller's integrator, its coordinate w . z (w^T Ac = 0, w . Bc = 1) and its direction
+        e (Ac e = 0, w . e = 1), from the null spaces of Ac^T and Ac (numerically, apart from dfwb's closed form)."""
+        from scipy.linalg import null_space
+
+        left, right = null_space(self.Ac.T), null_space(self.Ac)
+        if left.shape[1] != 1 or right.shape[1] != 1:
+            raise PlantError("the integrator reset needs a controller with one integrator (a simple pole at 0)")
+        w = left[:, 0] / (left[:, 0] @ self.Bc)
+        e = right[:, 0] / (w @ right[:, 0])
+        return w, e
 
     def feedforward(self, s):
         """The compensator's force in mode s (constant between events)."""
@@ -275,6 +288,12 @@ class _Friction(_Loop):
             if self.mode == 0:
                 self.breaks_away()  # the force on the stuck mass jumped by 2 F_hat
         elif kind == "band":
+            if self.integrator is not None:  # the mass comes to rest: its integrator cleared, then stick or not
+                w, e = self.integrator
+                z = self.X[self.m:]
+                self.X[self.m:] = z - (w @ z) * e
+                f = self.force(self.X)  # it jumped: the feedforward of its sign follows it
+                self.sign = 1 if f > 0.0 else -1 if f < 0.0 else self.sign
             self.rest()
         else:
             self.X[1] = 0.0
@@ -517,7 +536,8 @@ def _times(t_eval, t_end):
 
 
 def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
-                          max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None, coulomb=None):
+                          max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None, coulomb=None,
+                          reset=False):
     """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
 
     Parameters
@@ -574,6 +594,9 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         force, ``(F_hat, "velocity")`` (the mass's velocity: nothing while it
         sticks) or ``(F_hat, "control")`` (the controller's force; its sign
         changes at events "coulomb").
+    reset : bool
+        friction only: clear the controller's integrator whenever the mass
+        comes to rest (at every event "band"), before it sticks or breaks away.
 
     Returns
     -------
@@ -639,6 +662,10 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
                                        and coulomb[1] in ("velocity", "control")):
             raise PlantError(f"coulomb = {coulomb!r} is out of range: (F_hat, 'velocity' or 'control'), friction only")
         p["coulomb"] = (_check("F_hat", coulomb[0], lambda v: v >= 0.0, "must be >= 0"), coulomb[1])
+    if reset is not False:
+        if plant != "friction" or reset is not True:
+            raise PlantError(f"reset = {reset!r} is out of range: True or False, friction only")
+        p["reset"] = True
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
     loop.run(float(t_end), t_eval, until)
