@@ -14,8 +14,10 @@ Canudas de Wit, Automatica 30(7), 1994, section 6.1). Its ``signal`` is
   switches where the controller's force crosses zero: an event of the loop
   (:attr:`~.contract.EventKind.COULOMB`), located as exactly as the plant's.
 
-:class:`Reset` clears the controller's integrator when the mass comes to
-rest, before it sticks or breaks away (integrator management, the same
+:class:`Deadband` holds the controller's integrator while the error is
+within ``d`` of the target (|y| < d): its mode of the pole at 0 stops, the
+others go on; an event where |y| reaches d. :class:`Reset` clears the
+controller's integrator when the mass comes to rest, before it sticks or breaks away (integrator management, the same
 survey's section 6.3; Olsson and Astrom, 2001). The integrator is the
 controller's mode of its pole at 0: in the controllable canonical form
 (:mod:`.linear_system`) its coordinate is ``xi = w . z`` with
@@ -34,7 +36,7 @@ import math
 
 from .exact import PlantError
 
-__all__ = ["Coulomb", "Reset", "SIGNALS", "compensators", "integrator"]
+__all__ = ["Coulomb", "Reset", "Deadband", "SIGNALS", "compensators", "integrator"]
 
 SIGNALS = ("velocity", "control")
 
@@ -74,17 +76,39 @@ class Reset:
         return "Reset()"
 
 
+class Deadband:
+    """The integrator deadband: the controller's integrator holds while |y| < d.
+
+    Parameters
+    ----------
+    d : float
+        The error band [m, the output's unit], at least 0 (0: none).
+    """
+
+    name = "deadband"
+
+    def __init__(self, d):
+        if isinstance(d, bool) or not isinstance(d, (int, float)) or not (math.isfinite(d) and d >= 0.0):
+            raise PlantError(f"d = {d!r} is out of range: the error band of the integrator deadband, a finite "
+                             "number at least 0")
+        self.d = float(d)
+
+    def __repr__(self):
+        return f"Deadband(d={self.d!r})"
+
+
 def compensators(compensation):
-    """(the Coulomb or None, whether to reset) of ``compensation``: None, a compensator, or a list of them
-    (each kind at most once); PlantError otherwise."""
+    """(the Coulomb or None, whether to reset, the deadband's d or None) of ``compensation``: None, a
+    compensator, or a list of them (each kind at most once); PlantError otherwise."""
     given = [] if compensation is None else list(compensation) if isinstance(compensation, (list, tuple)) \
         else [compensation]
     kinds = [type(c) for c in given]
-    if any(kind not in (Coulomb, Reset) for kind in kinds) or len(set(kinds)) != len(kinds):
+    if any(kind not in (Coulomb, Reset, Deadband) for kind in kinds) or len(set(kinds)) != len(kinds):
         raise PlantError(f"compensation = {compensation!r:.120} is not a compensator of the loop (a Coulomb, a "
-                         "Reset, or a list of them, each once)")
+                         "Reset, a Deadband, or a list of them, each once)")
     coulomb = next((c for c in given if isinstance(c, Coulomb)), None)
-    return coulomb, Reset in kinds
+    band = next((c.d for c in given if isinstance(c, Deadband) and c.d > 0.0), None)
+    return coulomb, Reset in kinds, band
 
 
 def integrator(a):
@@ -93,6 +117,6 @@ def integrator(a):
     a_(n-1) != 0; a_0 = 1)."""
     a = list(a)
     if not a or a[-1] != 0.0 or (len(a) > 1 and a[-2] == 0.0):
-        raise PlantError(f"the integrator reset needs a controller with one integrator, a simple pole at 0 (its "
-                         f"denominator's a_n = 0 and a_(n-1) != 0): a = {a!r}")
+        raise PlantError("integrator management (reset, deadband) needs a controller with one integrator, a "
+                         f"simple pole at 0 (its denominator's a_n = 0 and a_(n-1) != 0): a = {a!r}")
     return list(reversed(a[:-1])) + [1.0]

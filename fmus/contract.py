@@ -74,6 +74,7 @@ class EventKind(str, enum.Enum):
     REVERSE = "reverse"  # the engaged mass's velocity reverses: y is let go
     # compensators in the closed loop (.compensation)
     COULOMB = "coulomb"  # the controller's force crosses zero: the Coulomb feedforward of its sign switches
+    DEADBAND = "deadband"  # the output reaches the integrator deadband's edge: the integrator holds or resumes
 
     def __str__(self):
         return self.value

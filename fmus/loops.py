@@ -105,15 +105,19 @@ class FeedbackLoop(HybridSolver):
         raise NotImplementedError
 
     def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None, compensation=None):
-        self.coulomb, reset = compensators(compensation)
+        self.coulomb, reset, self.deadband = compensators(compensation)
         coulomb = self.coulomb
         # the Coulomb feedforward of the controller's sign: its current sign, a discrete state of the loop
         self._on_control = coulomb is not None and coulomb.signal == "control" and coulomb.F_hat > 0
-        self._integrator = integrator(a) if reset else None  # xi = w . z, reset when the mass comes to rest
+        # the integrator's coordinate xi = w . z: reset when the mass comes to rest, held within the deadband
+        self._integrator = integrator(a) if reset or self.deadband is not None else None
+        self._reset_at_rest = reset
         if reset and not self.REST_EVENTS:
             raise PlantError(f"the integrator reset needs a plant that comes to rest; {type(self).__name__} "
                              "has no such event")
         self.sigma = 0
+        self.band = 1  # the deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d
+        self._discrete = self._on_control or self.deadband is not None  # modes cached by (key, sigma, band)
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
@@ -136,6 +140,9 @@ class FeedbackLoop(HybridSolver):
             watch = (L, -float(section))
         super().__init__(watch, modes, budget)
         X0 = list(q0) + z0
+        if self.deadband is not None:
+            y = X0[self.OUTPUT]
+            self.band = 0 if abs(y) < self.deadband else 1 if y > 0.0 else -1
         if self._on_control:  # its sign at t = 0; where the force is 0 there, its trend in the plant's mode
             f = self.force(X0)
             self.sigma = (f > 0.0) - (f < 0.0)
@@ -152,7 +159,7 @@ class FeedbackLoop(HybridSolver):
 
     def mode(self, key):
         """The mode of plant key ``key``; with the controller's sign compensated, of ``key`` at the current sign."""
-        return super().mode((key, self.sigma) if self._on_control else key)
+        return super().mode((key, self.sigma, self.band) if self._discrete else key)
 
     def slip(self, key):
         """The plant's sliding direction in mode ``key`` (-1, 0 stuck, +1): the velocity's sign the Coulomb
@@ -161,9 +168,10 @@ class FeedbackLoop(HybridSolver):
                          f"{type(self).__name__} has none (use the controller's signal)")
 
     def system(self, key):
-        sign = None
-        if self._on_control:
-            key, sign = key
+        sign, band = None, 1
+        if self._discrete:
+            key, sign, band = key
+            sign = sign if self._on_control else None
         P, p, phi, events, *nonlinear = self.plant_mode(key)
         m, n, out = len(self.coordinates), self.order, self.OUTPUT
         # f = D y + C z: a row over the whole state
@@ -174,9 +182,10 @@ class FeedbackLoop(HybridSolver):
         for i in range(m):
             row = list(P[i]) + [0.0] * n
             A.append([value + phi[i] * fv for value, fv in zip(row, f_row)])
+        Bc = self.Bc if band else self._held_Bc()  # within the deadband the integrator's mode holds
         for i in range(n):
             row = [0.0] * m + list(self.Ac[i])
-            row[out] += self.Bc[i]
+            row[out] += Bc[i]
             A.append(row)
         # the compensator's force k, constant in the mode: the plant sees f + k
         k = 0.0 if self.coulomb is None else self.coulomb.F_hat * (sign if sign is not None else self.slip(key))
@@ -187,6 +196,12 @@ class FeedbackLoop(HybridSolver):
             full.append((kind, [value + Lf * fv for value, fv in zip(L, f_row)], l0 + Lf * k))
         if sign:  # the controller's force keeps its sign: sign * f > 0 until it reaches 0
             full.append((EventKind.COULOMB, [sign * fv for fv in f_row], 0.0))
+        if self.deadband is not None:  # outside: band * y - d > 0; within: d - y > 0 and d + y > 0
+            d = self.deadband
+            for side, l0 in ([(band, -d)] if band else [(-1, d), (1, d)]):
+                L = [0.0] * (m + n)
+                L[out] = float(side)
+                full.append((EventKind.DEADBAND, L, l0))
         return (A, c, full) + tuple(nonlinear)  # (row, col, law) of a mode integrated: plant coordinates first
 
     def _control_sign(self, key, X):
@@ -208,9 +223,18 @@ class FeedbackLoop(HybridSolver):
         raise PlantError(f"the controller's force slides along 0 at t = {self.t!r} (the Coulomb feedforward of its "
                          "sign would chatter: a sliding mode, not solved)")
 
+    def _held_Bc(self):
+        """The controller's input column with its integrator held: Bc - e_1 / w_1 (then xi' = w . z' = 0, and
+        the other modes move as before)."""
+        return [self.Bc[0] - 1.0 / self._integrator[0]] + list(self.Bc[1:])
+
     def _switch(self, t, kind, X):
+        if kind is EventKind.DEADBAND:  # at an edge: from within, out to its side; from outside, in
+            y = X[self.OUTPUT]
+            self.band = 0 if self.band else (1 if y > 0.0 else -1)
+            return self.key, X, None
         if kind is not EventKind.COULOMB:
-            if self._integrator is not None and kind in self.REST_EVENTS:
+            if self._reset_at_rest and kind in self.REST_EVENTS:
                 self._reset(X)  # the controller's force jumps: the feedforward of its sign follows it
                 if self._on_control:
                     self.sigma = self._control_sign(self.key, X)

@@ -193,3 +193,38 @@ def test_the_reset_needs_a_plant_that_comes_to_rest_and_each_compensator_once():
         BacklashLoop([200.0, 400.0], [0.0], compensation=Reset())
     with pytest.raises(PlantError, match="each once"):
         FrictionLoop(*PI, compensation=[Reset(), Reset()])
+
+
+@pytest.mark.parametrize("b, a", [PI, ([30.0, 20.0], [0.0]), pid(20.0, 10.0, 2.0, 0.1)], ids=["PI", "stiff PI", "PID"])
+@pytest.mark.parametrize("d", [0.05, 0.2])
+@pytest.mark.parametrize("reset", [False, True])
+def test_the_integrator_deadband_is_the_reference_event_for_event(b, a, d, reset):
+    """Within |y| < d the integrator's mode holds (dfwb: Bc - e_1 / w_1; the reference: Bc minus the null vector
+    of Ac, numerically), the controller's other modes go on; the edges are events of the loop."""
+    from dfwb.fmus.compensation import Deadband, Reset
+
+    loop = FrictionLoop(b, a, **START, compensation=[Deadband(d), Reset()] if reset else Deadband(d))
+    loop.event_log = []
+    loop.advance(100.0)
+    ref = closed_loop_reference("friction", b, a, 100.0, START, deadband=d, reset=reset, max_events=10_000)
+    assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
+    assert max((abs(t - r) for (t, _), (r, _) in zip(loop.event_log, ref["events"])), default=0.0) < 1e-8
+    assert max(abs(x - r) for x, r in zip(loop.state(), ref["state"])) < 1e-8
+
+
+def test_a_wide_enough_deadband_stops_the_hunting_at_a_standing_error_below_it():
+    """Under 10 + 2/s a deadband of 0.05 m leaves the hunting as it was (period 57.3 s, from 22 of the 36 starts;
+    the others come to rest within the band); one of 0.2 m stops it: no cycle from any of the 36 starts (output
+    amplitudes 0.007 to 70 m). The absence is checked by the reference from five starts, 0.3 to 10 m and -2 m:
+    each comes to rest within the band within 15 s and stays there, no event, to 2000 s."""
+    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine.periodic import LoopProblem
+    from dfwb.fmus.compensation import Deadband
+
+    narrow = find_cycles(LoopProblem("friction", "10 + 2/s", compensation=Deadband(0.05)))
+    assert [round(c.period, 1) for c in narrow.cycles] == [57.3] and narrow.coverage.outcomes["rest"] > 0
+    wide = find_cycles(LoopProblem("friction", "10 + 2/s", compensation=Deadband(0.2)))
+    assert wide.cycles == [] and wide.coverage.outcomes == {"rest": 36}
+    for x0 in (0.3, 1.0, 3.0, -2.0, 10.0):
+        r = closed_loop_reference("friction", *PI, 2000.0, {"x0": x0}, deadband=0.2, max_events=10_000)
+        assert r["mode"] == "stick" and r["events"][-1][0] < 15.0 and abs(r["state"][0]) < 0.2

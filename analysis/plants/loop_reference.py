@@ -107,6 +107,7 @@ class _Loop:
         Ac, Bc, C, D = LinearSystem(b, a).matrices()  # checks the order, the lengths and the values
         self.Ac, self.Bc = np.array(Ac, dtype=float), np.array(Bc, dtype=float)
         self.C, self.D = np.array(C, dtype=float), float(D)
+        self.Bc_now = self.Bc
         self.n = len(Ac)
         self.m = len(X0) - self.n
         self.p = p
@@ -132,8 +133,8 @@ class _Loop:
         return -(self.C @ dX[self.m:] + self.D * dX[self.OUTPUT])
 
     def controller(self, X):
-        """z' = Ac z + Bc y."""
-        return self.Ac @ X[self.m:] + self.Bc * X[self.OUTPUT]
+        """z' = Ac z + Bc y (Bc without its integrator's part while a deadband holds it)."""
+        return self.Ac @ X[self.m:] + self.Bc_now * X[self.OUTPUT]
 
     def length(self):
         return 0.0
@@ -204,7 +205,11 @@ class _Friction(_Loop):
     def __init__(self, *args):
         super().__init__(*args)
         self.F_hat, self.signal = self.p.get("coulomb") or (0.0, None)
-        self.integrator = self.integrator_mode() if self.p.get("reset") else None
+        self.d = self.p.get("deadband")
+        self.integrator = self.integrator_mode() if self.p.get("reset") or self.d else None
+        self.held = False  # within the deadband, the integrator holds
+        if self.d:
+            self.hold(abs(self.X[self.OUTPUT]) < self.d)
         f = self.force(self.X)
         self.sign = 1 if f > 0.0 else -1 if f < 0.0 else 0  # the controller's force's sign (signal "control")
         self.counts = {"sticks": 0}
@@ -230,6 +235,11 @@ class _Friction(_Loop):
         w = left[:, 0] / (left[:, 0] @ self.Bc)
         e = right[:, 0] / (w @ right[:, 0])
         return w, e
+
+    def hold(self, held):
+        """Hold the integrator (its part of Bc, e (w . Bc) = e, removed) or let it integrate."""
+        self.held = held
+        self.Bc_now = self.Bc - self.integrator[1] if held else self.Bc
 
     def feedforward(self, s):
         """The compensator's force in mode s (constant between events)."""
@@ -279,16 +289,28 @@ class _Friction(_Loop):
         if self.signal == "control":  # the controller's force crossing 0 switches the feedforward
             events.append(_event(lambda t, X: self.force(X), -self.sign))
             kinds.append("coulomb")
+        if self.d:  # y reaching the band's edges: from within outwards, from outside inwards
+            d, y = self.d, self.OUTPUT
+            inside = self.held
+            outside_up = not inside and self.X[y] > 0.0
+            if inside or outside_up:
+                events.append(_event(lambda t, X: X[y] - d, 1 if inside else -1))
+                kinds.append("deadband")
+            if inside or not outside_up:
+                events.append(_event(lambda t, X: X[y] + d, -1 if inside else 1))
+                kinds.append("deadband")
         return self.rhs_for(s), events, kinds
 
     def fire(self, kind):
-        if kind == "coulomb":
+        if kind == "deadband":
+            self.hold(not self.held)
+        elif kind == "coulomb":
             rate = self.force_rate(self.X, self.rhs_for(self.mode)(self.t, self.X))
             self.sign = -self.sign if self.sign else (1 if rate > 0.0 else -1)
             if self.mode == 0:
                 self.breaks_away()  # the force on the stuck mass jumped by 2 F_hat
         elif kind == "band":
-            if self.integrator is not None:  # the mass comes to rest: its integrator cleared, then stick or not
+            if self.p.get("reset"):  # the mass comes to rest: its integrator cleared, then stick or not
                 w, e = self.integrator
                 z = self.X[self.m:]
                 self.X[self.m:] = z - (w @ z) * e
@@ -537,7 +559,7 @@ def _times(t_eval, t_end):
 
 def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
                           max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None, coulomb=None,
-                          reset=False):
+                          reset=False, deadband=None):
     """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
 
     Parameters
@@ -597,6 +619,9 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
     reset : bool
         friction only: clear the controller's integrator whenever the mass
         comes to rest (at every event "band"), before it sticks or breaks away.
+    deadband : float, optional
+        friction only: the controller's integrator holds while |y| < deadband
+        (events "deadband" at its edges).
 
     Returns
     -------
@@ -666,6 +691,10 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         if plant != "friction" or reset is not True:
             raise PlantError(f"reset = {reset!r} is out of range: True or False, friction only")
         p["reset"] = True
+    if deadband is not None:
+        if plant != "friction":
+            raise PlantError(f"deadband = {deadband!r}: friction only")
+        p["deadband"] = _check("deadband", deadband, lambda v: v >= 0.0, "must be >= 0")
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
     loop.run(float(t_end), t_eval, until)
