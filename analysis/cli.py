@@ -264,7 +264,8 @@ def _params(args, function):
         name = taken[0]
         option = {"rtol": "--rtol", "timeout": "--timeout"}.get(name)
         raise InputError(f"--set {name}={values[name]}: " + (f"give it as {option} {values[name]}" if option else
-                         f"{name} names an option of dfwb.{function.__name__}, so no parameter can take it here"))
+                         f"{name} is a setting of dfwb itself here (dfwb.{function.__name__}'s), not a parameter of "
+                         "G or of the plant"))
     return values
 
 
@@ -281,8 +282,7 @@ def cmd_df(args):
     results = response.points
     failed = [r for r in results if r["note"].startswith("failed:")]
     if args.json:
-        json.dump(results, sys.stdout, indent=1)
-        sys.stdout.write("\n")
+        _json(results)
     else:
         print(_table(results))
     if failed:
@@ -353,13 +353,20 @@ def cmd_limit_cycle(args):
     return _answer(args, response, plot)
 
 
+def _json(document):
+    """``document`` on stdout as strict JSON: a number that is not finite (a failed point's N) is null."""
+    from dfwb.studies.cache import finite
+
+    json.dump(finite(document), sys.stdout, indent=1, allow_nan=False)
+    sys.stdout.write("\n")
+
+
 def _answer(args, response, plot=None):
     """What an analysis command prints: its figure written to ``plot``, then JSON (--json) or its summary."""
     if plot:
         response.figure(plot)
     if args.json:
-        json.dump(response.as_dict(), sys.stdout, indent=1)
-        sys.stdout.write("\n")
+        _json(response.as_dict())
     else:
         print(response.summary())
     return 0
@@ -472,8 +479,7 @@ def cmd_stress(args):
         raise InputError(f"--part {args.part} of --parts {args.parts}: expected 1 <= PART <= PARTS")
     outcome = run_stress(quick=args.quick, progress=not args.json, part=args.part - 1, parts=args.parts)
     if args.json:
-        json.dump(outcome, sys.stdout, indent=1)
-        sys.stdout.write("\n")
+        _json(outcome)
     else:
         print(f"{outcome['cases']} cases, {outcome['failed']} failed, {outcome['seconds']:.1f} s")
         for failure in outcome["failures"]:

@@ -51,7 +51,7 @@ def test_df_set_and_table(fmus, capsys):
      "rtol: for a user's FMU only (dfwb's own plants are computed exactly)"),
     (["df", "stribeck", "--F", "10", "--omega", "1", "--set", "rtol=1e-8"], "--set rtol=1e-8: give it as --rtol 1e-8"),
     (["limit-cycle", "friction", "--G", "Kp", "--set", "Kp=1", "exact=1"],
-     "--set exact=1: exact names an option of dfwb.limit_cycles, so no parameter can take it here"),
+     "--set exact=1: exact is a setting of dfwb itself here (dfwb.limit_cycles's), not a parameter of G or"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(capsys, argv, message):
     with pytest.raises(SystemExit) as stop:
@@ -73,6 +73,27 @@ def test_the_command_line_is_the_api(fmus, capsys):
     assert code == 0 and [{k: r[k] for k in keep} for r in json.loads(out.out)] == \
         [{k: r[k] for k in keep} for r in api.points]
     assert api.points[0]["params"] == {"rtol": 1e-8}
+
+
+def test_stribecks_rtol_reaches_every_point_of_a_sweep(fmus, tmp_path, capsys):
+    """--rtol sets the Stribeck mass's tolerance in a sweep as in dfwb df; with rtol also in --grid, one line."""
+    code, _ = run_cli(capsys, "sweep", "stribeck", "--F", "10", "--omega", "1", "2", "--rtol", "1e-8", "--jobs", "1",
+                      "--quiet", "--no-cache", "--out", str(tmp_path / "s"))
+    assert code == 0
+    assert [r["params"] for r in json.loads((tmp_path / "s" / "results.json").read_text())] == [{"rtol": 1e-8}] * 2
+    with pytest.raises(SystemExit) as stop:
+        main(["sweep", "stribeck", "--F", "10", "--omega", "1", "--rtol", "1e-8", "--grid", "rtol=1e-6,1e-7",
+              "--quiet", "--no-cache", "--out", str(tmp_path / "t")])
+    assert stop.value.code == 2 and "rtol is given both" in capsys.readouterr().err
+
+
+def test_json_is_strict_a_failed_points_numbers_are_null(capsys, monkeypatch):
+    """A point that failed has no N: --json writes null there, never NaN (which is not JSON)."""
+    from dfwb import cli
+
+    monkeypatch.setattr(sys, "stdout", sys.stdout)
+    cli._json({"N_re": float("nan"), "N_error": float("inf"), "harmonics": [1.0, float("-inf")]})
+    assert json.loads(capsys.readouterr().out) == {"N_re": None, "N_error": None, "harmonics": [1.0, None]}
 
 
 def test_bad_sweep_writes_nothing(tmp_path, capsys):

@@ -30,7 +30,7 @@ from dfwb.base.values import flags, reals
 from dfwb.base.values import integer as _integer
 from dfwb.engine.describing import check_point
 from dfwb.foreign.engine import engine_for
-from dfwb.foreign.plant import resolve_plant
+from dfwb.foreign.plant import resolve_plant, tolerance_parameter
 from dfwb.studies.responses import (
     ContinuationResponse,
     DescribingFunctionResponse,
@@ -65,15 +65,6 @@ def _grid(F: ArrayLike, omega: ArrayLike) -> tuple:
     if F.size > MAX_POINTS:
         raise InputError(f"{F.size} points: at most {MAX_POINTS} in one call (split it, or use dfwb.sweep)")
     return np.array(F), np.array(omega)
-
-
-def _tolerance(spec, rtol, params):
-    """(rtol, params): for a plant of dfwb's integrated family (a table with a parameter rtol, the Stribeck
-    mass), ``rtol`` is that parameter, as it is a user's FMU's tolerance; elsewhere it stays what it was."""
-    table = getattr(getattr(spec, "model", None), "table", None)
-    if rtol is None or getattr(spec, "foreign", False) or table is None or "rtol" not in table.names:
-        return rtol, params
-    return None, dict(params, rtol=rtol)
 
 
 def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: str = "internal",
@@ -142,7 +133,7 @@ def describing_function(plant: Any, F: ArrayLike, omega: ArrayLike, *, drive: st
     (10.0, 0.5, {'M': 1.0})
     """
     spec = resolve_plant(plant)
-    rtol, params = _tolerance(spec, rtol, params)
+    rtol, params = tolerance_parameter(spec, rtol, params)
     checked = spec.checked(params)
     F_grid, omega_grid = _grid(F, omega)
     for F_value, omega_value in zip(F_grid.flat, omega_grid.flat):  # every point before anything runs
@@ -281,7 +272,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     samples_per_period = _integer("samples_per_period", samples_per_period)
     flags(exact=exact, verify=verify, progress=progress)
     spec = resolve_plant(plant)
-    rtol, params = _tolerance(spec, rtol, params)
+    rtol, params = tolerance_parameter(spec, rtol, params)
     engine = engine_for(spec, rtol=rtol, timeout=timeout) if getattr(spec, "foreign", False) else None
     if engine is None:
         fmu_only({"rtol": (rtol, None), "timeout": (timeout, None)}, "dfwb's own plants are computed exactly")
@@ -355,7 +346,7 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
 
     flags(progress=progress)
     spec = resolve_plant(plant)
-    rtol, params = _tolerance(spec, rtol, params)
+    rtol, params = tolerance_parameter(spec, rtol, params)
     with _reporter(f"continuation of {spec.name} in {parameter}", progress) as report:
         return follow(spec, G, parameter, start, stop, params, sources=sources, max_points=max_points,
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
@@ -431,7 +422,7 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     if out_dir is not None:
         _folder("out_dir", out_dir)
     spec = resolve_plant(plant)
-    rtol, params = _tolerance(spec, rtol, params)
+    rtol, params = tolerance_parameter(spec, rtol, params)
     with _reporter(f"hunting map of {spec.name}", progress) as report:
         return run_map(spec, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
                        amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None,
@@ -496,7 +487,7 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
 
     flags(df=df, progress=progress)
     spec = resolve_plant(plant)
-    rtol, params = _tolerance(spec, rtol, params)
+    rtol, params = tolerance_parameter(spec, rtol, params)
     with _reporter(f"limit-cycle margin of {spec.name}", progress) as report:
         return gain_margin(spec, G, params, k_range=k_range, count=_integer("count", count), df=df,
                            fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,

@@ -146,8 +146,24 @@ def sweep(plant: Any, points: Sequence, out_dir: Union[str, Path], *, jobs: Opti
     >>> records.computed, records.cached, records.resumed
     (2, 0, 0)
     """
-    from dfwb.foreign.plant import resolve_plant
-    from dfwb.studies.sweep import run_sweep
+    import itertools
 
-    return run_sweep(resolve_plant(plant), points, folder("out_dir", out_dir), jobs, drive, samples_per_period,
+    from dfwb.foreign.plant import resolve_plant, tolerance_parameter
+    from dfwb.studies.sweep import MAX_POINTS, run_sweep
+
+    spec = resolve_plant(plant)
+    rtol, extra = tolerance_parameter(spec, rtol, {})
+    if extra:  # the Stribeck mass's tolerance is its parameter rtol: each point gets it (what is not a point is
+        # left for run_sweep to name; one point past the most it takes is enough for it to refuse them)
+        try:
+            points = list(itertools.islice(points, MAX_POINTS + 1))
+        except TypeError:  # not a sequence
+            pass
+        else:
+            given = [p[2] for p in points if isinstance(p, tuple) and len(p) == 3 and isinstance(p[2], dict)]
+            if any("rtol" in params for params in given):
+                raise InputError("rtol is given both as rtol= and by the points' parameters: give it in one of them")
+            points = [(p[0], p[1], dict(p[2], **extra)) if isinstance(p, tuple) and len(p) == 3 and
+                      isinstance(p[2], dict) else p for p in points]
+    return run_sweep(spec, points, folder("out_dir", out_dir), jobs, drive, samples_per_period,
                      fmu_dir, cache=cache, progress=progress, resume=resume, rtol=rtol, timeout=timeout)

@@ -7,7 +7,7 @@ from typing import Mapping
 from dfwb.base.errors import PlantError
 from dfwb.foreign.description import KINDS, FMUInfo, describe
 
-__all__ = ["FMUPlant", "fmu_plant", "resolve_plant"]
+__all__ = ["FMUPlant", "fmu_plant", "resolve_plant", "tolerance_parameter"]
 
 
 @dataclass(frozen=True)
@@ -184,3 +184,12 @@ def resolve_plant(plant):
     if is_fmu_path(plant):
         return fmu_plant(plant)
     return registered(plant)
+
+
+def tolerance_parameter(spec, rtol, params):
+    """(rtol, params): for a plant of dfwb's integrated family (a table with a parameter rtol, the Stribeck
+    mass), ``rtol`` is that parameter, as it is a user's FMU's tolerance; elsewhere it stays what it was."""
+    table = getattr(getattr(spec, "model", None), "table", None)
+    if rtol is None or getattr(spec, "foreign", False) or table is None or "rtol" not in table.names:
+        return rtol, params
+    return None, dict(params, rtol=rtol)
