@@ -415,7 +415,7 @@ def cmd_map(args):
     out = args.out or Path("out/maps") / f"{name}_{axes[0][0]}_{axes[1][0]}"
     response = hunting_map(own or args.plant, _controller(args), *axes, out_dir=out, jobs=args.jobs, dask=args.dask,
                            cache=_cache(args), fmu_dir=args.fmus, curves=not args.no_curves,
-                           resume=not args.no_resume, progress=not args.json, **ranges,
+                           resume=not args.no_resume, progress=not (args.json or args.quiet), **ranges,
                            **_params(args, hunting_map))
     return _answer(args, response)
 

@@ -257,7 +257,9 @@ def check_transfer_function(G, text=None):
     """Refuse a G(s) that is not a proper, finite SISO transfer function; return it."""
     import control as ct
 
-    text = text or str(G).strip()
+    if not text:  # a system's own text runs over lines: its coefficients name it on one
+        siso = isinstance(G, ct.TransferFunction) and (G.ninputs, G.noutputs) == (1, 1)
+        text = "num {}, den {}".format(*num_den(G)) if siso else " ".join(str(G).split())[:200]
     if not isinstance(G, ct.TransferFunction):
         if isinstance(G, ct.StateSpace):
             G = ct.ss2tf(G)
