@@ -271,8 +271,8 @@ class Plant:
         values = {}
         for name, value in params.items():
             if name in RESERVED:
-                raise PlantError(f"{name} is set by the describing-function engine, not by --set "
-                                 f"(allowed: {', '.join(allowed)})")
+                raise PlantError(f"{name} is set by the describing-function engine, not as a parameter of the plant "
+                                 f"(its parameters: {', '.join(allowed)})")
             if name not in allowed:
                 raise PlantError(f"unknown parameter {name!r} for plant {self.name} (allowed: {', '.join(allowed)})")
             if isinstance(value, bool) or not isinstance(value, (str, numbers.Real)):  # not 1 for True, no j dropped
