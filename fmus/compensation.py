@@ -32,9 +32,8 @@ integrated in closed form.
 Plain Python only: this module runs inside the FMUs.
 """
 
-import math
-
 from .exact import PlantError
+from .piecewise import check
 
 __all__ = ["Coulomb", "Reset", "Deadband", "SIGNALS", "compensators", "integrator"]
 
@@ -55,9 +54,7 @@ class Coulomb:
     name = "coulomb"
 
     def __init__(self, F_hat, signal="velocity"):
-        if isinstance(F_hat, bool) or not isinstance(F_hat, (int, float)) or not (math.isfinite(F_hat) and
-                                                                                 F_hat >= 0.0):
-            raise PlantError(f"F_hat = {F_hat!r} is out of range: a finite number of newtons, at least 0")
+        check("F_hat", F_hat, lambda: F_hat >= 0.0, "a finite number of newtons, at least 0")
         if signal not in SIGNALS:
             raise PlantError(f"signal = {signal!r} is not a signal of the Coulomb feedforward (allowed: "
                              f"{', '.join(SIGNALS)})")
@@ -88,9 +85,7 @@ class Deadband:
     name = "deadband"
 
     def __init__(self, d):
-        if isinstance(d, bool) or not isinstance(d, (int, float)) or not (math.isfinite(d) and d >= 0.0):
-            raise PlantError(f"d = {d!r} is out of range: the error band of the integrator deadband, a finite "
-                             "number at least 0")
+        check("d", d, lambda: d >= 0.0, "the error band of the integrator deadband, a finite number at least 0")
         self.d = float(d)
 
     def __repr__(self):

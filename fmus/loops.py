@@ -46,7 +46,8 @@ class FeedbackLoop(HybridSolver):
     (a dict) and ``budget`` (a :class:`~.hybrid.Budget`) are shared by the
     solvers of one study. ``compensation``: a compensator between the
     controller and the plant (:class:`~.compensation.Coulomb`,
-    :class:`~.compensation.Reset`), a list of them, or None.
+    :class:`~.compensation.Reset`, :class:`~.compensation.Deadband`), a list
+    of them, or None.
     """
 
     coordinates = ()
@@ -158,7 +159,8 @@ class FeedbackLoop(HybridSolver):
         return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
 
     def mode(self, key):
-        """The mode of plant key ``key``; with the controller's sign compensated, of ``key`` at the current sign."""
+        """The mode of plant key ``key``; with a compensator's discrete state (the controller's sign, the
+        deadband's side), of ``key`` at the current one."""
         return super().mode((key, self.sigma, self.band) if self._discrete else key)
 
     def slip(self, key):

@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from dfwb.fmus.compensation import Coulomb
+from dfwb.fmus.compensation import Coulomb, Deadband
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.loops import STICK
@@ -77,6 +77,9 @@ def test_the_controllers_feedforward_acts_on_a_stuck_mass():
     (lambda: Coulomb(math.nan), "F_hat = nan is out of range"),
     (lambda: Coulomb(True), "F_hat = True is out of range"),
     (lambda: Coulomb(1.0, "position"), "signal = 'position' is not a signal"),
+    (lambda: Coulomb(10 ** 400), "F_hat = 1000.* is out of range"),
+    (lambda: Deadband(-0.1), "d = -0.1 is out of range"),
+    (lambda: Deadband(10 ** 400), "d = 1000.* is out of range"),
     (lambda: FrictionLoop(*PI, compensation="coulomb"), "is not a compensator of the loop"),
 ])
 def test_a_bad_compensator_is_one_line(make, message):

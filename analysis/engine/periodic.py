@@ -227,8 +227,9 @@ class LoopProblem:
         the core cannot be built, the Python loop (``dfwb.fmus.loops``) runs.
     budget : dfwb.fmus.hybrid.Budget, optional
         A budget shared with other problems (a continuation's), instead of one of ``max_chunks``.
-    compensation : dfwb.fmus.compensation.Coulomb, optional
-        A compensator between the controller and the plant; for now the Python loop runs it.
+    compensation : compensator or list of them, optional
+        ``Coulomb``, ``Reset``, ``Deadband`` of :mod:`dfwb.fmus.compensation`, between the controller and the
+        plant; for now the Python loop runs them.
     """
 
     def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS, fmu_dir=None, budget=None, compensation=None):

@@ -231,7 +231,8 @@ class _Friction(_Loop):
 
         left, right = null_space(self.Ac.T), null_space(self.Ac)
         if left.shape[1] != 1 or right.shape[1] != 1:
-            raise PlantError("the integrator reset needs a controller with one integrator (a simple pole at 0)")
+            raise PlantError("integrator management (reset, deadband) needs a controller with one integrator (a "
+                             "simple pole at 0)")
         w = left[:, 0] / (left[:, 0] @ self.Bc)
         e = right[:, 0] / (w @ right[:, 0])
         return w, e
