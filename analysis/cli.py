@@ -349,7 +349,8 @@ def cmd_limit_cycle(args):
     response = limit_cycles(_plant(args), _controller(args), F_range=args.F_range, omega_range=args.omega_range,
                             n_F=args.map_size[0], n_omega=args.map_size[1], exact=args.exact, verify=args.verify,
                             samples_per_period=args.samples_per_period, fmu_dir=args.fmus, progress=not args.json,
-                            rtol=args.rtol, timeout=args.timeout, **_params(args, limit_cycles))
+                            rtol=args.rtol, timeout=args.timeout, compensate=args.compensate,
+                            **_params(args, limit_cycles))
     return _answer(args, response, plot)
 
 
@@ -397,7 +398,7 @@ def cmd_continue(args):
         ranges["samples"] = args.samples
     response = continuation(own or args.plant, _controller(args), name, *bounds, sources=sources,
                             max_points=args.max_points, fmu_dir=args.fmus, progress=not args.json, **ranges,
-                            **_params(args, continuation))
+                            compensate=args.compensate, **_params(args, continuation))
     return _answer(args, response, plot)
 
 
@@ -416,7 +417,7 @@ def cmd_map(args):
     response = hunting_map(own or args.plant, _controller(args), *axes, out_dir=out, jobs=args.jobs, dask=args.dask,
                            cache=_cache(args), fmu_dir=args.fmus, curves=not args.no_curves,
                            resume=not args.no_resume, progress=not (args.json or args.quiet), **ranges,
-                           **_params(args, hunting_map))
+                           compensate=args.compensate, **_params(args, hunting_map))
     return _answer(args, response)
 
 
@@ -427,7 +428,7 @@ def cmd_margin(args):
     own, ranges = _own_fmu_ranges(args)
     response = limit_cycle_margin(own or args.plant, _controller(args), k_range=tuple(args.k_range),
                                   count=args.count, fmu_dir=args.fmus, progress=not args.json, **ranges,
-                                  **_params(args, limit_cycle_margin))
+                                  compensate=args.compensate, **_params(args, limit_cycle_margin))
     return _answer(args, response, plot)
 
 
@@ -666,7 +667,11 @@ def parser():
         command.add_argument("--den", type=float, nargs="+", action="extend",
                              help="controller denominator coefficients")
         command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
-                             help="parameters of G and of the plant (e.g. Fs=8 Kp=10 for G = 'Kp + Ki/s')")
+                             help="parameters of G, of the plant and of the compensators (e.g. Fs=8 Kp=10 for "
+                                  "G = 'Kp + Ki/s', F_hat=3 signal=control)")
+        command.add_argument("--compensate", nargs="+", action="extend", metavar="NAME",
+                             help="compensators between G and the plant, judged by the exact loop with their "
+                                  "cost: coulomb (F_hat, signal = velocity or control), deadband (d), reset")
 
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
     controller_options(cycle, own=True)

@@ -112,6 +112,8 @@ def integrator(a):
     a_(n-1) != 0; a_0 = 1)."""
     a = list(a)
     if not a or a[-1] != 0.0 or (len(a) > 1 and a[-2] == 0.0):
+        has = "none" if not a or a[-1] != 0.0 else "a double one"
         raise PlantError("integrator management (reset, deadband) needs a controller with one integrator, a "
-                         f"simple pole at 0 (its denominator's a_n = 0 and a_(n-1) != 0): a = {a!r}")
+                         f"simple pole at s = 0: this G(s) has {has} (its denominator's coefficients after s^n: "
+                         f"{a!r})")
     return list(reversed(a[:-1])) + [1.0]

@@ -14,12 +14,17 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
+from collections import deque
+
 from .compensation import compensators, integrator
 from .contract import EventKind
 from .exact import PlantError
 from .hybrid import HybridSolver
 from .linear_system import LinearSystem
 from .piecewise import check
+
+MAX_SWITCHES = 1000  # the Coulomb feedforward chatters when it switches this many times in a row (no event of
+CHATTER_CHUNKS = 10.0  # the plant between), or within this many chunks of the loop's fastest mode
 
 __all__ = ["FeedbackLoop", "STICK", "FREE"]
 
@@ -117,6 +122,8 @@ class FeedbackLoop(HybridSolver):
             raise PlantError(f"the integrator reset needs a plant that comes to rest; {type(self).__name__} "
                              "has no such event")
         self.sigma = 0
+        self._switches = deque(maxlen=MAX_SWITCHES)  # the times of the feedforward's last switches
+        self._in_row = 0  # ... since the plant's last event
         self.band = 1  # the deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d
         self._discrete = self._on_control or self.deadband is not None  # modes cached by (key, sigma, band)
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
@@ -157,6 +164,13 @@ class FeedbackLoop(HybridSolver):
         """f = -G(s) y: D y + C z at the state X."""
         m = len(self.coordinates)
         return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
+
+    def applied(self, X):
+        """The force on the plant at X: the controller's and the compensator's (constant in the mode)."""
+        k = 0.0
+        if self.coulomb is not None and self.coulomb.F_hat > 0.0:
+            k = self.coulomb.F_hat * (self.sigma if self._on_control else self.slip(self.key))
+        return self.force(X) + k
 
     def mode(self, key):
         """The mode of plant key ``key``; with a compensator's discrete state (the controller's sign, the
@@ -236,6 +250,7 @@ class FeedbackLoop(HybridSolver):
             self.band = 0 if self.band else (1 if y > 0.0 else -1)
             return self.key, X, None
         if kind is not EventKind.COULOMB:
+            self._in_row = 0
             if self._reset_at_rest and kind in self.REST_EVENTS:
                 self._reset(X)  # the controller's force jumps: the feedforward of its sign follows it
                 if self._on_control:
@@ -244,6 +259,15 @@ class FeedbackLoop(HybridSolver):
             if self._on_control and self.sigma == 0:
                 self.sigma = self._control_sign(key, X)
             return key, X, departing
+        self._switches.append(t)
+        self._in_row += 1
+        fastest = min(mode.resolution for mode in self._modes.values())
+        if self._in_row >= MAX_SWITCHES or (len(self._switches) == MAX_SWITCHES
+                                            and t - self._switches[0] < CHATTER_CHUNKS * fastest):
+            raise PlantError(f"the Coulomb feedforward of the controller's sign switched {MAX_SWITCHES} times from "
+                             f"t = {self._switches[0]!r} to {t!r} s" + (", with no event of the plant between" if
+                                                                       self._in_row >= MAX_SWITCHES else "")
+                             + ": it chatters (it over-compensates the friction); not solved")
         self.sigma = self._control_sign(self.key, X)
         return self.settle(self.key, X)
 

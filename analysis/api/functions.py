@@ -195,7 +195,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
                  samples_per_period: int = JUDGE_SAMPLES, amplitudes: Optional[Sequence[float]] = None,
                  fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                  rtol: Optional[float] = None, timeout: Optional[float] = None,
-                 **params: float) -> LimitCycleResponse:
+                 compensate: Union[None, str, Sequence[str]] = None, **params: float) -> LimitCycleResponse:
     """The limit cycles of a plant under negative feedback through a controller G(s).
 
     Solves the harmonic balance ``1 + G(jw) N(F, w) = 0`` in both unknowns F and w:
@@ -239,8 +239,15 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
         Show progress while the map and the search run.
     rtol, timeout : float, optional, keyword-only
         Your FMU only: as for :func:`describing_function` (the map runs 1000 times looser).
+    compensate : str or list of str, optional, keyword-only
+        Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
+        parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
+        integrator holds while |y| < ``d``) and ``"reset"`` (the integrator cleared when the mass comes
+        to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
+        A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`):
+        ``exact`` is required.
     **params : float
-        Plant parameters (``eps=0.2``) and G's parameters (``Kp=10``).
+        Plant parameters (``eps=0.2``), G's (``Kp=10``) and the compensators' (``F_hat=3``).
 
     Returns
     -------
@@ -264,6 +271,12 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     >>> hunting = dfwb.limit_cycles("friction", "Kp + Ki/s", exact=True, Kp=10, Ki=2)
     >>> hunting.predictions, [(round(c.period, 4), round(c.amplitude_x, 5)) for c in hunting.cycles]
     ([], [(57.2628, 0.23665)])
+
+    An integrator deadband of 0.2 m stops that hunting, at a price: the mass stops short of its target.
+
+    >>> quiet = dfwb.limit_cycles("friction", "Kp + Ki/s", exact=True, compensate="deadband", Kp=10, Ki=2, d=0.2)
+    >>> quiet.cycles, round(quiet.cost.standing_error, 4)
+    ([], 0.1415)
     """
     from dfwb.foreign.engine import engine_for
     from dfwb.studies.limit_cycles import analyse
@@ -279,7 +292,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     with _reporter(f"limit cycles of {spec.name}", progress) as report:
         return analyse(spec, G, params, F_range=F_range, omega_range=omega_range, n_F=n_F, n_omega=n_omega,
                        exact=exact, verify=verify, samples_per_period=samples_per_period, amplitudes=amplitudes,
-                       fmu_dir=fmu_dir, engine=engine, progress=report if progress else None)
+                       fmu_dir=fmu_dir, engine=engine, progress=report if progress else None, compensate=compensate)
 
 
 def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, *,
@@ -288,7 +301,8 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
                  progress: bool = False, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
                  n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None,
                  timeout: Optional[float] = None,
-                 samples: int = 11, **params: float) -> ContinuationResponse:
+                 samples: int = 11, compensate: Union[None, str, Sequence[str]] = None,
+                 **params: float) -> ContinuationResponse:
     """Limit cycles followed in one parameter, with their bifurcations: which values make the loop hunt.
 
     The true cycles the systematic search finds at the range's ends (and at ``starts``), and the DF's
@@ -327,6 +341,13 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
         Your FMU only: as for :func:`limit_cycle_margin` (the ranges are required).
     samples : int, keyword-only
         Your FMU only: the values where its true cycles are searched (2 to 1000).
+    compensate : str or list of str, optional, keyword-only
+        Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
+        parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
+        integrator holds while |y| < ``d``) and ``"reset"`` (the integrator cleared when the mass comes
+        to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
+        A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`); the
+        parameter followed may be a compensator's.
     **params : float
         The other parameters of G and of the plant.
 
@@ -351,7 +372,7 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
         return follow(spec, G, parameter, start, stop, params, sources=sources, max_points=max_points,
                       starts=starts, fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
                       omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
-                      rtol=rtol, timeout=timeout, samples=_integer("samples", samples))
+                      rtol=rtol, timeout=timeout, samples=_integer("samples", samples), compensate=compensate)
 
 
 def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Union[str, Path]] = None,
@@ -360,7 +381,7 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
                 fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                 F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None, n_F: int = DF_MAP_SIZE[0],
                 n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None, timeout: Optional[float] = None,
-                **params: float) -> HuntingMapResponse:
+                compensate: Union[None, str, Sequence[str]] = None, **params: float) -> HuntingMapResponse:
     """Which settings of two parameters make the machine hunt: a map, by the truth and by the DF.
 
     Each cell of the grid ``x`` by ``y`` is classified by the exact loop's systematic search (hunts with a
@@ -401,6 +422,13 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     progress : bool, keyword-only
     F_range, omega_range, n_F, n_omega, rtol, timeout : keyword-only
         Your FMU only: as for :func:`limit_cycle_margin` (the ranges are required).
+    compensate : str or list of str, optional, keyword-only
+        Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
+        parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
+        integrator holds while |y| < ``d``) and ``"reset"`` (the integrator cleared when the mass comes
+        to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
+        A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`): each
+        cell's cost stands where its DF verdict would, and an axis may be a compensator's parameter.
     **params : float
         The other parameters of G and of the plant.
 
@@ -427,14 +455,15 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
         return run_map(spec, G, x, y, params, out_dir=out_dir, jobs=jobs, dask=dask, cache=cache, fmu_dir=fmu_dir,
                        amplitudes=amplitudes, curves=curves, resume=resume, progress=report if progress else None,
                        F_range=F_range, omega_range=omega_range, n_F=_integer("n_F", n_F),
-                       n_omega=_integer("n_omega", n_omega), rtol=rtol, timeout=timeout)
+                       n_omega=_integer("n_omega", n_omega), rtol=rtol, timeout=timeout, compensate=compensate)
 
 
 def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: int = K_COUNT, df: bool = True,
                        fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                        F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
                        n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], rtol: Optional[float] = None,
-                       timeout: Optional[float] = None, **params: float) -> MarginResponse:
+                       timeout: Optional[float] = None, compensate: Union[None, str, Sequence[str]] = None,
+                       **params: float) -> MarginResponse:
     """The limit-cycle margin of a controller: the gain factors k for which k G makes the machine hunt.
 
     "How much more gain can I use before it hunts?": ``count`` gain factors log-spaced over ``k_range`` are
@@ -467,8 +496,11 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
         Your FMU only: the DF map's size (as for :func:`limit_cycles`).
     rtol, timeout : float, optional, keyword-only
         Your FMU only: as for :func:`describing_function`.
+    compensate : str or list of str, optional, keyword-only
+        Compensators between the controller and the plant (as for :func:`limit_cycles`): the truth's margin
+        alone then.
     **params : float
-        G's and the plant's parameters.
+        G's, the plant's and the compensators' parameters.
 
     Returns
     -------
@@ -492,7 +524,7 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
         return gain_margin(spec, G, params, k_range=k_range, count=_integer("count", count), df=df,
                            fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
                            omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
-                           rtol=rtol, timeout=timeout)
+                           rtol=rtol, timeout=timeout, compensate=compensate)
 
 
 def _reporter(title, enabled):

@@ -21,7 +21,8 @@ import copy
 import inspect
 import math
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import InputError, PlantError
+from dfwb.engine.compensators import CHOICES, Compensation, choice
 from dfwb.plants import plant as find_plant
 
 
@@ -124,9 +125,12 @@ class LoopFamily:
         Values of G's parameters and of the plant's (``{"Kp": 10, "Fs": 8}``).
     free : iterable of str
         Parameters that take their values later (a continuation's, a map's axes): they need none now.
+    compensate : str or list of str, optional
+        Compensators between the controller and the plant (:mod:`dfwb.engine.compensators`), whose
+        parameters (``F_hat``, ``d``, the choice ``signal``) are named and valued like G's.
     """
 
-    def __init__(self, plant, G, values=None, free=()):
+    def __init__(self, plant, G, values=None, free=(), compensate=None):
         from dfwb.engine.transfer import TransferFamily
 
         self.spec = spec = find_plant(plant)
@@ -141,24 +145,44 @@ class LoopFamily:
         clash = [name for name in self.controller.names if name in self.plant_names]
         if clash:
             raise InputError(f"{clash[0]} is both a parameter of G(s) and of the {spec.name} plant: rename it in G")
-        self.names = tuple(self.controller.names) + self.plant_names
+        self.compensation = Compensation(compensate)
+        if self.compensation and spec.loop is None:
+            raise InputError(f"compensate: plant {spec.name!r} has no exact closed loop, where compensators act")
+        clash = [name for name in self.compensation.names if name in self.controller.names + self.plant_names]
+        if clash:
+            raise InputError(f"{clash[0]} is both a parameter of a compensator and of G(s) or the {spec.name} "
+                             "plant: rename it in G")
+        self.names = tuple(self.controller.names) + self.plant_names + self.compensation.names
         self.built = isinstance(self.controller, _Built)  # G is a Python function (it stays in this process)
         values = dict(values or {})
         self.values = {}
         for name, value in values.items():
             self.check_name(name)
-            self.values[name] = number(name, value)
+            self.values[name] = self._value(name, value)
         free = tuple(free)
         for name in free:
             self.check_name(name)
+            if name in CHOICES:
+                raise InputError(f"{name} is a choice ({', '.join(CHOICES[name])}), not a number: set it, it "
+                                 "cannot be followed or mapped")
         missing = [name for name in self.controller.names if name not in self.values and name not in free]
         if missing:
             raise InputError(f"G(s) = {self.controller.text}: the parameter {missing[0]} is given no value "
                              f"(set it, e.g. {missing[0]}=1)")
+        missing = [name for name in self.compensation.names
+                   if self.compensation.numeric(name) and name not in self.values and name not in free]
+        if missing:
+            raise InputError(f"compensate: the parameter {missing[0]} is given no value (set it, e.g. "
+                             f"{missing[0]}=1)")
         spec.check({k: v for k, v in self.values.items() if k in self.plant_names})
         self._linear = {}  # plant parameters -> the linear plant's (num, den) polynomials
-        if not any(name in free for name in self.controller.names):
+        if not any(name in free for name in self.controller.names + self.compensation.names):
             self.check()  # every value given: refuse an improper or degenerate G now, before anything runs
+
+    @staticmethod
+    def _value(name, value):
+        """A value given for ``name``: a choice's among its allowed, else a finite number."""
+        return choice(name, value) if name in CHOICES else number(name, value)
 
     def check_name(self, name):
         """Refuse a name that is no parameter of G or of the plant (or is s)."""
@@ -166,14 +190,16 @@ class LoopFamily:
             raise InputError("s is the variable of G(s), not a parameter: name the parameter otherwise")
         if name not in self.names:
             allowed = ", ".join(self.names)
-            raise InputError(f"unknown parameter {name!r}: G's and the {self.spec.name} plant's are {allowed}")
+            whose = f"G's, the {self.spec.name} plant's and the compensators'" if self.compensation else \
+                f"G's and the {self.spec.name} plant's"
+            raise InputError(f"unknown parameter {name!r}: {whose} are {allowed}")
 
     def merged(self, values=None):
         """The values given, updated by ``values`` (checked as numbers)."""
         merged = dict(self.values)
         for name, value in (values or {}).items():
             self.check_name(name)
-            merged[name] = number(name, value)
+            merged[name] = self._value(name, value)
         return merged
 
     def _complete(self, values):
@@ -200,6 +226,8 @@ class LoopFamily:
             num, den = checked(merged)
         if self.spec.loop is not None:  # the exact closed loop is built of it
             check_loop_controller(num, den, self.controller.text)
+        if self.compensation:  # the compensators' values, and whether they fit this plant and controller
+            self.problem(values)
 
     def coefficients(self, values=None):
         """(num, den) of G at the values, highest power first: an expression's without building a checked
@@ -219,7 +247,15 @@ class LoopFamily:
         """The :class:`~dfwb.engine.periodic.LoopProblem` at the values."""
         from dfwb.engine.periodic import LoopProblem
 
-        return LoopProblem(self.spec.name, self.G(values), self.params(values), fmu_dir=fmu_dir, budget=budget)
+        return LoopProblem(self.spec.name, self.G(values), self.params(values), fmu_dir=fmu_dir, budget=budget,
+                           compensation=self.compensators(values))
+
+    def compensators(self, values=None):
+        """The loop's compensators at the values (:mod:`dfwb.fmus.compensation`), or None without any."""
+        try:
+            return self.compensation.build(self.merged(values))
+        except PlantError as error:
+            raise InputError(str(error)) from None
 
     def scaled(self, name):
         """The family of ``name`` * G: the gain factor a free parameter (refused if G or the plant has it)."""
@@ -264,4 +300,5 @@ class LoopFamily:
     def describe(self, values=None):
         """The values as one short text: ``Kp = 10, Ki = 2, Fs = 8``."""
         merged = self.merged(values)
-        return ", ".join(f"{name} = {merged[name]:.6g}" for name in self.names if name in merged)
+        return ", ".join(f"{name} = {merged[name]:.6g}" if name not in CHOICES else f"{name} = {merged[name]}"
+                         for name in self.names if name in merged)

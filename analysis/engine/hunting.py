@@ -19,10 +19,12 @@ from dfwb.base.errors import DfwbError
 from dfwb.base.values import conforms, positive
 from dfwb.engine.scales import linear_poles, search_ranges
 
-CLASSES = ("stable", "unstable", "diverges", "none", "incomplete")
+CLASSES = ("stable", "unstable", "diverges", "none", "incomplete", "uncomputed")
 LABELS = {"stable": "hunts (a stable cycle)", "unstable": "only unstable cycles",
           "diverges": "diverges (from some starts)", "none": "no cycle in the range searched",
-          "incomplete": "not settled (the work budget ran out, or runs failed)"}
+          "incomplete": "not settled (the work budget ran out, or runs failed)",
+          "uncomputed": "not computed (no DF of a compensated loop)"}
+UNCOMPUTED = {"class": "uncomputed", "predictions": []}  # a compensated loop's DF verdict
 MAP_AMPLITUDES = 5  # start amplitudes per cell (1 per decade over the default span)
 GRID = (24, 64)  # the shared DF map: forces x frequencies
 
@@ -34,6 +36,9 @@ CELL = {"x": float, "y": float, "linear": {"stable": (bool, None), "max_real_pol
                   "coverage": {"starts": int, "outcomes": {str: int}, "complete": bool}},
         "df": {"class": frozenset(CLASSES), "predictions": [{"F": positive, "omega": positive,
                                                              "amplitude_x": positive, "stable": bool}]}}
+COST = {"step": positive, "horizon": positive, "standing_error": (float, None), "settling_time": (float, None),
+        "overshoot": (float, None), "peak_force": (float, None), "rms_force": (float, None), "note": str}
+COMPENSATED_CELL = dict(CELL, cost=COST)  # a compensated loop's cell: its cost (the DF uncomputed)
 
 
 @dataclass
@@ -132,7 +137,8 @@ def _cycle(c):
 def valid_cell(cell):
     """Whether ``cell`` (read back from a file or a cache) has the shape :func:`classify` gives, at a point
     (x, y): a crafted or damaged cell is recomputed, never drawn or counted."""
-    return conforms(cell, CELL) or conforms(cell, {"error": str, "x": float, "y": float})
+    return (conforms(cell, CELL) or conforms(cell, COMPENSATED_CELL)
+            or conforms(cell, {"error": str, "x": float, "y": float}))
 
 
 def hunting(cell, source="truth"):

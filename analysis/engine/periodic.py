@@ -229,7 +229,7 @@ class LoopProblem:
         A budget shared with other problems (a continuation's), instead of one of ``max_chunks``.
     compensation : compensator or list of them, optional
         ``Coulomb``, ``Reset``, ``Deadband`` of :mod:`dfwb.fmus.compensation`, between the controller and the
-        plant; for now the Python loop runs them.
+        plant; for now the Python loop runs them (the compiled core has no compensators yet).
     """
 
     def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS, fmu_dir=None, budget=None, compensation=None):
@@ -464,8 +464,9 @@ class LoopProblem:
                          trace=trace)
 
     def df_note(self, F, omega):
-        """Why no describing function represents a cycle of first-harmonic force F at omega ("" if one can)."""
-        if not self.probe.still(F, omega):
+        """Why no describing function represents a cycle of first-harmonic force F at omega ("" if one can; a
+        compensated loop has no DF to speak of)."""
+        if self.compensation is not None or not self.probe.still(F, omega):
             return ""
         kind, size = self.probe.nonlinearity()
         what = f"the threshold {size:.6g} N" if kind == "force" else "the size at which the plant's output moves"

@@ -241,7 +241,7 @@ def limit_cycle_plane(ax, G, F_grid, omega_grid, N_grid, cycles, curves=6, true_
     fine = np.geomspace(omega_grid[0], omega_grid[-1], 600)
     Gjw = np.array([complex(G(1j * w)) for w in fine])
     lines = ax.plot(Gjw.real, Gjw.imag, "k", lw=2, label="G(jw)")
-    rows = np.unique(np.linspace(0, len(F_grid) - 1, curves).astype(int))
+    rows = np.unique(np.linspace(0, len(F_grid) - 1, curves).astype(int)) if len(F_grid) else []  # (none: no DF)
     for i in rows:
         N = np.asarray(N_grid[i])
         keep = N != 0
@@ -376,6 +376,7 @@ def bifurcation_diagram(ax, response):
 CLASS_COLOURS = {"unstable": "#f4a261", "diverges": "#3a3a3a", "none": "#f2f2f2", "incomplete": "#bdbdbd",
                  "error": "#e63946"}
 CURVE_STYLES = {"truth": "-", "df": "--"}
+NO_REST = "#f4b6c2"  # a compensated map's cost panel: a cell whose step response does not come to rest
 
 
 def hunting_map(response, axes=None):
@@ -390,21 +391,31 @@ def hunting_map(response, axes=None):
     xs, ys = np.asarray(response.xs), np.asarray(response.ys)
     dx, dy = (xs[-1] - xs[0]) / max(len(xs) - 1, 1), (ys[-1] - ys[0]) / max(len(ys) - 1, 1)
     extent = (xs[0] - dx / 2, xs[-1] + dx / 2, ys[0] - dy / 2, ys[-1] + dy / 2)
+    compensated = response.compensated  # its second panel: the cost, not the DF
     amplitudes = [c["amplitude_x"] for row in response.cells for cell in row for source in ("truth", "df")
                   if source in cell for c in [hunting(cell, source)] if c is not None]
     norm = colors.LogNorm(min(amplitudes), max(amplitudes) * (1.0 + 1e-9)) if amplitudes else None
     cmap = plt.get_cmap("viridis")
     image = None
     for ax, source, title in ((axes[0], "truth", "the truth: the exact loop's cycles"),
-                              (axes[1], "df", "the describing function's predictions")):
-        rgba = np.zeros((len(ys), len(xs), 4))
-        for j, row in enumerate(response.cells):
-            for i, cell in enumerate(row):
-                kind = cell[source]["class"] if source in cell else "error"
-                best = hunting(cell, source) if kind == "stable" else None
-                rgba[j, i] = cmap(norm(best["amplitude_x"])) if best is not None else colors.to_rgba(
-                    CLASS_COLOURS.get(kind, "w"))
-        ax.imshow(rgba, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
+                              (axes[1], "df", "the cost: the standing error after a step" if compensated else
+                               "the describing function's predictions")):
+        if source == "df" and compensated:
+            error = response.costs("standing_error")
+            shown = ax.imshow(np.ma.masked_invalid(error), origin="lower", extent=extent, aspect="auto",
+                              interpolation="nearest", cmap="cividis")
+            ax.set_facecolor(NO_REST)  # (cells whose step response never rests)
+            ax.figure.colorbar(shown, ax=ax, fraction=0.05, pad=0.02).set_label(
+                f"standing error [{response.unit}] (pink: never at rest)")
+        else:
+            rgba = np.zeros((len(ys), len(xs), 4))
+            for j, row in enumerate(response.cells):
+                for i, cell in enumerate(row):
+                    kind = cell[source]["class"] if source in cell else "error"
+                    best = hunting(cell, source) if kind == "stable" else None
+                    rgba[j, i] = cmap(norm(best["amplitude_x"])) if best is not None else colors.to_rgba(
+                        CLASS_COLOURS.get(kind, "w"))
+            ax.imshow(rgba, origin="lower", extent=extent, aspect="auto", interpolation="nearest")
         linear = response.linear
         growth = np.array([[np.nan if v is None else float(v) for v in row] for row in linear["growth"]], dtype=float)
         if np.isfinite(growth).any() and np.nanmin(growth) < 0.0 < np.nanmax(growth):
@@ -419,7 +430,7 @@ def hunting_map(response, axes=None):
         ax.set_ylim(extent[2], extent[3])
         image = image or plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     axes[0].set_ylabel(response.y)
-    shown = set(response.classes("truth").ravel()) | set(response.classes("df").ravel())
+    shown = set(response.classes("truth").ravel()) | (set() if compensated else set(response.classes("df").ravel()))
     handles = [Patch(color=CLASS_COLOURS[k], label=LABELS.get(k, "the plant or G refuses the values"))
                for k in ("unstable", "diverges", "none", "incomplete", "error") if k in shown or k == "none"]
     if response.linear["growth"]:  # (a user's FMU has no linear loop dfwb knows)
@@ -431,7 +442,7 @@ def hunting_map(response, axes=None):
     figure = axes[0].figure
     figure.legend(handles=handles, fontsize=9, loc="outside lower center", ncol=min(len(handles), 3))
     if norm is not None:
-        bar = figure.colorbar(image, ax=list(axes), fraction=0.04, pad=0.02)
+        bar = figure.colorbar(image, ax=axes[0] if compensated else list(axes), fraction=0.04, pad=0.02)
         bar.set_label(f"hunts: first-harmonic amplitude of the output [{response.unit}]")
     axes[0].figure.suptitle(f"{response.plant} under G = {response.G}: where it hunts", fontsize=12)
     return axes

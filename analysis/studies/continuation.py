@@ -64,7 +64,7 @@ def check_somewhere(family, settings, where):
 
 def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, max_points=BRANCH_POINTS, starts=None,
            fmu_dir=None, progress=None, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
-           rtol=None, timeout=None, samples=SAMPLES):
+           rtol=None, timeout=None, samples=SAMPLES, compensate=None):
     """The branches of true cycles and of DF predictions over ``parameter`` in [start, stop], with bifurcations.
 
     ``values``: G's and the plant's other parameters; ``starts``: parameter values where cycles and
@@ -73,7 +73,9 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     A user's model-exchange FMU (an FMUPlant or an .fmu path) has its DF predictions followed, found on
     its DF map over ``F_range`` x ``omega_range`` (``n_F`` x ``n_omega``) at the start values, and its
     true cycles searched at ``samples`` values of the range and joined into branches
-    (:mod:`dfwb.foreign.continuation`: their changes bracketed by the samples).
+    (:mod:`dfwb.foreign.continuation`: their changes bracketed by the samples). ``compensate``: compensators
+    in the loop (:mod:`dfwb.engine.compensators`), whose parameters may be the one followed; a compensated
+    loop's true cycles are followed, its DF is not computed (said in the notes).
     """
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.describing import F_RANGE, DFEngine
@@ -84,15 +86,23 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         plant = fmu_plant(plant)
     if parameter in (values or {}):
         raise InputError(f"{parameter} is the parameter followed: give its range, not a value for it")
-    family = LoopFamily(plant, G, values, free=(parameter,) if isinstance(parameter, str) else ())
+    family = LoopFamily(plant, G, values, free=(parameter,) if isinstance(parameter, str) else (),
+                        compensate=compensate)
     name, bounds = check_parameter(family, parameter, start, stop)
     sources = _sources(sources)
+    uncomputed = []
+    if family.compensation and "df" in sources:
+        sources = tuple(source for source in sources if source != "df")
+        uncomputed.append("the DF of a compensated loop is not computed: its true cycles alone are followed")
+        if not sources:
+            raise InputError("compensate: a compensated loop is followed by its truth (sources = 'truth'): the DF "
+                             "of a compensated loop is not computed")
     if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 10_000:
         raise InputError(f"max_points = {max_points!r}: an integer from 2 to 10000 (points per branch)")
     at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
     check_somewhere(family, [{name: value} for value in at],
                     "both ends of the range" if starts is None else "every start value")
-    searches, notes, cycle_starts, prediction_starts, ranges = [], [], [], [], []
+    searches, notes, cycle_starts, prediction_starts, ranges = [], uncomputed, [], [], []
     foreign = getattr(family.spec, "foreign", False)
     if foreign:
         engine, fixed = _foreign_engine(family.spec, F_range, omega_range, n_F, n_omega, rtol, timeout)
@@ -165,7 +175,7 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         more, found = continue_predictions(family, name, bounds, prediction_starts, engine, F_range, max_points)
         branches += more
         bifurcations += found
-    return ContinuationResponse(plant=family.spec.name, G=_text(G), parameter=name, range=list(bounds),
+    return ContinuationResponse(plant=family.spec.name, G=_text(G, family), parameter=name, range=list(bounds),
                                 values=family.merged(), branches=branches,
                                 bifurcations=sorted(bifurcations, key=lambda b: (b.source, b.parameter)),
                                 searches=searches, notes=notes, unit=family.spec.unit)
@@ -211,8 +221,10 @@ def _starts(starts, bounds):
     return values
 
 
-def _text(G):
-    """G as text for reports: the expression, or num/den."""
+def _text(G, family=None):
+    """G as text for reports: the expression, or num/den; with the compensators of ``family``, if any."""
+    if family is not None and family.compensation:
+        return f"{_text(G)}, compensated by {', '.join(family.compensation.kinds)}"
     if isinstance(G, str):
         return G
     if getattr(G, "num", None) is not None:

@@ -32,6 +32,7 @@ from dfwb.base.runlog import RunLog
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.hunting import (
     MAP_AMPLITUDES,
+    UNCOMPUTED,
     DFMap,
     classify,
     df_map_for,
@@ -43,7 +44,7 @@ from dfwb.engine.hunting import (
 from dfwb.foreign.hunting import no_fmu_options
 from dfwb.foreign.plant import fmu_plant, is_fmu_path
 from dfwb.studies.cache import code_revision, digest, finite, fmu_revision, open_cache, solver_revision
-from dfwb.studies.continuation import check_parameter, check_somewhere
+from dfwb.studies.continuation import _text, check_parameter, check_somewhere
 from dfwb.studies.executor import Executor, cached_engine
 from dfwb.studies.responses import HuntingMapResponse
 
@@ -68,13 +69,14 @@ class MapChunk:
     cells: tuple
     dfmap: object
     amplitudes: int
+    compensate: tuple = ()
 
 
 def compute_cells(chunk, fmu_data=None):
     """(code revision, the classified cells) of a chunk; a cell that cannot be computed says why."""
     engine = cached_engine(chunk.plant, chunk.fmu, (), fmu_data)
     G = chunk.G if not isinstance(chunk.G, tuple) else (list(chunk.G[0]), list(chunk.G[1]))
-    family = LoopFamily(chunk.plant, G, dict(chunk.values), free=chunk.axes)
+    family = LoopFamily(chunk.plant, G, dict(chunk.values), free=chunk.axes, compensate=chunk.compensate)
     dfmap = None
     if chunk.dfmap is not None:
         F, omega, re, im = (np.array(part) for part in chunk.dfmap)
@@ -86,7 +88,11 @@ def compute_cells(chunk, fmu_data=None):
         try:
             problem = family.problem(values, fmu_dir)
             amplitudes = problem.scales.amplitudes(chunk.amplitudes)
-            cell = classify(problem, engine, dfmap, amplitudes)
+            cell = classify(problem, engine, dfmap, amplitudes, df=not family.compensation)
+            if family.compensation:  # no DF of a compensated loop: its cost instead
+                from dfwb.engine.cost import step_cost
+
+                cell.update(df=UNCOMPUTED, cost=step_cost(problem).as_dict())
         except DfwbError as error:
             cell = {"error": " ".join(str(error).split())}
         cells.append(dict(cell, x=x, y=y))
@@ -122,7 +128,7 @@ def _row(cell, key):
 
 def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, cache=False, fmu_dir=None,
             amplitudes=None, curves=True, resume=True, progress=None, own_folder=False, F_range=None,
-            omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1], rtol=None, timeout=None):
+            omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1], rtol=None, timeout=None, compensate=None):
     """The hunting map of ``plant`` under ``G`` over the axes ``x`` and ``y`` (each (NAME, START, STOP, N)).
 
     Returns a :class:`~dfwb.studies.responses.HuntingMapResponse`; see :func:`dfwb.hunting_map`.
@@ -130,7 +136,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     instead of being refused. A user's FMU (an FMUPlant or an .fmu path) has its cells classified here
     (:func:`dfwb.foreign.hunting.cells`, the FMU's own workers), with ``F_range`` and
     ``omega_range`` (required) and ``n_F`` x ``n_omega`` for its DF map, ``rtol`` and ``timeout``; it has no
-    linear loop nor bifurcation curves dfwb could draw.
+    linear loop nor bifurcation curves dfwb could draw. ``compensate``: compensators in the loop, whose
+    parameters may be axes; each cell then has the truth and the loop's cost (:mod:`dfwb.engine.cost`), no DF.
     """
     from dfwb.fmi.location import fmu_path
 
@@ -143,7 +150,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
             raise InputError(f"{name} is an axis of the map: give its range, not a value for it")
     if names[0] is not None and names[0] == names[1]:
         raise InputError(f"x and y are both {names[0]}: a map needs two different parameters")
-    family = LoopFamily(plant, G, fixed, free=tuple(n for n in names if isinstance(n, str)))
+    family = LoopFamily(plant, G, fixed, free=tuple(n for n in names if isinstance(n, str)), compensate=compensate)
+    compensate = family.compensation.kinds
     both = all(name in family.plant_names for name in names)  # their ranges may depend on each other (Fc <= Fs)
     (x_name, xs), (y_name, ys) = _axis(family, x, "x", not both), _axis(family, y, "y", not both)
     check_somewhere(family, [{x_name: a, y_name: b} for a in (xs[0], xs[-1]) for b in (ys[0], ys[-1])],
@@ -166,7 +174,7 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
         no_fmu_options(F_range, omega_range, (n_F, n_omega), rtol, timeout)
         fmu = str(fmu_path(spec, fmu_dir))
         engine, revision, own = cached_engine(spec.name, fmu, ()), fmu_revision(fmu), None
-    if not foreign and x_name not in family.plant_names and y_name not in family.plant_names:
+    if not foreign and not compensate and x_name not in family.plant_names and y_name not in family.plant_names:
         # one DF map serves every cell
         try:
             corners = [family.problem({x_name: a, y_name: b}, fmu_dir) for a in (xs[0], xs[-1])
@@ -187,7 +195,7 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
         G_key = num_den(family.G())
         chunk_G = tuple(map(tuple, G_key))
     merged = family.merged()
-    common = {"plant": spec.name, "G": G_key, "values": merged, "amplitudes": count,
+    common = {"plant": spec.name, "G": G_key, "values": merged, "amplitudes": count, "compensate": list(compensate),
               "dfmap": None if shared is None else digest([shared[0], shared[1]])}
     if own is not None:  # a user's FMU: what its cells depend on besides
         common["fmu"] = own
@@ -217,7 +225,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
                     log.append([_row(value, key)])
         pending = [point for point in wanted if point not in cells]
         chunks = [MapChunk(spec.name, fmu, chunk_G, tuple(sorted(merged.items())), (x_name, y_name),
-                           tuple(pending[i:i + CHUNK]), shared, count) for i in range(0, len(pending), CHUNK)]
+                           tuple(pending[i:i + CHUNK]), shared, count, compensate)
+                  for i in range(0, len(pending), CHUNK)]
         done = len(wanted) - len(pending)
         if progress:
             progress("cells", done, len(wanted))
@@ -242,10 +251,10 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     linear = {"x": [], "y": [], "growth": []} if foreign else \
         linear_map(family, x_name, (xs[0], xs[-1]), y_name, (ys[0], ys[-1]), LINEAR_GRID, fmu_dir)
     found_curves = []
-    if curves:
+    if curves and not compensate:  # (the curves' continuation has no compensated loop yet)
         found_curves = fold_curves(family, x_name, xs, y_name, ys, grid, fmu_dir, engine,
                                    progress=None if progress is None else (lambda d, t: progress("curves", d, t)))
-    response = HuntingMapResponse(plant=spec.name, G=family.controller.text, x=x_name, xs=xs, y=y_name, ys=ys,
+    response = HuntingMapResponse(plant=spec.name, G=_text(G, family), x=x_name, xs=xs, y=y_name, ys=ys,
                                   values={k: v for k, v in merged.items() if k not in (x_name, y_name)},
                                   cells=grid, linear=linear, curves=found_curves, unit=spec.unit,
                                   counts={"cells": len(wanted), "computed": len(pending), "cached": hits,

@@ -19,6 +19,8 @@ given (a scene's reads its points from the run and the cache).
 
 import math
 
+import numpy as np
+
 from dfwb.base.defaults import DF_MAP_SIZE, JUDGE_SAMPLES
 from dfwb.base.errors import InputError
 from dfwb.engine.family import LoopFamily
@@ -32,15 +34,24 @@ from dfwb.studies.responses import LimitCycleResponse
 
 def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
             exact=False, verify=False,
-            samples_per_period=JUDGE_SAMPLES, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None):
+            samples_per_period=JUDGE_SAMPLES, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None,
+            compensate=None):
     """The limit cycles of ``plant`` under ``G``: :class:`~dfwb.studies.responses.LimitCycleResponse`.
 
-    ``values``: G's parameters and the plant's; ``progress``: ``progress(stage, done, total)`` or None;
-    the rest as :func:`dfwb.limit_cycles`.
+    ``values``: G's parameters, the plant's and the compensators'; ``progress``: ``progress(stage, done,
+    total)`` or None; the rest as :func:`dfwb.limit_cycles`. A compensated loop (``compensate``) is judged
+    by its truth alone (``exact`` required; the DF of a compensated loop is not computed), with its cost.
     """
+    from dfwb.engine.cost import step_cost
     from dfwb.engine.limit_cycles import search
 
-    family = LoopFamily(plant, G, values)
+    family = LoopFamily(plant, G, values, compensate=compensate)
+    compensated = bool(family.compensation)
+    if compensated and not exact:
+        raise InputError("compensate: a compensated loop is judged by its exact loop: add exact (--exact)")
+    if compensated and verify:
+        raise InputError("compensate: verify co-simulates dfwb's closed-loop FMUs, which have no compensators: "
+                         "leave verify out")
     spec, controller, params = family.spec, family.G(), family.params()
     if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
         raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
@@ -55,9 +66,12 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     if amplitudes is not None:
         amplitudes = _amplitudes(amplitudes)
     engine = engine or engine_for(spec, fmu_dir=fmu_dir)
-    found = search(spec.name, controller, params, F, omega, n_F, n_omega, engine=engine,
-                   progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
-    predictions = found.cycles
+    if compensated:  # no DF: the plant's would predict the uncompensated loop's cycles
+        grids, predictions = (np.zeros(0), np.array(omega, dtype=float), np.zeros((0, 2), complex)), []
+    else:
+        found = search(spec.name, controller, params, F, omega, n_F, n_omega, engine=engine,
+                       progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
+        grids, predictions = (found.F_grid, found.omega_grid, found.N_grid), found.cycles
     verification, runs = [], []
     if verify:
         for i, prediction in enumerate(predictions):
@@ -66,13 +80,15 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
             runs.append((prediction, run))
             if progress:
                 progress("judge", i + 1, len(predictions))
-    search_result = None
+    search_result = cost = None
     if exact and foreign:
         search_result = true_search(engine, controller, params, predictions, amplitudes, F, omega)
     elif exact:
         search_result = _exact(problem, predictions, amplitudes, cache, progress)
+        cost = step_cost(problem)
     return LimitCycleResponse(plant=spec.name, params=params, G=controller, predictions=predictions,
-                              F_grid=found.F_grid, omega_grid=found.omega_grid, N_grid=found.N_grid,
+                              F_grid=grids[0], omega_grid=grids[1], N_grid=grids[2],
+                              compensation=family.compensation.describe(family.merged()), cost=cost,
                               cycles=search_result.cycles if search_result else [],
                               links=search_result.links if search_result else [],
                               coverage=search_result.coverage if search_result else None,
@@ -124,6 +140,7 @@ def _exact(problem, predictions, amplitudes, cache, progress):
 
     key = {"kind": "exact", "code": code_revision(), "solvers": solver_revision(), "plant": problem.spec.name,
            "params": problem.params, "G": num_den(problem.G), "amplitudes": amplitudes,
+           "compensation": repr(problem.compensation),
            "predictions": [[c.F, c.omega, c.amplitude_x] for c in predictions]}
     value = cache.get(key) if cache is not None else None
     if value is None:

@@ -259,6 +259,8 @@ class LimitCycleResponse(_Shown):
     omega_range: list = field(default_factory=list)
     values: dict = field(default_factory=dict)
     unit: str = "m"
+    compensation: str = ""
+    cost: Any = None
 
     @property
     def exact(self):
@@ -293,6 +295,10 @@ class LimitCycleResponse(_Shown):
         if self.exact:
             document["cycles"] = [cycle.as_dict() for cycle in self.cycles]
             document["coverage"] = self.coverage.as_dict()
+        if self.compensation:
+            document["compensation"] = self.compensation
+        if self.cost is not None:
+            document["cost"] = self.cost.as_dict()
         return document
 
     def summary(self) -> str:
@@ -300,7 +306,9 @@ class LimitCycleResponse(_Shown):
         from dfwb.engine.cycles import relative_errors
 
         u = self.unit
-        lines = [f"{len(self.predictions)} limit cycle(s) of {self.plant} predicted by the describing function in "
+        lines = [f"{self.plant} compensated by {self.compensation}: judged by its exact loop (no DF of a "
+                 "compensated loop)" if self.compensation else
+                 f"{len(self.predictions)} limit cycle(s) of {self.plant} predicted by the describing function in "
                  f"F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N, omega {self.omega_range[0]:.4g} to "
                  f"{self.omega_range[1]:.4g} rad/s"]
         for i, c in enumerate(self.predictions):
@@ -335,6 +343,8 @@ class LimitCycleResponse(_Shown):
                 lines.append(f"  [{j}] omega = {c.omega:.10g} rad/s, period {c.period:.10g} s, amplitude "
                              f"{c.amplitude_x:.10g} {u}, F = {c.F:.10g} N, {'stable' if c.stable else 'unstable'} "
                              f"{how}; {which}" + (f"\n      {c.df}" if c.df else ""))
+        if self.cost is not None:
+            lines.append("cost: " + self.cost.summary(u))
         return "\n".join(lines)
 
     def markdown(self) -> str:
@@ -353,7 +363,9 @@ class LimitCycleResponse(_Shown):
             lines.append(f"| {c.F:.6g} | {c.omega:.6g} | {c.amplitude_x:.4g} | {c.stable} | {c.distortion:.3g} "
                          f"| {judged} |")
         if not self.predictions:
-            lines.append(f"| no cycle in F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N | | | | | | | |")
+            lines.append(f"| not computed: no DF of the loop compensated by {self.compensation} | | | | | | | |"
+                         if self.compensation else
+                         f"| no cycle in F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N | | | | | | | |")
         if self.exact:
             lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
                       "multipliers), and the DF's relative errors against them; " + self.coverage.summary(u) + ":", "",
@@ -376,6 +388,8 @@ class LimitCycleResponse(_Shown):
                 lines.append(f"\nPrediction(s) {missed}: no true cycle near them ("
                              + ("the search reaches stable cycles only)." if self.coverage.stable_only
                                 else "false alarms)."))
+        if self.cost is not None:
+            lines += ["", "Cost: " + self.cost.summary(u) + "."]
         return "\n".join(lines)
 
     def figure(self, path):
@@ -556,7 +570,8 @@ class ContinuationResponse(_Shown):
 
 
 def _values(values):
-    return ", ".join(f"{name} = {value:g}" for name, value in values.items())
+    return ", ".join(f"{name} = {value:g}" if not isinstance(value, str) else f"{name} = {value}"
+                     for name, value in values.items())
 
 
 @dataclass(eq=False, repr=False)
@@ -628,6 +643,17 @@ class HuntingMapResponse(_Shown):
         """The class of every cell as an array of text, shape (len(ys), len(xs)) ("error" where it failed)."""
         return np.array([[cell[source]["class"] if source in cell else "error" for cell in row] for row in self.cells])
 
+    @property
+    def compensated(self) -> bool:
+        """Whether the loop has compensators: its cells carry their ``cost`` instead of a DF verdict."""
+        return any("cost" in cell for row in self.cells for cell in row)
+
+    def costs(self, name="standing_error") -> np.ndarray:
+        """One quantity of every cell's cost (:class:`dfwb.engine.cost.Cost`), shape (len(ys), len(xs)); NaN
+        where the cell has none (it failed, or its loop never came to rest for a standing error)."""
+        return np.array([[np.nan if cell.get("cost", {}).get(name) is None else cell["cost"][name]
+                          for cell in row] for row in self.cells], dtype=float)
+
     def as_dict(self) -> dict:
         """JSON types: what ``dfwb map --json`` prints and cells.json holds."""
         cells = [dict(cell) for row in self.cells for cell in row]
@@ -647,14 +673,25 @@ class HuntingMapResponse(_Shown):
                  + f": {truth.size} cells, {self.x} {self.xs[0]:g} to {self.xs[-1]:g}, {self.y} {self.ys[0]:g} to "
                  f"{self.ys[-1]:g} ({self.counts.get('computed', 0)} computed, {self.counts.get('cached', 0)} "
                  f"cached, {self.counts.get('resumed', 0)} resumed; {self.seconds:.1f} s)"]
-        for source, classes in (("truth", truth), ("DF", df)):
+        for source, classes in (("truth", truth), ("DF", df))[:1 if self.compensated else 2]:
             counted = Counter(classes.ravel().tolist())
             lines.append(f"  {source}: " + ", ".join(f"{n} {LABELS.get(k, k)}" for k, n in counted.most_common()))
-        hunts = truth == "stable"
-        missed = int(np.sum(hunts & (df != "stable")))
-        false = int(np.sum(~hunts & (df == "stable")))
-        lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting in "
-                     f"{false} that do not")
+        if self.compensated:  # no DF: the price of the cells at rest
+            error, settling = self.costs("standing_error"), self.costs("settling_time")
+            failed = np.array([[bool(cell.get("cost", {}).get("note")) for cell in row] for row in self.cells])
+            rest = np.isfinite(error)
+            lines.append(f"  cost: {int(rest.sum())} cells come to rest after a step" + (
+                f", standing error {np.min(error[rest]):.4g} to {np.max(error[rest]):.4g} {self.unit}, settling in "
+                f"{np.min(settling[rest]):.4g} to {np.max(settling[rest]):.4g} s" if rest.any() else "")
+                + (f"; force peak up to {np.nanmax(self.costs('peak_force')):.4g} N"
+                   if np.isfinite(self.costs("peak_force")).any() else "")
+                + (f"; {int(np.sum(failed))} cells' step response not computed" if failed.any() else ""))
+        else:
+            hunts = truth == "stable"
+            missed = int(np.sum(hunts & (df != "stable")))
+            false = int(np.sum(~hunts & (df == "stable")))
+            lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting "
+                         f"in {false} that do not")
         for curve in self.curves:
             lines.append(f"  {curve.source} {curve.kind} curve through {len(curve.points)} columns")
         if self.out_dir is not None:
@@ -664,7 +701,8 @@ class HuntingMapResponse(_Shown):
 
     def plot(self, axes=None) -> list:
         """Truth and DF side by side: hunting cells coloured by the cycle's amplitude, the other classes in
-        flat colours, the linear loop's stability boundary and the bifurcation curves drawn over both.
+        flat colours, the linear loop's stability boundary and the bifurcation curves drawn over both. A
+        compensated loop's map has its cost beside the truth: the standing error of the cells that rest.
 
         Returns the two axes."""
         from dfwb.plotting.plots import hunting_map

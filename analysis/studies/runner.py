@@ -310,6 +310,11 @@ class SceneRun:
         results = {}
         table = _Points(self, self.settings(HARMONICS))
         for lc in self.scene.limit_cycle:
+            if lc.compensate:  # judged by its exact loop alone: no DF map to compute
+                results[lc.name] = analyse(lc.plant, lc.controller(), lc.params, exact=lc.exact, fmu_dir=self.fmu_dir,
+                                           cache=self.cache, progress=_staged(display, lc.name),
+                                           compensate=lc.compensate)
+                continue
             if lc.plant not in self.fmus:  # a user's FMU: its map on its engine's workers, not cached yet
                 results[lc.name] = analyse(self.specs[lc.plant], lc.controller(), lc.params, F_range=lc.F_range,
                                            omega_range=lc.omega_range, n_F=lc.n_F, n_omega=lc.n_omega,
@@ -545,12 +550,13 @@ class SceneRun:
                    "fmu": fmu_revision(fmu_path(spec, self.fmu_dir)) if not own else dict(own, sha256=spec.info.digest),
                    "plant": c.plant, "G": G,  # an expression, or (num, den)
                    "params": c.params, "parameter": c.parameter, "start": c.start, "stop": c.stop,
-                   "sources": c.sources, "max_points": c.max_points, "samples": c.samples if own else None}
+                   "sources": c.sources, "max_points": c.max_points, "samples": c.samples if own else None,
+                   "compensate": c.compensate}
             task = display.add(f"{c.name}: continuation", 1, 0, 0)
             response = _cached_continuation(self.cache.get(key))
             if response is None:
                 response = follow(spec, G, c.parameter, c.start, c.stop, c.params, sources=tuple(c.sources),
-                                  max_points=c.max_points, fmu_dir=self.fmu_dir,
+                                  max_points=c.max_points, fmu_dir=self.fmu_dir, compensate=c.compensate,
                                   **(dict(own, samples=c.samples) if own else {}))
                 self.cache.put(key, finite(response.as_dict()))
             else:
@@ -571,7 +577,7 @@ class SceneRun:
             results[m.name] = run_map(spec, m.controller(), *m.axes(), m.params, out_dir=folder, own_folder=True,
                                       jobs=self.executor.jobs, dask=self.executor.dask, cache=self.cache,
                                       fmu_dir=self.fmu_dir, amplitudes=m.amplitudes, curves=m.curves,
-                                      progress=progress, **own)
+                                      progress=progress, compensate=m.compensate, **own)
             self.written += [path for path in folder.iterdir()  # (its lock file is no output)
                              if path.is_file() and not path.name.startswith(".")]
         return results

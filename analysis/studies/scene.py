@@ -133,6 +133,8 @@ NonNegative = Number(ge=0)
 Finite = Number()
 Name = Text(pattern=r"[A-Za-z_][A-Za-z0-9_-]*", max_length=64)
 Params = TableOf(Finite)
+# a loop's parameters: numbers, or the text of a compensator's choice (signal = "control"), checked by its family
+LoopParams = TableOf(lambda value: value if isinstance(value, str) else Finite(value))
 FIGURE_KINDS = ("nyquist", "re_im", "harmonics", "trace", "limit_cycle", "continuation", "map", "paper")
 MAX_BYTES = 1 << 20  # a scene file: a page of TOML, never a device or a data file read whole
 MAX_SAMPLES = 2_000_000
@@ -314,7 +316,7 @@ def _family(section, free=()):
 
     try:
         plant = section_plant(section) if hasattr(section, "input") else section.plant
-        return LoopFamily(plant, _controller(section), section.params, free=free)
+        return LoopFamily(plant, _controller(section), section.params, free=free, compensate=section.compensate)
     except PlantError as error:
         raise InputError(str(error)) from None
 
@@ -329,7 +331,8 @@ class _Loop:
     input: Optional[str] = rule(Variable, None)  # a user's FMU: its force input and position output
     output: Optional[str] = rule(Variable, None)
     kind: Optional[str] = rule(FMUKind, None)  # ... and how it runs
-    params: dict = rule(Params, {})  # the plant's parameters and G's
+    params: dict = rule(LoopParams, {})  # the plant's parameters, G's and the compensators'
+    compensate: list = rule(ListOf(Text(max_length=64), max_length=8), [])  # compensators (dfwb.engine.compensators)
     G: Optional[str] = rule(Text(), None)
     num: Optional[list] = rule(ListOf(Finite), None)
     den: Optional[list] = rule(ListOf(Finite), None)

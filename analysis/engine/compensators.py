@@ -1,0 +1,113 @@
+"""The compensators of the exact loop by name, with their parameters: what ``--compensate``, scenes and the API name.
+
+A study names its compensators (``compensate=["coulomb", "deadband"]``); their
+parameters are then set, continued and mapped like G's (``F_hat``, ``d``), and
+:class:`Compensation` builds the loop's compensators of
+:mod:`dfwb.fmus.compensation` at each setting. One parameter is a choice, not a
+number: the Coulomb feedforward's ``signal``.
+
+Examples
+--------
+>>> compensation = Compensation(["coulomb", "reset"])
+>>> compensation.names, compensation.defaults
+(('F_hat', 'signal'), {'signal': 'velocity'})
+>>> compensation.build({"F_hat": 3.0, "signal": "control"})
+[Coulomb(F_hat=3.0, signal='control'), Reset()]
+>>> Compensation("dither")  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+dfwb.base.errors.InputError: compensate = 'dither': the dither is not built yet (the exact loop has coulomb, ...)
+"""
+
+from dataclasses import dataclass, field
+
+from dfwb.base.errors import InputError
+from dfwb.fmus.compensation import SIGNALS, Coulomb, Deadband, Reset
+
+__all__ = ["KINDS", "CHOICES", "Compensation", "choice"]
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A compensator: its numeric parameters (each needs a value), its choices (name: allowed values, the first
+    the default), how it is built from its values, and what it is in a few words."""
+
+    parameters: tuple
+    build: object
+    what: str
+    choices: dict = field(default_factory=dict)
+
+
+KINDS = {
+    "coulomb": Kind(("F_hat",), lambda v: Coulomb(v["F_hat"], v["signal"]),
+                    "Coulomb friction feedforward F_hat sign(signal) [N]", {"signal": SIGNALS}),
+    "deadband": Kind(("d",), lambda v: Deadband(v["d"]),
+                     "the integrator holds while the error is within d of the target"),
+    "reset": Kind((), lambda v: Reset(), "the integrator is cleared when the mass comes to rest"),
+}
+PLANNED = {"dither": "the dither", "backlash-inverse": "the backlash inverse"}
+CHOICES = {name: allowed for kind in KINDS.values() for name, allowed in kind.choices.items()}
+
+
+def choice(name, value):
+    """The value of a choice parameter (``signal``), refused in one line unless it is one of the allowed."""
+    allowed = CHOICES[name]
+    if value not in allowed:
+        raise InputError(f"{name} = {value!r:.60}: one of {', '.join(allowed)}")
+    return value
+
+
+class Compensation:
+    """The compensators a study names, in the loop at every setting of their parameters.
+
+    Parameters
+    ----------
+    compensate : str or list of str, optional
+        Names among ``coulomb``, ``deadband`` and ``reset``, each at most once.
+    """
+
+    def __init__(self, compensate=None):
+        given = [] if compensate is None else [compensate] if isinstance(compensate, str) else compensate
+        try:
+            given = list(given)
+        except TypeError:
+            raise InputError(f"compensate = {compensate!r:.60}: give a compensator's name or a list of them") from None
+        for name in given:
+            if not isinstance(name, str) or name not in KINDS:
+                known = ", ".join(KINDS)
+                if name in PLANNED:
+                    raise InputError(f"compensate = {name!r}: {PLANNED[name]} is not built yet (the exact loop has "
+                                     f"{', '.join(list(KINDS)[:-1])} and {list(KINDS)[-1]})")
+                raise InputError(f"compensate = {name!r:.60}: not a compensator (allowed: {known})")
+        repeated = [name for name in given if given.count(name) > 1]
+        if repeated:
+            raise InputError(f"compensate = {repeated[0]!r} is named twice: name each compensator once")
+        self.kinds = tuple(given)
+        self.names = tuple(p for name in given for p in (*KINDS[name].parameters, *KINDS[name].choices))
+        self.defaults = {p: allowed[0] for name in given for p, allowed in KINDS[name].choices.items()}
+
+    def __bool__(self):
+        return bool(self.kinds)
+
+    def numeric(self, name):
+        """Whether ``name`` is one of the compensators' numeric parameters (a choice is set, never swept)."""
+        return name in self.names and name not in CHOICES
+
+    def build(self, values):
+        """The compensators at ``values`` (their parameters' values; choices at their defaults unless given), or
+        None without any; a value a compensator refuses raises its one-line error."""
+        if not self.kinds:
+            return None
+        merged = dict(self.defaults, **{k: v for k, v in values.items() if k in self.names})
+        return [KINDS[name].build(merged) for name in self.kinds]
+
+    def describe(self, values):
+        """The compensators and their values as one short text: ``coulomb (F_hat = 3, signal = control), reset``."""
+        merged = dict(self.defaults, **values)
+        parts = []
+        for name in self.kinds:
+            kind = KINDS[name]
+            own = [f"{p} = {merged[p]:.6g}" if p in kind.parameters else f"{p} = {merged[p]}"
+                   for p in (*kind.parameters, *kind.choices) if p in merged]
+            parts.append(name + (f" ({', '.join(own)})" if own else ""))
+        return ", ".join(parts)
