@@ -11,6 +11,7 @@ response objects with a ``.plot()``.
   (:class:`ContinuationResponse`); :func:`hunting_map` -- which settings of two
   parameters make the machine hunt, truth and DF (:class:`HuntingMapResponse`);
   :func:`limit_cycle_margin` -- the gain factors k for which k G hunts (:class:`MarginResponse`);
+  :func:`tune` -- the fastest controller, with its compensators, that does not hunt (:class:`TuneResponse`);
 - :func:`run_scene`, :func:`sweep` and :func:`grid` -- studies written to a folder;
 - :func:`plant`, :func:`names`, :class:`Plant`, :func:`register` -- the plant registry
   (:mod:`dfwb.plants`, whose ``PLANTS`` maps each name to its entry);
@@ -46,6 +47,7 @@ _PUBLIC = {
     "continuation": "dfwb.api.functions", "ContinuationResponse": "dfwb.studies.responses",
     "hunting_map": "dfwb.api.functions", "HuntingMapResponse": "dfwb.studies.responses",
     "limit_cycle_margin": "dfwb.api.functions", "MarginResponse": "dfwb.studies.responses",
+    "tune": "dfwb.api.functions", "TuneResponse": "dfwb.studies.responses",
     "transfer_function": "dfwb.api.functions", "run_scene": "dfwb.api.studies",
     "sweep": "dfwb.api.studies", "grid": "dfwb.api.studies",
     "DescribingFunctionResponse": "dfwb.studies.responses", "LimitCycleResponse": "dfwb.studies.responses",
@@ -60,7 +62,7 @@ __all__ = [
     "__version__",
     "describing_function", "DescribingFunctionResponse",
     "limit_cycles", "LimitCycleResponse", "continuation", "ContinuationResponse", "hunting_map",
-    "HuntingMapResponse", "limit_cycle_margin", "MarginResponse", "transfer_function",
+    "HuntingMapResponse", "limit_cycle_margin", "MarginResponse", "tune", "TuneResponse", "transfer_function",
     "run_scene", "sweep", "grid",
     "plant", "plants", "names", "Plant", "register", "unregister", "fmu_plant", "FMUPlant",
     "DfwbError", "PlantError", "InputError", "RunError",
@@ -90,6 +92,7 @@ if TYPE_CHECKING:  # the names as static analysers and IDEs see them
         limit_cycle_margin,
         limit_cycles,
         transfer_function,
+        tune,
     )
     from dfwb.api.studies import grid, run_scene, sweep
     from dfwb.base.errors import DfwbError, InputError, PlantError, RunError
@@ -99,4 +102,6 @@ if TYPE_CHECKING:  # the names as static analysers and IDEs see them
         DescribingFunctionResponse,
         HuntingMapResponse,
         LimitCycleResponse,
+        MarginResponse,
+        TuneResponse,
     )

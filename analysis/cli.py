@@ -28,6 +28,8 @@ EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --h
     "continue": "dfwb continue friction --G 'Kp + Ki/s' --set Kp=10 --parameter Ki=1:30 --plot out/branch.png",
     "map": "dfwb map friction --G 'Kp + Ki/s' --x Kp=1:50:8 --y Ki=0.1:25:8 --out out/map",
     "margin": "dfwb margin friction --G '20 + 100/s + 2*s/(0.1*s+1)'",
+    "tune": "dfwb tune friction --G 'Kp + Ki/s' --compensate deadband --free Kp=2:50 Ki=0.2:10 d=0.01:0.5 "
+            "--tolerance 0.1 --robust Fc=0.2 Fs=0.1",
     "examples": "dfwb examples --out out/examples",
     "bench": "dfwb bench --quick --out out/bench",
     "stress": "dfwb stress --quick",
@@ -378,7 +380,8 @@ def _range(text, option):
     name, sep, rest = text.partition("=")
     parts = rest.split(":")
     if not sep or not name or len(parts) not in (2, 3):
-        raise InputError(f"{option} {text!r}: expected NAME=START:STOP" + (":N" if option != "--parameter" else ""))
+        raise InputError(f"{option} {text!r}: expected NAME=" + ("LO:HI" if option == "--free" else "START:STOP")
+                         + (":N" if option in ("--x", "--y") else ""))
     return name, [_number(part, f"{option} {name}") for part in parts]
 
 
@@ -429,6 +432,25 @@ def cmd_margin(args):
     response = limit_cycle_margin(own or args.plant, _controller(args), k_range=tuple(args.k_range),
                                   count=args.count, fmu_dir=args.fmus, progress=not args.json, **ranges,
                                   compensate=args.compensate, **_params(args, limit_cycle_margin))
+    return _answer(args, response, plot)
+
+
+def cmd_tune(args):
+    from dfwb.api.functions import tune
+
+    plot = _plot_path(args.plot) if args.plot else None
+    free = {}
+    for text in args.free:
+        name, bounds = _range(text, "--free")
+        if len(bounds) != 2:
+            raise InputError(f"--free {text!r}: expected NAME=LO:HI")
+        if name in free:
+            raise InputError(f"--free {name} given twice: give it once")
+        free[name] = tuple(bounds)
+    robust = {name: _number(value, f"--robust {name}") for name, value in _assignments(args.robust, "--robust").items()}
+    response = tune(args.plant, _controller(args), free=free, compensate=args.compensate, tolerance=args.tolerance,
+                    robust=robust, count=args.count, fmu_dir=args.fmus, progress=not args.json,
+                    **_params(args, tune))
     return _answer(args, response, plot)
 
 
@@ -760,6 +782,21 @@ def parser():
     margin.add_argument("--json", action="store_true", help="print one JSON object")
     fmu_options(margin)
     margin.set_defaults(run=cmd_margin)
+
+    tuning = commands.add_parser("tune", help="the fastest controller, with its compensators, that does not hunt")
+    controller_options(tuning)
+    tuning.add_argument("--free", nargs="+", action="extend", metavar="NAME=LO:HI", required=True,
+                        help="the parameters searched, G's and the compensators' (e.g. Kp=2:50 Ki=0.2:10 d=0:0.5)")
+    tuning.add_argument("--tolerance", action=_Once, type=float,
+                        help="the largest standing error allowed after a step [the output's unit]")
+    tuning.add_argument("--robust", nargs="+", action="extend", metavar="NAME=REL",
+                        help="relative errors of the plant's parameters, each corner checked (e.g. Fc=0.2)")
+    tuning.add_argument("--count", action=_Once, type=_integer(2, 50), default=5,
+                        help="values per free parameter (default: %(default)s)")
+    tuning.add_argument("--plot", action=_Once, type=_PNG, help="write the candidates' map to this PNG")
+    tuning.add_argument("--json", action="store_true", help="print one JSON object")
+    fmu_options(tuning)
+    tuning.set_defaults(run=cmd_tune)
 
     examples = commands.add_parser("examples", help="the shipped limit-cycle examples, predicted, judged and plotted")
     examples.add_argument("--out", action=_Once, type=_folder, default=Path("out/examples"),

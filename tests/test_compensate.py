@@ -252,3 +252,71 @@ def test_a_scene_refuses_a_bad_compensation_in_one_line(tmp_path, text, message)
     code, out, err = cli("run", "bad.toml", "--out", "out", cwd=tmp_path)
     assert code == 2 and err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "out").exists()
+
+
+# -- dfwb tune -------------------------------------------------------------------------------------------------
+TUNE = dict(compensate="deadband", free={"Kp": (2, 50), "Ki": (0.2, 10), "d": (0.01, 0.5)}, robust={"Fc": 0.2,
+                                                                                                   "Fs": 0.1})
+
+
+def _rests(b, a, d, state, params, T=2000.0):
+    """The reference from ``state``: where it rests at T, or None if it still moves in its last quarter."""
+    ref = closed_loop_reference("friction", b, a, T, params, state=state, deadband=d, max_events=100_000)
+    late = [t for t, _kind in ref["events"] if t > 0.75 * T]
+    return None if late or ref["mode"] != "stick" else ref["state"][0]
+
+
+def test_tune_chooses_the_fastest_pi_whose_deadband_stops_the_hunting_within_the_tolerance():
+    """Kp + Ki/s with an integrator deadband, Fc +-20 % and Fs +-10 %, standing error at most 0.1 m: the highest
+    crossover on the grid (Kp = 50, Ki = 10) with the smallest deadband that stops its hunting (0.0707 m). The
+    reference: the two smaller deadbands still hunt; the chosen one rests within 0.1 m of the target at every
+    corner, from the step and from displaced starts."""
+    r = dfwb.tune("friction", "Kp + Ki/s", tolerance=0.1, count=5, **TUNE)
+    assert r.settings == {"Kp": 50.0, "Ki": 10.0, "d": pytest.approx(0.0707107, rel=1e-6)}
+    assert abs(r.crossover - 7.06365) < 1e-5 and r.confirmed is True
+    assert [c["verdict"] for c in r.candidates[:3]] == ["hunts", "hunts", "accepted"]
+    b, a = [50.0, 10.0], [0.0]
+    for d in (0.01, 0.0265915):  # the deadbands refused: they hunt, by the reference too (from their cycle)
+        found = dfwb.limit_cycles("friction", "50 + 10/s", exact=True, compensate="deadband", d=d)
+        stable = [c for c in found.cycles if c.stable]
+        assert stable and _rests(b, a, d, stable[0].state, {}) is None
+    S = r.cost["step"]
+    for corner in r.corners:
+        params = {k: v for k, v in corner.items() if k in ("Fc", "Fs")}
+        for state in ([-S, 0.0, 0.0], [0.5, 0.0, 0.0], [2.0, 0.0, -5.0]):
+            rest = _rests(b, a, r.settings["d"], state, params)
+            assert rest is not None and abs(rest) <= 0.1, (corner, state, rest)
+    assert "chosen: Kp = 50, Ki = 10, d = 0.0707107" in r.summary() and "at the end of the range" in r.summary()
+
+
+def test_tune_says_when_no_setting_passes():
+    r = dfwb.tune("friction", "Kp + Ki/s", tolerance=0.005, count=3, **TUNE)
+    assert r.settings is None and r.confirmed is None and "no setting on the grid passes" in r.summary()
+    assert {c["verdict"] for c in r.candidates} <= {"hunts", "standing error", "linear loop unstable"}
+
+
+def test_tune_on_the_command_line_prints_the_interface_the_issue_names(tmp_path):
+    code, out, err = cli("tune", "friction", "--G", "Kp + Ki/s", "--compensate", "deadband", "--free", "Kp=2:50",
+                         "Ki=0.2:10", "d=0.01:0.5", "--tolerance", "0.1", "--robust", "Fc=0.2", "Fs=0.1",
+                         "--count", "3", "--json", cwd=tmp_path)
+    assert code == 0, err
+    document = json.loads(out)
+    assert {"settings", "crossover", "cost", "confirmed"} <= set(document) and document["confirmed"] is True
+    assert document["settings"]["Kp"] == 50.0 and len(document["corners"]) == 5
+
+
+@pytest.mark.parametrize("words, message", [
+    (["--free", "Kp=2"], "--free 'Kp=2': expected NAME=LO:HI"),
+    (["--free", "Kp=2:50", "Kp=3:4"], "--free Kp given twice"),
+    (["--free", "Kp=50:2"], "expected lo < hi"),
+    (["--free", "Kp=2:50", "M=1:2"], "free M: a parameter of the plant"),
+    (["--free", "Kp=2:50", "--robust", "Kp=0.1"], "robust Kp: not a parameter of the friction plant"),
+    (["--free", "Kp=2:50", "--robust", "Fc=2"], "a relative error between 0 and 1"),
+    (["--free", "Kp=2:50", "--robust", "Fc=0.2", "Fs=0.2"], "the corner Fc = 6, Fs = 5.6 is refused"),
+    (["--free", "Kp=2:50", "--tolerance", "0"], "tolerance = 0: a standing error above 0"),
+    (["--free", "Kp=2:50", "--count", "99"], "--count: 99 is out of range"),
+])
+def test_tune_refuses_in_one_line(tmp_path, words, message):
+    code, out, err = cli("tune", "friction", "--G", "Kp + Ki/s", "--set", "Ki=1", "d=0.1", "--compensate",
+                         "deadband", *words, cwd=tmp_path)
+    assert code == 2 and err.count("\n") == 1 and message in err, err

@@ -37,10 +37,11 @@ from dfwb.studies.responses import (
     HuntingMapResponse,
     LimitCycleResponse,
     MarginResponse,
+    TuneResponse,
 )
 from dfwb.studies.sweep import MAX_POINTS
 
-__all__ = ["describing_function", "limit_cycles", "continuation", "hunting_map", "limit_cycle_margin",
+__all__ = ["describing_function", "limit_cycles", "continuation", "hunting_map", "limit_cycle_margin", "tune",
            "transfer_function"]
 
 ArrayLike = Union[float, Sequence, np.ndarray]
@@ -525,6 +526,104 @@ def limit_cycle_margin(plant: Any, G: Any, *, k_range: tuple = K_RANGE, count: i
                            fmu_dir=fmu_dir, progress=report if progress else None, F_range=F_range,
                            omega_range=omega_range, n_F=_integer("n_F", n_F), n_omega=_integer("n_omega", n_omega),
                            rtol=rtol, timeout=timeout, compensate=compensate)
+
+
+def tune(plant: Any, G: Any, *, free: dict, compensate: Union[None, str, Sequence[str]] = None,
+         tolerance: Optional[float] = None, robust: Optional[dict] = None, count: int = 5,
+         fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False, **params: Any) -> TuneResponse:
+    """The fastest controller of a family, with its compensators, that does not hunt.
+
+    Over a grid of the free parameters' ranges, the setting whose linear loop has the highest crossover
+    frequency such that the exact loop has no stable cycle and its step response rests within ``tolerance``
+    of the target, at the nominal plant and at every corner of the box ``robust``; then confirmed by the
+    independent reference at every corner (:mod:`dfwb.engine.tune`, where the search is described).
+
+    Parameters
+    ----------
+    plant : str
+        A registered plant with an exact loop.
+    G : str, callable, (num, den) or python-control system
+        The controller family: an expression whose parameters are free or given with ``params``.
+    free : dict, keyword-only
+        ``{name: (lo, hi)}``: the parameters searched, G's and the compensators' (``{"Kp": (2, 50), "d": (0,
+        0.5)}``); log-spaced where the range is positive.
+    compensate : str or list of str, optional, keyword-only
+        The compensators (as for :func:`limit_cycles`).
+    tolerance : float, optional, keyword-only
+        The largest standing error allowed [the output's unit] (default: none required).
+    robust : dict, optional, keyword-only
+        ``{name: relative error}`` of the plant's parameters (``{"Fc": 0.2}``: +-20 %): the corners checked.
+    count : int, keyword-only
+        Values per free parameter (2 to 50).
+    fmu_dir : path, optional, keyword-only
+    progress : bool, keyword-only
+    **params
+        The other parameters of G, the plant and the compensators (``signal="control"``).
+
+    Returns
+    -------
+    TuneResponse
+        ``.settings``, ``.crossover``, ``.cost``, ``.confirmed``, ``.candidates``, ``.plot()``, ``.summary()``.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> r = dfwb.tune("friction", "Kp + Ki/s", compensate="deadband", free={"Kp": (2, 50), "Ki": (0.2, 10),
+    ...               "d": (0.01, 0.5)}, tolerance=0.1, count=3)
+    >>> {k: round(v, 4) for k, v in r.settings.items()}, r.confirmed
+    ({'Kp': 50.0, 'Ki': 10.0, 'd': 0.0707}, True)
+    """
+    import time
+
+    from dfwb.engine.family import LoopFamily, number
+    from dfwb.engine.tune import confirm
+    from dfwb.engine.tune import tune as search
+
+    flags(progress=progress)
+    count = _integer("count", count)
+    if not 2 <= count <= 50:
+        raise InputError(f"count = {count}: the values per free parameter, 2 to 50")
+    if not isinstance(free, dict) or not free:
+        raise InputError(f"free = {free!r:.60}: give {{name: (lo, hi)}} of the parameters searched")
+    ranges = {}
+    for name, bounds in free.items():
+        try:
+            lo, hi = (number(f"free {name}", value) for value in bounds)
+        except (TypeError, ValueError):
+            raise InputError(f"free {name} = {bounds!r:.60}: give (lo, hi)") from None
+        if not lo < hi:
+            raise InputError(f"free {name} = ({lo:g}, {hi:g}): expected lo < hi")
+        ranges[name] = (lo, hi)
+    if tolerance is not None:
+        tolerance = number("tolerance", tolerance)
+        if tolerance <= 0.0:
+            raise InputError(f"tolerance = {tolerance:g}: a standing error above 0")
+    spec = resolve_plant(plant)
+    if getattr(spec, "foreign", False) or spec.loop is None:
+        raise InputError(f"tune: plant {spec.name!r} has no exact closed loop to tune against")
+    family = LoopFamily(spec, G, params, free=tuple(ranges), compensate=compensate)
+    bad = [name for name in ranges if name in family.plant_names]
+    if bad:
+        raise InputError(f"free {bad[0]}: a parameter of the plant, not a setting of the controller (give it a "
+                         "value, or a relative error with robust)")
+    for name, (lo, hi) in ranges.items():
+        family.merged({name: lo})  # each named as G's or a compensator's
+    started = time.perf_counter()
+    with _reporter(f"tuning {spec.name}", progress) as report:
+        chosen, tried, box = search(family, ranges, tolerance, robust, count,
+                                    (lambda done, total: report("settings", done, total)) if progress else None,
+                                    fmu_dir)
+        confirmed, runs = confirm(family, chosen, box, fmu_dir) if chosen is not None else (None, "nothing chosen")
+    from dfwb.studies.continuation import _text
+
+    return TuneResponse(plant=spec.name, G=_text(G, family), free={k: list(v) for k, v in ranges.items()},
+                        count=count, tolerance=tolerance, robust=dict(robust or {}), corners=box,
+                        settings=None if chosen is None else chosen.values,
+                        crossover=None if chosen is None else chosen.crossover,
+                        cost={} if chosen is None else chosen.cost, confirmed=confirmed, confirmation=runs,
+                        candidates=[c.as_dict() for c in tried],
+                        controller=[n for n in ranges if n in family.controller.names], values=family.merged(),
+                        unit=spec.unit, seconds=time.perf_counter() - started)
 
 
 def _reporter(title, enabled):

@@ -11,6 +11,7 @@ a notebook keeps its own. The rows are DF records
 
 import io
 import json
+import math
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -481,4 +482,50 @@ def margin_plot(ax, response):
     ax.grid(alpha=0.3, which="both")
     if lines:
         ax.legend(fontsize=8)
+    return lines
+
+
+TUNE_COLOURS = {"accepted": "#2a9d8f", "standing error": "#e9c46a", "hunts": "#e76f51",
+                "linear loop unstable": "#3a3a3a", "refused": "#e63946", "not tried": "#d9d9d9"}
+
+
+def tune_plot(ax, response):
+    """:class:`dfwb.studies.responses.TuneResponse`: G's settings over its first two free parameters (or the
+    first against the crossover), each coloured by its best verdict over the compensators' settings; the
+    chosen one starred. Returns the lines."""
+    controller = response.controller or list(response.free)
+    x = controller[0]
+    y = controller[1] if len(controller) > 1 else None
+    order = list(TUNE_COLOURS)
+    best = {}
+    for c in response.candidates:
+        key = (c["values"][x], c["values"][y] if y else c["crossover"])
+        if key not in best or order.index(c["verdict"]) < order.index(best[key]):
+            best[key] = c["verdict"]
+    lines = []
+    for verdict in order:
+        points = [key for key, v in best.items() if v == verdict]
+        if points:
+            xs, ys = zip(*points)
+            lines += ax.plot(xs, ys, "s", ms=9, color=TUNE_COLOURS[verdict], label=verdict, ls="none")
+    if y is not None:  # each of G's settings: its linear loop's crossover, what the search ranks them by
+        for c in {(c["values"][x], c["values"][y]): c for c in response.candidates}.values():
+            if math.isfinite(c["crossover"]):
+                ax.annotate(f"{c['crossover']:.3g}", (c["values"][x], c["values"][y]), xytext=(0, 7),
+                            textcoords="offset points", ha="center", fontsize=6, color="0.35")
+    if response.settings is not None:
+        lines += ax.plot(response.settings[x], response.settings[y] if y else response.crossover, "*", ms=20,
+                         mfc="none", mec="k", mew=1.6,
+                         label="chosen: " + ", ".join(f"{k} = {v:.4g}" for k, v in response.settings.items()))
+    lo, hi = response.free[x]
+    if lo > 0:
+        ax.set_xscale("log")
+    if y is not None and response.free[y][0] > 0:
+        ax.set_yscale("log")
+    ax.set_xlabel(x)
+    ax.set_ylabel(y if y else "crossover [rad/s]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(f"{response.plant} under {response.G}: the fastest setting that does not hunt\n(grey numbers: "
+                 "the linear loop's crossover [rad/s], the search's order)", fontsize=10)
     return lines

@@ -812,3 +812,111 @@ class MarginResponse(_Shown):
         from dfwb.plotting.plots import drawn, margin_plot
 
         return drawn(path, lambda ax: margin_plot(ax, self), figsize=(7.5, 4.8))
+
+
+@dataclass(eq=False, repr=False)
+class TuneResponse(_Shown):
+    """The fastest controller of a family, with its compensators, that does not hunt.
+
+    Made by :func:`dfwb.tune` (:mod:`dfwb.engine.tune`).
+
+    Attributes
+    ----------
+    plant, G : str
+        The plant and the controller family, with its compensators.
+    free : dict
+        The ranges searched, ``{name: [lo, hi]}``, ``count`` values each.
+    tolerance : float or None
+        The largest standing error allowed [the output's unit].
+    robust : dict
+        The relative errors of the plant's parameters; ``corners`` the plants checked (the nominal first).
+    settings : dict or None
+        The chosen values of the free parameters (None: no setting on the grid passes).
+    crossover : float or None
+        Its linear loop's crossover [rad/s].
+    cost : dict
+        Its cost at the nominal plant (:class:`dfwb.engine.cost.Cost`).
+    confirmed : bool or None
+        Whether the independent reference confirms it comes to rest at every corner (None: no reference for
+        this plant's compensated loop); ``confirmation`` the runs.
+    candidates : list of dict
+        Every setting: its values, crossover, verdict (accepted, hunts, standing error, linear loop unstable,
+        refused, not tried: ranked below the answer) and why.
+
+    Examples
+    --------
+    >>> import dfwb
+    >>> r = dfwb.tune("friction", "Kp + Ki/s", compensate="deadband", free={"Kp": (2, 50), "Ki": (0.2, 10),
+    ...               "d": (0.01, 0.5)}, tolerance=0.1, robust={"Fc": 0.2, "Fs": 0.1}, count=3)
+    >>> {k: round(v, 4) for k, v in r.settings.items()}, round(r.crossover, 3), r.confirmed
+    ({'Kp': 50.0, 'Ki': 10.0, 'd': 0.0707}, 7.064, True)
+    """
+
+    plant: str
+    G: str
+    free: dict
+    count: int
+    tolerance: Any
+    robust: dict
+    corners: list
+    settings: Any
+    crossover: Any
+    cost: dict
+    confirmed: Any
+    confirmation: Any
+    candidates: list = field(repr=False)
+    controller: list = field(default_factory=list)  # the free parameters that are G's
+    values: dict = field(default_factory=dict)
+    unit: str = "m"
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict:
+        """JSON types: what ``dfwb tune --json`` prints."""
+        return {"plant": self.plant, "G": self.G, "free": self.free, "count": self.count, "values": self.values,
+                "tolerance": self.tolerance, "robust": self.robust, "corners": self.corners,
+                "settings": self.settings, "crossover": self.crossover, "cost": self.cost,
+                "confirmed": self.confirmed, "confirmation": self.confirmation, "candidates": self.candidates,
+                "seconds": self.seconds}
+
+    def summary(self) -> str:
+        """The chosen setting, its speed, its cost and what confirms it."""
+        from collections import Counter
+
+        ranges = ", ".join(f"{name} {lo:g} to {hi:g}" for name, (lo, hi) in self.free.items())
+        box = ", ".join(f"{name} +-{rel:.0%}" for name, rel in self.robust.items()) or "the nominal plant only"
+        lines = [f"{self.plant} under G = {self.G}" + (f" ({_values(self.values)})" if self.values else "")
+                 + f": {ranges}, {self.count} values each; robust to {box}"
+                 + ("" if self.tolerance is None else f"; standing error at most {self.tolerance:g} {self.unit}")]
+        if self.settings is None:
+            lines.append("  no setting on the grid passes (see the candidates' verdicts)")
+        else:
+            lines.append(f"  chosen: {_values(self.settings)}; crossover {self.crossover:.6g} rad/s")
+            edges = [name for name, (lo, hi) in self.free.items() if self.settings[name] in (lo, hi)]
+            if edges:
+                lines.append(f"  ({', '.join(edges)} at the end of the range searched: a wider range may do better)")
+            if self.cost:
+                error = self.cost["standing_error"]
+                lines.append("  cost (nominal): " + (f"standing error {error:.4g} {self.unit}, settles in "
+                                                     f"{self.cost['settling_time']:.4g} s" if error is not None
+                                                     else "does not come to rest")
+                             + f", overshoot {self.cost['overshoot']:.1%}, force peak {self.cost['peak_force']:.4g}"
+                               f" N, rms {self.cost['rms_force']:.4g} N")
+            lines.append("  confirmed by the independent reference at every corner, from rest and displaced starts"
+                         if self.confirmed else "  NOT confirmed by the independent reference: see confirmation"
+                         if self.confirmed is False else f"  not confirmed: {self.confirmation}")
+        counted = Counter(c["verdict"] for c in self.candidates)
+        lines.append("  candidates: " + ", ".join(f"{n} {verdict}" for verdict, n in counted.most_common())
+                     + f" ({self.seconds:.1f} s)")
+        return "\n".join(lines)
+
+    def plot(self, ax=None) -> list:
+        """G's settings, each coloured by its best verdict over the compensators, the chosen starred."""
+        from dfwb.plotting.plots import get_axes, tune_plot
+
+        return tune_plot(get_axes(ax, figsize=(7, 5)), self)
+
+    def figure(self, path):
+        """The figure written to ``path`` (PNG and SVG)."""
+        from dfwb.plotting.plots import drawn, tune_plot
+
+        return drawn(path, lambda ax: tune_plot(ax, self), figsize=(7.5, 5.2))
