@@ -14,8 +14,6 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
-from collections import deque
-
 from .compensation import compensators, integrator
 from .contract import EventKind
 from .exact import PlantError
@@ -24,7 +22,7 @@ from .linear_system import LinearSystem
 from .piecewise import check
 
 MAX_SWITCHES = 1000  # the Coulomb feedforward chatters when it switches this many times in a row (no event of
-CHATTER_CHUNKS = 10.0  # the plant between), or within this many chunks of the loop's fastest mode
+CHATTER_CHUNKS = 10.0  # the plant between), or within a window of this many chunks of the loop's fastest mode
 
 __all__ = ["FeedbackLoop", "STICK", "FREE"]
 
@@ -122,8 +120,8 @@ class FeedbackLoop(HybridSolver):
             raise PlantError(f"the integrator reset needs a plant that comes to rest; {type(self).__name__} "
                              "has no such event")
         self.sigma = 0
-        self._switches = deque(maxlen=MAX_SWITCHES)  # the times of the feedforward's last switches
-        self._in_row = 0  # ... since the plant's last event
+        self._in_row, self._row_start = 0, 0.0  # the feedforward's switches since the plant's last event, from
+        self._window = [0.0, 0]  # ... and in the current window of CHATTER_CHUNKS chunks: [its start, count]
         self.band = 1  # the deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d
         self._discrete = self._on_control or self.deadband is not None  # modes cached by (key, sigma, band)
         self.Ac, self.Bc, self.C, self.D = _controller(b, a)
@@ -259,14 +257,17 @@ class FeedbackLoop(HybridSolver):
             if self._on_control and self.sigma == 0:
                 self.sigma = self._control_sign(key, X)
             return key, X, departing
-        self._switches.append(t)
+        if self._in_row == 0:
+            self._row_start = t
         self._in_row += 1
-        fastest = min(mode.resolution for mode in self._modes.values())
-        if self._in_row >= MAX_SWITCHES or (len(self._switches) == MAX_SWITCHES
-                                            and t - self._switches[0] < CHATTER_CHUNKS * fastest):
+        if t - self._window[0] > CHATTER_CHUNKS * min(mode.resolution for mode in self._modes.values()):
+            self._window = [t, 0]  # a new window of switches
+        self._window[1] += 1
+        if self._in_row >= MAX_SWITCHES or self._window[1] >= MAX_SWITCHES:
+            row = self._in_row >= MAX_SWITCHES
             raise PlantError(f"the Coulomb feedforward of the controller's sign switched {MAX_SWITCHES} times from "
-                             f"t = {self._switches[0]!r} to {t!r} s" + (", with no event of the plant between" if
-                                                                       self._in_row >= MAX_SWITCHES else "")
+                             f"t = {self._row_start if row else self._window[0]!r} to {t!r} s"
+                             + (", with no event of the plant between" if row else "")
                              + ": it chatters (it over-compensates the friction); not solved")
         self.sigma = self._control_sign(self.key, X)
         return self.settle(self.key, X)

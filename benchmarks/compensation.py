@@ -1,0 +1,88 @@
+"""Benchmark: the speed targets of compensation (issue 33), measured: a compensation map and ``dfwb tune``.
+
+The loop: the friction mass (default parameters) under PI. Reported, never asserted (exit code 0 either way):
+
+(a) **a compensation map**: ``dfwb.hunting_map("friction", "Kp + 2/s", ("Kp", 5, 20, N), ("d", 0.01, 0.3, N),
+    compensate="deadband", jobs=2, cache=False, curves=False)``, N = 30 (``--quick``: 8): the truth and the cost
+    in every cell. Target: at most 60 s for N = 30. Beside it, measured in the same run, **the uncompensated
+    map** the issue compares it with, ``("Kp", 1, 50, N) x ("Ki", 0.1, 25, N)`` of ``Kp + Ki/s`` with its DF
+    (curves off too), run on the compiled loop. The compensated loop runs in Python (the compiled loop has
+    no compensators yet), which is what the ratio shows.
+(b) **dfwb tune**: ``dfwb.tune("friction", "Kp + Ki/s", compensate="deadband", free={"Kp": (2, 50), "Ki":
+    (0.2, 10), "d": (0.01, 0.5)}, tolerance=0.1, robust={"Fc": 0.2, "Fs": 0.1})`` with 5 values each, its
+    confirmation by the reference included. Target: at most 2 minutes.
+
+Usage: ``.venv/bin/python benchmarks/compensation.py [--quick] [--out out/bench_compensation]``; writes
+``compensation.md`` and ``compensation.json`` there.
+"""
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import dfwb
+
+TARGETS = {"map": 60.0, "tune": 120.0}  # seconds (the map's for N = 30)
+
+
+def timed(call):
+    started = time.perf_counter()
+    value = call()
+    return value, time.perf_counter() - started
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="8 x 8 maps")
+    parser.add_argument("--out", type=Path, default=Path("out/bench_compensation"))
+    args = parser.parse_args(argv)
+    n = 8 if args.quick else 30
+    args.out.mkdir(parents=True, exist_ok=True)
+    dfwb.hunting_map("friction", "Kp + 2/s", ("Kp", 5, 20, 2), ("d", 0.01, 0.3, 2), compensate="deadband", jobs=1,
+                     curves=False)  # warm: imports, the FMUs, the compiled core
+    with tempfile.TemporaryDirectory() as folder:
+        compensated, t_compensated = timed(lambda: dfwb.hunting_map(
+            "friction", "Kp + 2/s", ("Kp", 5, 20, n), ("d", 0.01, 0.3, n), compensate="deadband", jobs=2,
+            cache=False, curves=False, out_dir=Path(folder) / "compensated"))
+        plain, t_plain = timed(lambda: dfwb.hunting_map(
+            "friction", "Kp + Ki/s", ("Kp", 1, 50, n), ("Ki", 0.1, 25, n), jobs=2, cache=False, curves=False,
+            out_dir=Path(folder) / "plain"))
+    tuned, t_tune = timed(lambda: dfwb.tune("friction", "Kp + Ki/s", compensate="deadband",
+                                            free={"Kp": (2, 50), "Ki": (0.2, 10), "d": (0.01, 0.5)}, tolerance=0.1,
+                                            robust={"Fc": 0.2, "Fs": 0.1}))
+    report = {
+        "machine": f"{platform.node()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "size": n,
+        "compensated_map": {"seconds": t_compensated, "cells": n * n, "per_cell": t_compensated / (n * n),
+                            "truth": compensated.classes("truth").ravel().tolist().count("stable"),
+                            "target": TARGETS["map"] if n == 30 else None},
+        "uncompensated_map": {"seconds": t_plain, "cells": n * n, "per_cell": t_plain / (n * n)},
+        "ratio": t_compensated / t_plain,
+        "tune": {"seconds": t_tune, "settings": tuned.settings, "confirmed": tuned.confirmed,
+                 "target": TARGETS["tune"]},
+    }
+    lines = ["# Compensation: measured", "", f"Machine: {report['machine']}. One run, the maps side by side.", "",
+             "| what | seconds | per cell | target |", "|---|---|---|---|",
+             f"| compensated map {n} x {n} (deadband, Kp x d; Python loop) | {t_compensated:.1f} | "
+             f"{t_compensated / (n * n) * 1e3:.0f} ms | " + (f"{TARGETS['map']:.0f} s: "
+                                                          f"{'PASS' if t_compensated <= TARGETS['map'] else 'FAIL'}"
+                                                          if n == 30 else "(N = 30 only)") + " |",
+             f"| uncompensated map {n} x {n} (Kp x Ki, with the DF; compiled loop) | {t_plain:.1f} | "
+             f"{t_plain / (n * n) * 1e3:.0f} ms | |",
+             f"| dfwb tune (125 settings, 5 corners, confirmed) | {t_tune:.1f} | | {TARGETS['tune']:.0f} s: "
+             f"{'PASS' if t_tune <= TARGETS['tune'] else 'FAIL'} |", "",
+             f"The compensated map takes {report['ratio']:.2f} times the uncompensated one. "
+             f"Tune chose {tuned.settings}, confirmed: {tuned.confirmed}."]
+    (args.out / "compensation.md").write_text("\n".join(lines) + "\n")
+    (args.out / "compensation.json").write_text(json.dumps(report, indent=1))
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
