@@ -243,7 +243,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     compensate : str or list of str, optional, keyword-only
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
-        integrator holds while |y| < ``d``) and ``"reset"`` (the integrator cleared when the mass comes
+        integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
         to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`):
         ``exact`` is required.
@@ -345,7 +345,7 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
     compensate : str or list of str, optional, keyword-only
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
-        integrator holds while |y| < ``d``) and ``"reset"`` (the integrator cleared when the mass comes
+        integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
         to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`); the
         parameter followed may be a compensator's.
@@ -426,7 +426,7 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     compensate : str or list of str, optional, keyword-only
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
-        integrator holds while |y| < ``d``) and ``"reset"`` (the integrator cleared when the mass comes
+        integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
         to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`): each
         cell's cost stands where its DF verdict would, and an axis may be a compensator's parameter.

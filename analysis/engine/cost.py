@@ -9,7 +9,7 @@ states at 0 (dfwb's plants do not depend on where the motion is). It runs for
 least :data:`SAMPLES` and :data:`PER_RADIAN` per radian of the linear loop's
 crossover, the largest force and output read again between their neighbours:
 
-- ``standing_error``: |y| where the loop came to rest, or None when it did not
+- ``standing_error``: ``|y|`` where the loop came to rest, or None when it did not
   within the horizon (it hunts, or still moves). At rest means that over the
   last quarter of the horizon no event occurred and y stayed within
   :data:`STILL` of S, the force within :data:`STILL` of its peak: a measured

@@ -406,8 +406,11 @@ def hunting_map(response, axes=None):
             shown = ax.imshow(np.ma.masked_invalid(error), origin="lower", extent=extent, aspect="auto",
                               interpolation="nearest", cmap="cividis")
             ax.set_facecolor(NO_REST)  # (cells whose step response never rests)
-            ax.figure.colorbar(shown, ax=ax, fraction=0.05, pad=0.02).set_label(
-                f"standing error [{response.unit}] (pink: never at rest)")
+            if np.isfinite(error).any():
+                ax.figure.colorbar(shown, ax=ax, fraction=0.05, pad=0.02).set_label(
+                    f"standing error [{response.unit}] (pink: never at rest)")
+            else:
+                title = "the cost: no cell comes to rest after a step (pink)"
         else:
             rgba = np.zeros((len(ys), len(xs), 4))
             for j, row in enumerate(response.cells):
