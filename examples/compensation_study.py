@@ -16,7 +16,7 @@ The script judges the classic remedies on the exact loop, each with its cost
 4. the tuned controller: the fastest Kp + Ki/s with a deadband that does not
    hunt with Fc and Fs off by up to 20 % and 10 %, and stops within 0.1 m.
 
-Run it as ``python examples/compensation_study.py [OUT_DIR]`` (about 30 s on
+Run it as ``python examples/compensation_study.py [OUT_DIR]`` (about 20 s on
 two cores). It writes ``compensation_study.png`` into OUT_DIR (default: the
 current folder).
 """
@@ -32,7 +32,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import dfwb  # noqa: E402
 
 PI = {"Kp": 10, "Ki": 2}
-SIDE = 6  # cells per side of the maps (the docs' figure: 30)
+SIDE = 4  # cells per side of the maps (a quick look; 30 for the figure of a report)
 
 
 def one_line(response):
