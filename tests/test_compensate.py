@@ -245,6 +245,7 @@ def test_a_scene_compensates_as_the_api_does(tmp_path):
     ('compensate = ["deadband"]\nparams = {d = "wide"}', "d = 'wide' is not a number"),
     ('compensate = "deadband"\nparams = {d = 1}', "compensate: Input should be a valid list"),
     ('compensate = ["coulomb"]\nparams = {F_hat = 1, signal = "sign"}', "signal = 'sign': one of velocity"),
+    ('compensate = ["deadband"]\nparams = {d = 0.2}\nverify = true', "verify co-simulates"),  # never dropped
 ])
 def test_a_scene_refuses_a_bad_compensation_in_one_line(tmp_path, text, message):
     (tmp_path / "bad.toml").write_text('title = "bad"\n[[limit_cycle]]\nname = "x"\nplant = "friction"\n'

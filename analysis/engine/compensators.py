@@ -24,26 +24,23 @@ from dataclasses import dataclass, field
 from dfwb.base.errors import InputError
 from dfwb.fmus.compensation import SIGNALS, Coulomb, Deadband, Reset
 
-__all__ = ["KINDS", "CHOICES", "Compensation", "choice"]
+__all__ = ["KINDS", "CHOICES", "Compensation", "choice", "check_judged"]
 
 
 @dataclass(frozen=True)
 class Kind:
-    """A compensator: its numeric parameters (each needs a value), its choices (name: allowed values, the first
-    the default), how it is built from its values, and what it is in a few words."""
+    """A compensator: its numeric parameters (each needs a value), how it is built from its values, and its
+    choices (name: allowed values, the first the default)."""
 
     parameters: tuple
     build: object
-    what: str
     choices: dict = field(default_factory=dict)
 
 
 KINDS = {
-    "coulomb": Kind(("F_hat",), lambda v: Coulomb(v["F_hat"], v["signal"]),
-                    "Coulomb friction feedforward F_hat sign(signal) [N]", {"signal": SIGNALS}),
-    "deadband": Kind(("d",), lambda v: Deadband(v["d"]),
-                     "the integrator holds while the error is within d of the target"),
-    "reset": Kind((), lambda v: Reset(), "the integrator is cleared when the mass comes to rest"),
+    "coulomb": Kind(("F_hat",), lambda v: Coulomb(v["F_hat"], v["signal"]), {"signal": SIGNALS}),  # F_hat sgn(signal)
+    "deadband": Kind(("d",), lambda v: Deadband(v["d"])),  # the integrator holds while |y| < d
+    "reset": Kind((), lambda v: Reset()),  # the integrator cleared when the mass comes to rest
 }
 PLANNED = {"dither": "the dither", "backlash-inverse": "the backlash inverse"}
 CHOICES = {name: allowed for kind in KINDS.values() for name, allowed in kind.choices.items()}
@@ -55,6 +52,16 @@ def choice(name, value):
     if value not in allowed:
         raise InputError(f"{name} = {value!r:.60}: one of {', '.join(allowed)}")
     return value
+
+
+def check_judged(compensation, exact, verify):
+    """Refuse a limit-cycle study of a compensated loop that is not judged by its exact loop alone (no DF of a
+    compensated loop; dfwb's closed-loop FMUs, which ``verify`` co-simulates, have no compensators)."""
+    if compensation and not exact:
+        raise InputError("compensate: a compensated loop is judged by its exact loop: add exact (--exact)")
+    if compensation and verify:
+        raise InputError("compensate: verify co-simulates dfwb's closed-loop FMUs, which have no compensators: "
+                         "leave verify out")
 
 
 class Compensation:

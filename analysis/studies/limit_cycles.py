@@ -23,6 +23,7 @@ import numpy as np
 
 from dfwb.base.defaults import DF_MAP_SIZE, JUDGE_SAMPLES
 from dfwb.base.errors import InputError
+from dfwb.engine.compensators import check_judged
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
 from dfwb.engine.transfer import num_den
@@ -47,11 +48,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
 
     family = LoopFamily(plant, G, values, compensate=compensate)
     compensated = bool(family.compensation)
-    if compensated and not exact:
-        raise InputError("compensate: a compensated loop is judged by its exact loop: add exact (--exact)")
-    if compensated and verify:
-        raise InputError("compensate: verify co-simulates dfwb's closed-loop FMUs, which have no compensators: "
-                         "leave verify out")
+    check_judged(family.compensation, exact, verify)
     spec, controller, params = family.spec, family.G(), family.params()
     if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
         raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")

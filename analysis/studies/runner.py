@@ -310,9 +310,11 @@ class SceneRun:
         results = {}
         table = _Points(self, self.settings(HARMONICS))
         for lc in self.scene.limit_cycle:
-            if lc.compensate:  # judged by its exact loop alone: no DF map to compute
-                results[lc.name] = analyse(lc.plant, lc.controller(), lc.params, exact=lc.exact, fmu_dir=self.fmu_dir,
-                                           cache=self.cache, progress=_staged(display, lc.name),
+            if lc.compensate:  # judged by its exact loop alone: no DF map to compute (analyse refuses what needs one)
+                results[lc.name] = analyse(lc.plant, lc.controller(), lc.params, F_range=lc.F_range,
+                                           omega_range=lc.omega_range, n_F=lc.n_F, n_omega=lc.n_omega,
+                                           exact=lc.exact, verify=lc.verify, samples_per_period=lc.samples_per_period,
+                                           fmu_dir=self.fmu_dir, cache=self.cache, progress=_staged(display, lc.name),
                                            compensate=lc.compensate)
                 continue
             if lc.plant not in self.fmus:  # a user's FMU: its map on its engine's workers, not cached yet

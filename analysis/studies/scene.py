@@ -59,6 +59,7 @@ from dfwb.base.schema import (
     rule,
     shown,
 )
+from dfwb.engine.compensators import check_judged
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE
 from dfwb.fmus.piecewise import PlantError
 from dfwb.foreign.description import KINDS
@@ -374,7 +375,7 @@ class LimitCycle(_Loop):
         if getattr(spec, "foreign", False) and self.verify:
             raise InputError("verify runs dfwb's own closed-loop FMUs: not for a user's FMU (use exact = true)")
         _check_ranges(self, spec)
-        self.family()
+        check_judged(self.family().compensation, self.exact, self.verify)
 
     def family(self):
         """The :class:`~dfwb.engine.family.LoopFamily` of the plant, G and params (checked)."""
