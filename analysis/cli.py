@@ -376,10 +376,10 @@ def _answer(args, response, plot=None):
 
 
 def _range(text, option):
-    """NAME=START:STOP (or NAME=START:STOP:N with ``count``) of --parameter, --x, --y."""
+    """NAME=START:STOP of --parameter and --free (LO:HI), NAME=START:STOP:N of --x and --y."""
     name, sep, rest = text.partition("=")
     parts = rest.split(":")
-    if not sep or not name or len(parts) not in (2, 3):
+    if not sep or not name or len(parts) != (3 if option in ("--x", "--y") else 2):
         raise InputError(f"{option} {text!r}: expected NAME=" + ("LO:HI" if option == "--free" else "START:STOP")
                          + (":N" if option in ("--x", "--y") else ""))
     return name, [_number(part, f"{option} {name}") for part in parts]
@@ -390,8 +390,6 @@ def cmd_continue(args):
 
     plot = _plot_path(args.plot) if args.plot else None
     name, bounds = _range(args.parameter, "--parameter")
-    if len(bounds) != 2:
-        raise InputError(f"--parameter {args.parameter!r}: expected NAME=START:STOP")
     sources = ("truth", "df") if args.source == "both" else (args.source,)
     own, ranges = _own_fmu_ranges(args)
     if args.samples is not None:
@@ -442,8 +440,6 @@ def cmd_tune(args):
     free = {}
     for text in args.free:
         name, bounds = _range(text, "--free")
-        if len(bounds) != 2:
-            raise InputError(f"--free {text!r}: expected NAME=LO:HI")
         if name in free:
             raise InputError(f"--free {name} given twice: give it once")
         free[name] = tuple(bounds)

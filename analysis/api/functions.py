@@ -606,8 +606,6 @@ def tune(plant: Any, G: Any, *, free: dict, compensate: Union[None, str, Sequenc
     if bad:
         raise InputError(f"free {bad[0]}: a parameter of the plant, not a setting of the controller (give it a "
                          "value, or a relative error with robust)")
-    for name, (lo, hi) in ranges.items():
-        family.merged({name: lo})  # each named as G's or a compensator's
     started = time.perf_counter()
     with _reporter(f"tuning {spec.name}", progress) as report:
         chosen, tried, box = search(family, ranges, tolerance, robust, count,

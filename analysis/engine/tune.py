@@ -101,9 +101,8 @@ def tune(family, free, tolerance=None, robust=None, count=5, progress=None, fmu_
     ranked = []
     for values in itertools.product(*(axes[n] for n in controller)):
         setting = dict(zip(controller, values))
-        try:
-            scales = family.problem(setting, fmu_dir).scales if not compensating else \
-                family.problem(dict(setting, **{n: axes[n][0] for n in compensating}), fmu_dir).scales
+        try:  # (the compensators at their first values: the linear loop does not see them)
+            scales = family.problem(dict(setting, **{n: axes[n][0] for n in compensating}), fmu_dir).scales
         except DfwbError as error:
             ranked.append((Candidate(setting, math.nan, "refused", " ".join(str(error).split())), None))
             continue
@@ -154,7 +153,8 @@ def tune(family, free, tolerance=None, robust=None, count=5, progress=None, fmu_
 def confirm(family, chosen, box, fmu_dir=None):
     """Whether the independent reference confirms that the chosen loop comes to rest and stays there at every
     corner, from rest at the step and from displaced starts (:data:`CONFIRM_STARTS`): (True or False, what was
-    run); (None, why) for a plant the reference has no compensators of."""
+    run); (None, why) for a plant or parameters the reference does not take (its friction mass sticks exactly:
+    Dv = 0)."""
     from dfwb.plants.loop_reference import closed_loop_reference
 
     if family.spec.name != "friction":
@@ -173,10 +173,12 @@ def confirm(family, chosen, box, fmu_dir=None):
         T = problem.horizon
         for scale in CONFIRM_STARTS:
             start = problem.rest_start(scale * problem.scales.length)
-            params = {k: v for k, v in corner.items() if k in ("M", "B", "Fc", "Fs")}
-            ref = closed_loop_reference("friction", problem.b, problem.a, T, params, state=start, max_events=100_000,
-                                        **kwargs)
-            later = closed_loop_reference("friction", problem.b, problem.a, T / 4, params, state=ref["state"],
+            try:  # the corner's plant as it is: a parameter the reference does not take is said, never dropped
+                ref = closed_loop_reference("friction", problem.b, problem.a, T, corner, state=start,
+                                            max_events=100_000, **kwargs)
+            except DfwbError as error:
+                return None, f"the reference cannot run this plant: {' '.join(str(error).split())}"
+            later = closed_loop_reference("friction", problem.b, problem.a, T / 4, corner, state=ref["state"],
                                           **kwargs)
             rests = ref["mode"] == "stick" and later["events"] == [] and later["state"] == ref["state"]
             runs.append({"corner": corner, "start": start, "t": T, "rests": rests, "y": ref["state"][0]})

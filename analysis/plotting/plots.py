@@ -520,8 +520,7 @@ def tune_plot(ax, response):
         lines += ax.plot(response.settings[x], response.settings[y] if y else response.crossover, "*", ms=20,
                          mfc="none", mec="k", mew=1.6,
                          label="chosen: " + ", ".join(f"{k} = {v:.4g}" for k, v in response.settings.items()))
-    lo, hi = response.free[x]
-    if lo > 0:
+    if response.free[x][0] > 0:
         ax.set_xscale("log")
     if y is not None and response.free[y][0] > 0:
         ax.set_yscale("log")

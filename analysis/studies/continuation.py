@@ -90,10 +90,10 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                         compensate=compensate)
     name, bounds = check_parameter(family, parameter, start, stop)
     sources = _sources(sources)
-    uncomputed = []
+    notes = []
     if family.compensation and "df" in sources:
         sources = tuple(source for source in sources if source != "df")
-        uncomputed.append("the DF of a compensated loop is not computed: its true cycles alone are followed")
+        notes.append("the DF of a compensated loop is not computed: its true cycles alone are followed")
         if not sources:
             raise InputError("compensate: a compensated loop is followed by its truth (sources = 'truth'): the DF "
                              "of a compensated loop is not computed")
@@ -102,7 +102,7 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
     check_somewhere(family, [{name: value} for value in at],
                     "both ends of the range" if starts is None else "every start value")
-    searches, notes, cycle_starts, prediction_starts, ranges = [], uncomputed, [], [], []
+    searches, cycle_starts, prediction_starts, ranges = [], [], [], []
     foreign = getattr(family.spec, "foreign", False)
     if foreign:
         engine, fixed = _foreign_engine(family.spec, F_range, omega_range, n_F, n_omega, rtol, timeout)

@@ -92,7 +92,7 @@ def compute_cells(chunk, fmu_data=None):
             if family.compensation:  # no DF of a compensated loop: its cost instead
                 from dfwb.engine.cost import step_cost
 
-                cell.update(df=UNCOMPUTED, cost=step_cost(problem).as_dict())
+                cell.update(df=dict(UNCOMPUTED), cost=step_cost(problem).as_dict())
         except DfwbError as error:
             cell = {"error": " ".join(str(error).split())}
         cells.append(dict(cell, x=x, y=y))
