@@ -165,10 +165,12 @@ class FeedbackLoop(HybridSolver):
 
     def applied(self, X):
         """The force on the plant at X: the controller's and the compensator's (constant in the mode)."""
-        k = 0.0
-        if self.coulomb is not None and self.coulomb.F_hat > 0.0:
-            k = self.coulomb.F_hat * (self.sigma if self._on_control else self.slip(self.key))
-        return self.force(X) + k
+        return self.force(X) + self.feedforward(self.key, self.sigma if self._on_control else None)
+
+    def feedforward(self, key, sign):
+        """The Coulomb feedforward's force in plant mode ``key``: F_hat times the controller's sign ``sign``, or
+        (None) the plant's slip there; 0 without a feedforward."""
+        return 0.0 if self.coulomb is None else self.coulomb.F_hat * (sign if sign is not None else self.slip(key))
 
     def mode(self, key):
         """The mode of plant key ``key``; with a compensator's discrete state (the controller's sign, the
@@ -202,7 +204,7 @@ class FeedbackLoop(HybridSolver):
             row[out] += Bc[i]
             A.append(row)
         # the compensator's force k, constant in the mode: the plant sees f + k
-        k = 0.0 if self.coulomb is None else self.coulomb.F_hat * (sign if sign is not None else self.slip(key))
+        k = self.feedforward(key, sign)
         c = [value + phi_i * k for value, phi_i in zip(p, phi)] + [0.0] * n
         full = []
         for kind, Lq, Lf, l0 in events:

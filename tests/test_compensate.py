@@ -321,3 +321,15 @@ def test_tune_refuses_in_one_line(tmp_path, words, message):
     code, out, err = cli("tune", "friction", "--G", "Kp + Ki/s", "--set", "Ki=1", "d=0.1", "--compensate",
                          "deadband", *words, cwd=tmp_path)
     assert code == 2 and err.count("\n") == 1 and message in err, err
+
+
+@pytest.mark.parametrize("given, message", [
+    ({"robust": [1, 2]}, "robust = [1, 2]: give {name: relative error}"),
+    ({"free": {"Kp": (1, 1e400)}}, "free Kp hi = inf: give a finite number"),
+    ({"free": {"Kp": (1, 2, 3)}}, "free Kp = (1, 2, 3): give (lo, hi)"),
+    ({"free": {}}, "free = {}: give {name: (lo, hi)}"),
+])
+def test_tune_refuses_a_bad_value_of_the_api_in_one_line(given, message):
+    with pytest.raises(InputError) as error:
+        dfwb.tune("friction", "Kp + Ki/s", **dict(dict(free={"Kp": (1, 2)}, Ki=1, count=2), **given))
+    assert str(error.value) == message or str(error.value).startswith(message), str(error.value)

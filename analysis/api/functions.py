@@ -573,55 +573,14 @@ def tune(plant: Any, G: Any, *, free: dict, compensate: Union[None, str, Sequenc
     >>> {k: round(v, 4) for k, v in r.settings.items()}, r.confirmed
     ({'Kp': 50.0, 'Ki': 10.0, 'd': 0.0707}, True)
     """
-    import time
-
-    from dfwb.engine.family import LoopFamily, number
-    from dfwb.engine.tune import confirm
-    from dfwb.engine.tune import tune as search
+    from dfwb.studies.tune import tune_study
 
     flags(progress=progress)
     count = _integer("count", count)
-    if not 2 <= count <= 50:
-        raise InputError(f"count = {count}: the values per free parameter, 2 to 50")
-    if not isinstance(free, dict) or not free:
-        raise InputError(f"free = {free!r:.60}: give {{name: (lo, hi)}} of the parameters searched")
-    ranges = {}
-    for name, bounds in free.items():
-        try:
-            lo, hi = (number(f"free {name}", value) for value in bounds)
-        except (TypeError, ValueError):
-            raise InputError(f"free {name} = {bounds!r:.60}: give (lo, hi)") from None
-        if not lo < hi:
-            raise InputError(f"free {name} = ({lo:g}, {hi:g}): expected lo < hi")
-        ranges[name] = (lo, hi)
-    if tolerance is not None:
-        tolerance = number("tolerance", tolerance)
-        if tolerance <= 0.0:
-            raise InputError(f"tolerance = {tolerance:g}: a standing error above 0")
     spec = resolve_plant(plant)
-    if getattr(spec, "foreign", False) or spec.loop is None:
-        raise InputError(f"tune: plant {spec.name!r} has no exact closed loop to tune against")
-    family = LoopFamily(spec, G, params, free=tuple(ranges), compensate=compensate)
-    bad = [name for name in ranges if name in family.plant_names]
-    if bad:
-        raise InputError(f"free {bad[0]}: a parameter of the plant, not a setting of the controller (give it a "
-                         "value, or a relative error with robust)")
-    started = time.perf_counter()
     with _reporter(f"tuning {spec.name}", progress) as report:
-        chosen, tried, box = search(family, ranges, tolerance, robust, count,
-                                    (lambda done, total: report("settings", done, total)) if progress else None,
-                                    fmu_dir)
-        confirmed, runs = confirm(family, chosen, box, fmu_dir) if chosen is not None else (None, "nothing chosen")
-    from dfwb.studies.continuation import _text
-
-    return TuneResponse(plant=spec.name, G=_text(G, family), free={k: list(v) for k, v in ranges.items()},
-                        count=count, tolerance=tolerance, robust=dict(robust or {}), corners=box,
-                        settings=None if chosen is None else chosen.values,
-                        crossover=None if chosen is None else chosen.crossover,
-                        cost={} if chosen is None else chosen.cost, confirmed=confirmed, confirmation=runs,
-                        candidates=[c.as_dict() for c in tried],
-                        controller=[n for n in ranges if n in family.controller.names], values=family.merged(),
-                        unit=spec.unit, seconds=time.perf_counter() - started)
+        return tune_study(spec, G, params, free=free, compensate=compensate, tolerance=tolerance, robust=robust,
+                          count=count, fmu_dir=fmu_dir, progress=report if progress else None)
 
 
 def _reporter(title, enabled):
