@@ -262,8 +262,9 @@ class FeedbackLoop(HybridSolver):
         if self._in_row == 0:
             self._row_start = t
         self._in_row += 1
-        if t - self._window[0] > CHATTER_CHUNKS * min(mode.resolution for mode in self._modes.values()):
-            self._window = [t, 0]  # a new window of switches
+        width = CHATTER_CHUNKS * min(mode.resolution for mode in self._modes.values())
+        if not self._window[1] or t - self._window[0] > width:
+            self._window = [t, 0]  # a new window of switches, from this one
         self._window[1] += 1
         if self._in_row >= MAX_SWITCHES or self._window[1] >= MAX_SWITCHES:
             row = self._in_row >= MAX_SWITCHES
