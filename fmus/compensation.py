@@ -35,7 +35,7 @@ Plain Python only: this module runs inside the FMUs.
 from .exact import PlantError
 from .piecewise import check
 
-__all__ = ["Coulomb", "Reset", "Deadband", "SIGNALS", "compensators", "integrator"]
+__all__ = ["Coulomb", "Reset", "Deadband", "SIGNALS", "compensators", "follows_control", "integrator"]
 
 SIGNALS = ("velocity", "control")
 
@@ -104,6 +104,13 @@ def compensators(compensation):
     coulomb = next((c for c in given if isinstance(c, Coulomb)), None)
     band = next((c.d for c in given if isinstance(c, Deadband) and c.d > 0.0), None)
     return coulomb, Reset in kinds, band
+
+
+def follows_control(compensation):
+    """Whether ``compensation`` (as :func:`compensators` takes it) holds a Coulomb feedforward of the controller's
+    sign that acts (F_hat > 0): a discrete state and an event of the loop that only the Python loop runs."""
+    coulomb = compensators(compensation)[0]
+    return coulomb is not None and coulomb.signal == "control" and coulomb.F_hat > 0.0
 
 
 def integrator(a):

@@ -14,7 +14,7 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
-from .compensation import compensators, integrator
+from .compensation import compensators, follows_control, integrator
 from .contract import EventKind
 from .exact import PlantError
 from .hybrid import HybridSolver
@@ -112,7 +112,8 @@ class FeedbackLoop(HybridSolver):
         self.coulomb, reset, self.deadband = compensators(compensation)
         coulomb = self.coulomb
         # the Coulomb feedforward of the controller's sign: its current sign, a discrete state of the loop
-        self._on_control = coulomb is not None and coulomb.signal == "control" and coulomb.F_hat > 0
+        self._on_control = follows_control(coulomb)
+        self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         # the integrator's coordinate xi = w . z: reset when the mass comes to rest, held within the deadband
         self._integrator = integrator(a) if reset or self.deadband is not None else None
         self._reset_at_rest = reset
@@ -124,7 +125,6 @@ class FeedbackLoop(HybridSolver):
         self._window = [0.0, 0]  # ... and in the current window of CHATTER_CHUNKS chunks: [its start, count]
         self.band = 1  # the deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d
         self._discrete = self._on_control or self.deadband is not None  # modes cached by (key, sigma, band)
-        self.Ac, self.Bc, self.C, self.D = _controller(b, a)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
         if state is not None:  # the whole loop state: the plant's coordinates, then z
@@ -166,6 +166,17 @@ class FeedbackLoop(HybridSolver):
     def applied(self, X):
         """The force on the plant at X: the controller's and the compensator's (constant in the mode)."""
         return self.force(X) + self.feedforward(self.key, self.sigma if self._on_control else None)
+
+    def readings(self, times):
+        """(states, forces on the plant) at each of ``times`` (non-decreasing, from self.t), advancing to them in
+        turn: what a step response is read from."""
+        states, forces = [], []
+        for t in times:
+            self.advance(float(t))
+            X = self.state()
+            states.append(X)
+            forces.append(self.applied(X))
+        return states, forces
 
     def feedforward(self, key, sign):
         """The Coulomb feedforward's force in plant mode ``key``: F_hat times the controller's sign ``sign``, or
@@ -245,10 +256,8 @@ class FeedbackLoop(HybridSolver):
         return [self.Bc[0] - 1.0 / self._integrator[0]] + list(self.Bc[1:])
 
     def _switch(self, t, kind, X):
-        if kind is EventKind.DEADBAND:  # at an edge: from within, out to its side; from outside, in
-            y = X[self.OUTPUT]
-            self.band = 0 if self.band else (1 if y > 0.0 else -1)
-            return self.key, X, None
+        if kind is EventKind.DEADBAND:
+            return self._cross_edge(X)
         if kind is not EventKind.COULOMB:
             self._in_row = 0
             if self._reset_at_rest and kind in self.REST_EVENTS:
@@ -274,6 +283,18 @@ class FeedbackLoop(HybridSolver):
                              + ": it chatters (it over-compensates the friction); not solved")
         self.sigma = self._control_sign(self.key, X)
         return self.settle(self.key, X)
+
+    def _cross_edge(self, X):
+        """(key, X, departing) at a deadband edge: from outside, in through the edge of its side; from within,
+        out where the motion goes (the edge function falling through zero, by its trend: y's sign cannot tell
+        where the band is narrower than y's rounding). The edge crossed departs in the new mode (else its
+        rounding fires it back and forth at one instant)."""
+        first = self.function_index(self.key, EventKind.DEADBAND)  # within: d - y, then d + y
+        if self.band:
+            side, self.band = self.band, 0
+            return self.key, X, first + (0 if side > 0 else 1)
+        self.band = 1 if self.after(self.key, first, X) < 0 else -1
+        return self.key, X, self.function_index(self.key, EventKind.DEADBAND)
 
     def _reset(self, X):
         """Clear the controller's integrator in X, its other modes kept: z -= (w . z / w_1) e_1."""

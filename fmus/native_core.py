@@ -55,6 +55,7 @@ import warnings
 from collections import namedtuple
 from pathlib import Path
 
+from .compensation import Coulomb, compensators, follows_control
 from .contract import EventKind
 from .exact import DfwbError, Diverged, Drive, PlantError
 from .plants import KINDS, MODULES, c_name
@@ -63,9 +64,10 @@ from .state import StateRefused
 __all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CAPACITY", "EVENT_KINDS",
            "NativeMode"]  # and each plant's classes by name: NativeFrictionMass, NativeFrictionLoop, ...
 
-ABI = 8  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 9  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 ERRLEN = 1024
-LOOP_KEYS = 9  # the mode keys a loop may have (DFWB_HY_MODES)
+LOOP_KEYS = 9  # the mode keys a loop may have (DFWB_HY_KEYS); slot s of its modes is key s % 9 at deadband side s // 9
+SIDES = (1, 0, -1)  # the integrator deadband's side of each variant of the modes (FeedbackLoop.band)
 LOOP_CONSTANTS = 9  # what dfwb_loop_parameters writes (DFWB_LOOP_PAR): a plant's loop holds at most these
 LOG_CAPACITY = 1 << 20  # events one step may record (16 bytes each in C, allocated as they come)
 
@@ -75,7 +77,7 @@ OK, E_VALUE, E_LIMIT, E_MATH, E_MEMORY, E_ARGUMENT, E_STATE, E_DIVERGED = range(
 # DFWB_EVENT_* -> EventKind (0: none)
 EVENT_KINDS = (None, EventKind.BREAK_UP, EventKind.BREAK_DOWN, EventKind.RELEASE, EventKind.EDGE, EventKind.BAND,
                EventKind.WALL_LOWER, EventKind.WALL_UPPER, EventKind.APEX, EventKind.ENGAGE_UP,
-               EventKind.ENGAGE_DOWN, EventKind.REVERSE)
+               EventKind.ENGAGE_DOWN, EventKind.REVERSE, EventKind.COULOMB, EventKind.DEADBAND)
 
 # plant -> (DFWB_PLANT_*, NativeCore attribute, its table: the C order of its parameters, outputs and counters)
 _PLANTS = {c_name(m.TABLE): (KINDS[m.TABLE.name], m.TABLE.model, m.TABLE) for m in MODULES}
@@ -564,12 +566,14 @@ class _LoopApi(_Functions):
         p_double, p_int = ctypes.POINTER(c_double), ctypes.POINTER(c_int)
         table = {
             "new": (c_int, [c_int, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t, p_double, c_size_t,
-                            p_double, c_size_t, p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+                            p_double, c_size_t, p_double, p_double, ctypes.POINTER(c_void_p), c_char_p, c_size_t]),
+            "band": (c_int, [c_void_p]),
+            "compensation": (None, [c_void_p, p_double]),
             "advance": (c_int, [c_void_p, c_double, c_int, ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(c_longlong),
                                 c_longlong, c_char_p, c_size_t]),
             "stopped": (c_int, [c_void_p]),
-            "sample": (c_int, [c_void_p, p_double, c_size_t, p_double, ctypes.POINTER(c_longlong), c_longlong,
-                               c_char_p, c_size_t]),
+            "sample": (c_int, [c_void_p, p_double, c_size_t, p_double, p_int, ctypes.POINTER(c_longlong),
+                               c_longlong, c_char_p, c_size_t]),
             "plant": (c_int, [c_void_p]),
             "order": (c_int, [c_void_p]),
             "size": (c_int, [c_void_p]),
@@ -611,8 +615,8 @@ class _NativeLoop(_Native):
         super().__init_subclass__(**kwargs)
         python = _LOOPS[cls._plant][2]
         for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates", "force",
-                     "KEYS", "SECTION", "PIVOT", "pivot", "linear", "nonlinearity", "still", "CONSTANTS",
-                     "COUNTER", "MODE_VALUES"):
+                     "applied", "feedforward", "slip", "KEYS", "SECTION", "PIVOT", "pivot", "linear", "nonlinearity",
+                     "still", "CONSTANTS", "COUNTER", "MODE_VALUES"):
             setattr(cls, name, getattr(python, name))
         cls.coordinates_of = staticmethod(python.coordinates_of)
         cls._keys = python.KEYS
@@ -621,7 +625,7 @@ class _NativeLoop(_Native):
         originals = _numbers(_PLANTS[self._plant][2], _bind(type(self), args, kwargs))
         names = _LOOPS[self._plant][3]
         self._create(core, originals["b"], originals["a"], tuple(originals[name] for name in names), *(
-            originals[name] for name in ("z0", "state", "section", "modes", "budget")))
+            originals[name] for name in ("z0", "state", "section", "modes", "budget", "compensation")))
         self._set_constants()
         for name in self.CONSTANTS:  # the parameters as given (an int stays an int), as the Python loop keeps them
             if name in originals:
@@ -634,9 +638,16 @@ class _NativeLoop(_Native):
     def _state_size(self):
         return self._api.state_size
 
-    def _create(self, core, b, a, values, z0, state, section, modes, budget):
+    def _create(self, core, b, a, values, z0, state, section, modes, budget, compensation):
         self._handle = None
         core = self._bound_core(core)
+        coulomb, reset, band = compensators(compensation)
+        if follows_control(coulomb):
+            raise PlantError("the compiled loop has no Coulomb feedforward of the controller's sign (the Python loop, "
+                             "dfwb.fmus.loops, runs it)")
+        ccompensation = None if compensation is None else (ctypes.c_double * 4)(
+            float(coulomb is not None), 0.0 if coulomb is None else coulomb.F_hat, float(reset),
+            0.0 if band is None else band)
         kind, _attr, _cls, names = _LOOPS[self._plant]
         b, a = list(b), list(a)
         originals = dict(zip(names, values))
@@ -660,7 +671,7 @@ class _NativeLoop(_Native):
             csec = ctypes.byref(ctypes.c_double(_as_double(section)))
         else:
             csec = None
-        handle = _new(core.loop_api.new, kind, params, nparams, cb, nb, ca, na, cz, nz, cs, ns, csec,
+        handle = _new(core.loop_api.new, kind, params, nparams, cb, nb, ca, na, cz, nz, cs, ns, csec, ccompensation,
                       originals=originals)
         self._setup(core, handle, modes, budget, section)
 
@@ -674,6 +685,17 @@ class _NativeLoop(_Native):
         api.controller(handle, Ac, Bc, C, ctypes.byref(D))
         self.Ac = [Ac[i * n:(i + 1) * n] for i in range(n)]
         self.Bc, self.C, self.D = Bc[:], C[:], D.value
+        held = (ctypes.c_double * 4)()
+        api.compensation(handle, held)
+        has_coulomb, F_hat, self._reset_at_rest, d = held[:]
+        self.coulomb = Coulomb(F_hat) if has_coulomb else None  # the compensators, as the Python loop holds them
+        self.deadband = d if d > 0.0 else None
+        self.sigma, self._on_control = 0, False  # the feedforward of the controller's sign: Python's alone
+        # slot s of the C modes -> the key the Python loop's modes dict holds it by: with a deadband (key, 0, side)
+        self._slots = {k + LOOP_KEYS * v: (key, 0, side) if self.deadband is not None else key
+                       for v, side in enumerate(SIDES if self.deadband is not None else (1,))
+                       for k, key in enumerate(self._keys)}
+        self._slot_of = {key: slot for slot, key in self._slots.items()}
         self._modes = {} if modes is None else modes
         self._budget = budget
         self._level = level  # the section's level, or None (Python's _section is (L, l0))
@@ -692,6 +714,15 @@ class _NativeLoop(_Native):
     def key(self):
         """The current mode key (as the Python loop's: ``("slide", 1)``, ...)."""
         return self._keys[self._api.mode(self._handle)]
+
+    @property
+    def band(self):
+        """The integrator deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d (or none)."""
+        return self._api.band(self._handle)
+
+    def _compound(self, key):
+        """The key the modes dict holds plant mode ``key`` by at the current side of the deadband."""
+        return (key, 0, self.band) if self.deadband is not None else key
 
     def advance(self, t_end, stop_at_section=False, stop_at=()):
         """Integrate exactly from self.t to t_end, firing every event on the way (HybridSolver.advance).
@@ -735,6 +766,18 @@ class _NativeLoop(_Native):
     def sample(self, times):
         """The states at each of ``times`` (non-decreasing, from self.t), advancing to them in turn
         (HybridSolver.sample): one call into the core. ``times`` may be a float64 array (read in place)."""
+        return self._sample(times, None)
+
+    def readings(self, times):
+        """(states, forces on the plant) at each of ``times`` (FeedbackLoop.readings): one call into the core."""
+        keys = (ctypes.c_int * max(1, len(times)))()
+        states = self._sample(times, keys)
+        forward = {}
+        for key in set(keys[:len(times)]):
+            forward[key] = self.feedforward(self._keys[key], None)
+        return states, [self.force(X) + forward[key] for X, key in zip(states, keys)]
+
+    def _sample(self, times, keys):
         self._share_modes()
         api, budget, n = self._api, self._budget, len(times)
         if getattr(times, "dtype", None) == "float64" and times.flags["C_CONTIGUOUS"]:
@@ -743,11 +786,12 @@ class _NativeLoop(_Native):
             ctimes = (ctypes.c_double * max(1, n))(*[_as_double(t) for t in times])
         states = (ctypes.c_double * max(1, n * self._size))()
         if budget is None:
-            code = api.sample(self._handle, ctimes, n, states, None, 0, self._err, ERRLEN)
+            code = api.sample(self._handle, ctimes, n, states, keys, None, 0, self._err, ERRLEN)
         else:
             left = self._left
             left.value = budget.left
-            code = api.sample(self._handle, ctimes, n, states, ctypes.byref(left), budget.total, self._err, ERRLEN)
+            code = api.sample(self._handle, ctimes, n, states, keys, ctypes.byref(left), budget.total, self._err,
+                              ERRLEN)
             budget.left = left.value
         self.stopped = None
         self._collect()
@@ -766,7 +810,8 @@ class _NativeLoop(_Native):
 
     def mode(self, key):
         """The mode ``key`` (a :data:`NativeMode`), built if new (HybridSolver.mode)."""
-        self._share_modes((1 << self._keys.index(key)))
+        key = self._compound(key)
+        self._share_modes(1 << self._slot_of[key])
         return self._modes[key]
 
     # -- what the C instance reports after a step --------------------------------------------------
@@ -775,8 +820,8 @@ class _NativeLoop(_Native):
         wanted = extra
         if len(self._modes) > bin(self._mask).count("1") or extra:
             for key in self._modes:
-                if key in self._keys:
-                    wanted |= 1 << self._keys.index(key)
+                if key in self._slot_of:
+                    wanted |= 1 << self._slot_of[key]
         if wanted & ~self._mask:
             code = self._api.build_modes(self._handle, wanted, self._err, ERRLEN)
             self._collect()
@@ -788,7 +833,7 @@ class _NativeLoop(_Native):
         mask = api.modes_built(handle)
         if mask != self._mask:
             h, terms = ctypes.c_double(), ctypes.c_int()
-            for i, key in enumerate(self._keys):
+            for i, key in self._slots.items():
                 if (mask >> i) & 1 and key not in self._modes and api.mode_info(handle, i, ctypes.byref(h),
                                                                                 ctypes.byref(terms)):
                     self._modes[key] = NativeMode(key, h.value, terms.value)

@@ -34,6 +34,7 @@ from test_periodic import LOOPS as PERIODIC  # tests/test_periodic.py's loops
 from dfwb.engine.cycles import find_cycles
 from dfwb.engine.periodic import MAX_CHUNKS, LoopProblem
 from dfwb.fmus.backlash import BacklashLoop
+from dfwb.fmus.compensation import Coulomb, Deadband, Reset
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.hybrid import Budget
@@ -568,6 +569,11 @@ def _states(core):
         for k in range(1, 30):
             loop.advance(k * t_end / 29.0, stop_at_section=k % 3 == 0)
             states.append(loop.to_bytes().hex())
+    loop = core.FrictionLoop([10.0, 2.0], [0.0], x0=0.7, section=0.0,
+                             compensation=[Coulomb(1.5), Reset(), Deadband(0.05)])
+    for k in range(1, 30):  # the compensators' fields, the deadband's sides
+        loop.advance(k * 10.0, stop_at_section=k % 3 == 0)
+        found["FrictionLoop"].append(loop.to_bytes().hex())
     return found
 
 
@@ -589,7 +595,7 @@ def test_state_round_trip_continues_bit_for_bit(core, python_whole, case):
             assert getattr(again, name) == getattr(py, name), name
         again.advance(t_end)
         assert again.state() == py.state() and again.events == py.events and again.counts() == py.counts()
-    assert len(data) == HEADER + 936 == core.loop_api.state_size  # 440 + an integrated step (62 fields)
+    assert len(data) == HEADER + 976 == core.loop_api.state_size  # 440 + 5 compensator fields + an integrated step (62)
 
 
 def test_same_parameters(core):

@@ -96,14 +96,8 @@ def step_cost(problem, step=None, horizon=None):
 
 def _read(problem, start, times):
     """(y, the force on the plant) of the loop from ``start`` at each of ``times`` (increasing)."""
-    solver = problem.solver(start)
-    applied = solver.applied if problem.compensation else solver.force
-    y, f = np.empty(len(times)), np.empty(len(times))
-    for i, t in enumerate(times):
-        solver.advance(float(t))
-        X = solver.state()
-        y[i], f[i] = X[problem.output], applied(X)
-    return y, f
+    states, forces = problem.solver(start).readings(np.ascontiguousarray(times, dtype=float))
+    return np.array(states)[:, problem.output], np.array(forces)
 
 
 def _step(problem, S, T):

@@ -47,6 +47,7 @@ import numpy as np
 from dfwb.base.defaults import HARMONICS
 from dfwb.base.errors import InputError
 from dfwb.engine.transfer import check_transfer_function
+from dfwb.fmus.compensation import follows_control
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.hybrid import MAX_CHUNKS_PER_STEP, Budget
 from dfwb.plants import plant as find_plant
@@ -229,7 +230,8 @@ class LoopProblem:
         A budget shared with other problems (a continuation's), instead of one of ``max_chunks``.
     compensation : compensator or list of them, optional
         ``Coulomb``, ``Reset``, ``Deadband`` of :mod:`dfwb.fmus.compensation`, between the controller and the
-        plant; for now the Python loop runs them (the compiled core has no compensators yet).
+        plant. The compiled core runs them, bit for bit, but for the Coulomb feedforward of the controller's
+        sign: with it, the Python loop runs.
     """
 
     def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS, fmu_dir=None, budget=None, compensation=None):
@@ -243,7 +245,8 @@ class LoopProblem:
             G = parse_transfer_function(G)
         self.G = check_transfer_function(G)
         self.spec, self.fmu_dir, self.compensation = spec, fmu_dir, compensation
-        self.cls = _loop_class(spec, fmu_dir) if compensation is None else spec.loop  # compiled: not yet
+        # the compiled core runs every compensator but the feedforward of the controller's sign
+        self.cls = spec.loop if follows_control(compensation) else _loop_class(spec, fmu_dir)
         self.b, self.a = _coefficients(self.G)
         checked = spec.check(dict(params or {}))
         self.params = {k: v for k, v in checked.items() if k not in self.cls.initial_parameters}

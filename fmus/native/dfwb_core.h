@@ -93,7 +93,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 8
+#define DFWB_CORE_ABI 9
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -122,6 +122,8 @@ extern "C" {
 #define DFWB_EVENT_ENGAGE_UP 9    /* "engage+" */
 #define DFWB_EVENT_ENGAGE_DOWN 10 /* "engage-" */
 #define DFWB_EVENT_REVERSE 11     /* "reverse" */
+#define DFWB_EVENT_COULOMB 12     /* "coulomb" (Python's loop alone: the feedforward of the controller's sign) */
+#define DFWB_EVENT_DEADBAND 13    /* "deadband" */
 
 #define DFWB_HARMONICS_MAX 10
 
@@ -232,10 +234,17 @@ typedef struct dfwb_loop dfwb_loop;
  * output y rising through *section (dfwb_loop_crossings_read). Checked in Python's order and refused
  * with its texts (DFWB_E_VALUE): the plant's parameters, the order n = na in 1..8, nb = n + 1, a1..an,
  * b0..bn, the state's length, coordinates and range (gap in [0, h], |x - y/k| <= h/2 (1 + 1e-9)), z0's
- * length and values, the section. */
+ * length and values, the section. compensation (NULL: none) = {coulomb 0/1, F_hat, reset 0/1, d}: the
+ * compensators of fmus/compensation.py the core runs (Coulomb(F_hat) of the velocity, Reset(), Deadband(d); the
+ * feedforward of the controller's sign runs in Python alone), checked in Python's order too. */
 DFWB_API int dfwb_loop_new(int plant, const double *params, size_t nparams, const double *b, size_t nb,
                            const double *a, size_t na, const double *z0, size_t nz0, const double *state,
-                           size_t nstate, const double *section, dfwb_loop **out, char *err, size_t errlen);
+                           size_t nstate, const double *section, const double *compensation, dfwb_loop **out,
+                           char *err, size_t errlen);
+/* The integrator deadband's side (FeedbackLoop.band): -1 below -d, 0 within, +1 above d (1 without one). */
+DFWB_API int dfwb_loop_band(const dfwb_loop *p);
+/* The loop's compensators as dfwb_loop_new took them: {coulomb 0/1, F_hat, reset 0/1, d}. */
+DFWB_API void dfwb_loop_compensation(const dfwb_loop *p, double out[4]);
 
 /* HybridSolver.advance: integrate exactly to t_end (finite, >= the current time, at most 1e12 chunks of the
  * fastest mode built so far), firing every event on the way. What ends the advance early (then the current
@@ -250,10 +259,10 @@ DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_section, con
                                long long budget_total, char *err, size_t errlen);
 DFWB_API int dfwb_loop_stopped(const dfwb_loop *p); /* the event kind the last advance stopped at, 0: none */
 /* dfwb_loop_advance to each of times[0..n-1] (non-decreasing) in turn, the state there into states[i * size ..]
- * (the loop's state size): many samples of one run in one call. Refused as advance refuses (then the samples
- * before the refused time are written). */
-DFWB_API int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, long long *budget_left,
-                              long long budget_total, char *err, size_t errlen);
+ * (the loop's state size) and the mode key into keys[i] (keys NULL: not written): many samples of one run in one
+ * call. Refused as advance refuses (then the samples before the refused time are written). */
+DFWB_API int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, int *keys,
+                              long long *budget_left, long long budget_total, char *err, size_t errlen);
 
 DFWB_API double dfwb_loop_time(const dfwb_loop *p);
 DFWB_API long long dfwb_loop_events(const dfwb_loop *p);
@@ -282,10 +291,11 @@ DFWB_API void dfwb_loop_controller(const dfwb_loop *p, double *Ac, double *Bc, d
 DFWB_API size_t dfwb_loop_crossings_read(dfwb_loop *p, double *t, double *X, size_t max);
 DFWB_API unsigned long long dfwb_loop_crossings_dropped(const dfwb_loop *p);
 
-/* Modes are built when first needed (bit k of dfwb_loop_modes_built: key k is built). The solvers of one
+/* Modes are built when first needed (bit s of dfwb_loop_modes_built: slot s is built; slot s is mode key s % 9
+ * at the deadband's side s / 9: 0 above d (or without a deadband), 1 within, 2 below -d). The solvers of one
  * Python study share their modes, and the fastest built mode bounds a step (t_end and events): a binding
  * sharing them builds those the others have with dfwb_loop_build_modes. mode_info: 1 and the mode's chunk
- * length h and Taylor terms when key is built, else 0. */
+ * length h and Taylor terms when slot key is built, else 0. */
 DFWB_API int dfwb_loop_modes_built(const dfwb_loop *p);
 DFWB_API int dfwb_loop_build_modes(dfwb_loop *p, int mask, char *err, size_t errlen);
 DFWB_API int dfwb_loop_mode_info(const dfwb_loop *p, int key, double *h, int *terms);

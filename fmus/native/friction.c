@@ -358,11 +358,18 @@ int dfwb_friction_loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *de
     return DFWB_OK;
 }
 
+/* FrictionLoop.slip: the sliding direction of mode key (0 stuck) */
+int dfwb_friction_loop_slip(int key)
+{
+    return key == DFWB_LOOP_SLIDE_UP ? 1 : key == DFWB_LOOP_SLIDE_DOWN ? -1 : 0;
+}
+
 static const char *const LOOP_COORDINATES[] = {"x", "v"};
 
 static const dfwb_loop_class LOOP = {2, 0, DFWB_LOOP_FRICTION_PARAMS, 4, "a friction mass", LOOP_COORDINATES,
                                             "('x', 'v')", loop_check, NULL, dfwb_friction_loop_mode, dfwb_friction_loop_initial,
-                                            dfwb_friction_loop_fire, 3, NULL, NULL, -1};
+                                            dfwb_friction_loop_fire, 3, NULL, NULL, -1, dfwb_friction_loop_slip,
+                                            DFWB_EVENT_BAND, "FrictionLoop"};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* FrictionMass.__init__, then PiecewisePlant's: the order of the Python constructor */

@@ -44,5 +44,6 @@ void dfwb_friction_io(dfwb_io *io, void *plant);
 void dfwb_friction_loop_mode(const dfwb_loop *L, int key, dfwb_plant_mode *pm);
 int dfwb_friction_loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err);
 int dfwb_friction_loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err);
+int dfwb_friction_loop_slip(int key);
 
 #endif /* DFWB_FRICTION_H */

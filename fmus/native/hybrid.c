@@ -61,6 +61,9 @@ static const char *kind_name(int kind)
     return dfwb_event_name(kind);
 }
 
+/* The current piece's mode (built: begin builds it). */
+static dfwb_hy_mode *current(const dfwb_hy *hy) { return hy->modes[DFWB_HY_SLOT(hy, hy->key)]; }
+
 static int is_section(int kind) { return kind == DFWB_HY_SECTION_UP || kind == DFWB_HY_SECTION_DOWN; }
 
 /* -- Mode ---------------------------------------------------------------------------------------- */
@@ -422,6 +425,7 @@ void dfwb_hy_init(dfwb_hy *hy, int n, dfwb_hy_system_fn system, dfwb_hy_fire_fn 
     hy->stopped = 0;
     for (j = 0; j < DFWB_HY_MODES; j++)
         hy->modes[j] = NULL;
+    hy->variant = 0;
     hy->has_section = section_L != NULL;
     for (j = 0; j < DFWB_HY_DIM; j++)
         hy->section_L[j] = section_L != NULL && j < n ? section_L[j] : 0.0;
@@ -443,12 +447,12 @@ dfwb_hy_mode *dfwb_hy_mode_of(dfwb_hy *hy, int key, dfwb_err *err)
 {
     dfwb_hy_mode *m;
     int rc;
-    if (key < 0 || key >= DFWB_HY_MODES) {
-        dfwb_fail(err, DFWB_E_ARGUMENT, "no mode %d", key);
+    if (key < 0 || key >= DFWB_HY_KEYS || hy->variant < 0 || hy->variant >= DFWB_HY_VARIANTS) {
+        dfwb_fail(err, DFWB_E_ARGUMENT, "no mode %d (variant %d)", key, hy->variant);
         return NULL;
     }
-    if (hy->modes[key] != NULL)
-        return hy->modes[key];
+    if (hy->modes[DFWB_HY_SLOT(hy, key)] != NULL)
+        return hy->modes[DFWB_HY_SLOT(hy, key)];
     m = (dfwb_hy_mode *)malloc(sizeof *m);
     if (m == NULL) {
         dfwb_fail(err, DFWB_E_MEMORY, "out of memory (a mode of the loop)");
@@ -459,7 +463,7 @@ dfwb_hy_mode *dfwb_hy_mode_of(dfwb_hy *hy, int key, dfwb_err *err)
         free(m); /* an overflow (DFWB_E_MATH, err->code still DFWB_OK) is reported by dfwb_err_finish */
         return NULL;
     }
-    hy->modes[key] = m;
+    hy->modes[DFWB_HY_SLOT(hy, key)] = m;
     return m;
 }
 
@@ -664,7 +668,7 @@ static void integrated_search(const dfwb_hy *hy, const dfwb_hy_mode *m, int *fou
 /* _chunk_start */
 static int chunk_start(dfwb_hy *hy, double t, const double *X, int first, dfwb_err *err)
 {
-    const dfwb_hy_mode *m = hy->modes[hy->key];
+    const dfwb_hy_mode *m = current(hy);
     int i;
     for (i = 0; i < hy->n; i++)
         if (!(fabs(X[i]) <= DFWB_HY_MAX_STATE)) {
@@ -745,7 +749,7 @@ int dfwb_hy_start(dfwb_hy *hy, double t0, const double *X0, int key, int departi
 /* _search: the first event in the current chunk (*found, *tau, *kind). */
 static int search(dfwb_hy *hy, int *found, double *best_tau, int *best_kind, dfwb_err *err)
 {
-    const dfwb_hy_mode *m = hy->modes[hy->key];
+    const dfwb_hy_mode *m = current(hy);
     const double *X = hy->X, *dX = hy->dX;
     const double h = m->h, size = balanced_size(m, dX), dt = hy->first ? hy->time_rounding : 0.0;
     double coeffs[DFWB_HY_MAX_TERMS + 1], scales[DFWB_HY_MAX_TERMS + 1];
@@ -897,13 +901,13 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
                                  kind_name(kind));
             }
             t = hy->a + tau;
-            if (hy->modes[hy->key]->integrated)
+            if (current(hy)->integrated)
                 integrated_state(hy, tau, X);
             else
-                mode_state(hy->modes[hy->key], hy->X, hy->dX, tau, X);
+                mode_state(current(hy), hy->X, hy->dX, tau, X);
             hy->time_rounding = 4.0 * DFWB_EPS * fabs(t);
             if (is_section(kind)) { /* not an event of the system: watch the other direction from here */
-                const dfwb_hy_mode *m = hy->modes[hy->key];
+                const dfwb_hy_mode *m = current(hy);
                 int index;
                 if (kind == DFWB_HY_SECTION_UP)
                     add_crossing(hy, t, X);
@@ -943,7 +947,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
             char r0[DFWB_REPR_SIZE], rt[40], rh[40];
             dfwb_repr(hy->t, r0);
             format_g(hy->b, 6, rt, sizeof rt);
-            format_g(hy->modes[hy->key]->integrated ? hy->step_h : hy->modes[hy->key]->h, 3, rh, sizeof rh);
+            format_g(current(hy)->integrated ? hy->step_h : current(hy)->h, 3, rh, sizeof rh);
             return dfwb_fail(err, DFWB_E_LIMIT, "more than %d chunks of integration in one step from t = %s (at "
                              "t = %s s a chunk is %s s): take smaller steps", DFWB_HY_MAX_CHUNKS_PER_STEP, r0, rt, rh);
         }
@@ -952,7 +956,7 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
             if (*budget_left < 0) {
                 char rt[40], rh[40];
                 format_g(hy->b, 6, rt, sizeof rt);
-                format_g(hy->modes[hy->key]->integrated ? hy->step_h : hy->modes[hy->key]->h, 3, rh, sizeof rh);
+                format_g(current(hy)->integrated ? hy->step_h : current(hy)->h, 3, rh, sizeof rh);
                 return dfwb_fail(err, DFWB_E_LIMIT, "the exact loop needed more than %lld chunks of integration (at "
                                  "t = %s s a chunk is %s s): this study's motions are too long for its work budget, or "
                                  "the fastest time scale too far below the motion's", budget_total, rt, rh);
@@ -960,10 +964,10 @@ int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned 
         }
         {
             double X[DFWB_HY_DIM];
-            if (hy->modes[hy->key]->integrated)
+            if (current(hy)->integrated)
                 memcpy(X, hy->X1, sizeof X);
             else
-                mode_step(hy->modes[hy->key], hy->X, hy->dX, X);
+                mode_step(current(hy), hy->X, hy->dX, X);
             rc = chunk_start(hy, hy->b, X, 0, err);
             if (rc != DFWB_OK)
                 return rc;
@@ -978,10 +982,10 @@ void dfwb_hy_state(const dfwb_hy *hy, double *X)
     const double tau = hy->t - hy->a;
     if (tau == 0.0)
         memcpy(X, hy->X, (size_t)hy->n * sizeof *X);
-    else if (hy->modes[hy->key]->integrated)
+    else if (current(hy)->integrated)
         integrated_state(hy, tau, X);
     else
-        mode_state(hy->modes[hy->key], hy->X, hy->dX, tau, X);
+        mode_state(current(hy), hy->X, hy->dX, tau, X);
 }
 
 int dfwb_hy_copy(dfwb_hy *dst, const dfwb_hy *src)
@@ -1036,7 +1040,7 @@ void dfwb_hy_free(dfwb_hy *hy)
 
 int dfwb_hy_resume(dfwb_hy *hy, dfwb_err *err)
 {
-    const dfwb_hy_mode *m = hy->modes[hy->key];
+    const dfwb_hy_mode *m = current(hy);
     double chunk;
     char name[32];
     int i, rc, kind_ok = 0;

@@ -20,8 +20,10 @@
 #include "plant.h"
 
 #define DFWB_HY_DIM 12          /* the state's size at most: 4 plant coordinates + 8 controller states */
-#define DFWB_HY_EVENTS 5        /* event functions of a mode at most: 3 of the plant + the section's 2 */
-#define DFWB_HY_MODES 9         /* mode keys 0..8 */
+#define DFWB_HY_EVENTS 7        /* event functions of a mode at most: 3 of the plant, a deadband's 2, the section's 2 */
+#define DFWB_HY_KEYS 9          /* mode keys 0..8 */
+#define DFWB_HY_VARIANTS 3      /* the system's discrete states beside the key (a loop's deadband side) */
+#define DFWB_HY_MODES (DFWB_HY_KEYS * DFWB_HY_VARIANTS) /* mode key k of variant v is slot k + DFWB_HY_KEYS v */
 #define DFWB_HY_MAX_TERMS 40    /* MAX_TERMS */
 #define DFWB_HY_EVENTS_PER_CHUNK 10000
 #define DFWB_HY_TIME_LIMIT 1e12
@@ -82,6 +84,7 @@ typedef struct dfwb_hy {
     double t;
     long long events;
     dfwb_hy_mode *modes[DFWB_HY_MODES]; /* built on demand (HybridSolver.mode); NULL: not yet */
+    int variant; /* the system's discrete state beside the key (0 without one): the modes of slot DFWB_HY_SLOT */
     int has_section;
     double section_L[DFWB_HY_DIM], section_l0;
     int watching;                       /* DFWB_HY_SECTION_UP or _DOWN (with a section) */
@@ -108,10 +111,13 @@ typedef struct dfwb_hy {
     dfwb_log log;
 } dfwb_hy;
 
+/* The slot in modes[] of mode key ``key`` at the system's current variant. */
+#define DFWB_HY_SLOT(hy, key) ((key) + DFWB_HY_KEYS * (hy)->variant)
+
 /* The solver at t = 0 (HybridSolver.__init__): section_L NULL for none. */
 void dfwb_hy_init(dfwb_hy *hy, int n, dfwb_hy_system_fn system, dfwb_hy_fire_fn fire, const double *section_L,
                   double section_l0);
-/* HybridSolver.mode: the mode of ``key`` (built when new), NULL on a refusal. */
+/* HybridSolver.mode: the mode of ``key`` at the current variant (built when new), NULL on a refusal. */
 dfwb_hy_mode *dfwb_hy_mode_of(dfwb_hy *hy, int key, dfwb_err *err);
 /* HybridSolver.after: the sign of event function ``index`` of mode ``key`` just after X (its trend). */
 int dfwb_hy_after(dfwb_hy *hy, int key, int index, const double *X, int *sign, dfwb_err *err);
@@ -119,7 +125,7 @@ int dfwb_hy_after(dfwb_hy *hy, int key, int index, const double *X, int *sign, d
 int dfwb_hy_start(dfwb_hy *hy, double t0, const double *X0, int key, int departing, dfwb_err *err);
 /* HybridSolver.advance, stopping early at the section's next upward crossing (stop_section) or after the first
  * event of kind (DFWB_EVENT_*, below 32) fired from mode key where bit kind of stop_events[key] is set
- * (stop_events: DFWB_HY_MODES masks, or NULL: none); budget_left NULL: unbounded, else the chunks left
+ * (stop_events: DFWB_HY_KEYS masks, or NULL: none); budget_left NULL: unbounded, else the chunks left
  * (decremented; below 0 refused). */
 int dfwb_hy_advance(dfwb_hy *hy, double t_end, int stop_section, const unsigned int *stop_events,
                     long long *budget_left, long long budget_total, dfwb_err *err);

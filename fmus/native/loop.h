@@ -33,6 +33,12 @@ struct dfwb_loop {
     double bc[DFWB_LOOP_MAX_ORDER + 1], ac[DFWB_LOOP_MAX_ORDER]; /* G's b0..bn, a1..an (0 beyond n) */
     double section;                                                /* the section's level (0 without one) */
     long long count; /* the plant's counter: sticks, impacts, engagements */
+    /* the compensators (fmus/compensation.py; the controller's-sign feedforward is Python's alone): the Coulomb
+     * feedforward of the velocity F_hat slip(key) (has_coulomb), the integrator reset at rest, the integrator
+     * deadband d (0: none) and its side band (-1 below -d, 0 within, +1 above d; the hybrid's variant); w: the
+     * integrator's coordinate xi = w . z (with reset or a deadband) */
+    int has_coulomb, reset, band;
+    double F_hat, d, w[DFWB_LOOP_MAX_ORDER];
 };
 
 /* A plant mode: q' = P q + p + phi f, event functions Lq.q + Lf f + l0 (FeedbackLoop.plant_mode). */
@@ -74,6 +80,12 @@ struct dfwb_loop_class {
     double (*law)(const dfwb_loop *L, int sign, double v);
     double (*law_slope)(const dfwb_loop *L, int sign, double v);
     int rtol;
+    /* The plant's sliding direction in mode key (-1, 0 stuck, +1), which the Coulomb feedforward of the velocity
+     * takes (NULL: a plant without friction); the event kind where it comes to rest, where the integrator reset
+     * acts (0: none); the Python class's name (the refusals name it). */
+    int (*slip)(int key);
+    int rest_kind;
+    const char *python_name;
 };
 
 #endif /* DFWB_LOOP_H */

@@ -44,26 +44,39 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
     const int m = L->m, n = L->order, size = m + n;
     dfwb_plant_mode pm;
     int i, j, e;
+    double k;
     (void)err;
     memset(&pm, 0, sizeof pm);
     L->cls->mode(L, key, &pm);
+    k = L->has_coulomb ? L->F_hat * (double)L->cls->slip(key) : 0.0;
     mode->n = size;
     for (i = 0; i < m; i++) /* row = list(P[i]) + [0.0] * n; [value + phi[i] * fv ...] */
         for (j = 0; j < size; j++)
             mode->A[i][j] = (j < m ? pm.P[i][j] : 0.0) + pm.phi[i] * L->f_row[j];
-    for (i = 0; i < n; i++) { /* row = [0.0] * m + list(Ac[i]); row[out] += Bc[i] */
+    for (i = 0; i < n; i++) { /* row = [0.0] * m + list(Ac[i]); row[out] += Bc[i] (held within the deadband) */
         for (j = 0; j < size; j++)
             mode->A[m + i][j] = j < m ? 0.0 : L->Ac[i][j - m];
-        mode->A[m + i][L->out] += L->Bc[i];
+        mode->A[m + i][L->out] += L->band || i > 0 ? L->Bc[i] : L->Bc[0] - 1.0 / L->w[0];
     }
-    for (i = 0; i < size; i++)
-        mode->c[i] = i < m ? pm.p[i] : 0.0;
+    for (i = 0; i < size; i++) /* the compensator's force k, constant in the mode: the plant sees f + k */
+        mode->c[i] = i < m ? pm.p[i] + pm.phi[i] * k : 0.0;
     mode->nev = pm.nev;
     for (e = 0; e < pm.nev; e++) {
         mode->ev[e].kind = pm.kind[e];
         for (j = 0; j < size; j++)
             mode->ev[e].L[j] = (j < m ? pm.Lq[e][j] : 0.0) + pm.Lf[e] * L->f_row[j];
-        mode->ev[e].l0 = pm.l0[e];
+        mode->ev[e].l0 = pm.l0[e] + pm.Lf[e] * k;
+    }
+    if (L->d > 0.0) { /* outside: band * y - d > 0; within: d - y > 0 and d + y > 0 */
+        const int sides = L->band ? 1 : 2;
+        for (e = 0; e < sides; e++) {
+            dfwb_hy_event *ev = &mode->ev[mode->nev++];
+            ev->kind = DFWB_EVENT_DEADBAND;
+            for (j = 0; j < size; j++)
+                ev->L[j] = 0.0;
+            ev->L[L->out] = L->band ? (double)L->band : (e == 0 ? -1.0 : 1.0);
+            ev->l0 = L->band ? -L->d : L->d;
+        }
     }
     if (pm.nonlinear) { /* (row, col, law): plant coordinates first, so the same indices in the loop's state */
         mode->integrated = 1;
@@ -104,11 +117,66 @@ static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_
     return L->cls->initial(L, X, key, departing, err);
 }
 
+/* The deadband's side, and the hybrid's variant that keys its modes: band 1 (or none) 0, band 0 1, band -1 2. */
+static void set_band(dfwb_loop *L, int band)
+{
+    L->band = band;
+    L->hy.variant = band == 1 ? 0 : band == 0 ? 1 : 2;
+}
+
+/* FeedbackLoop._reset: clear the controller's integrator in X, its other modes kept: z -= (w . z / w_1) e_1. */
+static void reset_integrator(const dfwb_loop *L, double *X)
+{
+    double s = 0.0;
+    int i;
+    for (i = 0; i < L->order; i++)
+        s += L->w[i] * X[L->m + i];
+    X[L->m] -= s / L->w[0];
+}
+
+/* The index of the first deadband edge in the mode of key at the current side (0 when the mode is refused). */
+static int first_edge(dfwb_loop *L, int key, dfwb_err *err)
+{
+    const dfwb_hy_mode *m = dfwb_hy_mode_of(&L->hy, key, err);
+    int first = 0;
+    while (m != NULL && first < m->nev && m->ev[first].kind != DFWB_EVENT_DEADBAND)
+        first++;
+    return m == NULL ? -1 : first;
+}
+
+/* FeedbackLoop._cross_edge: from outside, in through the edge of its side; from within, out where the edge
+ * function falls through zero (its trend); the edge crossed departs in the new mode. */
+static int cross_edge(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
+{
+    const int key0 = L->hy.key;
+    int first = first_edge(L, key0, err), sign, rc;
+    *key = key0;
+    if (first < 0)
+        return err->code != DFWB_OK ? err->code : DFWB_E_MATH;
+    if (L->band) {
+        *departing = first + (L->band > 0 ? 0 : 1);
+        set_band(L, 0);
+        return DFWB_OK;
+    }
+    rc = dfwb_hy_after(&L->hy, key0, first, X, &sign, err);
+    if (rc != DFWB_OK)
+        return rc;
+    set_band(L, sign < 0 ? 1 : -1);
+    *departing = first_edge(L, key0, err);
+    return *departing < 0 ? (err->code != DFWB_OK ? err->code : DFWB_E_MATH) : DFWB_OK;
+}
+
+/* FeedbackLoop._switch: a deadband edge switches its side (the mode goes on); the reset acts where the plant
+ * comes to rest, before the plant's own switching. */
 static int loop_fire(dfwb_hy *hy, double t, int kind, double *X, int *key, int *departing, dfwb_err *err)
 {
     dfwb_loop *L = (dfwb_loop *)(void *)hy;
     (void)t;
     *departing = -1;
+    if (kind == DFWB_EVENT_DEADBAND)
+        return cross_edge(L, X, key, departing, err);
+    if (L->reset && kind == L->cls->rest_kind)
+        reset_integrator(L, X);
     return L->cls->fire(L, kind, X, key, departing, err);
 }
 
@@ -170,6 +238,61 @@ static int controller(dfwb_loop *L, const double *b, size_t nb, const double *a,
     return DFWB_OK;
 }
 
+/* The compensators of compensation[4] = {coulomb 0/1, F_hat, reset 0/1, d} (NULL: none), checked in the order
+ * and with the texts of Coulomb, Deadband and FeedbackLoop.__init__ (after the controller's own checks): F_hat,
+ * d, the one integrator the reset and the deadband need (a: G's a1..an, checked), a plant where the reset acts. */
+static int compensators(dfwb_loop *L, const double *compensation, const double *a, size_t na, dfwb_err *err)
+{
+    char text[8 + (DFWB_REPR_SIZE + 2) * MAX_ORDER];
+    size_t i, used;
+    int rc;
+    L->band = 1;
+    if (compensation == NULL)
+        return DFWB_OK;
+    if (!(compensation[0] == 0.0 || compensation[0] == 1.0) || !(compensation[2] == 0.0 || compensation[2] == 1.0))
+        return dfwb_fail(err, DFWB_E_ARGUMENT, "dfwb_loop_new: the compensation's flags must be 0 or 1");
+    L->has_coulomb = compensation[0] == 1.0;
+    L->F_hat = L->has_coulomb ? compensation[1] : 0.0;
+    L->reset = compensation[2] == 1.0;
+    L->d = compensation[3];
+    if ((L->has_coulomb && (rc = dfwb_check(err, "F_hat", L->F_hat, L->F_hat >= 0.0,
+                                            "a finite number of newtons, at least 0")) != DFWB_OK)
+        || (rc = dfwb_check(err, "d", L->d, L->d >= 0.0,
+                            "the error band of the integrator deadband, a finite number at least 0")) != DFWB_OK)
+        return rc;
+    if (L->reset || L->d > 0.0) { /* integrator(a): w = (a_(n-1), ..., a_1, 1) */
+        if (na == 0 || a[na - 1] != 0.0 || (na > 1 && a[na - 2] == 0.0)) {
+            used = (size_t)snprintf(text, sizeof text, "[");
+            for (i = 0; i < na; i++) {
+                char r[DFWB_REPR_SIZE];
+                dfwb_repr(a[i], r);
+                used += (size_t)snprintf(text + used, sizeof text - used, "%s%s", i ? ", " : "", r);
+            }
+            snprintf(text + used, sizeof text - used, "]");
+            return dfwb_fail(err, DFWB_E_VALUE, "integrator management (reset, deadband) needs a controller with one "
+                             "integrator, a simple pole at s = 0: this G(s) has %s (its denominator's coefficients "
+                             "after s^n: %s)", na == 0 || a[na - 1] != 0.0 ? "none" : "a double one", text);
+        }
+        for (i = 0; i + 1 < na; i++)
+            L->w[i] = a[na - 2 - i];
+        L->w[na - 1] = 1.0;
+    }
+    if (L->reset && L->cls->rest_kind == 0)
+        return dfwb_fail(err, DFWB_E_VALUE, "the integrator reset needs a plant that comes to rest; %s has no such "
+                         "event", L->cls->python_name);
+    return DFWB_OK;
+}
+
+/* The Coulomb feedforward of the velocity needs the plant's slip (Python refuses it where the loop's first mode
+ * is built: after every other check). */
+static int coulomb_fits(const dfwb_loop *L, dfwb_err *err)
+{
+    if (L->has_coulomb && L->cls->slip == NULL)
+        return dfwb_fail(err, DFWB_E_VALUE, "the Coulomb feedforward of the velocity needs a plant with friction; %s "
+                         "has none (use the controller's signal)", L->cls->python_name);
+    return DFWB_OK;
+}
+
 /* The row of f over the state, the section's function, the solver at t = 0 (after the controller is set). */
 static void setup(dfwb_loop *L, const double *section)
 {
@@ -195,7 +318,7 @@ static void setup(dfwb_loop *L, const double *section)
 
 int dfwb_loop_new(int plant, const double *params, size_t nparams, const double *b, size_t nb, const double *a,
                   size_t na, const double *z0, size_t nz0, const double *state, size_t nstate, const double *section,
-                  dfwb_loop **out, char *errbuf, size_t errlen)
+                  const double *compensation, dfwb_loop **out, char *errbuf, size_t errlen)
 {
     dfwb_err err;
     dfwb_loop *L;
@@ -224,6 +347,8 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
     rc = cls->check(L, params, q0, &err);
     if (rc == DFWB_OK)
         rc = controller(L, b, nb, a, na, &err);
+    if (rc == DFWB_OK)
+        rc = compensators(L, compensation, a, na, &err);
     if (rc != DFWB_OK) {
         free(L);
         return rc;
@@ -266,11 +391,15 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
     }
     if (rc == DFWB_OK && section != NULL)
         rc = dfwb_check(&err, "section", *section, 1, "the section level must be a finite number");
+    if (rc == DFWB_OK)
+        rc = coulomb_fits(L, &err);
     if (rc != DFWB_OK) {
         free(L);
         return rc;
     }
     setup(L, section);
+    if (L->d > 0.0) /* the deadband's side at t = 0 */
+        set_band(L, fabs(X[L->out]) < L->d ? 0 : X[L->out] > 0.0 ? 1 : -1);
     rc = loop_initial(L, X, &key, &departing, &err);
     if (rc == DFWB_OK)
         rc = dfwb_hy_start(&L->hy, 0.0, X, key, departing, &err);
@@ -297,7 +426,7 @@ int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_section, const unsign
 
 int dfwb_loop_stopped(const dfwb_loop *p) { return p == NULL ? 0 : p->hy.stopped; }
 
-int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, long long *budget_left,
+int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, int *keys, long long *budget_left,
                      long long budget_total, char *errbuf, size_t errlen)
 {
     dfwb_err err;
@@ -310,6 +439,8 @@ int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states
         rc = dfwb_hy_advance(&p->hy, times[i], 0, NULL, budget_left, budget_total, &err);
         if (rc == DFWB_OK)
             dfwb_hy_state(&p->hy, states + i * (size_t)p->hy.n);
+        if (rc == DFWB_OK && keys != NULL)
+            keys[i] = p->hy.key;
     }
     return dfwb_err_finish(&err, rc);
 }
@@ -389,6 +520,35 @@ size_t dfwb_loop_crossings_read(dfwb_loop *p, double *t, double *X, size_t max)
 
 unsigned long long dfwb_loop_crossings_dropped(const dfwb_loop *p) { return p == NULL ? 0 : p->hy.crossings_dropped; }
 
+/* The slots a loop may build: its mode keys at each side of its deadband (without one, at the one variant). */
+static int slots_allowed(const dfwb_loop *p)
+{
+    const int keys = (1 << p->cls->keys) - 1;
+    return p->d > 0.0 ? keys | keys << DFWB_HY_KEYS | keys << (2 * DFWB_HY_KEYS) : keys;
+}
+
+/* Build the mode of a slot (its key at its variant's side of the deadband), the current side kept. */
+static int build_slot(dfwb_loop *p, int slot, dfwb_err *err)
+{
+    const int band = p->band, variant = slot / DFWB_HY_KEYS;
+    int rc = DFWB_OK;
+    set_band(p, variant == 0 ? 1 : variant == 1 ? 0 : -1);
+    if (dfwb_hy_mode_of(&p->hy, slot % DFWB_HY_KEYS, err) == NULL)
+        rc = err->code != DFWB_OK ? err->code : DFWB_E_MATH;
+    set_band(p, band);
+    return rc;
+}
+
+int dfwb_loop_band(const dfwb_loop *p) { return p == NULL ? 0 : p->band; }
+
+void dfwb_loop_compensation(const dfwb_loop *p, double out[4])
+{
+    out[0] = p == NULL ? NAN : (double)p->has_coulomb;
+    out[1] = p == NULL ? NAN : p->F_hat;
+    out[2] = p == NULL ? NAN : (double)p->reset;
+    out[3] = p == NULL ? NAN : p->d;
+}
+
 int dfwb_loop_modes_built(const dfwb_loop *p)
 {
     int mask = 0, i;
@@ -407,12 +567,11 @@ int dfwb_loop_build_modes(dfwb_loop *p, int mask, char *errbuf, size_t errlen)
     dfwb_err_init(&err, errbuf, errlen);
     if (p == NULL)
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_build_modes: NULL instance");
-    if (mask < 0 || mask >= (1 << p->cls->keys))
-        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_build_modes: modes %d are not the plant's", mask);
-    for (i = 0; i < p->cls->keys && rc == DFWB_OK; i++)
+    if (mask < 0 || (mask & ~slots_allowed(p)))
+        return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_build_modes: modes %d are not the loop's", mask);
+    for (i = 0; i < DFWB_HY_MODES && rc == DFWB_OK; i++)
         if ((mask >> i) & 1)
-            if (dfwb_hy_mode_of(&p->hy, i, &err) == NULL)
-                rc = err.code != DFWB_OK ? err.code : DFWB_E_MATH;
+            rc = build_slot(p, i, &err);
     return dfwb_err_finish(&err, rc);
 }
 
@@ -479,7 +638,9 @@ int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b)
 {
     int i;
     if (a == NULL || b == NULL || a->plant != b->plant || a->order != b->order
-        || a->hy.has_section != b->hy.has_section || !dfwb_same_double(a->section, b->section))
+        || a->hy.has_section != b->hy.has_section || !dfwb_same_double(a->section, b->section)
+        || a->has_coulomb != b->has_coulomb || a->reset != b->reset || !dfwb_same_double(a->F_hat, b->F_hat)
+        || !dfwb_same_double(a->d, b->d))
         return 0;
     for (i = 0; i < DFWB_LOOP_PAR; i++)
         if (!dfwb_same_double(a->par[i], b->par[i]))
@@ -505,6 +666,11 @@ static void loop_io(dfwb_io *io, dfwb_loop *L, int *mask)
         dfwb_io_f64(io, &L->ac[i]);
     dfwb_io_int(io, &hy->has_section);
     dfwb_io_f64(io, &L->section);
+    dfwb_io_int(io, &L->has_coulomb);
+    dfwb_io_f64(io, &L->F_hat);
+    dfwb_io_int(io, &L->reset);
+    dfwb_io_f64(io, &L->d);
+    dfwb_io_int(io, &L->band);
     dfwb_io_f64(io, &hy->t);
     dfwb_io_i64(io, &hy->events);
     dfwb_io_i64(io, &L->count);
@@ -647,25 +813,40 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     if (rc == DFWB_OK)
         rc = dfwb_state_check(&err, "section", s.section, s.hy.has_section ? isfinite(s.section)
                               : s.section == 0.0 && !signbit(s.section), "must be finite (0 without a section)");
+    if (rc == DFWB_OK) /* the compensators, checked as dfwb_loop_new checks them */
+        rc = dfwb_state_check_int(&err, "compensation flags", s.has_coulomb + 2 * s.reset, (s.has_coulomb == 0
+                                  || s.has_coulomb == 1) && (s.reset == 0 || s.reset == 1), "must be 0 or 1");
+    if (rc == DFWB_OK)
+        rc = dfwb_state_check(&err, "F_hat", s.F_hat, s.has_coulomb || (s.F_hat == 0.0 && !signbit(s.F_hat)),
+                              "must be 0 without a Coulomb feedforward");
+    if (rc == DFWB_OK) {
+        const double compensation[4] = {(double)s.has_coulomb, s.F_hat, (double)s.reset, s.d};
+        if (compensators(L, compensation, s.ac, (size_t)n, &local) != DFWB_OK || coulomb_fits(L, &local) != DFWB_OK)
+            rc = state_refused(&err, "compensators", message);
+    }
+    if (rc == DFWB_OK)
+        rc = dfwb_state_check_int(&err, "deadband side", s.band, L->d > 0.0 ? -1 <= s.band && s.band <= 1
+                                  : s.band == 1, "must be -1, 0 or 1 (1 without a deadband)");
     if (rc != DFWB_OK) {
         free(L);
         return rc;
     }
     setup(L, s.hy.has_section ? &s.section : NULL);
+    set_band(L, s.band);
     if ((rc = dfwb_state_check(&err, "t", s.hy.t, isfinite(s.hy.t) && s.hy.t >= 0.0, "must be finite and >= 0"))
             != DFWB_OK
         || (rc = dfwb_state_check_int(&err, "events", s.hy.events, s.hy.events >= 0, "must be >= 0")) != DFWB_OK
         || (rc = dfwb_state_check_int(&err, "count", s.count, s.count >= 0, "must be >= 0")) != DFWB_OK
         || (rc = dfwb_state_check_int(&err, "mode", s.hy.key, 0 <= s.hy.key && s.hy.key < cls->keys,
                                       "must be one of the plant's mode keys")) != DFWB_OK
-        || (rc = dfwb_state_check_int(&err, "modes built", mask, 0 <= mask && mask < (1 << cls->keys)
-                                      && ((mask >> s.hy.key) & 1), "must be a set of modes with the current one"))
-               != DFWB_OK) {
+        || (rc = dfwb_state_check_int(&err, "modes built", mask, 0 <= mask && !(mask & ~slots_allowed(L))
+                                      && ((mask >> DFWB_HY_SLOT(&L->hy, s.hy.key)) & 1),
+                                      "must be a set of modes with the current one")) != DFWB_OK) {
         dfwb_loop_free(L);
         return rc;
     }
     for (i = 0; i < DFWB_HY_MODES; i++)
-        if (((mask >> i) & 1) && dfwb_hy_mode_of(&L->hy, i, &local) == NULL) {
+        if (((mask >> i) & 1) && build_slot(L, i, &local) != DFWB_OK) {
             dfwb_loop_free(L);
             return state_refused(&err, "modes (built from its parameters)",
                                  local.code != DFWB_OK ? message : "(34, 'Numerical result out of range')");

@@ -97,6 +97,8 @@ const char *dfwb_event_name(int kind)
     case DFWB_EVENT_ENGAGE_UP: return "engage+";
     case DFWB_EVENT_ENGAGE_DOWN: return "engage-";
     case DFWB_EVENT_REVERSE: return "reverse";
+    case DFWB_EVENT_COULOMB: return "coulomb";
+    case DFWB_EVENT_DEADBAND: return "deadband";
     default: return "None";
     }
 }

@@ -307,7 +307,8 @@ static const char *const LOOP_COORDINATES[] = {"x", "v", "y"};
 
 static const dfwb_loop_class LOOP = {3, 2, DFWB_LOOP_STATIC_BACKLASH_PARAMS, 3, "a static backlash",
                                                    LOOP_COORDINATES, "('x', 'v', 'y')", loop_check, loop_check_state,
-                                                   loop_mode, loop_initial, loop_fire, 3, NULL, NULL, -1};
+                                                   loop_mode, loop_initial, loop_fire, 3, NULL, NULL, -1, NULL, 0,
+                                                   "StaticBacklashLoop"};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* StaticBacklash.__init__, then PiecewisePlant's: the order of the Python constructor */
