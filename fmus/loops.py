@@ -180,8 +180,10 @@ class FeedbackLoop(HybridSolver):
 
     def feedforward(self, key, sign):
         """The Coulomb feedforward's force in plant mode ``key``: F_hat times the controller's sign ``sign``, or
-        (None) the plant's slip there; 0 without a feedforward."""
-        return 0.0 if self.coulomb is None else self.coulomb.F_hat * (sign if sign is not None else self.slip(key))
+        (None) the plant's slip there; 0 without a feedforward (or with F_hat = 0, whatever the plant)."""
+        if self.coulomb is None or self.coulomb.F_hat == 0.0:
+            return 0.0
+        return self.coulomb.F_hat * (sign if sign is not None else self.slip(key))
 
     def mode(self, key):
         """The mode of plant key ``key``; with a compensator's discrete state (the controller's sign, the

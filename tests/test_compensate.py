@@ -316,6 +316,7 @@ def test_tune_on_the_command_line_prints_the_interface_the_issue_names(tmp_path)
     (["--free", "Kp=2:50", "--robust", "Fc=0.2", "Fs=0.2"], "the corner Fc = 6, Fs = 5.6 is refused"),
     (["--free", "Kp=2:50", "--tolerance", "0"], "tolerance = 0: a standing error above 0"),
     (["--free", "Kp=2:50", "--count", "99"], "--count: 99 is out of range"),
+    (["--free", "Kp=2:50", "--set", "Dv=0.01"], "tune: Dv = 0.01 is out of range: Dv must be 0 in the exact"),
 ])
 def test_tune_refuses_in_one_line(tmp_path, words, message):
     code, out, err = cli("tune", "friction", "--G", "Kp + Ki/s", "--set", "Ki=1", "d=0.1", "--compensate",

@@ -88,7 +88,7 @@ REFUSED = [  # (model, start values, the start of the error they get: the Python
     ("StaticBacklashLoop", {"order": 1, "b0": -1e6, "b1": -1e6, "a1": 1.0, "x0": 1.0}, "step from t = "),
 ]
 STATE_START = {model: CASES[model][0][0] for model in MODELS}
-FIELD = {"M": 0, "order": 56, "t": 216, "events": 224, "count": 232, "key": 240}  # payload offsets of some
+FIELD = {"M": 0, "order": 56, "t": 256, "events": 264, "count": 272, "key": 280}  # payload offsets of some
 
 
 @pytest.fixture(scope="module")

@@ -116,6 +116,19 @@ def test_a_band_narrower_than_the_rounding_is_crossed_once(core, d):
         assert runs[0] == runs[1] and runs[0].count("deadband") >= 4
 
 
+@pytest.mark.parametrize("signal", ["velocity", "control"])
+def test_a_feedforward_of_zero_is_none_on_any_plant(core, signal):
+    """F_hat = 0 adds nothing, so it asks nothing of the plant: a backlash without friction takes it (it was refused
+    as the velocity's feedforward needing friction, even with the controller's signal chosen)."""
+    for cls in (StaticBacklashLoop, core.StaticBacklashLoop):
+        runs = []
+        for compensation in (None, Coulomb(0.0, signal)):
+            loop = cls(*LEAD_PI, x0=0.3, compensation=compensation)
+            loop.advance(20.0)
+            runs.append((loop.state(), loop.events))
+        assert runs[0] == runs[1] and runs[0][1] > 0
+
+
 def _problem(core, plant, G, compensation, native):
     p = LoopProblem(plant, G, compensation=compensation)
     p.cls = getattr(core, NATIVE[plant]) if native else PYTHON[plant]

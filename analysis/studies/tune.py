@@ -6,6 +6,7 @@ import time
 
 from dfwb.base.errors import InputError
 from dfwb.engine.family import LoopFamily, number
+from dfwb.engine.periodic import LoopProblem
 from dfwb.engine.tune import confirm, tune
 from dfwb.studies.continuation import _text
 from dfwb.studies.responses import TuneResponse
@@ -48,6 +49,10 @@ def tune_study(spec, G, values=None, *, free, compensate=None, tolerance=None, r
     if bad:
         raise InputError(f"free {bad[0]}: a parameter of the plant, not a setting of the controller (give it a "
                          "value, or a relative error with robust)")
+    try:  # the plant in the exact loop (a plain low pass in G's place): once here, not in every candidate
+        LoopProblem(spec.name, "1/(s + 1)", family.params(), fmu_dir=fmu_dir)
+    except InputError as error:
+        raise InputError(f"tune: {error}") from None
     started = time.perf_counter()
     chosen, tried, box = tune(family, ranges, tolerance, robust, count,
                               (lambda done, total: progress("settings", done, total)) if progress else None, fmu_dir)

@@ -48,7 +48,7 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
     (void)err;
     memset(&pm, 0, sizeof pm);
     L->cls->mode(L, key, &pm);
-    k = L->has_coulomb ? L->F_hat * (double)L->cls->slip(key) : 0.0;
+    k = L->has_coulomb && L->F_hat != 0.0 ? L->F_hat * (double)L->cls->slip(key) : 0.0;
     mode->n = size;
     for (i = 0; i < m; i++) /* row = list(P[i]) + [0.0] * n; [value + phi[i] * fv ...] */
         for (j = 0; j < size; j++)
@@ -283,11 +283,11 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     return DFWB_OK;
 }
 
-/* The Coulomb feedforward of the velocity needs the plant's slip (Python refuses it where the loop's first mode
- * is built: after every other check). */
+/* The Coulomb feedforward of the velocity (F_hat > 0) needs the plant's slip (Python refuses it where the loop's
+ * first mode is built: after every other check). */
 static int coulomb_fits(const dfwb_loop *L, dfwb_err *err)
 {
-    if (L->has_coulomb && L->cls->slip == NULL)
+    if (L->has_coulomb && L->F_hat != 0.0 && L->cls->slip == NULL)
         return dfwb_fail(err, DFWB_E_VALUE, "the Coulomb feedforward of the velocity needs a plant with friction; %s "
                          "has none (use the controller's signal)", L->cls->python_name);
     return DFWB_OK;
