@@ -334,3 +334,36 @@ def test_tune_refuses_a_bad_value_of_the_api_in_one_line(given, message):
     with pytest.raises(InputError) as error:
         dfwb.tune("friction", "Kp + Ki/s", **dict(dict(free={"Kp": (1, 2)}, Ki=1, count=2), **given))
     assert str(error.value) == message or str(error.value).startswith(message), str(error.value)
+
+
+# -- the DF of a compensated loop, where the compensated plant is a plant -------------------------------------------
+PID = "20 + 100/s + 2*s/(0.1*s+1)"
+
+
+def test_the_velocity_feedforward_is_the_friction_mass_with_less_coulomb_friction():
+    """F_hat sgn(v) on the friction mass (Fc = 5, Fs = 7) is the mass with Fc = 3 and the same Fs: the exact loops
+    find the same true cycles (to rounding: F_hat enters as a force of its own)."""
+    pairs = []
+    for compensate, values in (("coulomb", {"F_hat": 2.0}), (None, {"Fc": 3.0})):
+        found = dfwb.limit_cycles("friction", PID, exact=True, compensate=compensate, amplitudes=[0.3], **values)
+        pairs.append(sorted((c.omega, c.amplitude_x, c.stable) for c in found.cycles))
+    assert len(pairs[0]) == len(pairs[1]) == 2
+    for a, b in zip(*pairs):
+        assert a[2] == b[2] and abs(a[0] - b[0]) < 1e-9 * b[0] and abs(a[1] - b[1]) < 1e-9 * b[1]
+
+
+def test_the_df_of_the_velocity_feedforward_predicts_the_compensated_cycles():
+    response = dfwb.limit_cycles("friction", PID, exact=True, compensate="coulomb", F_hat=2.0)
+    assert response.as_dict()["df_params"] == {"Fc": 3.0} and len(response.predictions) == 2
+    for i, prediction in enumerate(response.predictions):  # each DF cycle has its true cycle, within 2 %
+        true = response.cycles[response.links[i]]
+        assert abs(prediction.omega / true.omega - 1.0) < 0.02 and prediction.stable == true.stable
+    assert "as the plant with Fc = 3" in response.summary()
+
+
+@pytest.mark.parametrize("compensate, values", [("coulomb", {"F_hat": 6.0}), ("coulomb", {"F_hat": 2.0,
+                                                "signal": "control"}), (["coulomb", "reset"], {"F_hat": 2.0})])
+def test_a_compensated_loop_with_no_equivalent_plant_has_no_df(compensate, values):
+    """Over-compensation (F_hat > Fc), the controller's sign and the integrator's management are no plant."""
+    family = LoopFamily("friction", PID, values, compensate=compensate)
+    assert family.compensation.equivalent(family.spec, family.params(), family.merged()) is None

@@ -245,8 +245,9 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
         integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
         to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
-        A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`):
-        ``exact`` is required.
+        A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`): ``exact`` is
+        required; its DF is computed where the compensated plant is a plant (the feedforward of the velocity
+        on the friction mass, ``F_hat <= Fc``: the mass with ``Fc - F_hat``).
     **params : float
         Plant parameters (``eps=0.2``), G's (``Kp=10``) and the compensators' (``F_hat=3``).
 

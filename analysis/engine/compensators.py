@@ -108,6 +108,22 @@ class Compensation:
         merged = dict(self.defaults, **{k: v for k, v in values.items() if k in self.names})
         return [KINDS[name].build(merged) for name in self.kinds]
 
+    def equivalent(self, spec, params, values):
+        """The parameters of the plant ``spec`` (a registered plant) whose uncompensated plant is the compensated
+        one exactly (its DF then the compensated loop's, computed as any plant's), or None where there is none.
+
+        One case: the Coulomb feedforward of the velocity alone on the friction mass, at most its Coulomb level
+        (F_hat <= Fc). A slide then sees F_hat less friction and a stuck mass nothing (the velocity is 0): the
+        friction mass with Fc - F_hat, Fs kept. Over-compensation (a negative Coulomb level), the controller's
+        sign (a nonlinear controller) and the integrator's management (the controller's state) have none.
+        """
+        if self.kinds != ("coulomb",) or spec.name != "friction":
+            return None
+        merged, Fc = dict(self.defaults, **values), dict(spec.defaults(), **params)["Fc"]
+        if merged["signal"] != "velocity" or not 0.0 <= merged["F_hat"] <= Fc:
+            return None
+        return dict(params, Fc=Fc - merged["F_hat"])
+
     def describe(self, values):
         """The compensators and their values as one short text: ``coulomb (F_hat = 3, signal = control), reset``."""
         merged = dict(self.defaults, **values)

@@ -41,7 +41,8 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
 
     ``values``: G's parameters, the plant's and the compensators'; ``progress``: ``progress(stage, done,
     total)`` or None; the rest as :func:`dfwb.limit_cycles`. A compensated loop (``compensate``) is judged
-    by its truth alone (``exact`` required; the DF of a compensated loop is not computed), with its cost.
+    by its truth (``exact`` required), with its cost; its DF is computed where the compensated plant is a plant
+    (:meth:`~dfwb.engine.compensators.Compensation.equivalent`: the velocity's feedforward on the friction mass).
     """
     from dfwb.engine.cost import step_cost
     from dfwb.engine.limit_cycles import search
@@ -63,10 +64,13 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     if amplitudes is not None:
         amplitudes = _amplitudes(amplitudes)
     engine = engine or engine_for(spec, fmu_dir=fmu_dir)
-    if compensated:  # no DF: the plant's would predict the uncompensated loop's cycles
+    # a compensated loop's DF is its equivalent plant's, where it has one; else none (the plant's would predict the
+    # uncompensated loop's cycles)
+    equivalent = family.compensation.equivalent(spec, params, family.merged()) if compensated else None
+    if compensated and equivalent is None:
         grids, predictions = (np.zeros(0), np.array(omega, dtype=float), np.zeros((0, 2), complex)), []
     else:
-        found = search(spec.name, controller, params, F, omega, n_F, n_omega, engine=engine,
+        found = search(spec.name, controller, equivalent or params, F, omega, n_F, n_omega, engine=engine,
                        progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
         grids, predictions = (found.F_grid, found.omega_grid, found.N_grid), found.cycles
     verification, runs = [], []
@@ -86,6 +90,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     return LimitCycleResponse(plant=spec.name, params=params, G=controller, predictions=predictions,
                               F_grid=grids[0], omega_grid=grids[1], N_grid=grids[2],
                               compensation=family.compensation.describe(family.merged()), cost=cost,
+                              equivalent=equivalent,
                               cycles=search_result.cycles if search_result else [],
                               links=search_result.links if search_result else [],
                               coverage=search_result.coverage if search_result else None,

@@ -261,6 +261,7 @@ class LimitCycleResponse(_Shown):
     unit: str = "m"
     compensation: str = ""
     cost: Any = None
+    equivalent: Any = None  # the plant parameters whose DF the compensated loop's is (Compensation.equivalent)
 
     @property
     def exact(self):
@@ -297,6 +298,7 @@ class LimitCycleResponse(_Shown):
             document["coverage"] = self.coverage.as_dict()
         if self.compensation:
             document["compensation"] = self.compensation
+            document["df_params"] = self.equivalent
         if self.cost is not None:
             document["cost"] = self.cost.as_dict()
         return document
@@ -306,11 +308,15 @@ class LimitCycleResponse(_Shown):
         from dfwb.engine.cycles import relative_errors
 
         u = self.unit
-        lines = [f"{self.plant} compensated by {self.compensation}: judged by its exact loop (no DF of a "
-                 "compensated loop)" if self.compensation else
-                 f"{len(self.predictions)} limit cycle(s) of {self.plant} predicted by the describing function in "
-                 f"F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N, omega {self.omega_range[0]:.4g} to "
-                 f"{self.omega_range[1]:.4g} rad/s"]
+        equivalent = "" if not self.equivalent else ", ".join(
+            f"{k} = {v:.6g}" for k, v in self.equivalent.items() if v != self.params.get(k))
+        lines = [f"{self.plant} compensated by {self.compensation}: judged by its exact loop (no DF of this "
+                 "compensated loop)" if self.compensation and self.equivalent is None else
+                 f"{len(self.predictions)} limit cycle(s) of {self.plant}"
+                 + (f" compensated by {self.compensation} (as the plant with {equivalent})" if self.compensation
+                    else "")
+                 + f" predicted by the describing function in F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N, "
+                 f"omega {self.omega_range[0]:.4g} to {self.omega_range[1]:.4g} rad/s"]
         for i, c in enumerate(self.predictions):
             line = (f"  [{i}] F = {c.F:.8g} N, omega = {c.omega:.8g} rad/s, period {c.period:.6g} s, amplitude "
                     f"{c.amplitude_x:.6g} {u}, {'stable' if c.stable else 'unstable'}, distortion {c.distortion:.3g}")
@@ -364,7 +370,7 @@ class LimitCycleResponse(_Shown):
                          f"| {judged} |")
         if not self.predictions:
             lines.append(f"| not computed: no DF of the loop compensated by {self.compensation} | | | | | | | |"
-                         if self.compensation else
+                         if self.compensation and self.equivalent is None else
                          f"| no cycle in F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N | | | | | | | |")
         if self.exact:
             lines += ["", "The exact closed loop's true cycles (shooting to a residual of 1e-10, Floquet "
