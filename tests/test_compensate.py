@@ -367,3 +367,15 @@ def test_a_compensated_loop_with_no_equivalent_plant_has_no_df(compensate, value
     """Over-compensation (F_hat > Fc), the controller's sign and the integrator's management are no plant."""
     family = LoopFamily("friction", PID, values, compensate=compensate)
     assert family.compensation.equivalent(family.spec, family.params(), family.merged()) is None
+
+
+def test_a_map_over_the_feedforward_has_its_df_where_the_compensated_plant_is_a_plant(tmp_path):
+    """Up to F_hat = Fc each cell's DF is the plant's with Fc - F_hat, side by side with the truth and the cost;
+    beyond (over-compensation) there is none. The figure then has three panels."""
+    response = dfwb.hunting_map("friction", PID.replace("20", "Kp", 1), ("Kp", 18, 24, 2), ("F_hat", 0, 6, 3),
+                                compensate="coulomb", jobs=1, cache=False, curves=False, out_dir=tmp_path / "map")
+    df, truth = response.classes("df"), response.classes("truth")
+    assert list(df[-1]) == ["uncomputed", "uncomputed"]  # F_hat = 6 > Fc = 5
+    assert "uncomputed" not in df[:-1] and (df[0] == truth[0]).all() and "stable" in truth[0]
+    assert response.has_df and response.compensated and len(response.plot()) == 3
+    assert "the DF misses" in response.summary() and "cost:" in response.summary()

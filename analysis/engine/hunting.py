@@ -23,7 +23,7 @@ CLASSES = ("stable", "unstable", "diverges", "none", "incomplete", "uncomputed")
 LABELS = {"stable": "hunts (a stable cycle)", "unstable": "only unstable cycles",
           "diverges": "diverges (from some starts)", "none": "no cycle in the range searched",
           "incomplete": "not settled (the work budget ran out, or runs failed)",
-          "uncomputed": "not computed (no DF of a compensated loop)"}
+          "uncomputed": "no DF (the compensated plant is no plant)"}
 UNCOMPUTED = {"class": "uncomputed", "predictions": []}  # a compensated loop's DF verdict
 MAP_AMPLITUDES = 5  # start amplitudes per cell (1 per decade over the default span)
 GRID = (24, 64)  # the shared DF map: forces x frequencies
@@ -86,12 +86,13 @@ def df_class(predictions, linear_stable):
     return "unstable" if predictions else "none"
 
 
-def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=True):
+def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=True, df_params=None):
     """One setting classified: a JSON-able dict with ``truth``, ``df`` and ``linear`` (see the module docstring).
 
     ``problem``: the loop at the setting; ``engine``: its DF engine; ``dfmap``: a shared :class:`DFMap` (else
     one is computed on the derived ranges); ``amplitudes``: the truth search's starts (default: MAP_AMPLITUDES
-    over the loop's span).
+    over the loop's span); ``df_params``: the plant parameters of the DF (default: the problem's; a compensated
+    loop's equivalent plant, :meth:`~dfwb.engine.compensators.Compensation.equivalent`).
     """
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.limit_cycles import balance, search
@@ -104,11 +105,12 @@ def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=T
                             boundaries="unless-stable")
         cell["truth"] = truth_cell(found)
     if df:
+        params = problem.params if df_params is None else df_params
         if dfmap is None:
             F, omega = search_ranges(problem)
-            predictions = search(problem.spec.name, problem.G, problem.params, F, omega, engine=engine).cycles
+            predictions = search(problem.spec.name, problem.G, params, F, omega, engine=engine).cycles
         else:
-            predictions = balance(engine, problem.G, problem.params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid)
+            predictions = balance(engine, problem.G, params, dfmap.F_grid, dfmap.omega_grid, dfmap.N_grid)
             predictions = predictions.cycles
         cell["df"] = df_cell(predictions, stable)
     return cell

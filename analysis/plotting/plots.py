@@ -375,33 +375,35 @@ def bifurcation_diagram(ax, response):
 
 
 CLASS_COLOURS = {"unstable": "#f4a261", "diverges": "#3a3a3a", "none": "#f2f2f2", "incomplete": "#bdbdbd",
-                 "error": "#e63946"}
+                 "uncomputed": "#d8e2dc", "error": "#e63946"}
 CURVE_STYLES = {"truth": "-", "df": "--"}
 NO_REST = "#f4b6c2"  # a compensated map's cost panel: a cell whose step response does not come to rest
 
 
 def hunting_map(response, axes=None):
-    """Truth and DF side by side (a :class:`dfwb.studies.responses.HuntingMapResponse`); returns the two axes."""
+    """Truth and DF side by side, and a compensated loop's cost (a :class:`dfwb.studies.responses.
+    HuntingMapResponse`); returns the axes."""
     from matplotlib import colors
     from matplotlib.patches import Patch
 
     from dfwb.engine.hunting import LABELS, hunting
 
+    compensated, has_df = response.compensated, response.has_df
+    panels = [("truth", "the truth: the exact loop's cycles")] + (
+        [("df", "the describing function's predictions")] if has_df else []) + (
+        [("cost", "the cost: the standing error after a step")] if compensated else [])
     if axes is None:
-        _, axes = plt.subplots(1, 2, figsize=(13, 6.2), sharey=True, layout="constrained")
+        _, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 6.2), sharey=True, layout="constrained")
     xs, ys = np.asarray(response.xs), np.asarray(response.ys)
     dx, dy = (xs[-1] - xs[0]) / max(len(xs) - 1, 1), (ys[-1] - ys[0]) / max(len(ys) - 1, 1)
     extent = (xs[0] - dx / 2, xs[-1] + dx / 2, ys[0] - dy / 2, ys[-1] + dy / 2)
-    compensated = response.compensated  # its second panel: the cost, not the DF
     amplitudes = [c["amplitude_x"] for row in response.cells for cell in row for source in ("truth", "df")
                   if source in cell for c in [hunting(cell, source)] if c is not None]
     norm = colors.LogNorm(min(amplitudes), max(amplitudes) * (1.0 + 1e-9)) if amplitudes else None
     cmap = plt.get_cmap("viridis")
     image = None
-    for ax, source, title in ((axes[0], "truth", "the truth: the exact loop's cycles"),
-                              (axes[1], "df", "the cost: the standing error after a step" if compensated else
-                               "the describing function's predictions")):
-        if source == "df" and compensated:
+    for ax, (source, title) in zip(axes, panels):
+        if source == "cost":
             error = response.costs("standing_error")
             shown = ax.imshow(np.ma.masked_invalid(error), origin="lower", extent=extent, aspect="auto",
                               interpolation="nearest", cmap="cividis")
@@ -434,9 +436,10 @@ def hunting_map(response, axes=None):
         ax.set_ylim(extent[2], extent[3])
         image = image or plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     axes[0].set_ylabel(response.y)
-    shown = set(response.classes("truth").ravel()) | (set() if compensated else set(response.classes("df").ravel()))
+    shown = set(response.classes("truth").ravel()) | (set(response.classes("df").ravel()) if has_df else set())
     handles = [Patch(color=CLASS_COLOURS[k], label=LABELS.get(k, "the plant or G refuses the values"))
-               for k in ("unstable", "diverges", "none", "incomplete", "error") if k in shown or k == "none"]
+               for k in ("unstable", "diverges", "none", "incomplete", "uncomputed", "error")
+               if k in shown or k == "none"]
     if response.linear["growth"]:  # (a user's FMU has no linear loop dfwb knows)
         handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))
     for source in sorted({c.source for c in response.curves}):
@@ -446,7 +449,7 @@ def hunting_map(response, axes=None):
     figure = axes[0].figure
     figure.legend(handles=handles, fontsize=9, loc="outside lower center", ncol=min(len(handles), 3))
     if norm is not None:
-        bar = figure.colorbar(image, ax=axes[0] if compensated else list(axes), fraction=0.04, pad=0.02)
+        bar = figure.colorbar(image, ax=list(axes[:1 + has_df]), fraction=0.04, pad=0.02)
         bar.set_label(f"hunts: first-harmonic amplitude of the output [{response.unit}]")
     axes[0].figure.suptitle(f"{response.plant} under G = {response.G}: where it hunts", fontsize=12)
     return axes

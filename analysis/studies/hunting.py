@@ -88,11 +88,17 @@ def compute_cells(chunk, fmu_data=None):
         try:
             problem = family.problem(values, fmu_dir)
             amplitudes = problem.scales.amplitudes(chunk.amplitudes)
-            cell = classify(problem, engine, dfmap, amplitudes, df=not family.compensation)
-            if family.compensation:  # no DF of a compensated loop: its cost instead
+            # a compensated loop: its DF where the compensated plant is a plant (computed per cell), and its cost
+            equivalent = family.compensation.equivalent(family.spec, problem.params, family.merged(values)) \
+                if family.compensation else None
+            cell = classify(problem, engine, dfmap, amplitudes, df=not family.compensation or equivalent is not None,
+                            df_params=equivalent)
+            if family.compensation:
                 from dfwb.engine.cost import step_cost
 
-                cell.update(df=dict(UNCOMPUTED), cost=step_cost(problem).as_dict())
+                cell.update(cost=step_cost(problem).as_dict())
+                if equivalent is None:
+                    cell.update(df=dict(UNCOMPUTED))
         except DfwbError as error:
             cell = {"error": " ".join(str(error).split())}
         cells.append(dict(cell, x=x, y=y))
@@ -137,7 +143,8 @@ def run_map(plant, G, x, y, values=None, *, out_dir=None, jobs=None, dask=None, 
     (:func:`dfwb.foreign.hunting.cells`, the FMU's own workers), with ``F_range`` and
     ``omega_range`` (required) and ``n_F`` x ``n_omega`` for its DF map, ``rtol`` and ``timeout``; it has no
     linear loop nor bifurcation curves dfwb could draw. ``compensate``: compensators in the loop, whose
-    parameters may be axes; each cell then has the truth and the loop's cost (:mod:`dfwb.engine.cost`), no DF.
+    parameters may be axes; each cell then has the truth and the loop's cost (:mod:`dfwb.engine.cost`), and the
+    DF where the compensated plant is a plant (the feedforward of the velocity on the friction mass, per cell).
     """
     from dfwb.fmi.location import fmu_path
 

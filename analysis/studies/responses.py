@@ -651,8 +651,14 @@ class HuntingMapResponse(_Shown):
 
     @property
     def compensated(self) -> bool:
-        """Whether the loop has compensators: its cells carry their ``cost`` instead of a DF verdict."""
+        """Whether the loop has compensators: its cells carry their ``cost``."""
         return any("cost" in cell for row in self.cells for cell in row)
+
+    @property
+    def has_df(self) -> bool:
+        """Whether the cells have a DF verdict (a compensated loop's only where its plant is a plant)."""
+        return any(cell.get("df", {}).get("class", "uncomputed") != "uncomputed" for row in self.cells
+                   for cell in row)
 
     def costs(self, name="standing_error") -> np.ndarray:
         """One quantity of every cell's cost (:class:`dfwb.engine.cost.Cost`), shape (len(ys), len(xs)); NaN
@@ -679,10 +685,16 @@ class HuntingMapResponse(_Shown):
                  + f": {truth.size} cells, {self.x} {self.xs[0]:g} to {self.xs[-1]:g}, {self.y} {self.ys[0]:g} to "
                  f"{self.ys[-1]:g} ({self.counts.get('computed', 0)} computed, {self.counts.get('cached', 0)} "
                  f"cached, {self.counts.get('resumed', 0)} resumed; {self.seconds:.1f} s)"]
-        for source, classes in (("truth", truth), ("DF", df))[:1 if self.compensated else 2]:
+        for source, classes in (("truth", truth), ("DF", df))[:2 if self.has_df else 1]:
             counted = Counter(classes.ravel().tolist())
             lines.append(f"  {source}: " + ", ".join(f"{n} {LABELS.get(k, k)}" for k, n in counted.most_common()))
-        if self.compensated:  # no DF: the price of the cells at rest
+        if self.has_df:
+            hunts = truth == "stable"
+            missed = int(np.sum(hunts & (df != "stable")))
+            false = int(np.sum(~hunts & (df == "stable")))
+            lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting "
+                         f"in {false} that do not")
+        if self.compensated:  # the price of the cells at rest
             error, settling = self.costs("standing_error"), self.costs("settling_time")
             failed = np.array([[bool(cell.get("cost", {}).get("note")) for cell in row] for row in self.cells])
             rest = np.isfinite(error)
@@ -692,12 +704,6 @@ class HuntingMapResponse(_Shown):
                 + (f"; force peak up to {np.nanmax(self.costs('peak_force')):.4g} N"
                    if np.isfinite(self.costs("peak_force")).any() else "")
                 + (f"; {int(np.sum(failed))} cells' step response not computed" if failed.any() else ""))
-        else:
-            hunts = truth == "stable"
-            missed = int(np.sum(hunts & (df != "stable")))
-            false = int(np.sum(~hunts & (df == "stable")))
-            lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting "
-                         f"in {false} that do not")
         for curve in self.curves:
             lines.append(f"  {curve.source} {curve.kind} curve through {len(curve.points)} columns")
         if self.out_dir is not None:
@@ -708,9 +714,10 @@ class HuntingMapResponse(_Shown):
     def plot(self, axes=None) -> list:
         """Truth and DF side by side: hunting cells coloured by the cycle's amplitude, the other classes in
         flat colours, the linear loop's stability boundary and the bifurcation curves drawn over both. A
-        compensated loop's map has its cost beside the truth: the standing error of the cells that rest.
+        compensated loop's map has its cost beside them: the standing error of the cells that rest (and no DF
+        panel where its plant is no plant).
 
-        Returns the two axes."""
+        Returns the axes (two, or three for a compensated loop with its DF)."""
         from dfwb.plotting.plots import hunting_map
 
         return hunting_map(self, axes)
@@ -731,7 +738,8 @@ class HuntingMapResponse(_Shown):
         """The map written to ``path`` (PNG and SVG)."""
         from dfwb.plotting.plots import drawn
 
-        return drawn(path, self.plot, ncols=2, figsize=(13, 6.2), sharey=True, layout="constrained")
+        panels = 1 + self.has_df + self.compensated  # the truth, the DF, the cost
+        return drawn(path, self.plot, ncols=panels, figsize=(6.5 * panels, 6.2), sharey=True, layout="constrained")
 
 
 @dataclass(eq=False, repr=False)
