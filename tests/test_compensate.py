@@ -109,7 +109,7 @@ def test_a_compensators_parameter_continues_like_gs():
                           signal="control")
     (branch,) = r.branches
     assert branch.source == "truth" and all(p.stable for p in branch.points)
-    assert any("DF of a compensated loop is not computed" in note for note in r.notes)
+    assert any("DF of this compensated loop is not computed" in note for note in r.notes)
     grazing = [b.parameter for b in r.bifurcations if b.parameter > 1.0]
     assert len(grazing) == 1 and abs(grazing[0] - 3.2764121) < 1e-6
     assert "compensated by coulomb" in r.summary()
@@ -379,3 +379,14 @@ def test_a_map_over_the_feedforward_has_its_df_where_the_compensated_plant_is_a_
     assert "uncomputed" not in df[:-1] and (df[0] == truth[0]).all() and "stable" in truth[0]
     assert response.has_df and response.compensated and len(response.plot()) == 3
     assert "the DF misses" in response.summary() and "cost:" in response.summary()
+
+
+def test_the_feedforward_followed_in_f_hat_has_its_df_branches_up_to_their_fold():
+    """Under the PID, the stable true cycle ends at a fold at F_hat = 2.107 N (it meets the unstable one); the DF
+    of the plant with Fc - F_hat has its two branches meet at 2.21 N, 5 % beyond. Past Fc the DF has no plant."""
+    branch = dfwb.continuation("friction", PID, "F_hat", 0.0, 6.0, compensate="coulomb")
+    truth = [b.parameter for b in branch.bifurcations if b.source == "truth"]
+    df_ends = [max(p.parameter for p in b.points) for b in branch.branches if b.source == "df"]
+    assert len(truth) == 1 and abs(truth[0] - 2.1069249) < 1e-5
+    assert len(df_ends) == 2 and all(abs(end / truth[0] - 1.0) < 0.06 for end in df_ends)
+    assert any("F_hat = 6: no DF" in note for note in branch.notes)

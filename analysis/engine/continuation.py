@@ -260,8 +260,10 @@ class PredictionSystem:
             if len(self._cache) > 16:
                 self._cache.clear()
             num, den = self.family.coefficients({self.name: value})
-            self._cache[value] = (lambda s: np.polyval(num, s) / np.polyval(den, s),
-                                  self.family.params({self.name: value}))
+            params = self.family.df_params({self.name: value})
+            if params is None:  # a compensated loop whose plant is no plant here: the DF branch ends
+                raise InputError(f"{self.name} = {value:g}: no DF of the compensated loop")
+            self._cache[value] = (lambda s: np.polyval(num, s) / np.polyval(den, s), params)
         return self._cache[value]
 
     def describe(self, y, J, N):

@@ -243,6 +243,14 @@ class LoopFamily:
         merged = self.merged(values)
         return self.spec.checked({k: v for k, v in merged.items() if k in self.plant_names})
 
+    def df_params(self, values=None):
+        """The plant parameters the loop's DF is computed with at the values: the plant's; a compensated loop's
+        equivalent plant's (:meth:`~dfwb.engine.compensators.Compensation.equivalent`), None where it has none."""
+        params = self.params(values)
+        if not self.compensation:
+            return params
+        return self.compensation.equivalent(self.spec, params, self.merged(values))
+
     def problem(self, values=None, fmu_dir=None, budget=None):
         """The :class:`~dfwb.engine.periodic.LoopProblem` at the values."""
         from dfwb.engine.periodic import LoopProblem

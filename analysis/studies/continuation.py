@@ -75,7 +75,8 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     true cycles searched at ``samples`` values of the range and joined into branches
     (:mod:`dfwb.foreign.continuation`: their changes bracketed by the samples). ``compensate``: compensators
     in the loop (:mod:`dfwb.engine.compensators`), whose parameters may be the one followed; a compensated
-    loop's true cycles are followed, its DF is not computed (said in the notes).
+    loop's true cycles are followed, and its DF where the compensated plant is a plant (said in the notes
+    where not).
     """
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.describing import F_RANGE, DFEngine
@@ -91,12 +92,14 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     name, bounds = check_parameter(family, parameter, start, stop)
     sources = _sources(sources)
     notes = []
-    if family.compensation and "df" in sources:
+    if family.compensation and "df" in sources and all(
+            _no_df(family, {name: value}) for value in ([start, stop] if starts is None else _starts(starts, bounds))):
         sources = tuple(source for source in sources if source != "df")
-        notes.append("the DF of a compensated loop is not computed: its true cycles alone are followed")
+        notes.append("the DF of this compensated loop is not computed (its compensated plant is no plant): its true "
+                     "cycles alone are followed")
         if not sources:
-            raise InputError("compensate: a compensated loop is followed by its truth (sources = 'truth'): the DF "
-                             "of a compensated loop is not computed")
+            raise InputError("compensate: this compensated loop is followed by its truth (sources = 'truth'): its "
+                             "compensated plant is no plant, whose DF could be computed")
     if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 10_000:
         raise InputError(f"max_points = {max_points!r}: an integer from 2 to 10000 (points per branch)")
     at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
@@ -144,10 +147,13 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                              + ("the work budget ran out" if not found.coverage.complete else "runs failed")
                              + "): a branch may be missing")
             cycle_starts += [(value, cycle) for cycle in found.cycles]
-        if "df" in sources:
+        if "df" in sources and _no_df(family, {name: value}):
+            notes.append(f"{name} = {value:g}: no DF (the compensated plant is no plant there)")
+        elif "df" in sources:
             F, omega = search_ranges(problem)
             try:
-                predictions = search(family.spec.name, problem.G, problem.params, F, omega, engine=engine).cycles
+                predictions = search(family.spec.name, problem.G, family.df_params({name: value}), F, omega,
+                                     engine=engine).cycles
             except DfwbError as error:  # the plant refuses a DF point here (a motion it cannot resolve)
                 notes.append(f"{name} = {value:g}: no DF search: {error}")
                 predictions = []
@@ -179,6 +185,14 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                                 values=family.merged(), branches=branches,
                                 bifurcations=sorted(bifurcations, key=lambda b: (b.source, b.parameter)),
                                 searches=searches, notes=notes, unit=family.spec.unit)
+
+
+def _no_df(family, values):
+    """Whether the loop has no DF at the values (a compensated plant that is no plant; a value it refuses)."""
+    try:
+        return family.df_params(values) is None
+    except InputError:
+        return True
 
 
 def _foreign_engine(spec, F_range, omega_range, n_F, n_omega, rtol, timeout):

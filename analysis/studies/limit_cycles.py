@@ -66,7 +66,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     engine = engine or engine_for(spec, fmu_dir=fmu_dir)
     # a compensated loop's DF is its equivalent plant's, where it has one; else none (the plant's would predict the
     # uncompensated loop's cycles)
-    equivalent = family.compensation.equivalent(spec, params, family.merged()) if compensated else None
+    equivalent = family.df_params() if compensated else None
     if compensated and equivalent is None:
         grids, predictions = (np.zeros(0), np.array(omega, dtype=float), np.zeros((0, 2), complex)), []
     else:
