@@ -24,7 +24,11 @@ attributes and methods (``t``, ``events``, ``key``, ``crossings``, ``event_log``
 (``tests/test_native_loop.py``). ``modes`` (a dict shared by the loops of one study, here of
 :data:`NativeMode`) and ``budget`` (a :class:`~.hybrid.Budget`) are shared as in Python; ``plant`` is the
 open-loop solver on the same core. Not shared with the Python loops: a ``modes`` dict holds one kind.
-Beyond Python: ``to_bytes()`` / ``from_bytes(data)`` (the loop's state, checked as a plant's is; not in it:
+``compensation`` takes the Python loop's compensators (:mod:`.compensation`): the Coulomb feedforward of the
+velocity, the integrator reset and the deadband run in C, bit for bit (``tests/test_native_compensation.py``;
+the deadband's side keys the modes as in Python, and ``band`` reads it); the feedforward of the controller's
+sign is refused in one line (the Python loop runs it). ``readings(times)`` gives the states and the forces on
+the plant at many times in one call. Beyond Python: ``to_bytes()`` / ``from_bytes(data)`` (the loop's state, checked as a plant's is; not in it:
 the crossings and the event log), ``same_parameters(other)``, ``copy()``, pickling.
 
 A value the C core refuses raises :class:`~.exact.PlantError` with the C message, which is the Python
