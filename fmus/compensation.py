@@ -123,4 +123,8 @@ def integrator(a):
         raise PlantError("integrator management (reset, deadband) needs a controller with one integrator, a "
                          f"simple pole at s = 0: this G(s) has {has} (its denominator's coefficients after s^n: "
                          f"{a!r})")
-    return list(reversed(a[:-1])) + [1.0]
+    w = list(reversed(a[:-1])) + [1.0]
+    if not abs(1.0 / w[0]) < float("inf"):  # the held integrator's column has 1 / w_1
+        raise PlantError(f"a{len(a) - 1} = {w[0]!r} is out of range: integrator management (reset, deadband) needs "
+                         f"1 / a{len(a) - 1} finite (the integrator's coordinate is a{len(a) - 1} z_1 + ...)")
+    return w

@@ -28,8 +28,9 @@ open-loop solver on the same core. Not shared with the Python loops: a ``modes``
 velocity, the integrator reset and the deadband run in C, bit for bit (``tests/test_native_compensation.py``;
 the deadband's side keys the modes as in Python, and ``band`` reads it); the feedforward of the controller's
 sign is refused in one line (the Python loop runs it). ``readings(times)`` gives the states and the forces on
-the plant at many times in one call. Beyond Python: ``to_bytes()`` / ``from_bytes(data)`` (the loop's state, checked as a plant's is; not in it:
-the crossings and the event log), ``same_parameters(other)``, ``copy()``, pickling.
+the plant at many times in one call. Beyond Python: ``to_bytes()`` / ``from_bytes(data)`` (the loop's state,
+checked as a plant's is; not in it: the crossings and the event log), ``same_parameters(other)``, ``copy()``,
+pickling.
 
 A value the C core refuses raises :class:`~.exact.PlantError` with the C message, which is the Python
 solver's text (a non-float value, e.g. an int or None, is named as Python writes it). A power or a

@@ -181,6 +181,15 @@ def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
       "--parameter", "F_hat=0:1"], "F_hat is the parameter followed"),
     (["margin", "static-backlash", "--G", "20*(s+2)/(s+20)", "--compensate", "coulomb", "--set", "F_hat=1"],
      "needs a plant with friction"),
+    # a compensator's range is checked at both ends, as a plant parameter's (it ran, refusing cells or starts)
+    (["continue", "friction", "--G", "10 + 2/s", "--compensate", "coulomb", "--parameter", "F_hat=-1:3"],
+     "F_hat = -1:3: F_hat = -1.0 is out of range: a finite number of newtons, at least 0"),
+    (["map", "friction", "--G", "Kp + 2/s", "--compensate", "deadband", "--x", "Kp=1:2:2", "--y", "d=-0.1:0.3:2"],
+     "d = -0.1:0.3: d = -0.1 is out of range"),
+    (["tune", "friction", "--G", "Kp + Ki/s", "--compensate", "coulomb", "--free", "Kp=2:50", "Ki=0.2:10",
+      "F_hat=-1:3"], "F_hat = -1:3: F_hat = -1.0 is out of range"),
+    (["map", "friction", "--G", "Kp + Ki/s", "--x", "Kp=1:2:2", "--y", "Ki=0:1e308:2"],
+     "Ki = 0:1e+308: each end within +-1e+150"),  # (an internal error in the figure's ticks)
 ])
 def test_the_command_line_refuses_in_one_line_and_writes_nothing(tmp_path, words, message):
     code, out, err = cli(*words, cwd=tmp_path)

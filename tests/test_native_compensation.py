@@ -229,3 +229,24 @@ def test_crafted_compensators_are_refused(core):
     reset_backlash = _field(core.BacklashLoop(*PID).to_bytes(), first + 2, 1)
     with pytest.raises(StateRefused, match="BacklashLoop has no such event"):
         core.BacklashLoop.from_bytes(reset_backlash)
+
+
+def test_a_state_whose_deadband_side_is_not_the_outputs_is_refused(core):
+    """A crafted side (band 0 with y = 0.7 > d, or below) or a d the output is not beyond is no state of the loop."""
+    loop = core.FrictionLoop(*HUNTS, x0=0.7, compensation=Deadband(0.2))
+    data, first = loop.to_bytes(), 27
+    built = struct.unpack("<q", data[HEADER + 8 * 36:HEADER + 8 * 37])[0]
+    every_side = _field(data, 36, built | built << 9 | built << 18)  # the modes of every side built
+    for crafted in (_field(every_side, first + 4, 0), _field(every_side, first + 4, -1),
+                    _field(every_side, first + 3, 1e300)):
+        with pytest.raises(StateRefused, match="deadband side = .* must be the output's"):
+            core.FrictionLoop.from_bytes(crafted)
+    assert core.FrictionLoop.from_bytes(data).band == 1
+
+
+@pytest.mark.parametrize("cls", ["python", "native"])
+def test_an_integrator_coordinate_that_overflows_is_refused(core, cls):
+    make = FrictionLoop if cls == "python" else core.FrictionLoop
+    with pytest.raises(PlantError, match=re.escape("a1 = 5e-324 is out of range: integrator management (reset, "
+                                                   "deadband) needs 1 / a1 finite")):
+        make([1.0, 2.0, 1.0], [5e-324, 0.0], x0=0.7, compensation=Deadband(0.1))

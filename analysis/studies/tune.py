@@ -8,7 +8,7 @@ from dfwb.base.errors import InputError
 from dfwb.engine.family import LoopFamily, number
 from dfwb.engine.periodic import LoopProblem
 from dfwb.engine.tune import confirm, tune
-from dfwb.studies.continuation import _text
+from dfwb.studies.continuation import _text, check_parameter
 from dfwb.studies.responses import TuneResponse
 
 
@@ -49,6 +49,8 @@ def tune_study(spec, G, values=None, *, free, compensate=None, tolerance=None, r
     if bad:
         raise InputError(f"free {bad[0]}: a parameter of the plant, not a setting of the controller (give it a "
                          "value, or a relative error with robust)")
+    for name, (lo, hi) in ranges.items():  # each end as a study's range is checked (a compensator's own range)
+        check_parameter(family, name, lo, hi, plant=False)
     try:  # the plant in the exact loop (a plain low pass in G's place): once here, not in every candidate
         LoopProblem(spec.name, "1/(s + 1)", family.params(), fmu_dir=fmu_dir)
     except InputError as error:

@@ -276,6 +276,13 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
         for (i = 0; i + 1 < na; i++)
             L->w[i] = a[na - 2 - i];
         L->w[na - 1] = 1.0;
+        if (!(fabs(1.0 / L->w[0]) < INFINITY)) { /* the held integrator's column has 1 / w_1 */
+            char r[DFWB_REPR_SIZE];
+            dfwb_repr(L->w[0], r);
+            return dfwb_fail(err, DFWB_E_VALUE, "a%d = %s is out of range: integrator management (reset, deadband) "
+                             "needs 1 / a%d finite (the integrator's coordinate is a%d z_1 + ...)", (int)na - 1, r,
+                             (int)na - 1, (int)na - 1);
+        }
     }
     if (L->reset && L->cls->rest_kind == 0)
         return dfwb_fail(err, DFWB_E_VALUE, "the integrator reset needs a plant that comes to rest; %s has no such "
@@ -875,6 +882,14 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     memcpy(L->hy.peak, s.hy.peak, sizeof L->hy.peak);
     L->hy.next_h = s.hy.next_h;
     rc = dfwb_hy_resume(&L->hy, &err);
+    if (rc == DFWB_OK && L->d > 0.0) { /* the side the output is on (to rounding: a state read at an edge) */
+        double X[DFWB_HY_DIM], y;
+        dfwb_hy_state(&L->hy, X);
+        y = X[L->out];
+        rc = dfwb_state_check_int(&err, "deadband side", L->band, L->band == 0
+                                  ? fabs(y) <= L->d * (1.0 + 1e-9) : (double)L->band * y >= L->d * (1.0 - 1e-9),
+                                  "must be the output's: 0 within |y| < d, else the sign of y");
+    }
     if (rc != DFWB_OK) {
         dfwb_loop_free(L);
         return rc;
