@@ -189,7 +189,7 @@ def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
     (["tune", "friction", "--G", "Kp + Ki/s", "--compensate", "coulomb", "--free", "Kp=2:50", "Ki=0.2:10",
       "F_hat=-1:3"], "F_hat = -1:3: F_hat = -1.0 is out of range"),
     (["map", "friction", "--G", "Kp + Ki/s", "--x", "Kp=1:2:2", "--y", "Ki=0:1e308:2"],
-     "Ki = 0:1e+308: each end within +-1e+150"),  # (an internal error in the figure's ticks)
+     "y Ki = 0:1e+308: each end within +-1e+150"),  # (an internal error in the figure's ticks)
 ])
 def test_the_command_line_refuses_in_one_line_and_writes_nothing(tmp_path, words, message):
     code, out, err = cli(*words, cwd=tmp_path)

@@ -23,9 +23,6 @@ MAX_STARTS = 16  # parameter values searched for starts, at most
 SAMPLES = 11  # values where a user's FMU's true cycles are searched
 
 
-AXIS_LIMIT = 1e150  # the largest end of a range a study follows or maps (its figure's axis still has ticks)
-
-
 def check_parameter(family, name, start, stop, plant=True):
     """(name, (lo, hi)) of a continuation or map axis, refused in one line before anything runs.
 
@@ -39,9 +36,6 @@ def check_parameter(family, name, start, stop, plant=True):
     if values[0] == values[1] or not math.isfinite(values[1] - values[0]):
         raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty or wider than the floats "
                          "(give START:STOP with START != STOP, STOP - START finite)")
-    if max(abs(v) for v in values) > AXIS_LIMIT:
-        raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: each end within +-{AXIS_LIMIT:g} (a study draws its "
-                         "range as an axis)")
     # the plant's own range, at both ends (checked all along anyway); a compensator's, which each end must fit
     check = family.params if plant and name in family.plant_names else \
         family.compensators if family.compensation.numeric(name) else None

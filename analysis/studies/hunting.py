@@ -50,6 +50,7 @@ from dfwb.studies.responses import HuntingMapResponse
 
 MAX_CELLS = 10_000  # a 100 x 100 map: tens of minutes on two cores
 MAX_SIDE = 1_000
+AXIS_LIMIT = 1e150  # the largest end of a map's axis (beyond, its figure's axis has no ticks to draw)
 COLUMNS = ["x", "y", "truth", "truth_omega", "truth_amplitude", "df", "df_omega", "df_amplitude", "linear", "cell",
            "key"]  # key: the digest of everything the cell depends on but (x, y): a row of another map is not resumed
 LINEAR_GRID = 80  # the linear loop's stability is drawn from this many points per side
@@ -110,6 +111,9 @@ def _axis(family, axis, label, plant):
     except (TypeError, ValueError):
         raise InputError(f"{label} = {axis!r:.60}: give (NAME, START, STOP, N)") from None
     name, (lo, hi) = check_parameter(family, name, start, stop, plant)
+    if max(abs(lo), abs(hi)) > AXIS_LIMIT:  # (a continuation follows such a range: its branch bounds its axis)
+        raise InputError(f"{label} {name} = {float(start):g}:{float(stop):g}: each end within +-{AXIS_LIMIT:g} (the "
+                         "map's cells span the range, and its figure draws it as an axis)")
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 2 <= count <= MAX_SIDE:
         raise InputError(f"{label} {name}: N = {count!r} cells: an integer from 2 to {MAX_SIDE}")
     values = np.linspace(float(start), float(stop), int(count))
