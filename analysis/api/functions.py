@@ -348,8 +348,9 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
         integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
         to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
-        A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`); the
-        parameter followed may be a compensator's.
+        A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`), and its DF is
+        followed where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
+        ``F_hat <= Fc``); the parameter followed may be a compensator's.
     **params : float
         The other parameters of G and of the plant.
 
@@ -429,8 +430,9 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
         integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
         to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
-        A compensated loop is judged by its truth alone, with its cost (:mod:`dfwb.engine.cost`): each
-        cell's cost stands where its DF verdict would, and an axis may be a compensator's parameter.
+        A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`) in every cell and
+        its DF where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
+        ``F_hat <= Fc``); an axis may be a compensator's parameter.
     **params : float
         The other parameters of G and of the plant.
 

@@ -55,8 +55,8 @@ def choice(name, value):
 
 
 def check_judged(compensation, exact, verify):
-    """Refuse a limit-cycle study of a compensated loop that is not judged by its exact loop alone (no DF of a
-    compensated loop; dfwb's closed-loop FMUs, which ``verify`` co-simulates, have no compensators)."""
+    """Refuse a limit-cycle study of a compensated loop that is not judged by its exact loop (most compensated
+    loops have no DF; dfwb's closed-loop FMUs, which ``verify`` co-simulates, have no compensators)."""
     if compensation and not exact:
         raise InputError("compensate: a compensated loop is judged by its exact loop: add exact (--exact)")
     if compensation and verify:

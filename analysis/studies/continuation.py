@@ -36,10 +36,13 @@ def check_parameter(family, name, start, stop, plant=True):
     if values[0] == values[1] or not math.isfinite(values[1] - values[0]):
         raise InputError(f"{name} = {values[0]:g}:{values[1]:g}: the range is empty or wider than the floats "
                          "(give START:STOP with START != STOP, STOP - START finite)")
-    # the plant's own range, at both ends (checked all along anyway); a compensator's, which each end must fit
-    check = family.params if plant and name in family.plant_names else \
-        family.compensators if family.compensation.numeric(name) else None
-    for value in values if check is not None else ():
+    if plant and name in family.plant_names:
+        check = family.params  # the plant's own range, at both ends (checked all along anyway)
+    elif family.compensation.numeric(name):
+        check = family.compensators  # a compensator's own range, which each end must fit
+    else:
+        return name, (min(values), max(values))
+    for value in values:
         try:
             check({name: value})
         except DfwbError as error:
@@ -93,9 +96,9 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                         compensate=compensate)
     name, bounds = check_parameter(family, parameter, start, stop)
     sources = _sources(sources)
+    at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
     notes = []
-    if family.compensation and "df" in sources and all(
-            _no_df(family, {name: value}) for value in ([start, stop] if starts is None else _starts(starts, bounds))):
+    if family.compensation and "df" in sources and all(_df_params(family, {name: value}) is None for value in at):
         sources = tuple(source for source in sources if source != "df")
         notes.append("the DF of this compensated loop is not computed (its compensated plant is no plant): its true "
                      "cycles alone are followed")
@@ -104,7 +107,6 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                              "compensated plant is no plant, whose DF could be computed")
     if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 10_000:
         raise InputError(f"max_points = {max_points!r}: an integer from 2 to 10000 (points per branch)")
-    at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
     check_somewhere(family, [{name: value} for value in at],
                     "both ends of the range" if starts is None else "every start value")
     searches, cycle_starts, prediction_starts, ranges = [], [], [], []
@@ -149,18 +151,19 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                              + ("the work budget ran out" if not found.coverage.complete else "runs failed")
                              + "): a branch may be missing")
             cycle_starts += [(value, cycle) for cycle in found.cycles]
-        if "df" in sources and _no_df(family, {name: value}):
-            notes.append(f"{name} = {value:g}: no DF (the compensated plant is no plant there)")
-        elif "df" in sources:
-            F, omega = search_ranges(problem)
-            try:
-                predictions = search(family.spec.name, problem.G, family.df_params({name: value}), F, omega,
-                                     engine=engine).cycles
-            except DfwbError as error:  # the plant refuses a DF point here (a motion it cannot resolve)
-                notes.append(f"{name} = {value:g}: no DF search: {error}")
-                predictions = []
-            ranges.append(F)
-            prediction_starts += [(value, prediction) for prediction in predictions]
+        if "df" in sources:
+            df_params = _df_params(family, {name: value}) if family.compensation else problem.params
+            if df_params is None:
+                notes.append(f"{name} = {value:g}: no DF (the compensated plant is no plant there)")
+            else:
+                F, omega = search_ranges(problem)
+                try:
+                    predictions = search(family.spec.name, problem.G, df_params, F, omega, engine=engine).cycles
+                except DfwbError as error:  # the plant refuses a DF point here (a motion it cannot resolve)
+                    notes.append(f"{name} = {value:g}: no DF search: {error}")
+                    predictions = []
+                ranges.append(F)
+                prediction_starts += [(value, prediction) for prediction in predictions]
         if progress:
             progress("starts", k + 1, len(at))
     branches, bifurcations = [], []
@@ -189,12 +192,13 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
                                 searches=searches, notes=notes, unit=family.spec.unit)
 
 
-def _no_df(family, values):
-    """Whether the loop has no DF at the values (a compensated plant that is no plant; a value it refuses)."""
+def _df_params(family, values):
+    """:meth:`LoopFamily.df_params` at the values, None where there is no DF (a compensated plant that is no
+    plant; a value it refuses)."""
     try:
-        return family.df_params(values) is None
+        return family.df_params(values)
     except InputError:
-        return True
+        return None
 
 
 def _foreign_engine(spec, F_range, omega_range, n_F, n_omega, rtol, timeout):

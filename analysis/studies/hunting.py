@@ -90,13 +90,14 @@ def compute_cells(chunk, fmu_data=None):
             problem = family.problem(values, fmu_dir)
             amplitudes = problem.scales.amplitudes(chunk.amplitudes)
             # a compensated loop: its DF where the compensated plant is a plant (computed per cell), and its cost
-            df_params = family.df_params(values)
-            cell = classify(problem, engine, dfmap, amplitudes, df=df_params is not None, df_params=df_params)
+            equivalent = family.df_params(values) if family.compensation else None
+            cell = classify(problem, engine, dfmap, amplitudes, df=not family.compensation or equivalent is not None,
+                            df_params=equivalent)
             if family.compensation:
                 from dfwb.engine.cost import step_cost
 
                 cell.update(cost=step_cost(problem).as_dict())
-                if df_params is None:
+                if equivalent is None:
                     cell.update(df=dict(UNCOMPUTED))
         except DfwbError as error:
             cell = {"error": " ".join(str(error).split())}

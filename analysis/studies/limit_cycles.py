@@ -64,13 +64,13 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     if amplitudes is not None:
         amplitudes = _amplitudes(amplitudes)
     engine = engine or engine_for(spec, fmu_dir=fmu_dir)
-    # a compensated loop's DF is its equivalent plant's, where it has one; else none (the plant's would predict the
+    # the plant's DF, or a compensated loop's equivalent plant's; None: it has none (the plant's would predict the
     # uncompensated loop's cycles)
-    equivalent = family.df_params() if compensated else None
-    if compensated and equivalent is None:
+    df_params = family.df_params()
+    if df_params is None:
         grids, predictions = (np.zeros(0), np.array(omega, dtype=float), np.zeros((0, 2), complex)), []
     else:
-        found = search(spec.name, controller, equivalent or params, F, omega, n_F, n_omega, engine=engine,
+        found = search(spec.name, controller, df_params, F, omega, n_F, n_omega, engine=engine,
                        progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
         grids, predictions = (found.F_grid, found.omega_grid, found.N_grid), found.cycles
     verification, runs = [], []
@@ -90,7 +90,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     return LimitCycleResponse(plant=spec.name, params=params, G=controller, predictions=predictions,
                               F_grid=grids[0], omega_grid=grids[1], N_grid=grids[2],
                               compensation=family.compensation.describe(family.merged()), cost=cost,
-                              equivalent=equivalent,
+                              equivalent=df_params if compensated else None,
                               cycles=search_result.cycles if search_result else [],
                               links=search_result.links if search_result else [],
                               coverage=search_result.coverage if search_result else None,
