@@ -29,13 +29,22 @@ The loop (:class:`~.loops.FeedbackLoop`) stays piecewise affine: the
 compensator's force is constant between its switches, so every mode is still
 integrated in closed form.
 
+:class:`Dither` adds ``a sin(w_d t)`` to the force, t from the loop's start.
+The loop stays autonomous and affine with the sine as the state of a harmonic
+oscillator, (s, c)' = w_d (c, -s) from (0, a): two coordinates appended to
+the loop's state, integrated exactly with the rest, so every event (a
+breakaway that the dither triggers) is located as exactly as the plant's.
+The loop is then periodically forced: its responses are studied at the
+dither's period (:mod:`dfwb.engine.dither`).
+
 Plain Python only: this module runs inside the FMUs.
 """
 
 from .exact import PlantError
 from .piecewise import check
 
-__all__ = ["Coulomb", "Reset", "Deadband", "SIGNALS", "compensators", "follows_control", "integrator"]
+__all__ = ["Coulomb", "Reset", "Deadband", "Dither", "SIGNALS", "compensators", "dither_of", "follows_control",
+           "python_only", "integrator"]
 
 SIGNALS = ("velocity", "control")
 
@@ -92,18 +101,57 @@ class Deadband:
         return f"Deadband(d={self.d!r})"
 
 
-def compensators(compensation):
-    """(the Coulomb or None, whether to reset, the deadband's d or None) of ``compensation``: None, a
-    compensator, or a list of them (each kind at most once); PlantError otherwise."""
+class Dither:
+    """Dither: ``a sin(w_d t)`` added to the force on the plant, t from the loop's start.
+
+    Parameters
+    ----------
+    a : float
+        Its amplitude [N], at least 0 (0: none).
+    w_d : float
+        Its angular frequency [rad/s], positive and finite.
+    """
+
+    name = "dither"
+
+    def __init__(self, a, w_d):
+        check("a", a, lambda: a >= 0.0, "the dither's amplitude, a finite number of newtons, at least 0")
+        check("w_d", w_d, lambda: w_d > 0.0, "the dither's angular frequency, a finite number of rad/s above 0")
+        self.a, self.w_d = float(a), float(w_d)
+
+    def __repr__(self):
+        return f"Dither(a={self.a!r}, w_d={self.w_d!r})"
+
+
+def _given(compensation):
+    """The compensators of ``compensation`` (None, one, or a list of them, each kind once); PlantError otherwise."""
     given = [] if compensation is None else list(compensation) if isinstance(compensation, (list, tuple)) \
         else [compensation]
     kinds = [type(c) for c in given]
-    if any(kind not in (Coulomb, Reset, Deadband) for kind in kinds) or len(set(kinds)) != len(kinds):
+    if any(kind not in (Coulomb, Reset, Deadband, Dither) for kind in kinds) or len(set(kinds)) != len(kinds):
         raise PlantError(f"compensation = {compensation!r:.120} is not a compensator of the loop (a Coulomb, a "
-                         "Reset, a Deadband, or a list of them, each once)")
+                         "Reset, a Deadband, a Dither, or a list of them, each once)")
+    return given
+
+
+def compensators(compensation):
+    """(the Coulomb or None, whether to reset, the deadband's d or None) of ``compensation``: None, a
+    compensator, or a list of them (each kind at most once); PlantError otherwise."""
+    given = _given(compensation)
+    kinds = [type(c) for c in given]
     coulomb = next((c for c in given if isinstance(c, Coulomb)), None)
     band = next((c.d for c in given if isinstance(c, Deadband) and c.d > 0.0), None)
     return coulomb, Reset in kinds, band
+
+
+def dither_of(compensation):
+    """The :class:`Dither` of ``compensation`` that acts (a > 0), or None."""
+    return next((c for c in _given(compensation) if isinstance(c, Dither) and c.a > 0.0), None)
+
+
+def python_only(compensation):
+    """Whether ``compensation`` needs the Python loop: the feedforward of the controller's sign, or a dither."""
+    return follows_control(compensation) or dither_of(compensation) is not None
 
 
 def follows_control(compensation):

@@ -14,7 +14,7 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
-from .compensation import compensators, follows_control, integrator
+from .compensation import compensators, dither_of, follows_control, integrator
 from .contract import EventKind
 from .exact import PlantError
 from .hybrid import HybridSolver
@@ -49,8 +49,11 @@ class FeedbackLoop(HybridSolver):
     (a dict) and ``budget`` (a :class:`~.hybrid.Budget`) are shared by the
     solvers of one study. ``compensation``: a compensator between the
     controller and the plant (:class:`~.compensation.Coulomb`,
-    :class:`~.compensation.Reset`, :class:`~.compensation.Deadband`), a list
-    of them, or None.
+    :class:`~.compensation.Reset`, :class:`~.compensation.Deadband`,
+    :class:`~.compensation.Dither`), a list of them, or None. A dither's
+    oscillator is two more coordinates of the integrated state, after z; a
+    state given, read or sampled (``state``, :meth:`state`) is the plant's
+    coordinates and z alone, the dither at phase 0 when it starts.
     """
 
     coordinates = ()
@@ -124,6 +127,8 @@ class FeedbackLoop(HybridSolver):
         self._in_row, self._row_start = 0, 0.0  # the feedforward's switches since the plant's last event, from
         self._window = [0.0, 0]  # ... and in the current window of CHATTER_CHUNKS chunks: [its start, count]
         self.band = 1  # the deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d
+        self.dither = dither_of(compensation)  # a sin(w_d t): the oscillator (s, c) after z, from (0, a)
+        oscillator = [] if self.dither is None else [0.0, self.dither.a]
         self._discrete = self._on_control or self.deadband is not None  # modes cached by (key, sigma, band)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
@@ -141,11 +146,11 @@ class FeedbackLoop(HybridSolver):
         watch = None
         if section is not None:  # upward crossings of y through the level ``section``
             check("section", section, True, "the section level must be a finite number")
-            L = [0.0] * (m + n)
+            L = [0.0] * (m + n + len(oscillator))
             L[self.OUTPUT] = 1.0
             watch = (L, -float(section))
         super().__init__(watch, modes, budget)
-        X0 = list(q0) + z0
+        X0 = list(q0) + z0 + oscillator
         if self.deadband is not None:
             y = X0[self.OUTPUT]
             self.band = 0 if abs(y) < self.deadband else 1 if y > 0.0 else -1
@@ -164,8 +169,15 @@ class FeedbackLoop(HybridSolver):
         return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
 
     def applied(self, X):
-        """The force on the plant at X: the controller's and the compensator's (constant in the mode)."""
-        return self.force(X) + self.feedforward(self.key, self.sigma if self._on_control else None)
+        """The force on the plant at the integrated state X: the controller's, the compensator's (constant in the
+        mode) and the dither's."""
+        dither = 0.0 if self.dither is None else X[len(self.coordinates) + self.order]
+        return self.force(X) + self.feedforward(self.key, self.sigma if self._on_control else None) + dither
+
+    def state(self):
+        """The loop's state at self.t: the plant's coordinates and z (a dither's oscillator left out)."""
+        X = super().state()
+        return X if self.dither is None else X[:len(self.coordinates) + self.order]
 
     def readings(self, times):
         """(states, forces on the plant) at each of ``times`` (non-decreasing, from self.t), advancing to them in
@@ -173,8 +185,8 @@ class FeedbackLoop(HybridSolver):
         states, forces = [], []
         for t in times:
             self.advance(float(t))
-            X = self.state()
-            states.append(X)
+            X = super().state()
+            states.append(X[:len(self.coordinates) + self.order])
             forces.append(self.applied(X))
         return states, forces
 
@@ -203,32 +215,40 @@ class FeedbackLoop(HybridSolver):
             sign = sign if self._on_control else None
         P, p, phi, events, *nonlinear = self.plant_mode(key)
         m, n, out = len(self.coordinates), self.order, self.OUTPUT
-        # f = D y + C z: a row over the whole state
-        f_row = [0.0] * (m + n)
+        e = 0 if self.dither is None else 2  # the dither's oscillator (s, c): s = a sin(w_d t)
+        # f = D y + C z: a row over the whole state; the plant sees f, the dither's s and k (below)
+        f_row = [0.0] * (m + n + e)
         f_row[out] += self.D
-        f_row[m:] = list(self.C)
+        f_row[m:m + n] = list(self.C)
+        on_plant = list(f_row)
+        if e:
+            on_plant[m + n] = 1.0
         A = []
         for i in range(m):
-            row = list(P[i]) + [0.0] * n
-            A.append([value + phi[i] * fv for value, fv in zip(row, f_row)])
+            row = list(P[i]) + [0.0] * (n + e)
+            A.append([value + phi[i] * fv for value, fv in zip(row, on_plant)])
         Bc = self.Bc if band else self._held_Bc()  # within the deadband the integrator's mode holds
         for i in range(n):
-            row = [0.0] * m + list(self.Ac[i])
+            row = [0.0] * m + list(self.Ac[i]) + [0.0] * e
             row[out] += Bc[i]
             A.append(row)
-        # the compensator's force k, constant in the mode: the plant sees f + k
+        if e:  # s' = w_d c, c' = -w_d s
+            w_d = self.dither.w_d
+            A.append([0.0] * (m + n) + [0.0, w_d])
+            A.append([0.0] * (m + n) + [-w_d, 0.0])
+        # the compensator's force k, constant in the mode: the plant sees f + s + k
         k = self.feedforward(key, sign)
-        c = [value + phi_i * k for value, phi_i in zip(p, phi)] + [0.0] * n
+        c = [value + phi_i * k for value, phi_i in zip(p, phi)] + [0.0] * (n + e)
         full = []
         for kind, Lq, Lf, l0 in events:
-            L = list(Lq) + [0.0] * n
-            full.append((kind, [value + Lf * fv for value, fv in zip(L, f_row)], l0 + Lf * k))
+            L = list(Lq) + [0.0] * (n + e)
+            full.append((kind, [value + Lf * fv for value, fv in zip(L, on_plant)], l0 + Lf * k))
         if sign:  # the controller's force keeps its sign: sign * f > 0 until it reaches 0
             full.append((EventKind.COULOMB, [sign * fv for fv in f_row], 0.0))
         if self.deadband is not None:  # outside: band * y - d > 0; within: d - y > 0 and d + y > 0
             d = self.deadband
             for side, l0 in ([(band, -d)] if band else [(-1, d), (1, d)]):
-                L = [0.0] * (m + n)
+                L = [0.0] * (m + n + e)
                 L[out] = float(side)
                 full.append((EventKind.DEADBAND, L, l0))
         return (A, c, full) + tuple(nonlinear)  # (row, col, law) of a mode integrated: plant coordinates first

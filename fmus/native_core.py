@@ -60,7 +60,7 @@ import warnings
 from collections import namedtuple
 from pathlib import Path
 
-from .compensation import Coulomb, compensators, follows_control
+from .compensation import Coulomb, compensators, dither_of, follows_control
 from .contract import EventKind
 from .exact import DfwbError, Diverged, Drive, PlantError
 from .plants import KINDS, MODULES, c_name
@@ -650,6 +650,8 @@ class _NativeLoop(_Native):
         if follows_control(coulomb):
             raise PlantError("the compiled loop has no Coulomb feedforward of the controller's sign (the Python loop, "
                              "dfwb.fmus.loops, runs it)")
+        if dither_of(compensation) is not None:
+            raise PlantError("the compiled loop has no dither (the Python loop, dfwb.fmus.loops, runs it)")
         ccompensation = None if compensation is None else (ctypes.c_double * 4)(
             float(coulomb is not None), 0.0 if coulomb is None else coulomb.F_hat, float(reset),
             0.0 if band is None else band)

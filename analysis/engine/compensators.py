@@ -13,16 +13,18 @@ Examples
 (('F_hat', 'signal'), {'signal': 'velocity'})
 >>> compensation.build({"F_hat": 3.0, "signal": "control"})
 [Coulomb(F_hat=3.0, signal='control'), Reset()]
->>> Compensation("dither")  # doctest: +ELLIPSIS
+>>> Compensation("dither").build({"a": 2.0, "w_d": 20.0})
+[Dither(a=2.0, w_d=20.0)]
+>>> Compensation("backlash-inverse")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
-dfwb.base.errors.InputError: compensate = 'dither': the dither is not built yet (the exact loop has coulomb, ...)
+dfwb.base.errors.InputError: compensate = 'backlash-inverse': the backlash inverse is not built yet (the exact ...
 """
 
 from dataclasses import dataclass, field
 
 from dfwb.base.errors import InputError
-from dfwb.fmus.compensation import SIGNALS, Coulomb, Deadband, Reset
+from dfwb.fmus.compensation import SIGNALS, Coulomb, Deadband, Dither, Reset
 
 __all__ = ["KINDS", "CHOICES", "Compensation", "choice", "check_judged"]
 
@@ -41,8 +43,9 @@ KINDS = {
     "coulomb": Kind(("F_hat",), lambda v: Coulomb(v["F_hat"], v["signal"]), {"signal": SIGNALS}),  # F_hat sgn(signal)
     "deadband": Kind(("d",), lambda v: Deadband(v["d"])),  # the integrator holds while |y| < d
     "reset": Kind((), lambda v: Reset()),  # the integrator cleared when the mass comes to rest
+    "dither": Kind(("a", "w_d"), lambda v: Dither(v["a"], v["w_d"])),  # a sin(w_d t) added to the force
 }
-PLANNED = {"dither": "the dither", "backlash-inverse": "the backlash inverse"}
+PLANNED = {"backlash-inverse": "the backlash inverse"}
 CHOICES = {name: allowed for kind in KINDS.values() for name, allowed in kind.choices.items()}
 
 
@@ -70,7 +73,7 @@ class Compensation:
     Parameters
     ----------
     compensate : str or list of str, optional
-        Names among ``coulomb``, ``deadband`` and ``reset``, each at most once.
+        Names among ``coulomb``, ``deadband``, ``reset`` and ``dither``, each at most once.
     """
 
     def __init__(self, compensate=None):

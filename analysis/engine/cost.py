@@ -20,7 +20,14 @@ crossover, the largest force and output read again between their neighbours:
 - ``peak_force``, ``rms_force``: the force on the plant (the controller's and
   the compensator's) over the horizon [N];
 - ``note``: why the step response could not be computed (the loop refused
-  it, e.g. a feedforward that chatters), its other fields then None.
+  it, e.g. a feedforward that chatters), its other fields then None;
+- ``residual_oscillation``: with a dither, half the output's swing over the
+  last dither period [output unit] (None without a dither, or where it does
+  not settle). A dithered loop never rests: it *settles* when its output at
+  the dither's phase 0 varies less than :data:`DITHER_STILL` of S over the
+  last quarter; the standing error is then the output's mean over the last
+  dither period, and the settling time counts the band from that mean
+  widened by the residual oscillation.
 
 Examples
 --------
@@ -41,7 +48,7 @@ import numpy as np
 
 from dfwb.base.errors import InputError, PlantError
 
-__all__ = ["Cost", "step_cost", "SAMPLES", "BAND", "STILL"]
+__all__ = ["Cost", "step_cost", "SAMPLES", "BAND", "STILL", "DITHER_STILL"]
 
 SAMPLES = 2000  # evenly spaced readings of the step response, besides its events, at least,
 PER_RADIAN = 8  # ... and this many per radian of the linear loop's crossover,
@@ -49,6 +56,8 @@ MAX_SAMPLES = 100_000  # ... up to this many
 REFINE = 200  # the largest force and output read again at this many steps between their neighbours
 BAND = 0.02  # settled: within 2 % of the step of where it rests
 STILL = 1e-9  # at rest: y and the force vary less than this (relative) over the last quarter
+DITHER_STILL = 1e-3  # settled on a dither's response: y at its phase 0 varies less than this (relative to S)
+DITHER_SAMPLES = 256  # readings over the last dither period (its mean and swing)
 
 
 @dataclass(frozen=True)
@@ -63,6 +72,7 @@ class Cost:
     peak_force: Optional[float]
     rms_force: Optional[float]
     note: str = ""
+    residual_oscillation: Optional[float] = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -73,6 +83,8 @@ class Cost:
             return f"step of {self.step:.4g} {unit}: not computed: {self.note}"
         rest = ("does not come to rest in {:.4g} s".format(self.horizon) if self.standing_error is None else
                 f"standing error {self.standing_error:.4g} {unit}, settles in {self.settling_time:.4g} s")
+        if self.residual_oscillation is not None:
+            rest += f", residual oscillation {self.residual_oscillation:.4g} {unit}"
         return (f"step of {self.step:.4g} {unit}: {rest}, overshoot {self.overshoot:.1%}, force peak "
                 f"{self.peak_force:.4g} N, rms {self.rms_force:.4g} N")
 
@@ -106,7 +118,8 @@ def _step(problem, S, T):
     first.event_log = []
     first.advance(T)
     events = [t for t, _kind in first.event_log]
-    count = min(MAX_SAMPLES, max(SAMPLES, math.ceil(PER_RADIAN * T * problem.scales.omega_c)))
+    fastest = problem.scales.omega_c if problem.dither is None else max(problem.scales.omega_c, problem.dither.w_d)
+    count = min(MAX_SAMPLES, max(SAMPLES, math.ceil(PER_RADIAN * T * fastest)))
     times = np.union1d(np.linspace(0.0, T, count + 1), events)
     y, f = _read(problem, start, times)
     peaks = []
@@ -117,14 +130,35 @@ def _step(problem, S, T):
         peaks.append(float(max(values[index], np.max(np.abs(again[1]) if values is not y else again[0]))))
     peak, highest = peaks
     quiet = np.searchsorted(times, 0.75 * T)  # the last quarter
-    at_rest = (not any(t > 0.75 * T for t in events)
-               and np.ptp(y[quiet:]) <= STILL * S and np.ptp(f[quiet:]) <= STILL * max(peak, 1.0))
-    standing = settling = None
-    if at_rest:
+    standing = settling = residual = None
+    if problem.dither is not None:
+        end = _dithered_end(problem, start, S, T)
+        if end is not None:
+            mean, residual = end
+            standing = abs(mean)
+            outside = np.nonzero(np.abs(y - mean) > BAND * S + residual)[0]
+            settling = 0.0 if outside.size == 0 else float(times[min(outside[-1] + 1, len(times) - 1)])
+    elif (not any(t > 0.75 * T for t in events)
+          and np.ptp(y[quiet:]) <= STILL * S and np.ptp(f[quiet:]) <= STILL * max(peak, 1.0)):  # at rest
         standing = float(abs(y[-1]))
         outside = np.nonzero(np.abs(y - y[-1]) > BAND * S)[0]
         settling = 0.0 if outside.size == 0 else float(times[min(outside[-1] + 1, len(times) - 1)])
     return Cost(step=S, horizon=T, standing_error=standing, settling_time=settling,
                 overshoot=max(0.0, highest) / S, peak_force=peak,
-                rms_force=float(math.sqrt(np.trapezoid(f * f, times) / T)))
+                rms_force=float(math.sqrt(np.trapezoid(f * f, times) / T)), residual_oscillation=residual)
+
+
+def _dithered_end(problem, start, S, T):
+    """(the output's mean, half its swing) over the last dither period where the output at the dither's phase 0
+    varies less than DITHER_STILL S over the last quarter of the horizon T; None where it does not."""
+    period = 2.0 * math.pi / problem.dither.w_d
+    phases = np.arange(math.ceil(0.75 * T / period), math.floor(T / period) + 1) * period
+    if len(phases) < 3:
+        return None  # fewer than two dither periods in the last quarter: nothing to judge
+    y, _ = _read(problem, start, phases)
+    if np.ptp(y) > DITHER_STILL * S:
+        return None
+    last = np.linspace(phases[-1] - period, phases[-1], DITHER_SAMPLES + 1)
+    y, _ = _read(problem, start, last)
+    return float(np.trapezoid(y, last) / period), float(0.5 * np.ptp(y))
 

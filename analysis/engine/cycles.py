@@ -119,6 +119,9 @@ class Coverage:
     stable_only : bool
         The runs can only settle on cycles, never converge to an unstable one (a user's FMU's search):
         an unstable prediction without a true cycle near it is then no false alarm.
+    runs_text : str
+        How long a run may go, when it is not counted in section hits (a dithered loop's runs count its
+        periods, :mod:`dfwb.engine.dither`); "" otherwise.
     """
 
     amplitudes: list
@@ -134,6 +137,7 @@ class Coverage:
     complete: bool = True
     starts_text: str = ""
     stable_only: bool = False
+    runs_text: str = ""
 
     def as_dict(self):
         return asdict(self)
@@ -149,10 +153,11 @@ class Coverage:
         outcomes = ", ".join(f"{n} {name}" for name, n in self.outcomes.items())
         starts = self.starts_text or (f"{self.count} output amplitudes {lo:.3g} to {hi:.3g} {unit} "
                                       f"displacing {', '.join(self.parts)}")
+        runs = self.runs_text or f"each up to {self.max_returns} section hits, at most {self.horizon:.4g} s apart"
         return (f"searched {self.starts} runs: {starts}" + (f", {self.predictions} DF predictions" if self.predictions
                                                          else "") +
-                f"; each up to {self.max_returns} section hits, at most {self.horizon:.4g} s apart "
-                f"({outcomes})" + ("" if self.complete else "; INCOMPLETE: the work budget ran out"))
+                f"; {runs} ({outcomes})" + ("" if self.complete else "; INCOMPLETE: " + (
+                    "runs did not settle" if self.outcomes.get("unsettled") else "the work budget ran out")))
 
 
 @dataclass
@@ -363,7 +368,14 @@ def find_cycles(problem, predictions=(), amplitudes=None, horizon=None, max_retu
     Returns
     -------
     CycleSearch
+        A :class:`~dfwb.engine.dither.DitherSearch` for a dithered loop, which is forced, not autonomous: its
+        responses are the fixed points of its stroboscopic map (:func:`dfwb.engine.dither.find_responses`;
+        ``predictions``, ``max_returns`` and ``boundaries`` do not apply).
     """
+    if getattr(problem, "dither", None) is not None:
+        from dfwb.engine.dither import find_responses
+
+        return find_responses(problem, amplitudes, horizon, progress=progress)
     scales = problem.scales
     amplitudes = scales.amplitudes() if amplitudes is None else [float(a) for a in amplitudes]
     horizon = scales.horizon(min(amplitudes)) if horizon is None else float(horizon)

@@ -1,7 +1,8 @@
 """Which controllers make a machine hunt: one parameter setting classified by the truth and by the DF.
 
 The truth is the systematic search of the exact loop (:func:`dfwb.engine.cycles.find_cycles`): a setting
-*hunts* when the search reaches a stable cycle; otherwise the loop *diverges* when runs leave every bound,
+*hunts* when the search reaches a stable cycle (or, dithered, when runs hunt not locked to the dither:
+:mod:`dfwb.engine.dither`); otherwise the loop *diverges* when runs leave every bound,
 has *only unstable* cycles when the search found some but none attracts, and has *no cycle* in the range
 covered when every run came to rest; it is *not settled* when the work budget ran out or a run failed. The
 DF's verdict comes from its predictions (Loeb's stability): a stable one, only unstable ones, or none; where
@@ -19,11 +20,13 @@ from dfwb.base.errors import DfwbError
 from dfwb.base.values import conforms, positive
 from dfwb.engine.scales import linear_poles, search_ranges
 
-CLASSES = ("stable", "unstable", "diverges", "none", "incomplete", "uncomputed")
-LABELS = {"stable": "hunts (a stable cycle)", "unstable": "only unstable cycles",
+CLASSES = ("stable", "hunts", "unstable", "diverges", "none", "incomplete", "uncomputed")
+LABELS = {"stable": "hunts (a stable cycle)", "hunts": "hunts, not locked to the dither (no periodic orbit)",
+          "unstable": "only unstable cycles",
           "diverges": "diverges (from some starts)", "none": "no cycle in the range searched",
           "incomplete": "not settled (the work budget ran out, or runs failed)",
           "uncomputed": "no DF (the compensated plant is no plant)"}
+HUNTS = ("stable", "hunts")  # the classes that hunt: a stable cycle, or (dithered) hunting not locked to the dither
 UNCOMPUTED = {"class": "uncomputed", "predictions": []}  # a compensated loop's DF verdict
 MAP_AMPLITUDES = 5  # start amplitudes per cell (1 per decade over the default span)
 GRID = (24, 64)  # the shared DF map: forces x frequencies
@@ -37,7 +40,8 @@ CELL = {"x": float, "y": float, "linear": {"stable": (bool, None), "max_real_pol
         "df": {"class": frozenset(CLASSES), "predictions": [{"F": positive, "omega": positive,
                                                              "amplitude_x": positive, "stable": bool}]}}
 COST = {"step": positive, "horizon": positive, "standing_error": (float, None), "settling_time": (float, None),
-        "overshoot": (float, None), "peak_force": (float, None), "rms_force": (float, None), "note": str}
+        "overshoot": (float, None), "peak_force": (float, None), "rms_force": (float, None), "note": str,
+        "residual_oscillation": (float, None)}
 COMPENSATED_CELL = dict(CELL, cost=COST)  # a compensated loop's cell: its cost (the DF uncomputed)
 
 
@@ -66,6 +70,8 @@ def truth_class(search):
     outcomes = search.coverage.outcomes
     if search.stable():
         kind = "stable"
+    elif outcomes.get("hunting"):  # a dithered loop's runs that hunt, not locked (dfwb.engine.dither)
+        kind = "hunts"
     elif not search.coverage.settled:
         kind = "incomplete"
     elif outcomes.get("diverged"):
@@ -254,7 +260,7 @@ def _verdict(cell, source):
     """Whether a cell hunts by ``source`` (None: no verdict there)."""
     if source not in cell or cell[source]["class"] in ("incomplete", "error"):
         return None
-    return cell[source]["class"] == "stable"
+    return cell[source]["class"] in HUNTS
 
 
 def _covered(curves, source, x, y_lo, y_hi):

@@ -20,7 +20,7 @@ import numpy as np
 
 from dfwb.base.defaults import K_COUNT, K_RANGE
 from dfwb.base.errors import DfwbError, InputError
-from dfwb.engine.hunting import MAP_AMPLITUDES, TRACKED, classify, df_map_for, hunting
+from dfwb.engine.hunting import HUNTS, MAP_AMPLITUDES, TRACKED, classify, df_map_for, hunting
 
 GAIN = "gain factor"  # the gain factor k's name inside: no name of G or of a plant (no identifier has a space)
 
@@ -108,8 +108,8 @@ def margins(family, k_range=K_RANGE, count=K_COUNT, fmu_dir=None, engine=None, p
             scan.append((k, cell[source]["class"], best and best["amplitude_x"], best and best["omega"]))
         margin = Margin(source, scan, [])
         for (k_a, class_a, *_), (k_b, class_b, *_) in zip(scan, scan[1:]):
-            if (class_a == "stable") != (class_b == "stable") and "error" not in (class_a, class_b):
-                margin.boundaries.append(_boundary(scaled, source, k_a, k_b, class_a == "stable", fmu_dir,
+            if (class_a in HUNTS) != (class_b in HUNTS) and "error" not in (class_a, class_b):
+                margin.boundaries.append(_boundary(scaled, source, k_a, k_b, class_a in HUNTS, fmu_dir,
                                                    classify_at, exact))
         margin.intervals = _intervals(scan, margin.boundaries)
         results.append(margin)
@@ -131,9 +131,9 @@ def _intervals(scan, boundaries):
     """The hunting intervals: runs of hunting scan points, stretched to their boundaries."""
     intervals, start, previous = [], None, None
     for k, kind, *_ in scan + [(math.inf, "end")]:
-        if kind == "stable" and start is None:
+        if kind in HUNTS and start is None:
             start = k
-        elif kind != "stable" and start is not None:
+        elif kind not in HUNTS and start is not None:
             intervals.append([start, previous])
             start = None
         previous = k
@@ -205,7 +205,7 @@ def _bisect(source, k_a, k_b, hunts_a, classify_at):
             break
         if cell is None:
             break
-        hunts = cell[source]["class"] == "stable"
+        hunts = cell[source]["class"] in HUNTS
         if hunts == hunts_a:
             lo = mid
         else:

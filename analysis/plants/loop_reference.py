@@ -205,6 +205,7 @@ class _Friction(_Loop):
     def __init__(self, *args):
         super().__init__(*args)
         self.F_hat, self.signal = self.p.get("coulomb") or (0.0, None)
+        self.a, self.w_d = self.p.get("dither") or (0.0, 1.0)
         self.d = self.p.get("deadband")
         self.integrator = self.integrator_mode() if self.p.get("reset") or self.d else None
         self.held = False  # within the deadband, the integrator holds
@@ -246,6 +247,10 @@ class _Friction(_Loop):
         """The compensator's force in mode s (constant between events)."""
         return self.F_hat * (s if self.signal == "velocity" else self.sign if self.signal == "control" else 0)
 
+    def dither(self, t):
+        """The dither's force a sin(w_d t) at t."""
+        return self.a * math.sin(self.w_d * t)
+
     def rhs_for(self, s):
         M, B, Fc = self.p["M"], self.p["B"], self.p["Fc"]
         k = self.feedforward(s)
@@ -256,7 +261,7 @@ class _Friction(_Loop):
                 dX[0] = dX[1] = 0.0
             else:
                 dX[0] = X[1]
-                dX[1] = (self.force(X) + k - s * Fc - B * X[1]) / M
+                dX[1] = (self.force(X) + k + self.dither(t) - s * Fc - B * X[1]) / M
             dX[2:] = self.controller(X)
             return dX
         return rhs
@@ -270,9 +275,10 @@ class _Friction(_Loop):
 
     def breaks_away(self):
         """At rest: slide (True) where the force on the mass, f and the feedforward, is beyond Fs."""
-        f, Fs = self.force(self.X) + self.feedforward(0), self.p["Fs"]
+        f, Fs = self.force(self.X) + self.feedforward(0) + self.dither(self.t), self.p["Fs"]
         if abs(f) == Fs:
-            f += self.force_rate(self.X, self.rhs_for(0)(self.t, self.X))
+            f += (self.force_rate(self.X, self.rhs_for(0)(self.t, self.X))
+                  + self.a * self.w_d * math.cos(self.w_d * self.t))
         if abs(f) > Fs:
             self.mode = 1 if f > 0.0 else -1
             return True
@@ -283,7 +289,8 @@ class _Friction(_Loop):
         k = self.feedforward(s)
         if s == 0:
             Fs = self.p["Fs"]
-            events = [_event(lambda t, X: self.force(X) + k - Fs, 1), _event(lambda t, X: self.force(X) + k + Fs, -1)]
+            events = [_event(lambda t, X: self.force(X) + k + self.dither(t) - Fs, 1),
+                      _event(lambda t, X: self.force(X) + k + self.dither(t) + Fs, -1)]
             kinds = ["break+", "break-"]
         else:
             events, kinds = [_event(lambda t, X: X[1], -s)], ["band"]
@@ -560,7 +567,7 @@ def _times(t_eval, t_end):
 
 def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
                           max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None, coulomb=None,
-                          reset=False, deadband=None):
+                          reset=False, deadband=None, dither=None):
     """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
 
     Parameters
@@ -623,6 +630,12 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
     deadband : float, optional
         friction only: the controller's integrator holds while |y| < deadband
         (events "deadband" at its edges).
+    dither : (float, float), optional
+        friction only: ``(a, w_d)``, the force ``a sin(w_d t)`` added to the
+        force on the mass (t from the run's start). The steps are then at
+        most a 32nd of its period (``max_step``): solve_ivp sees an event
+        only where its function changes sign between two steps, and a stuck
+        mass's equations alone would let it step over the dither's peaks.
 
     Returns
     -------
@@ -696,6 +709,12 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         if plant != "friction":
             raise PlantError(f"deadband = {deadband!r}: friction only")
         p["deadband"] = _check("deadband", deadband, lambda v: v >= 0.0, "must be >= 0")
+    if dither is not None:
+        if plant != "friction" or not (isinstance(dither, tuple) and len(dither) == 2):
+            raise PlantError(f"dither = {dither!r} is out of range: (a, w_d), friction only")
+        p["dither"] = (_check("a", dither[0], lambda v: v >= 0.0, "must be >= 0"),
+                       _check("w_d", dither[1], lambda v: v > 0.0, "must be > 0"))
+        max_step = min(max_step, 2.0 * math.pi / p["dither"][1] / 32.0)
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
     loop.run(float(t_end), t_eval, until)

@@ -374,8 +374,8 @@ def bifurcation_diagram(ax, response):
     return lines
 
 
-CLASS_COLOURS = {"unstable": "#f4a261", "diverges": "#3a3a3a", "none": "#f2f2f2", "incomplete": "#bdbdbd",
-                 "uncomputed": "#d8e2dc", "error": "#e63946"}
+CLASS_COLOURS = {"hunts": "#7b2cbf", "unstable": "#f4a261", "diverges": "#3a3a3a", "none": "#f2f2f2",
+                 "incomplete": "#bdbdbd", "uncomputed": "#d8e2dc", "error": "#e63946"}
 CURVE_STYLES = {"truth": "-", "df": "--"}
 NO_REST = "#f4b6c2"  # a compensated map's cost panel: a cell whose step response does not come to rest
 
@@ -438,7 +438,7 @@ def hunting_map(response, axes=None):
     axes[0].set_ylabel(response.y)
     shown = set(response.classes("truth").ravel()) | (set(response.classes("df").ravel()) if has_df else set())
     handles = [Patch(color=CLASS_COLOURS[k], label=LABELS.get(k, "the plant or G refuses the values"))
-               for k in ("unstable", "diverges", "none", "incomplete", "uncomputed", "error")
+               for k in ("hunts", "unstable", "diverges", "none", "incomplete", "uncomputed", "error")
                if k in shown or k == "none"]
     if response.linear["growth"]:  # (a user's FMU has no linear loop dfwb knows)
         handles.append(plt.Line2D([], [], color="crimson", lw=1.6, label="linear loop's stability boundary"))

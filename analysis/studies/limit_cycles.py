@@ -92,6 +92,9 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
                               compensation=family.compensation.describe(family.merged()), cost=cost,
                               equivalent=df_params if compensated else None,
                               cycles=search_result.cycles if search_result else [],
+                              responses=getattr(search_result, "responses", None),
+                              hunting=[{"start": f.start, "detail": f.detail} for f in search_result.fates
+                                       if f.outcome == "hunting"] if search_result else [],
                               links=search_result.links if search_result else [],
                               coverage=search_result.coverage if search_result else None,
                               verification=verification, runs=runs, F_range=list(F), omega_range=list(omega),
@@ -151,14 +154,25 @@ def _exact(problem, predictions, amplitudes, cache, progress):
                 progress("exact loop", done, total)
 
         found = search.find_cycles(problem, predictions, amplitudes, progress=report)
-        value = {"cycles": [dict(c.as_dict(), trace={"t": c.trace["t"].tolist(), "y": c.trace["y"].tolist(),
-                                                     "f": c.trace["f"].tolist(),
-                                                     "events": [[t, str(k)] for t, k in c.trace["events"]]})
-                            for c in found.cycles], "links": found.links, "coverage": found.coverage.as_dict()}
+        value = {"cycles": [_stored(c) for c in found.cycles], "links": found.links,
+                 "coverage": found.coverage.as_dict(),
+                 "fates": [[f.start, f.outcome, f.detail] for f in found.fates if f.outcome == "hunting"]}
+        if problem.dither is not None:  # the dither's own responses (dfwb.engine.dither)
+            value["responses"] = [_stored(c) for c in found.responses]
         if cache is not None:
             cache.put(key, finite(value))
         return found
-    cycles = []
-    for entry in value["cycles"]:
-        cycles.append(TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"]))))
-    return search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), [])
+    cycles = [TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"]))) for entry in value["cycles"]]
+    fates = [search.Fate(start, outcome, detail=detail) for start, outcome, detail in value.get("fates", [])]
+    found = search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), fates)
+    if "responses" in value:
+        found.responses = [TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"])))
+                           for entry in value["responses"]]
+    return found
+
+
+def _stored(cycle):
+    """A true cycle as JSON types, its trace included (what the cache keeps)."""
+    trace = cycle.trace
+    return dict(cycle.as_dict(), trace={"t": trace["t"].tolist(), "y": trace["y"].tolist(), "f": trace["f"].tolist(),
+                                        "events": [[t, str(k)] for t, k in trace["events"]]})

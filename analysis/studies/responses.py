@@ -262,6 +262,8 @@ class LimitCycleResponse(_Shown):
     compensation: str = ""
     cost: Any = None
     equivalent: Any = None  # the plant parameters whose DF the compensated loop's is (Compensation.equivalent)
+    responses: Any = None  # a dithered loop's own responses (period T_d), TrueCycles; None without a dither
+    hunting: list = field(default_factory=list)  # a dithered loop's runs that hunt unlocked: {start, detail}
 
     @property
     def exact(self):
@@ -301,6 +303,9 @@ class LimitCycleResponse(_Shown):
             document["df_params"] = self.equivalent
         if self.cost is not None:
             document["cost"] = self.cost.as_dict()
+        if self.responses is not None:
+            document["responses"] = [response.as_dict() for response in self.responses]
+            document["hunting"] = list(self.hunting)
         return document
 
     def summary(self) -> str:
@@ -349,9 +354,23 @@ class LimitCycleResponse(_Shown):
                 lines.append(f"  [{j}] omega = {c.omega:.10g} rad/s, period {c.period:.10g} s, amplitude "
                              f"{c.amplitude_x:.10g} {u}, F = {c.F:.10g} N, {'stable' if c.stable else 'unstable'} "
                              f"{how}; {which}" + (f"\n      {c.df}" if c.df else ""))
+        if self.responses is not None:
+            lines += self._dithered(u)
         if self.cost is not None:
             lines.append("cost: " + self.cost.summary(u))
         return "\n".join(lines)
+
+    def _dithered(self, u):
+        """A dithered loop's own responses (period T_d) and its runs that hunt unlocked, as summary lines."""
+        lines = [f"{len(self.responses)} response(s) at the dither's period (fixed points of the stroboscopic map)"]
+        for j, c in enumerate(self.responses):
+            lines.append(f"  [{j}] period {c.period:.6g} s, mean {c.harmonics[0]:.4g} {u}, residual oscillation "
+                         f"{c.amplitude_x:.4g} {u} (first harmonic), {'stable' if c.stable else 'unstable'} "
+                         f"(|multipliers| {', '.join(f'{m:.3g}' for m in c.multipliers)})")
+        if self.hunting:
+            lines.append(f"{len(self.hunting)} run(s) hunt, not locked to the dither; e.g. from "
+                         f"{self.hunting[0]['start']}: {self.hunting[0]['detail']}")
+        return lines
 
     def markdown(self) -> str:
         """Tables of the predictions (and judge), and of the true cycles with the DF's errors (a scene's
@@ -678,7 +697,7 @@ class HuntingMapResponse(_Shown):
         """Counts of each class, truth and DF, and where they disagree."""
         from collections import Counter
 
-        from dfwb.engine.hunting import LABELS
+        from dfwb.engine.hunting import HUNTS, LABELS
 
         truth, df = self.classes("truth"), self.classes("df")
         lines = [f"{self.plant} under G = {self.G}" + (f" ({_values(self.values)})" if self.values else "")
@@ -689,7 +708,7 @@ class HuntingMapResponse(_Shown):
             counted = Counter(classes.ravel().tolist())
             lines.append(f"  {source}: " + ", ".join(f"{n} {LABELS.get(k, k)}" for k, n in counted.most_common()))
         if self.has_df:
-            hunts = truth == "stable"
+            hunts = np.isin(truth, HUNTS)
             missed = int(np.sum(hunts & (df != "stable")))
             false = int(np.sum(~hunts & (df == "stable")))
             lines.append(f"  the DF misses {missed} of the {int(hunts.sum())} cells that hunt and predicts hunting "
