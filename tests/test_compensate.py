@@ -140,7 +140,8 @@ def test_a_compensated_margin_is_the_truths():
 
 # -- refused in one line -------------------------------------------------------------------------------------
 @pytest.mark.parametrize("compensate, values, message", [
-    ("dither", {}, "the dither is not built yet"),
+    ("dither", {"a": 1}, "the parameter w_d is given no value"),
+    ("dither", {"a": 1, "w_d": 0}, "w_d = 0.0 is out of range"),
     ("backlash-inverse", {}, "the backlash inverse is not built yet"),
     ("friction", {}, "not a compensator"),
     (["reset", "reset"], {}, "named twice"),
@@ -170,7 +171,10 @@ def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
 
 
 @pytest.mark.parametrize("words, message", [
-    (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "dither"], "dither is not built"),
+    (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "backlash-inverse"],
+     "the backlash inverse is not built"),
+    (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "dither", "--set", "a=1"],
+     "the parameter w_d is given no value"),
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "coulomb"], "F_hat is given no"),
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "deadband", "--set", "d=-1"],
      "d = -1.0 is out of range"),
@@ -204,7 +208,8 @@ def test_the_command_line_prints_the_cost_in_json(tmp_path):
     document = json.loads(out)
     assert document["cycles"] == [] and document["compensation"] == "deadband (d = 0.2)"
     assert set(document["cost"]) == {"step", "horizon", "standing_error", "settling_time", "overshoot", "peak_force",
-                                     "rms_force", "note"}
+                                     "rms_force", "note", "residual_oscillation"}
+    assert document["cost"]["residual_oscillation"] is None  # (a dither's)
     assert 0.0 < document["cost"]["standing_error"] < 0.2
 
 
@@ -250,7 +255,8 @@ def test_a_scene_compensates_as_the_api_does(tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
-    ('compensate = ["dither"]\nparams = {d = 1}', "the dither is not built yet"),
+    ('compensate = ["backlash-inverse"]\nparams = {d = 1}', "the backlash inverse is not built yet"),
+    ('compensate = ["dither"]\nparams = {a = 1, w_d = -2}', "w_d = -2.0 is out of range"),
     ('compensate = ["deadband"]\nparams = {d = "wide"}', "d = 'wide' is not a number"),
     ('compensate = "deadband"\nparams = {d = 1}', "compensate: Input should be a valid list"),
     ('compensate = ["coulomb"]\nparams = {F_hat = 1, signal = "sign"}', "signal = 'sign': one of velocity"),

@@ -21,13 +21,14 @@ crossover, the largest force and output read again between their neighbours:
   the compensator's) over the horizon [N];
 - ``note``: why the step response could not be computed (the loop refused
   it, e.g. a feedforward that chatters), its other fields then None;
-- ``residual_oscillation``: with a dither, half the output's swing over the
-  last dither period [output unit] (None without a dither, or where it does
-  not settle). A dithered loop never rests: it *settles* when its output at
-  the dither's phase 0 varies less than :data:`DITHER_STILL` of S over the
-  last quarter; the standing error is then the output's mean over the last
-  dither period, and the settling time counts the band from that mean
-  widened by the residual oscillation.
+- ``residual_oscillation``: with a dither, the first harmonic of the output
+  at the dither's frequency over the last dither period [output unit] (None
+  without a dither, or where it does not settle). A dithered loop never
+  rests: it *settles* when its output at the dither's phase 0 varies less
+  than :data:`DITHER_STILL` of S over the last quarter; the standing error
+  is then the output's mean over the last dither period (both exact to
+  rounding), and the settling time counts the band from that mean widened
+  by half the output's swing over that period.
 
 Examples
 --------
@@ -57,7 +58,6 @@ REFINE = 200  # the largest force and output read again at this many steps betwe
 BAND = 0.02  # settled: within 2 % of the step of where it rests
 STILL = 1e-9  # at rest: y and the force vary less than this (relative) over the last quarter
 DITHER_STILL = 1e-3  # settled on a dither's response: y at its phase 0 varies less than this (relative to S)
-DITHER_SAMPLES = 256  # readings over the last dither period (its mean and swing)
 
 
 @dataclass(frozen=True)
@@ -134,9 +134,9 @@ def _step(problem, S, T):
     if problem.dither is not None:
         end = _dithered_end(problem, start, S, T)
         if end is not None:
-            mean, residual = end
+            mean, residual, swing = end
             standing = abs(mean)
-            outside = np.nonzero(np.abs(y - mean) > BAND * S + residual)[0]
+            outside = np.nonzero(np.abs(y - mean) > BAND * S + swing)[0]
             settling = 0.0 if outside.size == 0 else float(times[min(outside[-1] + 1, len(times) - 1)])
     elif (not any(t > 0.75 * T for t in events)
           and np.ptp(y[quiet:]) <= STILL * S and np.ptp(f[quiet:]) <= STILL * max(peak, 1.0)):  # at rest
@@ -149,16 +149,18 @@ def _step(problem, S, T):
 
 
 def _dithered_end(problem, start, S, T):
-    """(the output's mean, half its swing) over the last dither period where the output at the dither's phase 0
-    varies less than DITHER_STILL S over the last quarter of the horizon T; None where it does not."""
+    """(the output's mean, the first harmonic of its oscillation at the dither's frequency, half its swing) over
+    the last dither period, where the output at the dither's phase 0 varies less than DITHER_STILL S over the last
+    quarter of the horizon T; None where it does not. The mean and the harmonic are exact to rounding
+    (:meth:`~dfwb.engine.periodic.LoopProblem.period_trace`: Gauss-Legendre on the smooth pieces)."""
     period = 2.0 * math.pi / problem.dither.w_d
     phases = np.arange(math.ceil(0.75 * T / period), math.floor(T / period) + 1) * period
     if len(phases) < 3:
         return None  # fewer than two dither periods in the last quarter: nothing to judge
+    states, _ = problem.solver(start).readings(phases[-2:-1])
     y, _ = _read(problem, start, phases)
     if np.ptp(y) > DITHER_STILL * S:
         return None
-    last = np.linspace(phases[-1] - period, phases[-1], DITHER_SAMPLES + 1)
-    y, _ = _read(problem, start, last)
-    return float(np.trapezoid(y, last) / period), float(0.5 * np.ptp(y))
-
+    harmonics, _F, _counts, trace = problem.period_trace(states[0], period)
+    signed = math.copysign(harmonics[0], float(np.mean(trace["y"])))
+    return signed, harmonics[1], float(0.5 * np.ptp(trace["y"]))

@@ -267,7 +267,7 @@ class _Friction(_Loop):
         return rhs
 
     def rest(self):
-        """v = 0: stick while |f| <= Fs, else slide in the direction of f (|f| = Fs: the way f is heading)."""
+        """v = 0: stick while |f| <= Fs, else slide in the direction of f (|f| = Fs: slide where f heads beyond)."""
         self.X[1] = 0.0
         if not self.breaks_away():
             self.mode = 0
@@ -276,10 +276,12 @@ class _Friction(_Loop):
     def breaks_away(self):
         """At rest: slide (True) where the force on the mass, f and the feedforward, is beyond Fs."""
         f, Fs = self.force(self.X) + self.feedforward(0) + self.dither(self.t), self.p["Fs"]
-        if abs(f) == Fs:
-            f += (self.force_rate(self.X, self.rhs_for(0)(self.t, self.X))
-                  + self.a * self.w_d * math.cos(self.w_d * self.t))
-        if abs(f) > Fs:
+        if abs(f) == Fs:  # on the level: it breaks away where the force heads beyond it, else sticks
+            rate = (self.force_rate(self.X, self.rhs_for(0)(self.t, self.X))
+                    + self.a * self.w_d * math.cos(self.w_d * self.t))
+            if f * rate <= 0.0:
+                return False
+        if abs(f) >= Fs:
             self.mode = 1 if f > 0.0 else -1
             return True
         return False
