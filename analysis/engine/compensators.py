@@ -23,7 +23,7 @@ dfwb.base.errors.InputError: compensate = 'backlash-inverse': the backlash inver
 
 from dataclasses import dataclass, field
 
-from dfwb.base.errors import InputError
+from dfwb.base.errors import InputError, PlantError
 from dfwb.fmus.compensation import SIGNALS, Coulomb, Deadband, Dither, Reset
 
 __all__ = ["KINDS", "CHOICES", "Compensation", "choice", "check_judged"]
@@ -110,6 +110,17 @@ class Compensation:
             return None
         merged = dict(self.defaults, **{k: v for k, v in values.items() if k in self.names})
         return [KINDS[name].build(merged) for name in self.kinds]
+
+    def check(self, name, value):
+        """Refuse ``value`` of the compensator parameter ``name`` in one line (InputError) as its compensator does,
+        whatever the compensator's other parameters (they are set to 1 here, a value each accepts): what a
+        range's ends are held to before anything runs."""
+        kind = next(kind for kind in KINDS.values() if name in kind.parameters)
+        values = dict({p: 1.0 for p in kind.parameters}, **{p: allowed[0] for p, allowed in kind.choices.items()})
+        try:
+            kind.build(dict(values, **{name: value}))
+        except PlantError as error:
+            raise InputError(str(error)) from None
 
     def equivalent(self, spec, params, values):
         """The parameters of the plant ``spec`` (a registered plant) whose uncompensated plant is the compensated

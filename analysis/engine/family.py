@@ -265,6 +265,12 @@ class LoopFamily:
         except PlantError as error:
             raise InputError(str(error)) from None
 
+    def check_compensator(self, values):
+        """Refuse a value of a compensator's parameter outside the compensator's range (whatever its other
+        parameters: a map may have two of one compensator's on its axes)."""
+        for name, value in values.items():
+            self.compensation.check(name, number(name, value))
+
     def scaled(self, name):
         """The family of ``name`` * G: the gain factor a free parameter (refused if G or the plant has it)."""
         if name in self.names:

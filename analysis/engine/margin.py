@@ -183,6 +183,8 @@ def _by_continuation(scaled, hunting_k, other_k, fmu_dir):
     from dfwb.engine.cycles import find_cycles
 
     problem = scaled.problem({GAIN: hunting_k}, fmu_dir)
+    if problem.dither is not None:  # a forced loop: continuation follows no fixed point of its stroboscopic map
+        return None
     stable = find_cycles(problem, amplitudes=problem.scales.amplitudes(MAP_AMPLITUDES), boundaries=False).stable()
     if not stable:
         return None

@@ -403,14 +403,18 @@ def hunting_map(response, axes=None):
     cmap = plt.get_cmap("viridis")
     image = None
     for ax, (source, title) in zip(axes, panels):
-        if source == "cost":
-            error = response.costs("standing_error")
+        if source == "cost":  # a dither's price is its residual oscillation, the others' their standing error
+            residual = response.costs("residual_oscillation")
+            dithered = bool(np.isfinite(residual).any())
+            error = residual if dithered else response.costs("standing_error")
+            what = "residual oscillation" if dithered else "standing error"
             shown = ax.imshow(np.ma.masked_invalid(error), origin="lower", extent=extent, aspect="auto",
                               interpolation="nearest", cmap="cividis")
             ax.set_facecolor(NO_REST)  # (cells whose step response never rests)
             if np.isfinite(error).any():
+                title = f"the cost: the {what} after a step"
                 ax.figure.colorbar(shown, ax=ax, fraction=0.05, pad=0.02).set_label(
-                    f"standing error [{response.unit}] (pink: never at rest)")
+                    f"{what} [{response.unit}] (pink: never at rest" + (", or never settles)" if dithered else ")"))
             else:
                 title = "the cost: no cell comes to rest after a step (pink)"
         else:

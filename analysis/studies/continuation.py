@@ -39,7 +39,7 @@ def check_parameter(family, name, start, stop, plant=True):
     if plant and name in family.plant_names:
         check = family.params  # the plant's own range, at both ends (checked all along anyway)
     elif family.compensation.numeric(name):
-        check = family.compensators  # a compensator's own range, which each end must fit
+        check = family.check_compensator  # a compensator's own range, which each end must fit
     else:
         return name, (min(values), max(values))
     for value in values:
@@ -94,6 +94,10 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
         raise InputError(f"{parameter} is the parameter followed: give its range, not a value for it")
     family = LoopFamily(plant, G, values, free=(parameter,) if isinstance(parameter, str) else (),
                         compensate=compensate)
+    if "dither" in family.compensation.kinds:
+        raise InputError("compensate: a dithered loop is forced, its responses fixed points of its stroboscopic map "
+                         "(dfwb.engine.dither), which continuation does not follow: map it (dfwb map) or search it "
+                         "(dfwb limit-cycle --exact)")
     name, bounds = check_parameter(family, parameter, start, stop)
     sources = _sources(sources)
     at = [float(start), float(stop)] if starts is None else _starts(starts, bounds)
