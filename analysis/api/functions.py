@@ -243,8 +243,10 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     compensate : str or list of str, optional, keyword-only
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
-        integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
-        to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
+        integrator holds while ``|y| < d``), ``"reset"`` (the integrator cleared when the mass comes
+        to rest) and ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
+        forced loop, :mod:`dfwb.engine.dither`); their parameters come with ``params`` like G's
+        (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`): ``exact`` is
         required; its DF is computed where the compensated plant is a plant (the feedforward of the velocity
         on the friction mass, ``F_hat <= Fc``: the mass with ``Fc - F_hat``).
@@ -346,8 +348,10 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
     compensate : str or list of str, optional, keyword-only
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
-        integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
-        to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
+        integrator holds while ``|y| < d``), ``"reset"`` (the integrator cleared when the mass comes
+        to rest) and ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
+        forced loop, :mod:`dfwb.engine.dither`); their parameters come with ``params`` like G's
+        (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`), and its DF is
         followed where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
         ``F_hat <= Fc``); the parameter followed may be a compensator's.
@@ -428,8 +432,10 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
     compensate : str or list of str, optional, keyword-only
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
-        integrator holds while ``|y| < d``) and ``"reset"`` (the integrator cleared when the mass comes
-        to rest); their parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
+        integrator holds while ``|y| < d``), ``"reset"`` (the integrator cleared when the mass comes
+        to rest) and ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
+        forced loop, :mod:`dfwb.engine.dither`); their parameters come with ``params`` like G's
+        (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`) in every cell and
         its DF where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
         ``F_hat <= Fc``); an axis may be a compensator's parameter.
