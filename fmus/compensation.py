@@ -44,7 +44,7 @@ from .exact import PlantError
 from .piecewise import check
 
 __all__ = ["Coulomb", "Reset", "Deadband", "Dither", "SIGNALS", "compensators", "dither_of", "follows_control",
-           "python_only", "integrator"]
+           "integrator"]
 
 SIGNALS = ("velocity", "control")
 
@@ -147,11 +147,6 @@ def compensators(compensation):
 def dither_of(compensation):
     """The :class:`Dither` of ``compensation`` that acts (a > 0), or None."""
     return next((c for c in _given(compensation) if isinstance(c, Dither) and c.a > 0.0), None)
-
-
-def python_only(compensation):
-    """Whether ``compensation`` needs the Python loop: the feedforward of the controller's sign, or a dither."""
-    return follows_control(compensation) or dither_of(compensation) is not None
 
 
 def follows_control(compensation):

@@ -450,7 +450,7 @@ class HybridSolver:
                 self._time_rounding = 4.0 * EPS * abs(t)
                 if kind in SECTION:  # not an event of the system: watch the other direction from here
                     if kind is SECTION_UP:
-                        self.crossings.append((t, X))
+                        self.crossings.append((t, self.visible(X)))
                     self._watching = SECTION_DOWN if kind is SECTION_UP else SECTION_UP
                     self._begin(t, X, self.key, (self.function_index(self.key, self._watching),))
                     if stop_at_section and kind is SECTION_UP:
@@ -491,11 +491,14 @@ class HybridSolver:
         return states
 
     def state(self):
-        """The state X at self.t."""
+        """The state X at self.t (as :meth:`visible` shows it)."""
         tau = self.t - self._a
-        if tau == 0.0:
-            return list(self._X)
-        return self._state_at(tau)
+        return self.visible(list(self._X) if tau == 0.0 else self._state_at(tau))
+
+    @staticmethod
+    def visible(X):
+        """What a caller sees of the integrated state X: all of it (a system may keep coordinates of its own)."""
+        return X
 
     def _chunk_length(self):
         """The current chunk's length: the mode's (closed form), or the step's (integrated)."""

@@ -174,9 +174,9 @@ class FeedbackLoop(HybridSolver):
         dither = 0.0 if self.dither is None else X[len(self.coordinates) + self.order]
         return self.force(X) + self.feedforward(self.key, self.sigma if self._on_control else None) + dither
 
-    def state(self):
-        """The loop's state at self.t: the plant's coordinates and z (a dither's oscillator left out)."""
-        X = super().state()
+    def visible(self, X):
+        """The loop's state in the integrated state X: the plant's coordinates and z (a dither's oscillator left
+        out)."""
         return X if self.dither is None else X[:len(self.coordinates) + self.order]
 
     def readings(self, times):
@@ -185,8 +185,9 @@ class FeedbackLoop(HybridSolver):
         states, forces = [], []
         for t in times:
             self.advance(float(t))
-            X = super().state()
-            states.append(X[:len(self.coordinates) + self.order])
+            tau = self.t - self._a
+            X = list(self._X) if tau == 0.0 else self._state_at(tau)
+            states.append(self.visible(X))
             forces.append(self.applied(X))
         return states, forces
 

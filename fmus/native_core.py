@@ -60,7 +60,7 @@ import warnings
 from collections import namedtuple
 from pathlib import Path
 
-from .compensation import Coulomb, compensators, dither_of, follows_control
+from .compensation import Coulomb, Dither, compensators, dither_of, follows_control
 from .contract import EventKind
 from .exact import DfwbError, Diverged, Drive, PlantError
 from .plants import KINDS, MODULES, c_name
@@ -69,7 +69,7 @@ from .state import StateRefused
 __all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CAPACITY", "EVENT_KINDS",
            "NativeMode"]  # and each plant's classes by name: NativeFrictionMass, NativeFrictionLoop, ...
 
-ABI = 9  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 10  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 ERRLEN = 1024
 LOOP_KEYS = 9  # the mode keys a loop may have (DFWB_HY_KEYS); slot s of its modes is key s % 9 at deadband side s // 9
 SIDES = (1, 0, -1)  # the integrator deadband's side of each variant of the modes (FeedbackLoop.band)
@@ -577,7 +577,7 @@ class _LoopApi(_Functions):
             "advance": (c_int, [c_void_p, c_double, c_int, ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(c_longlong),
                                 c_longlong, c_char_p, c_size_t]),
             "stopped": (c_int, [c_void_p]),
-            "sample": (c_int, [c_void_p, p_double, c_size_t, p_double, p_int, ctypes.POINTER(c_longlong),
+            "sample": (c_int, [c_void_p, p_double, c_size_t, p_double, p_int, p_double, ctypes.POINTER(c_longlong),
                                c_longlong, c_char_p, c_size_t]),
             "plant": (c_int, [c_void_p]),
             "order": (c_int, [c_void_p]),
@@ -650,11 +650,10 @@ class _NativeLoop(_Native):
         if follows_control(coulomb):
             raise PlantError("the compiled loop has no Coulomb feedforward of the controller's sign (the Python loop, "
                              "dfwb.fmus.loops, runs it)")
-        if dither_of(compensation) is not None:
-            raise PlantError("the compiled loop has no dither (the Python loop, dfwb.fmus.loops, runs it)")
-        ccompensation = None if compensation is None else (ctypes.c_double * 4)(
+        dither = dither_of(compensation)
+        ccompensation = None if compensation is None else (ctypes.c_double * 6)(
             float(coulomb is not None), 0.0 if coulomb is None else coulomb.F_hat, float(reset),
-            0.0 if band is None else band)
+            0.0 if band is None else band, 0.0 if dither is None else dither.a, 0.0 if dither is None else dither.w_d)
         kind, _attr, _cls, names = _LOOPS[self._plant]
         b, a = list(b), list(a)
         originals = dict(zip(names, values))
@@ -692,11 +691,12 @@ class _NativeLoop(_Native):
         api.controller(handle, Ac, Bc, C, ctypes.byref(D))
         self.Ac = [Ac[i * n:(i + 1) * n] for i in range(n)]
         self.Bc, self.C, self.D = Bc[:], C[:], D.value
-        held = (ctypes.c_double * 4)()
+        held = (ctypes.c_double * 6)()
         api.compensation(handle, held)
-        has_coulomb, F_hat, self._reset_at_rest, d = held[:]
+        has_coulomb, F_hat, self._reset_at_rest, d, a, w_d = held[:]
         self.coulomb = Coulomb(F_hat) if has_coulomb else None  # the compensators, as the Python loop holds them
         self.deadband = d if d > 0.0 else None
+        self.dither = Dither(a, w_d) if a > 0.0 else None
         self.sigma, self._on_control = 0, False  # the feedforward of the controller's sign: Python's alone
         # slot s of the C modes -> the key the Python loop's modes dict holds it by: with a deadband (key, 0, side)
         self._slots = {k + LOOP_KEYS * v: (key, 0, side) if self.deadband is not None else key
@@ -777,14 +777,11 @@ class _NativeLoop(_Native):
 
     def readings(self, times):
         """(states, forces on the plant) at each of ``times`` (FeedbackLoop.readings): one call into the core."""
-        keys = (ctypes.c_int * max(1, len(times)))()
-        states = self._sample(times, keys)
-        forward = {}
-        for key in set(keys[:len(times)]):
-            forward[key] = self.feedforward(self._keys[key], None)
-        return states, [self.force(X) + forward[key] for X, key in zip(states, keys)]
+        forces = (ctypes.c_double * max(1, len(times)))()
+        states = self._sample(times, None, forces)
+        return states, forces[:len(times)]
 
-    def _sample(self, times, keys):
+    def _sample(self, times, keys, forces=None):
         self._share_modes()
         api, budget, n = self._api, self._budget, len(times)
         if getattr(times, "dtype", None) == "float64" and times.flags["C_CONTIGUOUS"]:
@@ -793,12 +790,12 @@ class _NativeLoop(_Native):
             ctimes = (ctypes.c_double * max(1, n))(*[_as_double(t) for t in times])
         states = (ctypes.c_double * max(1, n * self._size))()
         if budget is None:
-            code = api.sample(self._handle, ctimes, n, states, keys, None, 0, self._err, ERRLEN)
+            code = api.sample(self._handle, ctimes, n, states, keys, forces, None, 0, self._err, ERRLEN)
         else:
             left = self._left
             left.value = budget.left
-            code = api.sample(self._handle, ctimes, n, states, keys, ctypes.byref(left), budget.total, self._err,
-                              ERRLEN)
+            code = api.sample(self._handle, ctimes, n, states, keys, forces, ctypes.byref(left), budget.total,
+                              self._err, ERRLEN)
             budget.left = left.value
         self.stopped = None
         self._collect()

@@ -73,16 +73,18 @@ def test_a_breakaway_on_a_grazing_dither_peak_is_not_stepped_over():
     assert 1e-3 < force.max() - 7.0 < 3e-3
 
 
-def test_the_dither_runs_in_the_python_loop_and_the_compiled_loop_refuses_it():
-    problem = LoopProblem("friction", "10 + 2/s", compensation=Dither(1.0, 5.0))
-    assert problem.cls is FrictionLoop and problem.dither.w_d == 5.0
-    from dfwb.fmi.location import native_core
-
-    core = native_core(None)
-    if core is not None:
-        with pytest.raises(PlantError, match="the compiled loop has no dither"):
-            core.FrictionLoop(*PI, compensation=Dither(1.0, 5.0))
-        core.FrictionLoop(*PI, compensation=Dither(0.0, 5.0))  # a = 0: no dither, the compiled loop runs it
+def test_a_dither_of_zero_is_none_and_a_bad_one_is_refused_by_the_loop():
+    for cls in (FrictionLoop, LoopProblem("friction", "10 + 2/s").cls):  # the Python loop, the compiled one
+        runs = []
+        for compensation in (None, Dither(0.0, 5.0)):
+            loop = cls(*PI, x0=0.7, compensation=compensation)
+            loop.advance(100.0)
+            runs.append((loop.state(), loop.events))
+        assert runs[0] == runs[1] and runs[0][1] > 0
+    with pytest.raises(PlantError, match="w_d = 0.0 is out of range"):
+        Dither(1.0, 0.0)
+    with pytest.raises(PlantError, match="a = nan is out of range"):
+        Dither(math.nan, 1.0)
 
 
 # -- its responses, against the reference ----------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The compensators in the compiled loop (fmus/native loops.c) against the Python loop (fmus/loops.py), bit for bit.
 
-The C core runs the Coulomb feedforward of the velocity, the integrator reset at rest and the integrator
-deadband as the Python loop does (same modes, events, operation order); the feedforward of the controller's
+The C core runs the Coulomb feedforward of the velocity, the integrator reset at rest, the integrator
+deadband and the dither (its oscillator two more coordinates of the solver's state) as the Python loop does (same modes, events, operation order); the feedforward of the controller's
 sign stays Python's alone, and the C loop refuses it in one line. On loops that hunt, stick, cross the
 deadband's edges and reset, both give the same event sequences, states, deadband sides, crossings, cycles,
 step costs and work; every refusal is the same text; a compensated loop's state as bytes reads back and goes
@@ -18,9 +18,10 @@ from test_native_loop import LEAD, PI, PID, refusal
 
 from dfwb.engine.cost import step_cost
 from dfwb.engine.cycles import find_cycles
+from dfwb.engine.dither import find_responses
 from dfwb.engine.periodic import LoopProblem
 from dfwb.fmus.backlash import BacklashLoop
-from dfwb.fmus.compensation import Coulomb, Deadband, Reset
+from dfwb.fmus.compensation import Coulomb, Deadband, Dither, Reset
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.hybrid import Budget
@@ -51,6 +52,14 @@ CASES = {  # (plant, G, parameters, compensation, t_end): every compensator, eac
     "backlash deadband": ("backlash", PID, {"eps": 0.8, "x1_0": 0.03}, Deadband(0.004), 5.0),
     "static backlash deadband": ("static-backlash", LEAD_PI, {"x0": 0.3}, Deadband(0.05), 20.0),
     "stribeck, all three": ("stribeck", HUNTS, {"x0": 0.7}, [Coulomb(1.0), Reset(), Deadband(0.05)], 100.0),
+    "dither beyond Fs": ("friction", HUNTS, {"x0": 0.7}, Dither(10.0, 5.0), 100.0),
+    "dither grazing Fs": ("friction", HUNTS, {"x0": -0.7}, Dither(3.0, 20.0), 100.0),
+    "dither, deadband, feedforward": ("friction", HUNTS, {"x0": 0.7}, [Coulomb(1.0), Deadband(0.05),
+                                                                        Dither(2.0, 3.0)], 200.0),
+    "backlash dither": ("backlash", PID, {"eps": 0.8, "x1_0": 0.03}, Dither(0.5, 40.0), 5.0),
+    "static backlash dither": ("static-backlash", LEAD_PI, {"x0": 0.3}, Dither(0.2, 10.0), 20.0),
+    "stribeck dither": ("stribeck", HUNTS, {"x0": 0.7}, Dither(3.0, 10.0), 100.0),
+    "dither of 0 (none)": ("friction", HUNTS, {"x0": 0.7}, Dither(0.0, 10.0), 100.0),
 }
 
 
@@ -149,9 +158,23 @@ def test_cycles_and_costs_are_bit_identical(core, compensation):
     assert found[0][0]  # each of them still hunts (tests/test_compensate.py holds them to the reference)
 
 
+@pytest.mark.parametrize("dither", [Dither(10.0, 5.0), Dither(1.0, 5.0)], ids=repr)
+def test_a_dithered_search_and_its_cost_are_bit_identical(core, dither):
+    found = []
+    for native in (False, True):
+        p = _problem(core, "friction", "10 + 2/s", dither, native)
+        search = find_responses(p, amplitudes=[0.7])
+        cost = step_cost(p)
+        found.append(([(c.omega, c.amplitude_x, c.stable, c.multipliers) for c in search.cycles + search.responses],
+                      [vars(f) for f in search.fates], cost, p.budget.left))
+    assert found[0] == found[1]
+    assert found[0][1] and found[0][2].peak_force > 0.0
+
+
 def test_a_compensated_problem_runs_the_compiled_loop(core):
     """LoopProblem picks the C loop for every compensator but the feedforward of the controller's sign."""
     assert LoopProblem("friction", "10 + 2/s", compensation=Deadband(0.1)).cls.__name__ == "NativeFrictionLoop"
+    assert LoopProblem("friction", "10 + 2/s", compensation=Dither(1.0, 5.0)).cls.__name__ == "NativeFrictionLoop"
     assert LoopProblem("friction", "10 + 2/s", compensation=Coulomb(2.0, "control")).cls is FrictionLoop
     with pytest.raises(PlantError, match=re.escape("the compiled loop has no Coulomb feedforward of the controller's "
                                                    "sign")):
@@ -187,7 +210,8 @@ def test_refusals_are_the_same_text(core, plant, G, params, compensation, text):
     assert py is not None and c == py and text in py[1]
 
 
-@pytest.mark.parametrize("case", ["deadband crossed", "all three, PID", "static backlash deadband"])
+@pytest.mark.parametrize("case", ["deadband crossed", "all three, PID", "static backlash deadband", "dither grazing Fs",
+                                  "dither, deadband, feedforward"])
 def test_state_round_trip_goes_on_bit_for_bit(core, case):
     t_end = CASES[case][-1]
     py, c = pair(core, case, section=0.0)
@@ -198,6 +222,7 @@ def test_state_round_trip_goes_on_bit_for_bit(core, case):
         again = type(c).from_bytes(data)
         assert again.to_bytes() == data and again.same_parameters(c) and again.band == c.band
         assert (again.coulomb is None) == (c.coulomb is None) and again.deadband == c.deadband
+        assert repr(again.dither) == repr(c.dither)
         again.advance(t_end)
         assert again.state() == py.state() and again.events == py.events and again.band == py.band
     plant, G, params, _compensation, _t = CASES[case]
@@ -226,6 +251,18 @@ def test_crafted_compensators_are_refused(core):
         with pytest.raises(StateRefused, match=re.escape(text)) as error:
             core.FrictionLoop.from_bytes(crafted)
         assert "\n" not in str(error.value)
+    dithered = core.FrictionLoop(*HUNTS, x0=0.7, compensation=Dither(2.0, 5.0)).to_bytes()
+    last = (len(dithered) - HEADER) // 8 - 3  # the dither's fields come last: flag, a, w_d
+    for crafted, text in [
+        (_field(dithered, last, 0), "dither flag = 0 is out of range: must be 1 with a dither's amplitude above 0"),
+        (_field(dithered, last + 1, 0.0), "dither flag = 1 is out of range"),
+        (_field(dithered, last + 2, 0.0), "compensators are refused: w_d = 0.0 is out of range"),
+        (_field(dithered, last + 2, math.inf), "compensators are refused: w_d = inf is out of range"),
+        (_field(dithered, last + 1, -2.0), "dither flag = 1 is out of range"),
+        (_field(plain, last + 2, 5.0), "w_d = 5.0 is out of range: must be 0 without a dither"),
+    ]:
+        with pytest.raises(StateRefused, match=re.escape(text)):
+            core.FrictionLoop.from_bytes(crafted)
     reset_backlash = _field(core.BacklashLoop(*PID).to_bytes(), first + 2, 1)
     with pytest.raises(StateRefused, match="BacklashLoop has no such event"):
         core.BacklashLoop.from_bytes(reset_backlash)

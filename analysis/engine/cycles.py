@@ -368,14 +368,10 @@ def find_cycles(problem, predictions=(), amplitudes=None, horizon=None, max_retu
     Returns
     -------
     CycleSearch
-        A :class:`~dfwb.engine.dither.DitherSearch` for a dithered loop, which is forced, not autonomous: its
-        responses are the fixed points of its stroboscopic map (:func:`dfwb.engine.dither.find_responses`;
-        ``predictions``, ``max_returns`` and ``boundaries`` do not apply).
     """
     if getattr(problem, "dither", None) is not None:
-        from dfwb.engine.dither import find_responses
-
-        return find_responses(problem, amplitudes, horizon, progress=progress)
+        raise ValueError("a dithered loop is forced: its truth is dfwb.engine.dither.find_responses "
+                         "(dfwb.engine.truth.search picks it)")
     scales = problem.scales
     amplitudes = scales.amplitudes() if amplitudes is None else [float(a) for a in amplitudes]
     horizon = scales.horizon(min(amplitudes)) if horizon is None else float(horizon)

@@ -100,15 +100,15 @@ def classify(problem, engine=None, dfmap=None, amplitudes=None, truth=True, df=T
     over the loop's span); ``df_params``: the plant parameters of the DF (default: the problem's; a compensated
     loop's equivalent plant, :meth:`~dfwb.engine.compensators.Compensation.equivalent`).
     """
-    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine import truth as exact
     from dfwb.engine.limit_cycles import balance, search
 
     poles = linear_poles(problem)
     stable = bool(poles) and all(p.real < 0.0 for p in poles)
     cell = {"linear": {"stable": stable, "max_real_pole": max((p.real for p in poles), default=-math.inf)}}
     if truth:
-        found = find_cycles(problem, amplitudes=amplitudes or problem.scales.amplitudes(MAP_AMPLITUDES),
-                            boundaries="unless-stable")
+        found = exact.search(problem, amplitudes=amplitudes or problem.scales.amplitudes(MAP_AMPLITUDES),
+                             boundaries="unless-stable")
         cell["truth"] = truth_cell(found)
     if df:
         params = problem.params if df_params is None else df_params

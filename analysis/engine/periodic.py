@@ -47,7 +47,7 @@ import numpy as np
 from dfwb.base.defaults import HARMONICS
 from dfwb.base.errors import InputError
 from dfwb.engine.transfer import check_transfer_function
-from dfwb.fmus.compensation import dither_of, python_only
+from dfwb.fmus.compensation import dither_of, follows_control
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.hybrid import MAX_CHUNKS_PER_STEP, Budget
 from dfwb.plants import plant as find_plant
@@ -245,8 +245,8 @@ class LoopProblem:
             G = parse_transfer_function(G)
         self.G = check_transfer_function(G)
         self.spec, self.fmu_dir, self.compensation = spec, fmu_dir, compensation
-        # the compiled core runs every compensator but the feedforward of the controller's sign and the dither
-        self.cls = spec.loop if python_only(compensation) else _loop_class(spec, fmu_dir)
+        # the compiled core runs every compensator but the feedforward of the controller's sign
+        self.cls = spec.loop if follows_control(compensation) else _loop_class(spec, fmu_dir)
         self.dither = dither_of(compensation)  # the loop is then forced: its responses are dfwb.engine.dither's
         self.b, self.a = _coefficients(self.G)
         checked = spec.check(dict(params or {}))

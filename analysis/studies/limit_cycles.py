@@ -141,6 +141,7 @@ def _exact(problem, predictions, amplitudes, cache, progress):
     """The exact search around the predictions (:func:`dfwb.engine.cycles.find_cycles`), cached."""
 
     from dfwb.engine import cycles as search
+    from dfwb.engine import truth
     from dfwb.engine.periodic import TrueCycle, trace_arrays
 
     key = {"kind": "exact", "code": code_revision(), "solvers": solver_revision(), "plant": problem.spec.name,
@@ -153,7 +154,7 @@ def _exact(problem, predictions, amplitudes, cache, progress):
             if progress is not None and done is not None:
                 progress("exact loop", done, total)
 
-        found = search.find_cycles(problem, predictions, amplitudes, progress=report)
+        found = truth.search(problem, predictions, amplitudes, progress=report)
         value = {"cycles": [_stored(c) for c in found.cycles], "links": found.links,
                  "coverage": found.coverage.as_dict(),
                  "fates": [[f.start, f.outcome, f.detail] for f in found.fates if f.outcome == "hunting"]}

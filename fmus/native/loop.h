@@ -39,6 +39,10 @@ struct dfwb_loop {
      * integrator's coordinate xi = w . z (with reset or a deadband) */
     int has_coulomb, reset, band;
     double F_hat, d, w[DFWB_LOOP_MAX_ORDER];
+    /* the dither a sin(w_d t) (has_dither: a > 0): the oscillator (s, c) after z in the solver's state, from
+     * (0, a); the loop's state as the API gives and takes it is m + order long, the oscillator left out */
+    int has_dither;
+    double a_d, w_d;
 };
 
 /* A plant mode: q' = P q + p + phi f, event functions Lq.q + Lf f + l0 (FeedbackLoop.plant_mode). */

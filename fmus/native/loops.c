@@ -41,8 +41,9 @@ void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, do
 static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
 {
     const dfwb_loop *L = (const dfwb_loop *)(const void *)hy;
-    const int m = L->m, n = L->order, size = m + n;
+    const int m = L->m, n = L->order, size = hy->n; /* m + n, and a dither's oscillator (s, c) */
     dfwb_plant_mode pm;
+    double on_plant[DFWB_HY_DIM]; /* the force on the plant: f = D y + C z, and the dither's s */
     int i, j, e;
     double k;
     (void)err;
@@ -50,21 +51,29 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
     L->cls->mode(L, key, &pm);
     k = L->has_coulomb && L->F_hat != 0.0 ? L->F_hat * (double)L->cls->slip(key) : 0.0;
     mode->n = size;
-    for (i = 0; i < m; i++) /* row = list(P[i]) + [0.0] * n; [value + phi[i] * fv ...] */
+    for (j = 0; j < size; j++)
+        on_plant[j] = j < m + n ? L->f_row[j] : j == m + n ? 1.0 : 0.0;
+    for (i = 0; i < m; i++) /* row = list(P[i]) + [0.0] * (n + e); [value + phi[i] * fv ...] */
         for (j = 0; j < size; j++)
-            mode->A[i][j] = (j < m ? pm.P[i][j] : 0.0) + pm.phi[i] * L->f_row[j];
-    for (i = 0; i < n; i++) { /* row = [0.0] * m + list(Ac[i]); row[out] += Bc[i] (held within the deadband) */
+            mode->A[i][j] = (j < m ? pm.P[i][j] : 0.0) + pm.phi[i] * on_plant[j];
+    for (i = 0; i < n; i++) { /* row = [0.0] * m + list(Ac[i]) + [0.0] * e; row[out] += Bc[i] (held: deadband) */
         for (j = 0; j < size; j++)
-            mode->A[m + i][j] = j < m ? 0.0 : L->Ac[i][j - m];
+            mode->A[m + i][j] = j < m || j >= m + n ? 0.0 : L->Ac[i][j - m];
         mode->A[m + i][L->out] += L->band || i > 0 ? L->Bc[i] : L->Bc[0] - 1.0 / L->w[0];
     }
-    for (i = 0; i < size; i++) /* the compensator's force k, constant in the mode: the plant sees f + k */
+    if (L->has_dither) { /* s' = w_d c, c' = -w_d s */
+        for (j = 0; j < size; j++)
+            mode->A[m + n][j] = mode->A[m + n + 1][j] = 0.0;
+        mode->A[m + n][m + n + 1] = L->w_d;
+        mode->A[m + n + 1][m + n] = -L->w_d;
+    }
+    for (i = 0; i < size; i++) /* the compensator's force k, constant in the mode: the plant sees f + s + k */
         mode->c[i] = i < m ? pm.p[i] + pm.phi[i] * k : 0.0;
     mode->nev = pm.nev;
     for (e = 0; e < pm.nev; e++) {
         mode->ev[e].kind = pm.kind[e];
         for (j = 0; j < size; j++)
-            mode->ev[e].L[j] = (j < m ? pm.Lq[e][j] : 0.0) + pm.Lf[e] * L->f_row[j];
+            mode->ev[e].L[j] = (j < m ? pm.Lq[e][j] : 0.0) + pm.Lf[e] * on_plant[j];
         mode->ev[e].l0 = pm.l0[e] + pm.Lf[e] * k;
     }
     if (L->d > 0.0) { /* outside: band * y - d > 0; within: d - y > 0 and d + y > 0 */
@@ -238,9 +247,10 @@ static int controller(dfwb_loop *L, const double *b, size_t nb, const double *a,
     return DFWB_OK;
 }
 
-/* The compensators of compensation[4] = {coulomb 0/1, F_hat, reset 0/1, d} (NULL: none), checked in the order
- * and with the texts of Coulomb, Deadband and FeedbackLoop.__init__ (after the controller's own checks): F_hat,
- * d, the one integrator the reset and the deadband need (a: G's a1..an, checked), a plant where the reset acts. */
+/* The compensators of compensation[6] = {coulomb 0/1, F_hat, reset 0/1, d, a, w_d} (NULL: none), checked in the
+ * order and with the texts of Coulomb, Deadband, Dither and FeedbackLoop.__init__ (after the controller's own
+ * checks): F_hat, d, a, w_d, the one integrator the reset and the deadband need (a: G's a1..an, checked), a plant
+ * where the reset acts. */
 static int compensators(dfwb_loop *L, const double *compensation, const double *a, size_t na, dfwb_err *err)
 {
     char text[8 + (DFWB_REPR_SIZE + 2) * MAX_ORDER];
@@ -255,11 +265,21 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     L->F_hat = L->has_coulomb ? compensation[1] : 0.0;
     L->reset = compensation[2] == 1.0;
     L->d = compensation[3];
+    L->a_d = compensation[4];
+    L->w_d = compensation[5];
     if ((L->has_coulomb && (rc = dfwb_check(err, "F_hat", L->F_hat, L->F_hat >= 0.0,
                                             "a finite number of newtons, at least 0")) != DFWB_OK)
         || (rc = dfwb_check(err, "d", L->d, L->d >= 0.0,
-                            "the error band of the integrator deadband, a finite number at least 0")) != DFWB_OK)
+                            "the error band of the integrator deadband, a finite number at least 0")) != DFWB_OK
+        || (rc = dfwb_check(err, "a", L->a_d, L->a_d >= 0.0,
+                            "the dither's amplitude, a finite number of newtons, at least 0")) != DFWB_OK)
         return rc;
+    if (L->a_d > 0.0 && (rc = dfwb_check(err, "w_d", L->w_d, L->w_d > 0.0,
+                                         "the dither's angular frequency, a finite number of rad/s above 0")) != DFWB_OK)
+        return rc;
+    L->has_dither = L->a_d > 0.0; /* a = 0: no dither (its w_d then 0, as a state holds it) */
+    if (!L->has_dither)
+        L->w_d = 0.0;
     if (L->reset || L->d > 0.0) { /* integrator(a): w = (a_(n-1), ..., a_1, 1) */
         if (na == 0 || a[na - 1] != 0.0 || (na > 1 && a[na - 2] == 0.0)) {
             used = (size_t)snprintf(text, sizeof text, "[");
@@ -314,7 +334,8 @@ static void setup(dfwb_loop *L, const double *section)
         L->f_row[L->m + i] = L->C[i];
     section_L[L->out] = 1.0;
     L->section = section != NULL ? *section : 0.0;
-    dfwb_hy_init(&L->hy, L->m + L->order, loop_system, loop_fire, section != NULL ? section_L : NULL,
+    dfwb_hy_init(&L->hy, L->m + L->order + (L->has_dither ? 2 : 0), loop_system, loop_fire,
+                 section != NULL ? section_L : NULL,
                  section != NULL ? -*section : 0.0);
     if (L->cls->law != NULL) {
         L->hy.law = loop_law;
@@ -365,6 +386,8 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
         X[i] = q0[i];
     for (i = 0; i < n; i++)
         X[m + i] = 0.0;
+    X[m + n] = 0.0; /* a dither's oscillator (s, c) at phase 0 (beyond the state without one) */
+    X[m + n + 1] = L->a_d;
     if (state != NULL) { /* the whole loop state: the plant's coordinates, then z */
         snprintf(allowed, sizeof allowed, "the loop's state has %d plant coordinates %s and %d controller states", m,
                  cls->coordinates_text, n);
@@ -433,21 +456,35 @@ int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_section, const unsign
 
 int dfwb_loop_stopped(const dfwb_loop *p) { return p == NULL ? 0 : p->hy.stopped; }
 
-int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, int *keys, long long *budget_left,
-                     long long budget_total, char *errbuf, size_t errlen)
+/* FeedbackLoop.applied: the force on the plant at the solver's state X, the controller's, the feedforward of the
+ * velocity in the current mode and the dither's, added in Python's order. */
+static double applied(const dfwb_loop *p, const double *X)
+{
+    const double k = p->has_coulomb && p->F_hat != 0.0 ? p->F_hat * (double)p->cls->slip(p->hy.key) : 0.0;
+    return dfwb_loop_feedback(p, X) + k + (p->has_dither ? X[p->m + p->order] : 0.0);
+}
+
+int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, int *keys, double *forces,
+                     long long *budget_left, long long budget_total, char *errbuf, size_t errlen)
 {
     dfwb_err err;
-    size_t i;
+    double X[DFWB_HY_DIM];
+    size_t i, size;
     int rc = DFWB_OK;
     dfwb_err_init(&err, errbuf, errlen);
     if (p == NULL || (n > 0 && (times == NULL || states == NULL)))
         return dfwb_fail(&err, DFWB_E_ARGUMENT, "dfwb_loop_sample: NULL argument");
+    size = (size_t)(p->m + p->order);
     for (i = 0; i < n && rc == DFWB_OK; i++) {
         rc = dfwb_hy_advance(&p->hy, times[i], 0, NULL, budget_left, budget_total, &err);
-        if (rc == DFWB_OK)
-            dfwb_hy_state(&p->hy, states + i * (size_t)p->hy.n);
-        if (rc == DFWB_OK && keys != NULL)
+        if (rc != DFWB_OK)
+            break;
+        dfwb_hy_state(&p->hy, X);
+        memcpy(states + i * size, X, size * sizeof *X);
+        if (keys != NULL)
             keys[i] = p->hy.key;
+        if (forces != NULL)
+            forces[i] = applied(p, X);
     }
     return dfwb_err_finish(&err, rc);
 }
@@ -462,8 +499,11 @@ long long dfwb_loop_counter(const dfwb_loop *p) { return p == NULL ? 0 : p->coun
 
 void dfwb_loop_state(const dfwb_loop *p, double *X)
 {
-    if (p != NULL && X != NULL)
-        dfwb_hy_state(&p->hy, X);
+    double full[DFWB_HY_DIM];
+    if (p != NULL && X != NULL) {
+        dfwb_hy_state(&p->hy, full);
+        memcpy(X, full, (size_t)(p->m + p->order) * sizeof *X);
+    }
 }
 
 double dfwb_loop_output(const dfwb_loop *p)
@@ -508,16 +548,17 @@ void dfwb_loop_controller(const dfwb_loop *p, double *Ac, double *Bc, double *C,
 
 size_t dfwb_loop_crossings_read(dfwb_loop *p, double *t, double *X, size_t max)
 {
-    size_t i, k, width;
+    size_t i, k, width, size;
     if (p == NULL)
         return 0;
     if (t == NULL || X == NULL || max == 0)
         return p->hy.ncrossings;
     k = max < p->hy.ncrossings ? max : p->hy.ncrossings;
     width = (size_t)p->hy.n + 1;
+    size = (size_t)(p->m + p->order); /* a dither's oscillator left out */
     for (i = 0; i < k; i++) {
         t[i] = p->hy.crossings[i * width];
-        memcpy(X + i * (width - 1), p->hy.crossings + i * width + 1, (width - 1) * sizeof *X);
+        memcpy(X + i * size, p->hy.crossings + i * width + 1, size * sizeof *X);
     }
     if (k < p->hy.ncrossings)
         memmove(p->hy.crossings, p->hy.crossings + k * width, (p->hy.ncrossings - k) * width * sizeof(double));
@@ -548,12 +589,14 @@ static int build_slot(dfwb_loop *p, int slot, dfwb_err *err)
 
 int dfwb_loop_band(const dfwb_loop *p) { return p == NULL ? 0 : p->band; }
 
-void dfwb_loop_compensation(const dfwb_loop *p, double out[4])
+void dfwb_loop_compensation(const dfwb_loop *p, double out[6])
 {
     out[0] = p == NULL ? NAN : (double)p->has_coulomb;
     out[1] = p == NULL ? NAN : p->F_hat;
     out[2] = p == NULL ? NAN : (double)p->reset;
     out[3] = p == NULL ? NAN : p->d;
+    out[4] = p == NULL ? NAN : p->a_d;
+    out[5] = p == NULL ? NAN : p->w_d;
 }
 
 int dfwb_loop_modes_built(const dfwb_loop *p)
@@ -647,7 +690,8 @@ int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b)
     if (a == NULL || b == NULL || a->plant != b->plant || a->order != b->order
         || a->hy.has_section != b->hy.has_section || !dfwb_same_double(a->section, b->section)
         || a->has_coulomb != b->has_coulomb || a->reset != b->reset || !dfwb_same_double(a->F_hat, b->F_hat)
-        || !dfwb_same_double(a->d, b->d))
+        || !dfwb_same_double(a->d, b->d) || a->has_dither != b->has_dither || !dfwb_same_double(a->a_d, b->a_d)
+        || !dfwb_same_double(a->w_d, b->w_d))
         return 0;
     for (i = 0; i < DFWB_LOOP_PAR; i++)
         if (!dfwb_same_double(a->par[i], b->par[i]))
@@ -705,6 +749,9 @@ static void loop_io(dfwb_io *io, dfwb_loop *L, int *mask)
         dfwb_io_f64(io, &hy->peak[i]);
     }
     dfwb_io_f64(io, &hy->next_h);
+    dfwb_io_int(io, &L->has_dither); /* (last: the earlier fields keep their offsets) */
+    dfwb_io_f64(io, &L->a_d);
+    dfwb_io_f64(io, &L->w_d);
 }
 
 static size_t loop_payload(void)
@@ -826,8 +873,14 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     if (rc == DFWB_OK)
         rc = dfwb_state_check(&err, "F_hat", s.F_hat, s.has_coulomb || (s.F_hat == 0.0 && !signbit(s.F_hat)),
                               "must be 0 without a Coulomb feedforward");
+    if (rc == DFWB_OK)
+        rc = dfwb_state_check_int(&err, "dither flag", s.has_dither, s.has_dither == (s.a_d > 0.0),
+                                  "must be 1 with a dither's amplitude above 0, else 0");
+    if (rc == DFWB_OK)
+        rc = dfwb_state_check(&err, "w_d", s.w_d, s.has_dither || (s.w_d == 0.0 && !signbit(s.w_d)),
+                              "must be 0 without a dither");
     if (rc == DFWB_OK) {
-        const double compensation[4] = {(double)s.has_coulomb, s.F_hat, (double)s.reset, s.d};
+        const double compensation[6] = {(double)s.has_coulomb, s.F_hat, (double)s.reset, s.d, s.a_d, s.w_d};
         if (compensators(L, compensation, s.ac, (size_t)n, &local) != DFWB_OK || coulomb_fits(L, &local) != DFWB_OK)
             rc = state_refused(&err, "compensators", message);
     }
