@@ -226,8 +226,9 @@ class _Runs:
             for j, cycle in enumerate(self.found):  # a stable fixed point reached (at any of its p phases)
                 if cycle.stable and _distance(cycle, X, scale) <= JOIN:
                     return self._reached(label, j, k, solver.t)
-            for p in range(1, min(P_MAX, len(samples) - 1) + 1):
-                distance = float(np.abs((X - samples[-1 - p]) / scale).max())
+            # each earlier sample's distance from X: distances[p - 1] is p periods back
+            distances = np.abs((window[-2::-1] - X) / scale).max(axis=1)
+            for p, distance in enumerate(distances[:P_MAX].tolist(), start=1):
                 if distance > NEAR:
                     continue
                 if p not in tried or distance < 0.1 * tried[p]:
