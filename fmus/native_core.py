@@ -25,7 +25,8 @@ attributes and methods (``t``, ``events``, ``key``, ``crossings``, ``event_log``
 :data:`NativeMode`) and ``budget`` (a :class:`~.hybrid.Budget`) are shared as in Python; ``plant`` is the
 open-loop solver on the same core. Not shared with the Python loops: a ``modes`` dict holds one kind.
 ``compensation`` takes the Python loop's compensators (:mod:`.compensation`): the Coulomb feedforward of the
-velocity, the integrator reset and the deadband run in C, bit for bit (``tests/test_native_compensation.py``;
+velocity, the integrator reset, the deadband and the dither run in C, bit for bit
+(``tests/test_native_compensation.py``;
 the deadband's side keys the modes as in Python, and ``band`` reads it); the feedforward of the controller's
 sign is refused in one line (the Python loop runs it). ``readings(times)`` gives the states and the forces on
 the plant at many times in one call. Beyond Python: ``to_bytes()`` / ``from_bytes(data)`` (the loop's state,
