@@ -11,6 +11,10 @@ The loop: the friction mass (default parameters) under PI. Reported, never asser
 (b) **dfwb tune**: ``dfwb.tune("friction", "Kp + Ki/s", compensate="deadband", free={"Kp": (2, 50), "Ki":
     (0.2, 10), "d": (0.01, 0.5)}, tolerance=0.1, robust={"Fc": 0.2, "Fs": 0.1})`` with 5 values each, its
     confirmation by the reference included. Target: at most 2 minutes.
+(c) **a dithered map**: ``dfwb.hunting_map("friction", "10 + 2/s", ("a", 0.5, 10, M), ("w_d", 1, 9, M),
+    compensate="dither", jobs=2, cache=False)``, M = 8 (``--quick``: 4): the stroboscopic search and the cost
+    in every cell (no target in the issue); and one cell's search (a = 1 N, w_d = 5 rad/s, 20 starts) on the
+    compiled loop and on the Python loop, side by side.
 
 Usage: ``.venv/bin/python benchmarks/compensation.py [--quick] [--out out/bench_compensation]``; writes
 ``compensation.md`` and ``compensation.json`` there.
@@ -28,6 +32,22 @@ from pathlib import Path
 import dfwb
 
 TARGETS = {"map": 60.0, "tune": 120.0}  # seconds (the map's for N = 30)
+
+
+def dither_cell(native):
+    """One dithered cell's stroboscopic search (a = 1 N, w_d = 5 rad/s, the map's 20 starts): its seconds, and its
+    outcomes (the same on either loop)."""
+    from dfwb.engine.dither import find_responses
+    from dfwb.engine.hunting import MAP_AMPLITUDES
+    from dfwb.engine.periodic import LoopProblem
+    from dfwb.fmus.compensation import Dither
+    from dfwb.fmus.friction import FrictionLoop
+
+    problem = LoopProblem("friction", "10 + 2/s", compensation=Dither(1.0, 5.0))
+    if not native:
+        problem.cls = FrictionLoop
+    found, seconds = timed(lambda: find_responses(problem, problem.scales.amplitudes(MAP_AMPLITUDES)))
+    return seconds, found.coverage.outcomes
 
 
 def timed(call):
@@ -52,6 +72,12 @@ def main(argv=None):
         plain, t_plain = timed(lambda: dfwb.hunting_map(
             "friction", "Kp + Ki/s", ("Kp", 1, 50, n), ("Ki", 0.1, 25, n), jobs=2, cache=False, curves=False,
             out_dir=Path(folder) / "plain"))
+    m = 4 if args.quick else 8
+    with tempfile.TemporaryDirectory() as folder:
+        dithered, t_dithered = timed(lambda: dfwb.hunting_map(
+            "friction", "10 + 2/s", ("a", 0.5, 10, m), ("w_d", 1, 9, m), compensate="dither", jobs=2, cache=False,
+            out_dir=Path(folder) / "dithered"))
+    (t_cell_c, outcomes_c), (t_cell_py, outcomes_py) = dither_cell(True), dither_cell(False)
     tuned, t_tune = timed(lambda: dfwb.tune("friction", "Kp + Ki/s", compensate="deadband",
                                             free={"Kp": (2, 50), "Ki": (0.2, 10), "d": (0.01, 0.5)}, tolerance=0.1,
                                             robust={"Fc": 0.2, "Fs": 0.1}))
@@ -65,6 +91,10 @@ def main(argv=None):
         "ratio": t_compensated / t_plain,
         "tune": {"seconds": t_tune, "settings": tuned.settings, "confirmed": tuned.confirmed,
                  "target": TARGETS["tune"]},
+        "dithered_map": {"seconds": t_dithered, "cells": m * m, "per_cell": t_dithered / (m * m),
+                         "classes": dithered.classes("truth").ravel().tolist()},
+        "dithered_cell": {"compiled": t_cell_c, "python": t_cell_py, "ratio": t_cell_py / t_cell_c,
+                          "same_outcomes": outcomes_c == outcomes_py, "outcomes": outcomes_c},
     }
     lines = ["# Compensation: measured", "", f"Machine: {report['machine']}. One run, the maps side by side.", "",
              "| what | seconds | per cell | target |", "|---|---|---|---|",
@@ -75,7 +105,11 @@ def main(argv=None):
              f"| uncompensated map {n} x {n} (Kp x Ki, truth and DF) | {t_plain:.1f} | "
              f"{t_plain / (n * n) * 1e3:.0f} ms | |",
              f"| dfwb tune (125 settings, 5 corners, confirmed) | {t_tune:.1f} | | {TARGETS['tune']:.0f} s: "
-             f"{'PASS' if t_tune <= TARGETS['tune'] else 'FAIL'} |", "",
+             f"{'PASS' if t_tune <= TARGETS['tune'] else 'FAIL'} |",
+             f"| dithered map {m} x {m} (a x w_d; the stroboscopic search and the cost) | {t_dithered:.1f} | "
+             f"{t_dithered / (m * m) * 1e3:.0f} ms | |",
+             f"| one dithered cell's search, compiled loop / Python loop | {t_cell_c:.2f} / {t_cell_py:.2f} | | "
+             f"{t_cell_py / t_cell_c:.1f} x faster; same outcomes: {outcomes_c == outcomes_py} |", "",
              f"The compensated map takes {report['ratio']:.2f} times the uncompensated one. "
              f"Tune chose {tuned.settings}, confirmed: {tuned.confirmed}."]
     (args.out / "compensation.md").write_text("\n".join(lines) + "\n")

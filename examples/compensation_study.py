@@ -9,7 +9,9 @@ The script judges the classic remedies on the exact loop, each with its cost
 
 1. each compensator at one setting: Coulomb feedforward of the velocity's
    sign and of the controller's (F_hat = 3 N), the integrator reset at rest,
-   an integrator deadband of 0.2 m;
+   an integrator deadband of 0.2 m, and two dithers: 1 N at 5 rad/s (it
+   still hunts, not locked to the dither) and 10 N at 5 rad/s (no hunting,
+   but the mass shakes: its residual oscillation);
 2. the deadband followed in d: where the hunting ends (a fold of the cycle);
 3. two compensation maps: the deadband (Kp x d) and the feedforward of the
    controller's sign (Kp x F_hat), the truth beside the standing error;
@@ -38,6 +40,7 @@ SIDE = 4  # cells per side of the maps (a quick look; 30 for the figure of a rep
 def one_line(response):
     hunting = [c for c in response.cycles if c.stable]
     verdict = (f"hunts: period {hunting[0].period:.4g} s, amplitude {hunting[0].amplitude_x:.4g} m" if hunting
+               else "hunts, not locked to the dither" if response.hunting
                else "no cycle in the range searched")
     return f"{verdict}; {response.cost.summary()}"
 
@@ -48,7 +51,8 @@ def main(out_dir="."):
     print("1. One setting each, under G = 10 + 2/s")
     settings = [("none", None, {}), ("coulomb (velocity)", "coulomb", {"F_hat": 3}),
                 ("coulomb (control)", "coulomb", {"F_hat": 3, "signal": "control"}), ("reset", "reset", {}),
-                ("deadband", "deadband", {"d": 0.2})]
+                ("deadband", "deadband", {"d": 0.2}), ("dither 1 N, 5 rad/s", "dither", {"a": 1, "w_d": 5}),
+                ("dither 10 N, 5 rad/s", "dither", {"a": 10, "w_d": 5})]
     for label, name, values in settings:
         response = dfwb.limit_cycles("friction", "Kp + Ki/s", exact=True, compensate=name, **PI, **values)
         print(f"  {label:20s} {one_line(response)}")
