@@ -298,12 +298,8 @@ class _Search:
         for count in range(1, self.max_returns + 1):
             try:
                 hit = problem.hit(solver, self.horizon)
-            except Diverged as error:
-                return Fate(label, "diverged", hits=count - 1, time=solver.t, detail=str(error))
             except PlantError as error:
-                if problem.exhausted():
-                    raise
-                return Fate(label, "failed", hits=count - 1, time=solver.t, detail=str(error))
+                return refused(problem, solver, label, count - 1, error)
             X = np.array(solver.state())
             if not abs(X[problem.output]) <= self.divergence:  # at a hit, or drifting away without one
                 return Fate(label, "diverged", hits=count - int(not hit), time=solver.t,
@@ -330,6 +326,25 @@ class _Search:
                 break
         return Fate(label, "unsettled", hits=self.max_returns, time=solver.t,
                     detail=f"no cycle reached in {self.max_returns} section hits")
+
+
+def tally(coverage, fates, outcomes):
+    """Count the runs into ``coverage`` (``starts``, and ``outcomes``: those of ``outcomes`` that occurred, in
+    that order); the counts of every one of ``outcomes``."""
+    coverage.starts = len(fates)
+    counts = {name: sum(f.outcome == name for f in fates) for name in outcomes}
+    coverage.outcomes = {name: n for name, n in counts.items() if n}
+    return counts
+
+
+def refused(problem, solver, label, done, error):
+    """The Fate of a run the loop refused (``error``, a PlantError) after ``done`` hits or periods: diverged, or
+    failed; a spent budget is raised (every later run would be refused too)."""
+    if isinstance(error, Diverged):
+        return Fate(label, "diverged", hits=done, time=solver.t, detail=str(error))
+    if problem.exhausted():
+        raise error
+    return Fate(label, "failed", hits=done, time=solver.t, detail=str(error))
 
 
 def _outcome(fate, rests=True):
@@ -400,9 +415,7 @@ def find_cycles(problem, predictions=(), amplitudes=None, horizon=None, max_retu
         if not problem.exhausted():
             raise
         coverage.complete = False
-    coverage.starts = len(search.fates)
-    counts = {name: sum(f.outcome == name for f in search.fates) for name in OUTCOMES}
-    coverage.outcomes = {name: n for name, n in counts.items() if n}
+    tally(coverage, search.fates, OUTCOMES)
     cycles = sorted(search.cycles, key=lambda c: c.amplitude_x)
     order = {id(c): j for j, c in enumerate(cycles)}
     for fate in search.fates:

@@ -49,9 +49,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dfwb.engine.cycles import DIVERGED, Coverage, CycleSearch, Fate, starts
-from dfwb.engine.periodic import FD_STEP, FD_STEP_FINAL, MAX_NEWTON, RESIDUAL_TOL, TrueCycle, jacobian
-from dfwb.fmus.exact import Diverged, PlantError
+from dfwb.engine.cycles import DIVERGED, Coverage, CycleSearch, Fate, refused, starts, tally
+from dfwb.engine.periodic import FD_STEP, FD_STEP_FINAL, MAX_NEWTON, RESIDUAL_TOL, TrueCycle, jacobian, newton_step
+from dfwb.fmus.exact import PlantError
 
 __all__ = ["DitherSearch", "find_responses", "OUTCOMES", "P_MAX", "MAX_PERIODS", "RUN_HORIZONS", "SLOW_CYCLES", "DECAY"]
 
@@ -114,7 +114,6 @@ class _Runs:
         r, info = residual(u)
         if r is None:
             return None
-        J = None
         for iteration in range(MAX_NEWTON + 1):
             if np.abs(r).max() <= RESIDUAL_TOL:
                 base = (r, info)
@@ -124,27 +123,10 @@ class _Runs:
                     return None
                 M = M + np.eye(len(u))  # dP^p in scaled coordinates: its eigenvalues are the multipliers
                 return u * scale, float(np.abs(r).max()), iteration, M
-            if iteration == MAX_NEWTON:
+            stepped = None if iteration == MAX_NEWTON else newton_step(residual, u, r, info)
+            if stepped is None:
                 return None
-            J = jacobian(residual, u, (r, info), FD_STEP)
-            if J is None:
-                return None
-            try:
-                step = np.linalg.solve(J, -r)
-            except np.linalg.LinAlgError:
-                return None
-            if not np.all(np.isfinite(step)):
-                return None
-            damping = 1.0
-            while damping > 1e-4:
-                trial = u + damping * step
-                r_trial, info_trial = residual(trial)
-                if r_trial is not None and np.abs(r_trial).max() < np.abs(r).max():
-                    break
-                damping *= 0.5
-            else:
-                return None
-            u, r, info = trial, r_trial, info_trial
+            u, r, info, _J = stepped
         return None
 
     def fixed_point(self, X, p, scale, origin):
@@ -201,12 +183,8 @@ class _Runs:
         for k in range(1, self.max_periods + 1):
             try:
                 solver.advance(k * T)
-            except Diverged as error:
-                return Fate(label, "diverged", hits=k - 1, time=solver.t, detail=str(error))
             except PlantError as error:
-                if problem.exhausted():
-                    raise
-                return Fate(label, "failed", hits=k - 1, time=solver.t, detail=str(error))
+                return refused(problem, solver, label, k - 1, error)
             X = np.array(solver.state())
             if not abs(X[out]) <= self.divergence:
                 return Fate(label, "diverged", hits=k, time=solver.t, detail=f"the output reached {X[out]:.3g}")
@@ -324,10 +302,7 @@ def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIO
         if not problem.exhausted():
             raise
         coverage.complete = False
-    coverage.starts = len(runs.fates)
-    counts = {name: sum(f.outcome == name for f in runs.fates) for name in OUTCOMES}
-    coverage.outcomes = {name: n for name, n in counts.items() if n}
-    if counts["unsettled"]:
+    if tally(coverage, runs.fates, OUTCOMES)["unsettled"]:
         coverage.complete = False  # a run that neither settled nor hunted proves nothing
     cycles = sorted((c for c in runs.found if c.returns > 1), key=lambda c: c.amplitude_x)
     responses = [c for c in runs.found if c.returns == 1]

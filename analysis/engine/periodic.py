@@ -191,6 +191,27 @@ def jacobian(residual, u, base, step, central=False, same_kind=same_events, scal
     return np.array(columns).T
 
 
+def newton_step(residual, u, r, info):
+    """One damped Newton step on ``residual`` (as :func:`jacobian` takes it) from u, where it is (r, info): (u, r,
+    info, the Jacobian) after it, or None where the Jacobian or the step fails or no halving of the step (down to
+    1e-4 of it) lowers the largest residual."""
+    J = jacobian(residual, u, (r, info), FD_STEP)
+    if J is None:
+        return None
+    try:
+        step = np.linalg.solve(J, -r)
+    except np.linalg.LinAlgError:
+        return None
+    damping = 1.0
+    while damping > 1e-4:
+        trial = u + damping * step
+        r_trial, info_trial = residual(trial)
+        if r_trial is not None and np.abs(r_trial).max() < np.abs(r).max():
+            return trial, r_trial, info_trial, J
+        damping *= 0.5
+    return None
+
+
 @functools.lru_cache(maxsize=4)
 def _gauss(n):
     """Gauss-Legendre nodes and weights on [-1, 1]."""
@@ -388,23 +409,10 @@ class LoopProblem:
                     if polished is not None and np.abs(polished).max() < np.abs(r).max():
                         u, r, T = u + step, polished, T_polished
                 return self.on_section(u * scale), T[0], float(np.abs(r).max()), iteration - 1
-            J = jacobian(residual, u, (r, T), FD_STEP)
-            if J is None:
+            stepped = newton_step(residual, u, r, T)
+            if stepped is None:
                 return None
-            try:
-                step = np.linalg.solve(J, -r)
-            except np.linalg.LinAlgError:
-                return None
-            damping = 1.0
-            while damping > 1e-4:
-                trial = u + damping * step
-                r_trial, T_trial = residual(trial)
-                if r_trial is not None and np.abs(r_trial).max() < np.abs(r).max():
-                    break
-                damping *= 0.5
-            else:
-                return None
-            u, r, T = trial, r_trial, T_trial
+            u, r, T, J = stepped
         return None
 
     def _scaled_at(self, X, returns, horizon):
