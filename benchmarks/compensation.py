@@ -44,8 +44,8 @@ def dither_cell(native):
     from dfwb.fmus.friction import FrictionLoop
 
     problem = LoopProblem("friction", "10 + 2/s", compensation=Dither(1.0, 5.0))
-    if not native:
-        problem.cls = FrictionLoop
+    if not native:  # the Python loop, with modes of its own (a study's modes dict holds one kind)
+        problem.cls, problem._modes = FrictionLoop, {}
     found, seconds = timed(lambda: find_responses(problem, problem.scales.amplitudes(MAP_AMPLITUDES)))
     return seconds, found.coverage.outcomes
 
