@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dfwb.base.errors import InputError
 from dfwb.engine.cycles import DIVERGED, Coverage, CycleSearch, Fate, refused, starts, tally
 from dfwb.engine.periodic import FD_STEP, FD_STEP_FINAL, MAX_NEWTON, RESIDUAL_TOL, TrueCycle, jacobian, newton_step
 from dfwb.fmus.exact import PlantError
@@ -57,7 +58,7 @@ __all__ = ["DitherSearch", "find_responses", "OUTCOMES", "P_MAX", "MAX_PERIODS",
 
 OUTCOMES = ("cycle", "hunting", "dithered", "rest", "diverged", "unsettled", "failed")
 P_MAX = 8  # a run recognises samples that repeat every 1..P_MAX dither periods
-MAX_PERIODS = 40_000  # dither periods a run may take, at most, ...
+MAX_PERIODS = 1_000_000  # dither periods a run may take, at most (the budget bounds them too), ...
 RUN_HORIZONS = 8  # ... and at most this many of the loop's horizons
 NEAR = 3e-2  # samples p apart this close (relative to the window's size): Newton is tried on P^p
 JOIN = 1e-2  # a run this close to a stable fixed point (relative): it has reached it
@@ -278,13 +279,28 @@ def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIO
     Returns
     -------
     DitherSearch
+
+    Raises
+    ------
+    InputError
+        Where the dither's period is longer than the horizon, or one run over the horizon would take more steps
+        of the exact loop (at most 1/w_d s each) than the problem's budget.
     """
     if getattr(problem, "dither", None) is None:
         raise ValueError("find_responses needs a loop with a dither (compensation=Dither(a, w_d))")
     scales = problem.scales
     amplitudes = scales.amplitudes() if amplitudes is None else [float(a) for a in amplitudes]
     horizon = scales.horizon(min(amplitudes)) if horizon is None else float(horizon)
-    T = 2.0 * math.pi / problem.dither.w_d
+    w_d = problem.dither.w_d
+    T = 2.0 * math.pi / w_d
+    if T > horizon:
+        raise InputError(f"w_d = {w_d:.6g} rad/s is out of range for this loop: its period {T:.4g} s is longer than "
+                         f"the loop's horizon {horizon:.4g} s (a dither is faster than the motion it smooths)")
+    if w_d * horizon > problem.budget.total:
+        raise InputError(f"w_d = {w_d:.6g} rad/s is out of range for this loop: the exact loop's steps are at most "
+                         f"1/w_d long, so one run over its horizon ({horizon:.4g} s) would take more than the "
+                         f"study's {problem.budget.total} of them (at most {problem.budget.total / horizon:.4g} "
+                         "rad/s)")
     max_periods = max(1, min(int(max_periods), math.ceil(RUN_HORIZONS * horizon / T)))
     runs = _Runs(problem, horizon, max_periods, DIVERGED * max(amplitudes))
     plan = starts(problem, amplitudes)
