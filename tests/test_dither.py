@@ -191,3 +191,17 @@ def test_the_command_line_prints_the_dithers_responses_and_cost_in_json(tmp_path
     assert bad.returncode == 2 and bad.stdout == "" and len(bad.stderr.strip().splitlines()) == 1
     assert "w_d = 0.0 is out of range" in bad.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_dithered_map_has_the_hunting_that_is_not_locked_and_the_residual_oscillation(tmp_path):
+    """a x w_d over 1 and 10 N, 5 and 6 rad/s: the weak dither's cells hunt unlocked (the class "hunts"), the strong
+    one's do not, and their cost is the residual oscillation (0.4026 m at 5 rad/s, as limit-cycle finds it); the
+    figure's cost panel shows it."""
+    response = dfwb.hunting_map("friction", "10 + 2/s", ("a", 1, 10, 2), ("w_d", 5, 6, 2), compensate="dither",
+                                out_dir=tmp_path, amplitudes=2)
+    classes = response.classes("truth")
+    assert classes[:, 0].tolist() == ["hunts", "hunts"] and classes[:, 1].tolist() == ["none", "none"]
+    residual = response.costs("residual_oscillation")
+    assert abs(residual[0, 1] - 0.4026) < 1e-4 and residual[1, 1] < residual[0, 1]
+    assert np.isnan(residual[:, 0]).all()  # hunting: it never settles
+    assert not response.has_df and (tmp_path / "hunting_map.png").exists()
