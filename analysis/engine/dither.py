@@ -23,9 +23,10 @@ period by dither period, until one of these fates:
   :class:`~dfwb.engine.periodic.TrueCycle` of period p T_d);
 - ``hunting``: the samples' output swings through its target for
   SLOW_CYCLES slow cycles without decaying (the latest half of them at least
-  DECAY of the earlier half), and never repeats: the loop hunts, not locked
-  to the dither (quasi-periodic: no periodic orbit exists to report; the
-  swing and its mean period are measured);
+  DECAY of the earlier half), and never repeats within P_MAX periods: the
+  loop hunts, not locked to the dither (quasi-periodic, or locked beyond
+  P_MAX of its periods: no periodic orbit is reported; the swing and its
+  mean period are measured);
 - ``diverged``, ``failed`` as in :mod:`dfwb.engine.cycles`; and
   ``unsettled`` after MAX_PERIODS periods (or RUN_HORIZONS horizons) without
   one of those.
@@ -254,7 +255,8 @@ class _Swings:
         if later < DECAY * earlier:
             return ""
         period = (self.ups[-1] - self.ups[-1 - SLOW_CYCLES]) / SLOW_CYCLES
-        return (f"hunts, not locked to the dither: over {SLOW_CYCLES} slow cycles (about {period:.4g} s each) the "
+        return (f"hunts, not locked to the dither within {P_MAX} of its periods: over {SLOW_CYCLES} slow cycles "
+                f"(about {period:.4g} s each) the "
                 f"output swings {later / half / 2.0:.4g} about its target at the dither's phase 0, not decaying "
                 f"(the later half {later / earlier:.3f} of the earlier)")
 

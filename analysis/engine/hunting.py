@@ -21,7 +21,7 @@ from dfwb.base.values import conforms, positive
 from dfwb.engine.scales import linear_poles, search_ranges
 
 CLASSES = ("stable", "hunts", "unstable", "diverges", "none", "incomplete", "uncomputed")
-LABELS = {"stable": "hunts (a stable cycle)", "hunts": "hunts, not locked to the dither (no periodic orbit)",
+LABELS = {"stable": "hunts (a stable cycle)", "hunts": "hunts, not locked to the dither (within 8 of its periods)",
           "unstable": "only unstable cycles",
           "diverges": "diverges (from some starts)", "none": "no cycle in the range searched",
           "incomplete": "not settled (the work budget ran out, or runs failed)",

@@ -368,8 +368,8 @@ class LimitCycleResponse(_Shown):
                          f"{c.amplitude_x:.4g} {u} (first harmonic), {'stable' if c.stable else 'unstable'} "
                          f"(|multipliers| {', '.join(f'{m:.3g}' for m in c.multipliers)})")
         if self.hunting:
-            lines.append(f"{len(self.hunting)} run(s) hunt, not locked to the dither; e.g. from "
-                         f"{self.hunting[0]['start']}: {self.hunting[0]['detail']}")
+            lines.append(f"{len(self.hunting)} run(s) hunt, not locked to the dither within 8 of its periods; e.g. "
+                         f"from {self.hunting[0]['start']}: {self.hunting[0]['detail']}")
         return lines
 
     def markdown(self) -> str:
