@@ -83,6 +83,11 @@ HELD = """
 import os, signal, time
 from dfwb.studies.executor import interrupts_held
 
+# Python's own Ctrl-C handling to start from, whatever the test process passed on (an ignored SIGINT or a blocked
+# one is inherited across exec)
+signal.signal(signal.SIGINT, signal.default_int_handler)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
 steps = []
 try:
     with interrupts_held():
