@@ -205,3 +205,18 @@ def test_a_dithered_map_has_the_hunting_that_is_not_locked_and_the_residual_osci
     assert abs(residual[0, 1] - 0.4026) < 1e-4 and residual[1, 1] < residual[0, 1]
     assert np.isnan(residual[:, 0]).all()  # hunting: it never settles
     assert not response.has_df and (tmp_path / "hunting_map.png").exists()
+
+
+def test_tune_holds_a_dithers_residual_oscillation_to_the_tolerance():
+    """Over a = 1 and 10 N at 5 rad/s: the weak dither hunts; the strong one stops it but shakes the mass by 0.4026
+    m, which a tolerance of 0.1 m refuses and one of 1 m accepts. The confirmation at rest does not apply to a
+    dithered loop and says so (it crashed on the dither's missing d)."""
+    strict = dfwb.tune("friction", "10 + 2/s", compensate="dither", free={"a": (1, 10)}, count=2, tolerance=0.1,
+                       w_d=5)
+    assert strict.settings is None
+    assert [(c["verdict"], c["detail"]) for c in strict.candidates] == [("hunts", "hunts at nominal"),
+                                                                         ("standing error", "0.4026 at nominal")]
+    loose = dfwb.tune("friction", "10 + 2/s", compensate="dither", free={"a": (1, 10)}, count=2, tolerance=1.0,
+                      w_d=5)
+    assert loose.settings == {"a": 10.0} and loose.confirmed is None
+    assert "never at rest" in loose.confirmation
