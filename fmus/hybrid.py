@@ -492,8 +492,12 @@ class HybridSolver:
 
     def state(self):
         """The state X at self.t (as :meth:`visible` shows it)."""
+        return self.visible(self._integrated())
+
+    def _integrated(self):
+        """The whole integrated state at self.t (a system's own coordinates included)."""
         tau = self.t - self._a
-        return self.visible(list(self._X) if tau == 0.0 else self._state_at(tau))
+        return list(self._X) if tau == 0.0 else self._state_at(tau)
 
     @staticmethod
     def visible(X):

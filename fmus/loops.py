@@ -185,8 +185,7 @@ class FeedbackLoop(HybridSolver):
         states, forces = [], []
         for t in times:
             self.advance(float(t))
-            tau = self.t - self._a
-            X = list(self._X) if tau == 0.0 else self._state_at(tau)
+            X = self._integrated()
             states.append(self.visible(X))
             forces.append(self.applied(X))
         return states, forces

@@ -774,15 +774,15 @@ class _NativeLoop(_Native):
     def sample(self, times):
         """The states at each of ``times`` (non-decreasing, from self.t), advancing to them in turn
         (HybridSolver.sample): one call into the core. ``times`` may be a float64 array (read in place)."""
-        return self._sample(times, None)
+        return self._sample(times)
 
     def readings(self, times):
         """(states, forces on the plant) at each of ``times`` (FeedbackLoop.readings): one call into the core."""
         forces = (ctypes.c_double * max(1, len(times)))()
-        states = self._sample(times, None, forces)
+        states = self._sample(times, forces)
         return states, forces[:len(times)]
 
-    def _sample(self, times, keys, forces=None):
+    def _sample(self, times, forces=None):
         self._share_modes()
         api, budget, n = self._api, self._budget, len(times)
         if getattr(times, "dtype", None) == "float64" and times.flags["C_CONTIGUOUS"]:
@@ -791,11 +791,11 @@ class _NativeLoop(_Native):
             ctimes = (ctypes.c_double * max(1, n))(*[_as_double(t) for t in times])
         states = (ctypes.c_double * max(1, n * self._size))()
         if budget is None:
-            code = api.sample(self._handle, ctimes, n, states, keys, forces, None, 0, self._err, ERRLEN)
+            code = api.sample(self._handle, ctimes, n, states, None, forces, None, 0, self._err, ERRLEN)
         else:
             left = self._left
             left.value = budget.left
-            code = api.sample(self._handle, ctimes, n, states, keys, forces, ctypes.byref(left), budget.total,
+            code = api.sample(self._handle, ctimes, n, states, None, forces, ctypes.byref(left), budget.total,
                               self._err, ERRLEN)
             budget.left = left.value
         self.stopped = None

@@ -157,10 +157,9 @@ def _dithered_end(problem, start, S, T):
     phases = np.arange(math.ceil(0.75 * T / period), math.floor(T / period) + 1) * period
     if len(phases) < 3:
         return None  # fewer than two dither periods in the last quarter: nothing to judge
-    states, _ = problem.solver(start).readings(phases[-2:-1])
-    y, _ = _read(problem, start, phases)
-    if np.ptp(y) > DITHER_STILL * S:
+    states, _ = problem.solver(start).readings(phases)
+    if np.ptp(np.array(states)[:, problem.output]) > DITHER_STILL * S:
         return None
-    harmonics, _F, _counts, trace = problem.period_trace(states[0], period)
+    harmonics, _F, _counts, trace = problem.period_trace(states[-2], period)
     signed = math.copysign(harmonics[0], float(np.mean(trace["y"])))
     return signed, harmonics[1], float(0.5 * np.ptp(trace["y"]))

@@ -75,7 +75,6 @@ class DitherSearch(CycleSearch):
     (fixed points of P, period T_d; ``amplitude_x`` their residual oscillation, ``harmonics[0]`` their mean)."""
 
     responses: list = field(default_factory=list)
-    w_d: float = 0.0
 
     def hunting(self):
         """The runs that hunt, not locked to the dither (their Fates; ``detail`` has the swing measured)."""
@@ -329,4 +328,4 @@ def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIO
     for fate in runs.fates:
         if fate.cycle is not None:
             fate.cycle = order[id(runs.found[fate.cycle])]
-    return DitherSearch(cycles, [], coverage, runs.fates, responses=responses, w_d=problem.dither.w_d)
+    return DitherSearch(cycles, [], coverage, runs.fates, responses=responses)

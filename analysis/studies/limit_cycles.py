@@ -142,7 +142,6 @@ def _exact(problem, predictions, amplitudes, cache, progress):
 
     from dfwb.engine import cycles as search
     from dfwb.engine import truth
-    from dfwb.engine.periodic import TrueCycle, trace_arrays
 
     key = {"kind": "exact", "code": code_revision(), "solvers": solver_revision(), "plant": problem.spec.name,
            "params": problem.params, "G": num_den(problem.G), "amplitudes": amplitudes,
@@ -163,13 +162,19 @@ def _exact(problem, predictions, amplitudes, cache, progress):
         if cache is not None:
             cache.put(key, finite(value))
         return found
-    cycles = [TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"]))) for entry in value["cycles"]]
+    cycles = [_restored(entry) for entry in value["cycles"]]
     fates = [search.Fate(start, outcome, detail=detail) for start, outcome, detail in value.get("fates", [])]
     found = search.CycleSearch(cycles, value["links"], search.Coverage(**value["coverage"]), fates)
     if "responses" in value:
-        found.responses = [TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"])))
-                           for entry in value["responses"]]
+        found.responses = [_restored(entry) for entry in value["responses"]]
     return found
+
+
+def _restored(entry):
+    """A true cycle from the cache's JSON types (:func:`_stored`)."""
+    from dfwb.engine.periodic import TrueCycle, trace_arrays
+
+    return TrueCycle(**dict(entry, trace=trace_arrays(entry["trace"])))
 
 
 def _stored(cycle):
