@@ -37,14 +37,29 @@ breakaway that the dither triggers) is located as exactly as the plant's.
 The loop is then periodically forced: its responses are studied at the
 dither's period (:mod:`dfwb.engine.dither`).
 
+:class:`BacklashInverse` undoes a play that follows the mass (the static
+backlash: x drives y through a play of width h, slope k). Tao and
+Kokotovic's inverse (IEEE TAC 38(3), 1993; Nordin and Gutman's survey,
+Automatica 38, 2002, section 4) puts the play's two lines, ``x = y/k +- h/2``,
+back into the signal, choosing the line by the direction of motion and
+holding it while the direction is unknown. Here the play sits between the
+mass and the sensor, so no command enters it: the inverse acts where the
+play is seen, on the measurement. The controller gets ``y + k h_hat/2 s``,
+``s`` the side of the play's last contact (+1 after the mass last dragged y
+up, -1 down, 0 before any): with ``h_hat = h`` that is ``k x`` whenever the
+play is closed. Equivalently the commanded position is moved by
+``-k h_hat/2 s``. The side changes where the mass engages, an event of the
+plant: the correction is a coordinate of the loop's state, constant between
+engagements and set at them, so the loop stays affine and exact.
+
 Plain Python only: this module runs inside the FMUs.
 """
 
 from .exact import PlantError
 from .piecewise import check
 
-__all__ = ["Coulomb", "Reset", "Deadband", "Dither", "SIGNALS", "compensators", "dither_of", "follows_control",
-           "integrator"]
+__all__ = ["Coulomb", "Reset", "Deadband", "Dither", "BacklashInverse", "SIGNALS", "compensators", "dither_of",
+           "inverse_of", "follows_control", "integrator"]
 
 SIGNALS = ("velocity", "control")
 
@@ -123,14 +138,37 @@ class Dither:
         return f"Dither(a={self.a!r}, w_d={self.w_d!r})"
 
 
+class BacklashInverse:
+    """The backlash inverse: the controller sees ``y + k h_hat/2 s``, s the side of the play's last contact.
+
+    Parameters
+    ----------
+    h_hat : float
+        The estimated total width of the play [m, the plant's h], at least 0 (0: none).
+    """
+
+    name = "backlash-inverse"
+
+    def __init__(self, h_hat):
+        check("h_hat", h_hat, lambda: h_hat >= 0.0,
+              "the backlash inverse's estimated play, a finite number of metres, at least 0")
+        self.h_hat = float(h_hat)
+
+    def __repr__(self):
+        return f"BacklashInverse(h_hat={self.h_hat!r})"
+
+
+_TYPES = (Coulomb, Reset, Deadband, Dither, BacklashInverse)
+
+
 def _given(compensation):
     """The compensators of ``compensation`` (None, one, or a list of them, each kind once); PlantError otherwise."""
     given = [] if compensation is None else list(compensation) if isinstance(compensation, (list, tuple)) \
         else [compensation]
     kinds = [type(c) for c in given]
-    if any(kind not in (Coulomb, Reset, Deadband, Dither) for kind in kinds) or len(set(kinds)) != len(kinds):
+    if any(kind not in _TYPES for kind in kinds) or len(set(kinds)) != len(kinds):
         raise PlantError(f"compensation = {compensation!r:.120} is not a compensator of the loop (a Coulomb, a "
-                         "Reset, a Deadband, a Dither, or a list of them, each once)")
+                         "Reset, a Deadband, a Dither, a BacklashInverse, or a list of them, each once)")
     return given
 
 
@@ -147,6 +185,11 @@ def compensators(compensation):
 def dither_of(compensation):
     """The :class:`Dither` of ``compensation`` that acts (a > 0), or None."""
     return next((c for c in _given(compensation) if isinstance(c, Dither) and c.a > 0.0), None)
+
+
+def inverse_of(compensation):
+    """The :class:`BacklashInverse` of ``compensation`` that acts (h_hat > 0), or None."""
+    return next((c for c in _given(compensation) if isinstance(c, BacklashInverse) and c.h_hat > 0.0), None)
 
 
 def follows_control(compensation):

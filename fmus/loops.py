@@ -14,7 +14,7 @@ what happens at them) lives beside its solver, in its model module
 Plain Python only: this module runs inside the FMUs.
 """
 
-from .compensation import compensators, dither_of, follows_control, integrator
+from .compensation import compensators, dither_of, follows_control, integrator, inverse_of
 from .contract import EventKind
 from .exact import PlantError
 from .hybrid import HybridSolver
@@ -50,10 +50,13 @@ class FeedbackLoop(HybridSolver):
     solvers of one study. ``compensation``: a compensator between the
     controller and the plant (:class:`~.compensation.Coulomb`,
     :class:`~.compensation.Reset`, :class:`~.compensation.Deadband`,
-    :class:`~.compensation.Dither`), a list of them, or None. A dither's
-    oscillator is two more coordinates of the integrated state, after z; a
-    state given, read or sampled (``state``, :meth:`state`) is the plant's
-    coordinates and z alone, the dither at phase 0 when it starts.
+    :class:`~.compensation.Dither`, :class:`~.compensation.BacklashInverse`),
+    a list of them, or None. A dither's oscillator is two more coordinates of
+    the integrated state, after z, and the backlash inverse's correction one
+    more after them; a state given, read or sampled (``state``,
+    :meth:`state`) is the plant's coordinates and z alone, the dither at
+    phase 0 when it starts and the correction from the play's contact then
+    (0 inside the play).
     """
 
     coordinates = ()
@@ -62,6 +65,7 @@ class FeedbackLoop(HybridSolver):
     plant = None  # the plant's open-loop solver (:mod:`.friction` ...): its orbits start a shooting
     KEYS = ()  # the mode keys, in the compiled core's order
     REST_EVENTS = ()  # the event kinds where the plant comes to rest (the integrator reset acts there)
+    CONTACTS = {}  # {mode key: the side of the play in contact}: where the backlash inverse's side is set
     # The Poincare section every periodic orbit crosses: legs, each the (mode key, event kind) pairs that end it
     # (an event of the first leg, then one of the second: a lower turn, then an upper one). A point of the
     # section is the state the last leg's event leaves; there coordinate PIVOT is fixed by the others (pivot()).
@@ -111,6 +115,11 @@ class FeedbackLoop(HybridSolver):
         """Whether F cos(omega t) leaves the output still (its describing function is 0 there)."""
         raise NotImplementedError
 
+    def half_play(self):
+        """Half the play's width in the output's units per unit of h (the static backlash's k / 2): the backlash
+        inverse's correction is this times h_hat times the side."""
+        raise NotImplementedError
+
     def __init__(self, b, a, q0, z0=None, state=None, section=None, modes=None, budget=None, compensation=None):
         self.coulomb, reset, self.deadband = compensators(compensation)
         coulomb = self.coulomb
@@ -129,6 +138,11 @@ class FeedbackLoop(HybridSolver):
         self.band = 1  # the deadband's side: -1 below -d, 0 within (the integrator holds), +1 above d
         self.dither = dither_of(compensation)  # a sin(w_d t): the oscillator (s, c) after z, from (0, a)
         oscillator = [] if self.dither is None else [0.0, self.dither.a]
+        self.inverse = inverse_of(compensation)  # y + k h_hat/2 s seen by the controller: the correction after all
+        if self.inverse is not None and not self.CONTACTS:
+            raise PlantError(f"the backlash inverse needs a plant with a play between the mass and the output; "
+                             f"{type(self).__name__} has none")
+        oscillator += [] if self.inverse is None else [0.0]
         self._discrete = self._on_control or self.deadband is not None  # modes cached by (key, sigma, band)
         self.order = n = len(self.Ac)
         m = len(self.coordinates)
@@ -158,15 +172,32 @@ class FeedbackLoop(HybridSolver):
             f = self.force(X0)
             self.sigma = (f > 0.0) - (f < 0.0)
         key, X0, departing = self.initial(X0)
+        if self._contact(key, X0) and self._on_control:
+            self.sigma = self._control_sign(key, X0)
         if self._on_control and self.sigma == 0:
             self.sigma = self._control_sign(key, X0)
         self.start(0.0, X0, key, departing)
 
     # -- the loop's equations --------------------------------------------------------
     def force(self, X):
-        """f = -G(s) y: D y + C z at the state X."""
-        m = len(self.coordinates)
-        return self.D * X[self.OUTPUT] + sum(c * z for c, z in zip(self.C, X[m:]))
+        """f = -G(s) y: D y + C z at the state X (y corrected by the backlash inverse in an integrated state)."""
+        m, n = len(self.coordinates), self.order
+        y = X[self.OUTPUT] + (X[self._correction] if self.inverse is not None and len(X) > m + n else 0.0)
+        return self.D * y + sum(c * z for c, z in zip(self.C, X[m:m + n]))
+
+    @property
+    def _correction(self):
+        """The index of the backlash inverse's correction in the integrated state (the last coordinate)."""
+        return len(self.coordinates) + self.order + (0 if self.dither is None else 2)
+
+    def _contact(self, key, X):
+        """Set the backlash inverse's correction in X where mode ``key`` is a contact of the play (its side):
+        whether it changed (the controller's force then jumps)."""
+        if self.inverse is None or key not in self.CONTACTS:
+            return False
+        correction = self.half_play() * self.inverse.h_hat * self.CONTACTS[key]
+        changed, X[self._correction] = X[self._correction] != correction, correction
+        return changed
 
     def applied(self, X):
         """The force on the plant at the integrated state X: the controller's, the compensator's (constant in the
@@ -177,7 +208,7 @@ class FeedbackLoop(HybridSolver):
     def visible(self, X):
         """The loop's state in the integrated state X: the plant's coordinates and z (a dither's oscillator left
         out)."""
-        return X if self.dither is None else X[:len(self.coordinates) + self.order]
+        return X if self.dither is None and self.inverse is None else X[:len(self.coordinates) + self.order]
 
     def readings(self, times):
         """(states, forces on the plant) at each of ``times`` (non-decreasing, from self.t), advancing to them in
@@ -215,13 +246,16 @@ class FeedbackLoop(HybridSolver):
             sign = sign if self._on_control else None
         P, p, phi, events, *nonlinear = self.plant_mode(key)
         m, n, out = len(self.coordinates), self.order, self.OUTPUT
-        e = 0 if self.dither is None else 2  # the dither's oscillator (s, c): s = a sin(w_d t)
+        # the dither's oscillator (s, c): s = a sin(w_d t); the backlash inverse's correction w: y + w seen
+        e = (0 if self.dither is None else 2) + (0 if self.inverse is None else 1)
+        seen = [out] + ([] if self.inverse is None else [self._correction])  # the controller's input: y (+ w)
         # f = D y + C z: a row over the whole state; the plant sees f, the dither's s and k (below)
         f_row = [0.0] * (m + n + e)
-        f_row[out] += self.D
+        for i in seen:
+            f_row[i] += self.D
         f_row[m:m + n] = list(self.C)
         on_plant = list(f_row)
-        if e:
+        if self.dither is not None:
             on_plant[m + n] = 1.0
         A = []
         for i in range(m):
@@ -230,12 +264,15 @@ class FeedbackLoop(HybridSolver):
         Bc = self.Bc if band else self._held_Bc()  # within the deadband the integrator's mode holds
         for i in range(n):
             row = [0.0] * m + list(self.Ac[i]) + [0.0] * e
-            row[out] += Bc[i]
+            for j in seen:
+                row[j] += Bc[i]
             A.append(row)
-        if e:  # s' = w_d c, c' = -w_d s
+        if self.dither is not None:  # s' = w_d c, c' = -w_d s
             w_d = self.dither.w_d
-            A.append([0.0] * (m + n) + [0.0, w_d])
-            A.append([0.0] * (m + n) + [-w_d, 0.0])
+            A.append([0.0] * (m + n) + [0.0, w_d] + [0.0] * (e - 2))
+            A.append([0.0] * (m + n) + [-w_d, 0.0] + [0.0] * (e - 2))
+        if self.inverse is not None:  # w' = 0: set where the play makes contact
+            A.append([0.0] * (m + n + e))
         # the compensator's force k, constant in the mode: the plant sees f + s + k
         k = self.feedforward(key, sign)
         c = [value + phi_i * k for value, phi_i in zip(p, phi)] + [0.0] * (n + e)
@@ -249,7 +286,8 @@ class FeedbackLoop(HybridSolver):
             d = self.deadband
             for side, l0 in ([(band, -d)] if band else [(-1, d), (1, d)]):
                 L = [0.0] * (m + n + e)
-                L[out] = float(side)
+                for i in seen:
+                    L[i] = float(side)
                 full.append((EventKind.DEADBAND, L, l0))
         return (A, c, full) + tuple(nonlinear)  # (row, col, law) of a mode integrated: plant coordinates first
 
@@ -287,6 +325,8 @@ class FeedbackLoop(HybridSolver):
                 if self._on_control:
                     self.sigma = self._control_sign(self.key, X)
             key, X, departing = self._fire(t, kind, X)
+            if self._contact(key, X) and self._on_control:  # the force jumped: the feedforward of its sign follows
+                self.sigma = self._control_sign(key, X)
             if self._on_control and self.sigma == 0:
                 self.sigma = self._control_sign(key, X)
             return key, X, departing

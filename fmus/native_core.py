@@ -61,7 +61,7 @@ import warnings
 from collections import namedtuple
 from pathlib import Path
 
-from .compensation import Coulomb, Dither, compensators, dither_of, follows_control
+from .compensation import BacklashInverse, Coulomb, Dither, compensators, dither_of, follows_control, inverse_of
 from .contract import EventKind
 from .exact import DfwbError, Diverged, Drive, PlantError
 from .plants import KINDS, MODULES, c_name
@@ -70,7 +70,7 @@ from .state import StateRefused
 __all__ = ["load", "NativeCore", "SOLVERS", "LOOPS", "CoreError", "ABI", "LOG_CAPACITY", "EVENT_KINDS",
            "NativeMode"]  # and each plant's classes by name: NativeFrictionMass, NativeFrictionLoop, ...
 
-ABI = 10  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
+ABI = 11  # DFWB_CORE_ABI of dfwb_core.h this binding speaks
 ERRLEN = 1024
 LOOP_KEYS = 9  # the mode keys a loop may have (DFWB_HY_KEYS); slot s of its modes is key s % 9 at deadband side s // 9
 SIDES = (1, 0, -1)  # the integrator deadband's side of each variant of the modes (FeedbackLoop.band)
@@ -651,10 +651,11 @@ class _NativeLoop(_Native):
         if follows_control(coulomb):
             raise PlantError("the compiled loop has no Coulomb feedforward of the controller's sign (the Python loop, "
                              "dfwb.fmus.loops, runs it)")
-        dither = dither_of(compensation)
-        ccompensation = None if compensation is None else (ctypes.c_double * 6)(
+        dither, inverse = dither_of(compensation), inverse_of(compensation)
+        ccompensation = None if compensation is None else (ctypes.c_double * 7)(
             float(coulomb is not None), 0.0 if coulomb is None else coulomb.F_hat, float(reset),
-            0.0 if band is None else band, 0.0 if dither is None else dither.a, 0.0 if dither is None else dither.w_d)
+            0.0 if band is None else band, 0.0 if dither is None else dither.a, 0.0 if dither is None else dither.w_d,
+            0.0 if inverse is None else inverse.h_hat)
         kind, _attr, _cls, names = _LOOPS[self._plant]
         b, a = list(b), list(a)
         originals = dict(zip(names, values))
@@ -692,12 +693,13 @@ class _NativeLoop(_Native):
         api.controller(handle, Ac, Bc, C, ctypes.byref(D))
         self.Ac = [Ac[i * n:(i + 1) * n] for i in range(n)]
         self.Bc, self.C, self.D = Bc[:], C[:], D.value
-        held = (ctypes.c_double * 6)()
+        held = (ctypes.c_double * 7)()
         api.compensation(handle, held)
-        has_coulomb, F_hat, self._reset_at_rest, d, a, w_d = held[:]
+        has_coulomb, F_hat, self._reset_at_rest, d, a, w_d, h_hat = held[:]
         self.coulomb = Coulomb(F_hat) if has_coulomb else None  # the compensators, as the Python loop holds them
         self.deadband = d if d > 0.0 else None
         self.dither = Dither(a, w_d) if a > 0.0 else None
+        self.inverse = BacklashInverse(h_hat) if h_hat > 0.0 else None
         self.sigma, self._on_control = 0, False  # the feedforward of the controller's sign: Python's alone
         # slot s of the C modes -> the key the Python loop's modes dict holds it by: with a deadband (key, 0, side)
         self._slots = {k + LOOP_KEYS * v: (key, 0, side) if self.deadband is not None else key

@@ -156,6 +156,7 @@ class StaticBacklashLoop(FeedbackLoop):
     CONSTANTS = ("M", "k", "h")
     FMU_OUTPUTS = TABLE.outputs[:2] + (Output("y", "m", "backlash output (fed back to the controller)"),)
     MODE_OUTPUT = TABLE.outputs[3]  # engaged
+    CONTACTS = {("engaged", 1): 1, ("engaged", -1): -1}  # x drags y up / down
     COUNTER = Output("engagements", None, "number of engagements so far (an edge reached and the output dragged)",
                      integer=True, counter=True)
     SECTION = (((FREE, EventKind.ENGAGE_DOWN),), ((FREE, EventKind.ENGAGE_UP),))  # the lower edge, then the upper
@@ -173,6 +174,9 @@ class StaticBacklashLoop(FeedbackLoop):
 
     def nonlinearity(self):
         return "length", self.k * self.h
+
+    def half_play(self):
+        return 0.5 * self.k
 
     def still(self, F, omega):
         return F <= 0.5 * self.h * self.M * omega * omega  # the mass swings inside the play: y never moves

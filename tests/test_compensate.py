@@ -142,7 +142,9 @@ def test_a_compensated_margin_is_the_truths():
 @pytest.mark.parametrize("compensate, values, message", [
     ("dither", {"a": 1}, "the parameter w_d is given no value"),
     ("dither", {"a": 1, "w_d": 0}, "w_d = 0.0 is out of range"),
-    ("backlash-inverse", {}, "the backlash inverse is not built yet"),
+    ("backlash-inverse", {}, "the parameter h_hat is given no value"),
+    ("backlash-inverse", {"h_hat": -0.1}, "h_hat = -0.1 is out of range"),
+    ("backlash-inverse", {"h_hat": 0.1}, "the backlash inverse needs a plant with a play"),
     ("friction", {}, "not a compensator"),
     (["reset", "reset"], {}, "named twice"),
     (3, {}, "give a compensator's name"),
@@ -171,8 +173,10 @@ def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
 
 
 @pytest.mark.parametrize("words, message", [
-    (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "backlash-inverse"],
-     "the backlash inverse is not built"),
+    (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "backlash-inverse", "--set",
+      "h_hat=0.1"], "the backlash inverse needs a plant with a play between the mass and the output; FrictionLoop"),
+    (["map", "static-backlash", "--G", "20*(s+2)/(s+20)", "--compensate", "backlash-inverse", "--x",
+      "h_hat=-0.1:0.2:3", "--y", "M=1:2:2"], "h_hat = -0.1:0.2: h_hat = -0.1 is out of range"),
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "dither", "--set", "a=1"],
      "the parameter w_d is given no value"),
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "coulomb"], "F_hat is given no"),
@@ -255,7 +259,7 @@ def test_a_scene_compensates_as_the_api_does(tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
-    ('compensate = ["backlash-inverse"]\nparams = {d = 1}', "the backlash inverse is not built yet"),
+    ('compensate = ["backlash-inverse"]\nparams = {d = 1}', "unknown parameter 'd'"),
     ('compensate = ["dither"]\nparams = {a = 1, w_d = -2}', "w_d = -2.0 is out of range"),
     ('compensate = ["deadband"]\nparams = {d = "wide"}', "d = 'wide' is not a number"),
     ('compensate = "deadband"\nparams = {d = 1}', "compensate: Input should be a valid list"),

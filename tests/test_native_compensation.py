@@ -21,7 +21,7 @@ from dfwb.engine.cycles import find_cycles
 from dfwb.engine.dither import find_responses
 from dfwb.engine.periodic import LoopProblem
 from dfwb.fmus.backlash import BacklashLoop
-from dfwb.fmus.compensation import Coulomb, Deadband, Dither, Reset
+from dfwb.fmus.compensation import BacklashInverse, Coulomb, Deadband, Dither, Reset
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.hybrid import Budget
@@ -34,6 +34,7 @@ pytestmark = pytest.mark.needs_cc
 
 HUNTS = ([10.0, 2.0], [0.0])  # 10 + 2/s: the friction mass hunts (period 57 s)
 LEAD_PI = ([20.0, 40.0, 10.0], [20.0, 0.0])  # (20 s^2 + 40 s + 10) / (s (s + 20))
+LEAD_20 = ([20.0, 40.0], [20.0])  # 20 (s + 2)/(s + 20): the static backlash hunts (period 7.0 s)
 PYTHON = {"friction": FrictionLoop, "backlash": BacklashLoop, "static-backlash": StaticBacklashLoop,
           "stribeck": StribeckLoop}
 NATIVE = {"friction": "FrictionLoop", "backlash": "BacklashLoop", "static-backlash": "StaticBacklashLoop",
@@ -60,6 +61,11 @@ CASES = {  # (plant, G, parameters, compensation, t_end): every compensator, eac
     "static backlash dither": ("static-backlash", LEAD_PI, {"x0": 0.3}, Dither(0.2, 10.0), 20.0),
     "stribeck dither": ("stribeck", HUNTS, {"x0": 0.7}, Dither(3.0, 10.0), 100.0),
     "dither of 0 (none)": ("friction", HUNTS, {"x0": 0.7}, Dither(0.0, 10.0), 100.0),
+    "backlash inverse": ("static-backlash", LEAD_20, {"x0": 0.3}, BacklashInverse(0.1), 60.0),
+    "backlash inverse over": ("static-backlash", LEAD_20, {"x0": -0.3}, BacklashInverse(0.2), 60.0),
+    "backlash inverse, deadband, dither": ("static-backlash", LEAD_PI, {"x0": 0.3},
+                                           [BacklashInverse(0.05), Deadband(0.05), Dither(0.2, 10.0)], 20.0),
+    "backlash inverse of 0 (none)": ("static-backlash", LEAD_20, {"x0": 0.3}, BacklashInverse(0.0), 60.0),
 }
 
 
@@ -252,7 +258,7 @@ def test_crafted_compensators_are_refused(core):
             core.FrictionLoop.from_bytes(crafted)
         assert "\n" not in str(error.value)
     dithered = core.FrictionLoop(*HUNTS, x0=0.7, compensation=Dither(2.0, 5.0)).to_bytes()
-    last = (len(dithered) - HEADER) // 8 - 3  # the dither's fields come last: flag, a, w_d
+    last = (len(dithered) - HEADER) // 8 - 5  # the dither's fields come last (flag, a, w_d), then the inverse's
     for crafted, text in [
         (_field(dithered, last, 0), "dither flag = 0 is out of range: must be 1 with a dither's amplitude above 0"),
         (_field(dithered, last + 1, 0.0), "dither flag = 1 is out of range"),
@@ -263,6 +269,23 @@ def test_crafted_compensators_are_refused(core):
     ]:
         with pytest.raises(StateRefused, match=re.escape(text)):
             core.FrictionLoop.from_bytes(crafted)
+    inverted = core.StaticBacklashLoop(*LEAD_20, x0=0.3, compensation=BacklashInverse(0.1))
+    inverted.advance(1.0)  # engaged down: the correction is -k h_hat/2
+    inverted = inverted.to_bytes()
+    correction = first + 5 + 11 + 4  # X after the compensators (5) and the solver (11): x, v, y, z1, then w
+    static = core.StaticBacklashLoop
+    for cls, crafted, text in [
+        (static, _field(inverted, last + 3, 0), "backlash inverse flag = 0 is out of range: must be 1 with an estimated"),
+        (static, _field(inverted, last + 4, -0.1), "backlash inverse flag = 1 is out of range"),
+        (static, _field(inverted, last + 4, math.nan), "backlash inverse flag = 1 is out of range"),
+        (core.FrictionLoop, _field(_field(plain, last + 3, 1), last + 4, 0.1),
+         "compensators are refused: the backlash inverse needs a plant with a play between the mass and the output; "
+         "FrictionLoop has none"),
+        (static, _field(inverted, correction, 0.03), "backlash inverse's correction = 0.03 is out of range: must be"),
+        (static, _field(inverted, correction, 0.05), "backlash inverse's correction = 0.05 is out of range"),  # the other side
+    ]:
+        with pytest.raises(StateRefused, match=re.escape(text)):
+            cls.from_bytes(crafted)
     reset_backlash = _field(core.BacklashLoop(*PID).to_bytes(), first + 2, 1)
     with pytest.raises(StateRefused, match="BacklashLoop has no such event"):
         core.BacklashLoop.from_bytes(reset_backlash)

@@ -595,8 +595,9 @@ def test_state_round_trip_continues_bit_for_bit(core, python_whole, case):
             assert getattr(again, name) == getattr(py, name), name
         again.advance(t_end)
         assert again.state() == py.state() and again.events == py.events and again.counts() == py.counts()
-    # 440 + 5 compensator fields + an integrated step (62) + a dither's 2 coordinates (12 arrays' entries) and 3 fields
-    assert len(data) == HEADER + 1096 == core.loop_api.state_size
+    # 440 + 5 compensator fields + an integrated step (62) + a dither's 2 coordinates (12 arrays' entries) and 3
+    # fields + a backlash inverse's correction (6 arrays' entries) and 2 fields
+    assert len(data) == HEADER + 1096 + 8 * 8 == core.loop_api.state_size
 
 
 def test_same_parameters(core):

@@ -15,16 +15,14 @@ Examples
 [Coulomb(F_hat=3.0, signal='control'), Reset()]
 >>> Compensation("dither").build({"a": 2.0, "w_d": 20.0})
 [Dither(a=2.0, w_d=20.0)]
->>> Compensation("backlash-inverse")  # doctest: +ELLIPSIS
-Traceback (most recent call last):
-...
-dfwb.base.errors.InputError: compensate = 'backlash-inverse': the backlash inverse is not built yet (the exact ...
+>>> Compensation("backlash-inverse").build({"h_hat": 0.1})
+[BacklashInverse(h_hat=0.1)]
 """
 
 from dataclasses import dataclass, field
 
 from dfwb.base.errors import InputError, PlantError
-from dfwb.fmus.compensation import SIGNALS, Coulomb, Deadband, Dither, Reset
+from dfwb.fmus.compensation import SIGNALS, BacklashInverse, Coulomb, Deadband, Dither, Reset
 
 __all__ = ["KINDS", "CHOICES", "Compensation", "choice", "check_judged"]
 
@@ -44,8 +42,9 @@ KINDS = {
     "deadband": Kind(("d",), lambda v: Deadband(v["d"])),  # the integrator holds while |y| < d
     "reset": Kind((), lambda v: Reset()),  # the integrator cleared when the mass comes to rest
     "dither": Kind(("a", "w_d"), lambda v: Dither(v["a"], v["w_d"])),  # a sin(w_d t) added to the force
+    # the controller sees y + k h_hat/2 s, s the side of the play's last contact (the static backlash)
+    "backlash-inverse": Kind(("h_hat",), lambda v: BacklashInverse(v["h_hat"])),
 }
-PLANNED = {"backlash-inverse": "the backlash inverse"}
 CHOICES = {name: allowed for kind in KINDS.values() for name, allowed in kind.choices.items()}
 
 
@@ -73,7 +72,7 @@ class Compensation:
     Parameters
     ----------
     compensate : str or list of str, optional
-        Names among ``coulomb``, ``deadband``, ``reset`` and ``dither``, each at most once.
+        Names among ``coulomb``, ``deadband``, ``reset``, ``dither`` and ``backlash-inverse``, each at most once.
     """
 
     def __init__(self, compensate=None):
@@ -85,9 +84,6 @@ class Compensation:
         for name in given:
             if not isinstance(name, str) or name not in KINDS:
                 known = ", ".join(KINDS)
-                if name in PLANNED:
-                    raise InputError(f"compensate = {name!r}: {PLANNED[name]} is not built yet (the exact loop has "
-                                     f"{', '.join(list(KINDS)[:-1])} and {list(KINDS)[-1]})")
                 raise InputError(f"compensate = {name!r:.60}: not a compensator (allowed: {known})")
         repeated = [name for name in given if given.count(name) > 1]
         if repeated:

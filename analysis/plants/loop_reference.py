@@ -122,19 +122,20 @@ class _Loop:
         self.first_step = None  # a cap on the next piece's first step (a bounce's duration)
         self.stopped = False  # whether ``until`` stopped the run at an event
         self.samples = None  # the states at run's t_eval (None without)
+        self.correction = 0.0  # a backlash inverse's: the controller sees y + correction
 
     # -- the controller ---------------------------------------------------------------
     def force(self, X):
-        """f = -(C z + D y)."""
-        return -(self.C @ X[self.m:] + self.D * X[self.OUTPUT])
+        """f = -(C z + D y), y corrected by a backlash inverse."""
+        return -(self.C @ X[self.m:] + self.D * (X[self.OUTPUT] + self.correction))
 
     def force_rate(self, X, dX):
-        """df/dt from the state and its derivative."""
+        """df/dt from the state and its derivative (between events, where the correction is constant)."""
         return -(self.C @ dX[self.m:] + self.D * dX[self.OUTPUT])
 
     def controller(self, X):
-        """z' = Ac z + Bc y (Bc without its integrator's part while a deadband holds it)."""
-        return self.Ac @ X[self.m:] + self.Bc_now * X[self.OUTPUT]
+        """z' = Ac z + Bc y (Bc without its integrator's part while a deadband holds it; y corrected)."""
+        return self.Ac @ X[self.m:] + self.Bc_now * (X[self.OUTPUT] + self.correction)
 
     def length(self):
         return 0.0
@@ -463,12 +464,14 @@ class _StaticBacklash(_Loop):
         self.X[2] = self.p["k"] * (self.X[0] - s * 0.5 * self.p["h"])
 
     def engage(self, s, count=True):
-        """At the edge s: engaged if x moves on (v = 0: if f pushes on), else free."""
+        """At the edge s: engaged if x moves on (v = 0: if f pushes on), else free. Engaged, a backlash
+        inverse's correction takes the side s (decided by the force before it)."""
         self.snap(s)
         v = self.X[1]
         if s * v > 0.0 or (v == 0.0 and s * self.force(self.X) > 0.0):
             self.mode = ("engaged", s)
             self.counts["engagements"] += count
+            self.correction = 0.5 * self.p["k"] * self.p.get("inverse", 0.0) * s
         else:
             self.mode = "free"
             self.departing = s
@@ -569,7 +572,7 @@ def _times(t_eval, t_end):
 
 def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="DOP853", rtol=1e-12, atol=None,
                           max_step=np.inf, max_events=MAX_EVENTS, t_eval=None, until=None, coulomb=None,
-                          reset=False, deadband=None, dither=None):
+                          reset=False, deadband=None, dither=None, inverse=None):
     """Simulate a plant in feedback with ``-G(s)`` from t = 0 to ``t_end`` with solve_ivp and exact events.
 
     Parameters
@@ -638,6 +641,10 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         most a 32nd of its period (``max_step``): solve_ivp sees an event
         only where its function changes sign between two steps, and a stuck
         mass's equations alone would let it step over the dither's peaks.
+    inverse : float, optional
+        static-backlash only: a backlash inverse's estimated play h_hat. The
+        controller then sees ``y + k h_hat/2 s`` for y, s the side of the
+        last engagement (0 before any); s is set where the mass engages.
 
     Returns
     -------
@@ -717,6 +724,10 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         p["dither"] = (_check("a", dither[0], lambda v: v >= 0.0, "must be >= 0"),
                        _check("w_d", dither[1], lambda v: v > 0.0, "must be > 0"))
         max_step = min(max_step, 2.0 * math.pi / p["dither"][1] / 32.0)
+    if inverse is not None:
+        if plant != "static-backlash":
+            raise PlantError(f"inverse = {inverse!r}: static-backlash only")
+        p["inverse"] = _check("inverse", inverse, lambda v: v >= 0.0, "must be >= 0")
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)
     loop.run(float(t_end), t_eval, until)

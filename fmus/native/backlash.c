@@ -389,7 +389,7 @@ static const char *const LOOP_COORDINATES[] = {"x1", "v1", "gap", "w"};
 
 static const dfwb_loop_class LOOP = {4, 0, DFWB_LOOP_BACKLASH_PARAMS, 6, "a two-mass backlash", LOOP_COORDINATES,
                                             "('x1', 'v1', 'gap', 'w')", loop_check, loop_check_state, loop_mode,
-                                            loop_initial, loop_fire, 3, NULL, NULL, -1, NULL, 0, "BacklashLoop"};
+                                            loop_initial, loop_fire, 3, NULL, NULL, -1, NULL, 0, "BacklashLoop", NULL, NULL};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* TwoMassBacklash.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */

@@ -93,7 +93,7 @@ extern "C" {
 #endif
 
 /* The version of this API (dfwb_core_abi_version()); a binding checks it. */
-#define DFWB_CORE_ABI 10
+#define DFWB_CORE_ABI 11
 
 /* Status codes. */
 #define DFWB_OK 0
@@ -234,20 +234,20 @@ typedef struct dfwb_loop dfwb_loop;
  * output y rising through *section (dfwb_loop_crossings_read). Checked in Python's order and refused
  * with its texts (DFWB_E_VALUE): the plant's parameters, the order n = na in 1..8, nb = n + 1, a1..an,
  * b0..bn, the state's length, coordinates and range (gap in [0, h], |x - y/k| <= h/2 (1 + 1e-9)), z0's
- * length and values, the section. compensation (NULL: none) = {coulomb 0/1, F_hat, reset 0/1, d, a, w_d}: the
- * compensators of fmus/compensation.py the core runs (Coulomb(F_hat) of the velocity, Reset(), Deadband(d),
+ * length and values, the section. compensation (NULL: none) = {coulomb 0/1, F_hat, reset 0/1, d, a, w_d, h_hat}:
+ * the compensators of fmus/compensation.py the core runs (Coulomb(F_hat) of the velocity, Reset(), Deadband(d),
  * Dither(a, w_d), a = 0 none: its oscillator is two more coordinates of the solver's state, never of the state the
- * API gives or takes; the feedforward of the controller's sign runs in Python alone), checked in Python's order
- * too. */
+ * API gives or takes; BacklashInverse(h_hat), 0 none: its correction one more, after them; the feedforward of the
+ * controller's sign runs in Python alone), checked in Python's order too. */
 DFWB_API int dfwb_loop_new(int plant, const double *params, size_t nparams, const double *b, size_t nb,
                            const double *a, size_t na, const double *z0, size_t nz0, const double *state,
                            size_t nstate, const double *section, const double *compensation, dfwb_loop **out,
                            char *err, size_t errlen);
 /* The integrator deadband's side (FeedbackLoop.band): -1 below -d, 0 within, +1 above d (1 without one). */
 DFWB_API int dfwb_loop_band(const dfwb_loop *p);
-/* The loop's compensators as dfwb_loop_new took them: {coulomb 0/1, F_hat, reset 0/1, d, a, w_d} (w_d 0 where
- * a = 0). */
-DFWB_API void dfwb_loop_compensation(const dfwb_loop *p, double out[6]);
+/* The loop's compensators as dfwb_loop_new took them: {coulomb 0/1, F_hat, reset 0/1, d, a, w_d, h_hat} (w_d 0
+ * where a = 0). */
+DFWB_API void dfwb_loop_compensation(const dfwb_loop *p, double out[7]);
 
 /* HybridSolver.advance: integrate exactly to t_end (finite, >= the current time, at most 1e12 chunks of the
  * fastest mode built so far), firing every event on the way. What ends the advance early (then the current
@@ -263,7 +263,7 @@ DFWB_API int dfwb_loop_advance(dfwb_loop *p, double t_end, int stop_section, con
 DFWB_API int dfwb_loop_stopped(const dfwb_loop *p); /* the event kind the last advance stopped at, 0: none */
 /* dfwb_loop_advance to each of times[0..n-1] (non-decreasing) in turn, the state there into states[i * size ..]
  * (the loop's state size), the mode key into keys[i] and the force on the plant (FeedbackLoop.applied: the
- * controller's, the velocity's feedforward and the dither's) into forces[i] (keys, forces NULL: not written): many
+ * controller's on the corrected output, the velocity's feedforward and the dither's) into forces[i] (keys, forces NULL: not written): many
  * samples of one run in one call. Refused as advance refuses (then the samples before the refused time are
  * written). */
 DFWB_API int dfwb_loop_sample(dfwb_loop *p, const double *times, size_t n, double *states, int *keys,

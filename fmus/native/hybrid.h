@@ -19,7 +19,8 @@
 #include "exact.h"
 #include "plant.h"
 
-#define DFWB_HY_DIM 14          /* the state's size at most: 4 plant coordinates + 8 controller states + a dither's 2 */
+#define DFWB_HY_DIM 15 /* the state's size at most: 4 plant coordinates + 8 controller states + a dither's 2 + a
+                         * backlash inverse's correction */
 #define DFWB_HY_EVENTS 7        /* event functions of a mode at most: 3 of the plant, a deadband's 2, the section's 2 */
 #define DFWB_HY_KEYS 9          /* mode keys 0..8 */
 #define DFWB_HY_VARIANTS 3      /* the system's discrete states beside the key (a loop's deadband side) */

@@ -43,6 +43,11 @@ struct dfwb_loop {
      * (0, a); the loop's state as the API gives and takes it is m + order long, the oscillator left out */
     int has_dither;
     double a_d, w_d;
+    /* the backlash inverse (has_inverse: h_hat > 0): the controller sees y + w, w the correction after the
+     * dither's oscillator in the solver's state, set to half_play h_hat s where the loop enters a mode of contact
+     * s of the play (the class's contact) */
+    int has_inverse;
+    double h_hat;
 };
 
 /* A plant mode: q' = P q + p + phi f, event functions Lq.q + Lf f + l0 (FeedbackLoop.plant_mode). */
@@ -58,7 +63,7 @@ typedef struct {
 /* Append the event function l1 q0 + l2 q1 + l3 q2 + l4 q3 + Lf f + l0 of kind (DFWB_EVENT_*). */
 void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, double l3, double l4, double Lf,
                          double l0);
-/* FeedbackLoop.force: f = D y + C z at X. */
+/* FeedbackLoop.force: f = D y + C z at the solver's state X (y + w with a backlash inverse). */
 double dfwb_loop_feedback(const dfwb_loop *L, const double *X);
 
 /* What a plant gives its closed loop (its LOOP, a FeedbackLoop subclass beside its solver). */
@@ -90,6 +95,10 @@ struct dfwb_loop_class {
     int (*slip)(int key);
     int rest_kind;
     const char *python_name;
+    /* The side of the play in contact in mode key (CONTACTS: -1, +1; 0 none), and half the play in the output's
+     * units per unit of h (half_play); NULL: a plant without a play (no backlash inverse). */
+    int (*contact)(int key);
+    double (*half_play)(const dfwb_loop *L);
 };
 
 #endif /* DFWB_LOOP_H */

@@ -37,13 +37,17 @@ void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, do
 }
 
 
+/* The index of a backlash inverse's correction in the solver's state: after z and a dither's oscillator. */
+static int inverse_at(const dfwb_loop *L) { return L->m + L->order + (L->has_dither ? 2 : 0); }
+
 /* FeedbackLoop.system: the loop's A, c and event functions of a mode */
 static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
 {
     const dfwb_loop *L = (const dfwb_loop *)(const void *)hy;
-    const int m = L->m, n = L->order, size = hy->n; /* m + n, and a dither's oscillator (s, c) */
+    /* m + n, a dither's oscillator (s, c) and a backlash inverse's correction w (the controller sees y + w) */
+    const int m = L->m, n = L->order, size = hy->n, w = inverse_at(L);
     dfwb_plant_mode pm;
-    double on_plant[DFWB_HY_DIM]; /* the force on the plant: f = D y + C z, and the dither's s */
+    double on_plant[DFWB_HY_DIM]; /* the force on the plant: f = D (y + w) + C z, and the dither's s */
     int i, j, e;
     double k;
     (void)err;
@@ -52,7 +56,7 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
     k = L->has_coulomb && L->F_hat != 0.0 ? L->F_hat * (double)L->cls->slip(key) : 0.0;
     mode->n = size;
     for (j = 0; j < size; j++)
-        on_plant[j] = j < m + n ? L->f_row[j] : j == m + n ? 1.0 : 0.0;
+        on_plant[j] = L->has_dither && j == m + n ? 1.0 : L->f_row[j];
     for (i = 0; i < m; i++) /* row = list(P[i]) + [0.0] * (n + e); [value + phi[i] * fv ...] */
         for (j = 0; j < size; j++)
             mode->A[i][j] = (j < m ? pm.P[i][j] : 0.0) + pm.phi[i] * on_plant[j];
@@ -60,6 +64,8 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
         for (j = 0; j < size; j++)
             mode->A[m + i][j] = j < m || j >= m + n ? 0.0 : L->Ac[i][j - m];
         mode->A[m + i][L->out] += L->band || i > 0 ? L->Bc[i] : L->Bc[0] - 1.0 / L->w[0];
+        if (L->has_inverse)
+            mode->A[m + i][w] = mode->A[m + i][L->out];
     }
     if (L->has_dither) { /* s' = w_d c, c' = -w_d s */
         for (j = 0; j < size; j++)
@@ -67,6 +73,9 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
         mode->A[m + n][m + n + 1] = L->w_d;
         mode->A[m + n + 1][m + n] = -L->w_d;
     }
+    if (L->has_inverse) /* w' = 0: set where the play makes contact */
+        for (j = 0; j < size; j++)
+            mode->A[w][j] = 0.0;
     for (i = 0; i < size; i++) /* the compensator's force k, constant in the mode: the plant sees f + s + k */
         mode->c[i] = i < m ? pm.p[i] + pm.phi[i] * k : 0.0;
     mode->nev = pm.nev;
@@ -84,6 +93,8 @@ static int loop_system(dfwb_hy *hy, int key, dfwb_hy_mode *mode, dfwb_err *err)
             for (j = 0; j < size; j++)
                 ev->L[j] = 0.0;
             ev->L[L->out] = L->band ? (double)L->band : (e == 0 ? -1.0 : 1.0);
+            if (L->has_inverse)
+                ev->L[w] = ev->L[L->out];
             ev->l0 = L->band ? -L->d : L->d;
         }
     }
@@ -116,14 +127,26 @@ double dfwb_loop_feedback(const dfwb_loop *L, const double *X)
     int i;
     for (i = 0; i < L->order; i++)
         s += L->C[i] * X[L->m + i];
-    return L->D * X[L->out] + s;
+    return L->D * (X[L->out] + (L->has_inverse ? X[inverse_at(L)] : 0.0)) + s;
+}
+
+/* FeedbackLoop._contact: a backlash inverse's correction in X where mode key is a contact of the play. */
+static void contact(const dfwb_loop *L, int key, double *X)
+{
+    const int side = L->has_inverse ? L->cls->contact(key) : 0;
+    if (side)
+        X[inverse_at(L)] = L->cls->half_play(L) * L->h_hat * (double)side;
 }
 
 /* -- the switching logic: the plant's (initial at t = 0, _fire) ------------------------------------------- */
 static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
 {
+    int rc;
     *departing = -1;
-    return L->cls->initial(L, X, key, departing, err);
+    rc = L->cls->initial(L, X, key, departing, err);
+    if (rc == DFWB_OK)
+        contact(L, *key, X);
+    return rc;
 }
 
 /* The deadband's side, and the hybrid's variant that keys its modes: band 1 (or none) 0, band 0 1, band -1 2. */
@@ -180,13 +203,17 @@ static int cross_edge(dfwb_loop *L, double *X, int *key, int *departing, dfwb_er
 static int loop_fire(dfwb_hy *hy, double t, int kind, double *X, int *key, int *departing, dfwb_err *err)
 {
     dfwb_loop *L = (dfwb_loop *)(void *)hy;
+    int rc;
     (void)t;
     *departing = -1;
     if (kind == DFWB_EVENT_DEADBAND)
         return cross_edge(L, X, key, departing, err);
     if (L->reset && kind == L->cls->rest_kind)
         reset_integrator(L, X);
-    return L->cls->fire(L, kind, X, key, departing, err);
+    rc = L->cls->fire(L, kind, X, key, departing, err);
+    if (rc == DFWB_OK)
+        contact(L, *key, X);
+    return rc;
 }
 
 /* The loop class of a plant kind (NULL: none). */
@@ -247,10 +274,10 @@ static int controller(dfwb_loop *L, const double *b, size_t nb, const double *a,
     return DFWB_OK;
 }
 
-/* The compensators of compensation[6] = {coulomb 0/1, F_hat, reset 0/1, d, a, w_d} (NULL: none), checked in the
- * order and with the texts of Coulomb, Deadband, Dither and FeedbackLoop.__init__ (after the controller's own
- * checks): F_hat, d, a, w_d, the one integrator the reset and the deadband need (a: G's a1..an, checked), a plant
- * where the reset acts. */
+/* The compensators of compensation[7] = {coulomb 0/1, F_hat, reset 0/1, d, a, w_d, h_hat} (NULL: none), checked
+ * in the order and with the texts of Coulomb, Deadband, Dither, BacklashInverse and FeedbackLoop.__init__ (after
+ * the controller's own checks): F_hat, d, a, w_d, h_hat, the one integrator the reset and the deadband need (a:
+ * G's a1..an, checked), a plant where the reset acts, a plant with a play for the backlash inverse. */
 static int compensators(dfwb_loop *L, const double *compensation, const double *a, size_t na, dfwb_err *err)
 {
     char text[8 + (DFWB_REPR_SIZE + 2) * MAX_ORDER];
@@ -267,6 +294,7 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     L->d = compensation[3];
     L->a_d = compensation[4];
     L->w_d = compensation[5];
+    L->h_hat = compensation[6];
     if ((L->has_coulomb && (rc = dfwb_check(err, "F_hat", L->F_hat, L->F_hat >= 0.0,
                                             "a finite number of newtons, at least 0")) != DFWB_OK)
         || (rc = dfwb_check(err, "d", L->d, L->d >= 0.0,
@@ -277,7 +305,11 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     if (L->a_d > 0.0 && (rc = dfwb_check(err, "w_d", L->w_d, L->w_d > 0.0,
                                          "the dither's angular frequency, a finite number of rad/s above 0")) != DFWB_OK)
         return rc;
+    if ((rc = dfwb_check(err, "h_hat", L->h_hat, L->h_hat >= 0.0,
+                         "the backlash inverse's estimated play, a finite number of metres, at least 0")) != DFWB_OK)
+        return rc;
     L->has_dither = L->a_d > 0.0; /* a = 0: no dither (its w_d then 0, as a state holds it) */
+    L->has_inverse = L->h_hat > 0.0;
     if (!L->has_dither)
         L->w_d = 0.0;
     if (L->reset || L->d > 0.0) { /* integrator(a): w = (a_(n-1), ..., a_1, 1) */
@@ -307,6 +339,9 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     if (L->reset && L->cls->rest_kind == 0)
         return dfwb_fail(err, DFWB_E_VALUE, "the integrator reset needs a plant that comes to rest; %s has no such "
                          "event", L->cls->python_name);
+    if (L->has_inverse && L->cls->contact == NULL)
+        return dfwb_fail(err, DFWB_E_VALUE, "the backlash inverse needs a plant with a play between the mass and the "
+                         "output; %s has none", L->cls->python_name);
     return DFWB_OK;
 }
 
@@ -332,9 +367,11 @@ static void setup(dfwb_loop *L, const double *section)
     L->f_row[L->out] += L->D; /* f_row[out] += D, then f_row[m:] = C */
     for (i = 0; i < L->order; i++)
         L->f_row[L->m + i] = L->C[i];
+    if (L->has_inverse) /* f = D (y + w) + C z */
+        L->f_row[inverse_at(L)] = L->D;
     section_L[L->out] = 1.0;
     L->section = section != NULL ? *section : 0.0;
-    dfwb_hy_init(&L->hy, L->m + L->order + (L->has_dither ? 2 : 0), loop_system, loop_fire,
+    dfwb_hy_init(&L->hy, inverse_at(L) + L->has_inverse, loop_system, loop_fire,
                  section != NULL ? section_L : NULL,
                  section != NULL ? -*section : 0.0);
     if (L->cls->law != NULL) {
@@ -388,6 +425,7 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
         X[m + i] = 0.0;
     X[m + n] = 0.0; /* a dither's oscillator (s, c) at phase 0 (beyond the state without one) */
     X[m + n + 1] = L->a_d;
+    X[inverse_at(L)] = 0.0; /* a backlash inverse's correction: 0 until the play's first contact */
     if (state != NULL) { /* the whole loop state: the plant's coordinates, then z */
         snprintf(allowed, sizeof allowed, "the loop's state has %d plant coordinates %s and %d controller states", m,
                  cls->coordinates_text, n);
@@ -589,8 +627,9 @@ static int build_slot(dfwb_loop *p, int slot, dfwb_err *err)
 
 int dfwb_loop_band(const dfwb_loop *p) { return p == NULL ? 0 : p->band; }
 
-void dfwb_loop_compensation(const dfwb_loop *p, double out[6])
+void dfwb_loop_compensation(const dfwb_loop *p, double out[7])
 {
+    out[6] = p == NULL ? NAN : p->h_hat;
     out[0] = p == NULL ? NAN : (double)p->has_coulomb;
     out[1] = p == NULL ? NAN : p->F_hat;
     out[2] = p == NULL ? NAN : (double)p->reset;
@@ -691,7 +730,7 @@ int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b)
         || a->hy.has_section != b->hy.has_section || !dfwb_same_double(a->section, b->section)
         || a->has_coulomb != b->has_coulomb || a->reset != b->reset || !dfwb_same_double(a->F_hat, b->F_hat)
         || !dfwb_same_double(a->d, b->d) || a->has_dither != b->has_dither || !dfwb_same_double(a->a_d, b->a_d)
-        || !dfwb_same_double(a->w_d, b->w_d))
+        || !dfwb_same_double(a->w_d, b->w_d) || a->has_inverse != b->has_inverse || !dfwb_same_double(a->h_hat, b->h_hat))
         return 0;
     for (i = 0; i < DFWB_LOOP_PAR; i++)
         if (!dfwb_same_double(a->par[i], b->par[i]))
@@ -752,6 +791,8 @@ static void loop_io(dfwb_io *io, dfwb_loop *L, int *mask)
     dfwb_io_int(io, &L->has_dither); /* (last: the earlier fields keep their offsets) */
     dfwb_io_f64(io, &L->a_d);
     dfwb_io_f64(io, &L->w_d);
+    dfwb_io_int(io, &L->has_inverse);
+    dfwb_io_f64(io, &L->h_hat);
 }
 
 static size_t loop_payload(void)
@@ -879,8 +920,12 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     if (rc == DFWB_OK)
         rc = dfwb_state_check(&err, "w_d", s.w_d, s.has_dither || (s.w_d == 0.0 && !signbit(s.w_d)),
                               "must be 0 without a dither");
+    if (rc == DFWB_OK)
+        rc = dfwb_state_check_int(&err, "backlash inverse flag", s.has_inverse, s.has_inverse == (s.h_hat > 0.0),
+                                  "must be 1 with an estimated play above 0, else 0");
     if (rc == DFWB_OK) {
-        const double compensation[6] = {(double)s.has_coulomb, s.F_hat, (double)s.reset, s.d, s.a_d, s.w_d};
+        const double compensation[7] = {(double)s.has_coulomb, s.F_hat, (double)s.reset, s.d, s.a_d, s.w_d,
+                                        s.h_hat};
         if (compensators(L, compensation, s.ac, (size_t)n, &local) != DFWB_OK || coulomb_fits(L, &local) != DFWB_OK)
             rc = state_refused(&err, "compensators", message);
     }
@@ -934,7 +979,14 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     memcpy(L->hy.d21, s.hy.d21, sizeof L->hy.d21);
     memcpy(L->hy.peak, s.hy.peak, sizeof L->hy.peak);
     L->hy.next_h = s.hy.next_h;
-    rc = dfwb_hy_resume(&L->hy, &err);
+    if (L->has_inverse) { /* the correction: 0 before the play's first contact, else a side's, the mode's in one */
+        const double w = L->hy.X[inverse_at(L)], half = L->cls->half_play(L) * L->h_hat;
+        const int side = L->cls->contact(L->hy.key);
+        rc = dfwb_state_check(&err, "backlash inverse's correction", w, side ? w == half * (double)side
+                              : w == 0.0 || fabs(w) == half, "must be 0 or +-k h_hat/2, the side of the contact");
+    }
+    if (rc == DFWB_OK)
+        rc = dfwb_hy_resume(&L->hy, &err);
     if (rc == DFWB_OK && L->d > 0.0) { /* the side the output is on (to rounding: a state read at an edge) */
         double X[DFWB_HY_DIM], y;
         dfwb_hy_state(&L->hy, X);
