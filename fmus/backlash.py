@@ -232,6 +232,7 @@ class BacklashLoop(FeedbackLoop):
     MODE_OUTPUT = TABLE.outputs[5]  # contact
     COUNTER = TABLE.outputs[6]  # impacts
     SECTION = (((FLIGHT, EventKind.WALL_LOWER),), ((FLIGHT, EventKind.WALL_UPPER),))  # an impact at 0, then at h
+    CONTACTS = {EventKind.WALL_UPPER: 1, EventKind.WALL_LOWER: -1}  # M2 reaches the upper wall (drags M1 up) / the lower
     PIVOT = 2  # gap = h
 
     def pivot(self, X):
@@ -278,6 +279,12 @@ class BacklashLoop(FeedbackLoop):
         return ([[0.0, 1.0, 0.0, 0.0], [0.0] * 4, [0.0] * 4, [0.0] * 4], [0.0] * 4,
                 [0.0, 1.0 / (self.M1 + self.M2), 0.0, 0.0],
                 [(EventKind.RELEASE, (0.0,) * 4, float(sigma), 0.0)])  # sigma f > 0: pressing
+
+    def half_play(self):
+        return 0.5
+
+    def wall(self, X):
+        return 0 if 0.0 < X[2] < self.h else -1 if X[2] <= 0.0 else 1  # as initial() puts it
 
     def initial(self, X):
         if 0.0 < X[2] < self.h:

@@ -65,7 +65,7 @@ class FeedbackLoop(HybridSolver):
     plant = None  # the plant's open-loop solver (:mod:`.friction` ...): its orbits start a shooting
     KEYS = ()  # the mode keys, in the compiled core's order
     REST_EVENTS = ()  # the event kinds where the plant comes to rest (the integrator reset acts there)
-    CONTACTS = {}  # {mode key: the side of the play in contact}: where the backlash inverse's side is set
+    CONTACTS = {}  # {event kind: the side of the play it touches}: where the backlash inverse's side is set
     # The Poincare section every periodic orbit crosses: legs, each the (mode key, event kind) pairs that end it
     # (an event of the first leg, then one of the second: a lower turn, then an upper one). A point of the
     # section is the state the last leg's event leaves; there coordinate PIVOT is fixed by the others (pivot()).
@@ -114,6 +114,11 @@ class FeedbackLoop(HybridSolver):
     def still(self, F, omega):
         """Whether F cos(omega t) leaves the output still (its describing function is 0 there)."""
         raise NotImplementedError
+
+    def wall(self, X):
+        """The side of the play whose wall the state X sits on (-1, +1; 0 within): the backlash inverse's side at
+        t = 0."""
+        return 0
 
     def half_play(self):
         """Half the play's width in the output's units per unit of h (the static backlash's k / 2): the backlash
@@ -165,15 +170,15 @@ class FeedbackLoop(HybridSolver):
             watch = (L, -float(section))
         super().__init__(watch, modes, budget)
         X0 = list(q0) + z0 + oscillator
+        if self.inverse is not None:  # a start on a wall of the play has touched it
+            self._contact(self.wall(X0), X0)
         if self.deadband is not None:
-            y = X0[self.OUTPUT]
+            y = X0[self.OUTPUT] + (0.0 if self.inverse is None else X0[self._correction])
             self.band = 0 if abs(y) < self.deadband else 1 if y > 0.0 else -1
         if self._on_control:  # its sign at t = 0; where the force is 0 there, its trend in the plant's mode
             f = self.force(X0)
             self.sigma = (f > 0.0) - (f < 0.0)
         key, X0, departing = self.initial(X0)
-        if self._contact(key, X0) and self._on_control:
-            self.sigma = self._control_sign(key, X0)
         if self._on_control and self.sigma == 0:
             self.sigma = self._control_sign(key, X0)
         self.start(0.0, X0, key, departing)
@@ -190,12 +195,12 @@ class FeedbackLoop(HybridSolver):
         """The index of the backlash inverse's correction in the integrated state (the last coordinate)."""
         return len(self.coordinates) + self.order + (0 if self.dither is None else 2)
 
-    def _contact(self, key, X):
-        """Set the backlash inverse's correction in X where mode ``key`` is a contact of the play (its side):
+    def _contact(self, side, X):
+        """Set the backlash inverse's correction in X where the play touched its side ``side`` (0: none):
         whether it changed (the controller's force then jumps)."""
-        if self.inverse is None or key not in self.CONTACTS:
+        if self.inverse is None or not side:
             return False
-        correction = self.half_play() * self.inverse.h_hat * self.CONTACTS[key]
+        correction = self.half_play() * self.inverse.h_hat * side
         changed, X[self._correction] = X[self._correction] != correction, correction
         return changed
 
@@ -324,8 +329,10 @@ class FeedbackLoop(HybridSolver):
                 self._reset(X)  # the controller's force jumps: the feedforward of its sign follows it
                 if self._on_control:
                     self.sigma = self._control_sign(self.key, X)
+            # the play's touch: the backlash inverse's correction jumps before the plant's logic, which sees its force
+            touched = self._contact(self.CONTACTS.get(kind, 0), X)
             key, X, departing = self._fire(t, kind, X)
-            if self._contact(key, X) and self._on_control:  # the force jumped: the feedforward of its sign follows
+            if touched and self._on_control:  # the controller's force jumped: the feedforward of its sign follows
                 self.sigma = self._control_sign(key, X)
             if self._on_control and self.sigma == 0:
                 self.sigma = self._control_sign(key, X)

@@ -156,7 +156,7 @@ class StaticBacklashLoop(FeedbackLoop):
     CONSTANTS = ("M", "k", "h")
     FMU_OUTPUTS = TABLE.outputs[:2] + (Output("y", "m", "backlash output (fed back to the controller)"),)
     MODE_OUTPUT = TABLE.outputs[3]  # engaged
-    CONTACTS = {("engaged", 1): 1, ("engaged", -1): -1}  # x drags y up / down
+    CONTACTS = {EventKind.ENGAGE_UP: 1, EventKind.ENGAGE_DOWN: -1}  # x reaches the play's upper / lower edge
     COUNTER = Output("engagements", None, "number of engagements so far (an edge reached and the output dragged)",
                      integer=True, counter=True)
     SECTION = (((FREE, EventKind.ENGAGE_DOWN),), ((FREE, EventKind.ENGAGE_UP),))  # the lower edge, then the upper
@@ -177,6 +177,10 @@ class StaticBacklashLoop(FeedbackLoop):
 
     def half_play(self):
         return 0.5 * self.k
+
+    def wall(self, X):
+        play = X[0] - X[2] / self.k
+        return next((s for s in (1, -1) if s * play >= 0.5 * self.h * (1.0 - 1e-12)), 0)  # as initial() snaps
 
     def still(self, F, omega):
         return F <= 0.5 * self.h * self.M * omega * omega  # the mass swings inside the play: y never moves

@@ -66,6 +66,10 @@ CASES = {  # (plant, G, parameters, compensation, t_end): every compensator, eac
     "backlash inverse, deadband, dither": ("static-backlash", LEAD_PI, {"x0": 0.3},
                                            [BacklashInverse(0.05), Deadband(0.05), Dither(0.2, 10.0)], 20.0),
     "backlash inverse of 0 (none)": ("static-backlash", LEAD_20, {"x0": 0.3}, BacklashInverse(0.0), 60.0),
+    "backlash inverse, impacts": ("backlash", PID, {"eps": 0.8, "x1_0": 0.03}, BacklashInverse(0.1), 5.0),
+    "backlash inverse, plastic": ("backlash", LEAD, {"eps": 0.0, "x1_0": 0.03}, BacklashInverse(0.05), 5.0),
+    "backlash inverse on a wall at t = 0": ("backlash", PID, {"gap0": 0.1, "x1_0": 0.03},
+                                            [BacklashInverse(0.1), Deadband(0.01)], 5.0),
 }
 
 
@@ -151,11 +155,13 @@ def _problem(core, plant, G, compensation, native):
     return p
 
 
-@pytest.mark.parametrize("compensation", [Deadband(0.05), Coulomb(3.0), Reset()], ids=repr)
-def test_cycles_and_costs_are_bit_identical(core, compensation):
+@pytest.mark.parametrize("plant, G, compensation", [
+    ("friction", "10 + 2/s", Deadband(0.05)), ("friction", "10 + 2/s", Coulomb(3.0)),
+    ("friction", "10 + 2/s", Reset()), ("static-backlash", "20*(s+2)/(s+20)", BacklashInverse(0.1))], ids=repr)
+def test_cycles_and_costs_are_bit_identical(core, plant, G, compensation):
     found = []
     for native in (False, True):
-        p = _problem(core, "friction", "10 + 2/s", compensation, native)
+        p = _problem(core, plant, G, compensation, native)
         search = find_cycles(p, [], amplitudes=[0.3, 1.0])
         cost = step_cost(p)
         found.append(([(c.omega, c.amplitude_x, c.stable, c.multipliers) for c in search.cycles],
@@ -181,6 +187,8 @@ def test_a_compensated_problem_runs_the_compiled_loop(core):
     """LoopProblem picks the C loop for every compensator but the feedforward of the controller's sign."""
     assert LoopProblem("friction", "10 + 2/s", compensation=Deadband(0.1)).cls.__name__ == "NativeFrictionLoop"
     assert LoopProblem("friction", "10 + 2/s", compensation=Dither(1.0, 5.0)).cls.__name__ == "NativeFrictionLoop"
+    assert LoopProblem("static-backlash", "20*(s+2)/(s+20)",
+                       compensation=BacklashInverse(0.1)).cls.__name__ == "NativeStaticBacklashLoop"
     assert LoopProblem("friction", "10 + 2/s", compensation=Coulomb(2.0, "control")).cls is FrictionLoop
     with pytest.raises(PlantError, match=re.escape("the compiled loop has no Coulomb feedforward of the controller's "
                                                    "sign")):
@@ -282,7 +290,7 @@ def test_crafted_compensators_are_refused(core):
          "compensators are refused: the backlash inverse needs a plant with a play between the mass and the output; "
          "FrictionLoop has none"),
         (static, _field(inverted, correction, 0.03), "backlash inverse's correction = 0.03 is out of range: must be"),
-        (static, _field(inverted, correction, 0.05), "backlash inverse's correction = 0.05 is out of range"),  # the other side
+        (static, _field(inverted, correction, math.inf), "backlash inverse's correction = inf is out of range"),
     ]:
         with pytest.raises(StateRefused, match=re.escape(text)):
             cls.from_bytes(crafted)

@@ -345,7 +345,13 @@ class _Backlash(_Loop):
         gap, h = self.X[2], self.p["h"]
         self.mode = "free"
         if gap <= 0.0 or gap >= h:
+            self.touch(-1 if gap <= 0.0 else 1)
             self.at_wall(-1 if gap <= 0.0 else 1)
+
+    def touch(self, sigma):
+        """A backlash inverse's correction after a touch of the wall ``sigma``: the controller sees x1 +
+        h_hat/2 sigma (x2 - h/2 with h_hat = h, M2 on that wall)."""
+        self.correction = 0.5 * self.p.get("inverse", 0.0) * sigma
 
     def mode_name(self):
         return self.mode if self.mode == "free" else f"contact{'-+'[self.mode[1] > 0]}"
@@ -421,6 +427,7 @@ class _Backlash(_Loop):
             v2n = (v1 * M1 * (1.0 + eps) + v2 * (M2 - eps * M1)) / (M1 + M2)
             self.X[1], self.X[3] = v1n, v2n - v1n
             self.counts["impacts"] += 1
+        self.touch(sigma)
         self.at_wall(sigma)
 
 
@@ -464,14 +471,14 @@ class _StaticBacklash(_Loop):
         self.X[2] = self.p["k"] * (self.X[0] - s * 0.5 * self.p["h"])
 
     def engage(self, s, count=True):
-        """At the edge s: engaged if x moves on (v = 0: if f pushes on), else free. Engaged, a backlash
-        inverse's correction takes the side s (decided by the force before it)."""
+        """At the edge s: a backlash inverse's correction takes the side s, then engaged if x moves on (v = 0: if
+        f pushes on), else free."""
+        self.correction = 0.5 * self.p["k"] * self.p.get("inverse", 0.0) * s
         self.snap(s)
         v = self.X[1]
         if s * v > 0.0 or (v == 0.0 and s * self.force(self.X) > 0.0):
             self.mode = ("engaged", s)
             self.counts["engagements"] += count
-            self.correction = 0.5 * self.p["k"] * self.p.get("inverse", 0.0) * s
         else:
             self.mode = "free"
             self.departing = s
@@ -642,9 +649,12 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
         only where its function changes sign between two steps, and a stuck
         mass's equations alone would let it step over the dither's peaks.
     inverse : float, optional
-        static-backlash only: a backlash inverse's estimated play h_hat. The
-        controller then sees ``y + k h_hat/2 s`` for y, s the side of the
-        last engagement (0 before any); s is set where the mass engages.
+        backlash and static-backlash: a backlash inverse's estimated play
+        h_hat. The controller then sees ``y + k h_hat/2 s`` for y (k = 1 for
+        the backlash), s the side of the play's last touch (0 before any):
+        set where the mass reaches an edge of the play (static-backlash) or
+        M2 a wall (backlash), and at t = 0 on one, before the event's own
+        logic (which sees the force it makes).
 
     Returns
     -------
@@ -725,8 +735,8 @@ def closed_loop_reference(plant, b, a, t_end, params=None, state=None, method="D
                        _check("w_d", dither[1], lambda v: v > 0.0, "must be > 0"))
         max_step = min(max_step, 2.0 * math.pi / p["dither"][1] / 32.0)
     if inverse is not None:
-        if plant != "static-backlash":
-            raise PlantError(f"inverse = {inverse!r}: static-backlash only")
+        if plant == "friction":
+            raise PlantError(f"inverse = {inverse!r}: a plant with a play only (backlash, static-backlash)")
         p["inverse"] = _check("inverse", inverse, lambda v: v >= 0.0, "must be >= 0")
     X0 = _initial_state(plant, p, n, state)
     loop = _CLASSES[plant](b, a, X0, p, method, rtol, atol, max_step, max_events)

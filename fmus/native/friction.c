@@ -369,7 +369,7 @@ static const char *const LOOP_COORDINATES[] = {"x", "v"};
 static const dfwb_loop_class LOOP = {2, 0, DFWB_LOOP_FRICTION_PARAMS, 4, "a friction mass", LOOP_COORDINATES,
                                             "('x', 'v')", loop_check, NULL, dfwb_friction_loop_mode, dfwb_friction_loop_initial,
                                             dfwb_friction_loop_fire, 3, NULL, NULL, -1, dfwb_friction_loop_slip,
-                                            DFWB_EVENT_BAND, "FrictionLoop", NULL, NULL};
+                                            DFWB_EVENT_BAND, "FrictionLoop", NULL, NULL, NULL};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* FrictionMass.__init__, then PiecewisePlant's: the order of the Python constructor */

@@ -44,8 +44,8 @@ struct dfwb_loop {
     int has_dither;
     double a_d, w_d;
     /* the backlash inverse (has_inverse: h_hat > 0): the controller sees y + w, w the correction after the
-     * dither's oscillator in the solver's state, set to half_play h_hat s where the loop enters a mode of contact
-     * s of the play (the class's contact) */
+     * dither's oscillator in the solver's state, set to half_play h_hat s where the play touches its side s (the
+     * class's contact and wall), before the plant's logic */
     int has_inverse;
     double h_hat;
 };
@@ -95,9 +95,11 @@ struct dfwb_loop_class {
     int (*slip)(int key);
     int rest_kind;
     const char *python_name;
-    /* The side of the play in contact in mode key (CONTACTS: -1, +1; 0 none), and half the play in the output's
-     * units per unit of h (half_play); NULL: a plant without a play (no backlash inverse). */
-    int (*contact)(int key);
+    /* The side of the play an event of kind touches (CONTACTS: -1, +1; 0 none), the side whose wall a state sits
+     * on (wall: the side at t = 0), and half the play in the output's units per unit of h (half_play); NULL: a
+     * plant without a play (no backlash inverse). */
+    int (*contact)(int kind);
+    int (*wall)(const dfwb_loop *L, const double *X);
     double (*half_play)(const dfwb_loop *L);
 };
 

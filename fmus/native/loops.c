@@ -130,23 +130,18 @@ double dfwb_loop_feedback(const dfwb_loop *L, const double *X)
     return L->D * (X[L->out] + (L->has_inverse ? X[inverse_at(L)] : 0.0)) + s;
 }
 
-/* FeedbackLoop._contact: a backlash inverse's correction in X where mode key is a contact of the play. */
-static void contact(const dfwb_loop *L, int key, double *X)
+/* FeedbackLoop._contact: a backlash inverse's correction in X where the play touched its side (0: none). */
+static void contact(const dfwb_loop *L, int side, double *X)
 {
-    const int side = L->has_inverse ? L->cls->contact(key) : 0;
-    if (side)
+    if (L->has_inverse && side)
         X[inverse_at(L)] = L->cls->half_play(L) * L->h_hat * (double)side;
 }
 
 /* -- the switching logic: the plant's (initial at t = 0, _fire) ------------------------------------------- */
 static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
 {
-    int rc;
     *departing = -1;
-    rc = L->cls->initial(L, X, key, departing, err);
-    if (rc == DFWB_OK)
-        contact(L, *key, X);
-    return rc;
+    return L->cls->initial(L, X, key, departing, err);
 }
 
 /* The deadband's side, and the hybrid's variant that keys its modes: band 1 (or none) 0, band 0 1, band -1 2. */
@@ -203,17 +198,15 @@ static int cross_edge(dfwb_loop *L, double *X, int *key, int *departing, dfwb_er
 static int loop_fire(dfwb_hy *hy, double t, int kind, double *X, int *key, int *departing, dfwb_err *err)
 {
     dfwb_loop *L = (dfwb_loop *)(void *)hy;
-    int rc;
     (void)t;
     *departing = -1;
     if (kind == DFWB_EVENT_DEADBAND)
         return cross_edge(L, X, key, departing, err);
     if (L->reset && kind == L->cls->rest_kind)
         reset_integrator(L, X);
-    rc = L->cls->fire(L, kind, X, key, departing, err);
-    if (rc == DFWB_OK)
-        contact(L, *key, X);
-    return rc;
+    if (L->has_inverse) /* the play's touch: the correction jumps before the plant's logic, which sees its force */
+        contact(L, L->cls->contact(kind), X);
+    return L->cls->fire(L, kind, X, key, departing, err);
 }
 
 /* The loop class of a plant kind (NULL: none). */
@@ -466,8 +459,12 @@ int dfwb_loop_new(int plant, const double *params, size_t nparams, const double 
         return rc;
     }
     setup(L, section);
-    if (L->d > 0.0) /* the deadband's side at t = 0 */
-        set_band(L, fabs(X[L->out]) < L->d ? 0 : X[L->out] > 0.0 ? 1 : -1);
+    if (L->has_inverse) /* a start on a wall of the play has touched it */
+        contact(L, L->cls->wall(L, X), X);
+    if (L->d > 0.0) { /* the deadband's side at t = 0 (of y + w) */
+        const double y = X[L->out] + (L->has_inverse ? X[inverse_at(L)] : 0.0);
+        set_band(L, fabs(y) < L->d ? 0 : y > 0.0 ? 1 : -1);
+    }
     rc = loop_initial(L, X, &key, &departing, &err);
     if (rc == DFWB_OK)
         rc = dfwb_hy_start(&L->hy, 0.0, X, key, departing, &err);
@@ -979,18 +976,17 @@ int dfwb_loop_from_bytes(int plant, const unsigned char *buf, size_t len, dfwb_l
     memcpy(L->hy.d21, s.hy.d21, sizeof L->hy.d21);
     memcpy(L->hy.peak, s.hy.peak, sizeof L->hy.peak);
     L->hy.next_h = s.hy.next_h;
-    if (L->has_inverse) { /* the correction: 0 before the play's first contact, else a side's, the mode's in one */
+    if (L->has_inverse) { /* the correction: 0 before the play's first touch, else a side's */
         const double w = L->hy.X[inverse_at(L)], half = L->cls->half_play(L) * L->h_hat;
-        const int side = L->cls->contact(L->hy.key);
-        rc = dfwb_state_check(&err, "backlash inverse's correction", w, side ? w == half * (double)side
-                              : w == 0.0 || fabs(w) == half, "must be 0 or +-k h_hat/2, the side of the contact");
+        rc = dfwb_state_check(&err, "backlash inverse's correction", w, w == 0.0 || fabs(w) == half,
+                              "must be 0 or +-h_hat/2 in the output's units, the side of the play's last touch");
     }
     if (rc == DFWB_OK)
         rc = dfwb_hy_resume(&L->hy, &err);
     if (rc == DFWB_OK && L->d > 0.0) { /* the side the output is on (to rounding: a state read at an edge) */
         double X[DFWB_HY_DIM], y;
         dfwb_hy_state(&L->hy, X);
-        y = X[L->out];
+        y = X[L->out] + (L->has_inverse ? X[inverse_at(L)] : 0.0); /* what the controller sees */
         rc = dfwb_state_check_int(&err, "deadband side", L->band, L->band == 0
                                   ? fabs(y) <= L->d * (1.0 + 1e-9) : (double)L->band * y >= L->d * (1.0 - 1e-9),
                                   "must be the output's: 0 within |y| < d, else the sign of y");

@@ -303,10 +303,16 @@ static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing
     return loop_engage(L, kind == DFWB_EVENT_ENGAGE_UP ? 1 : -1, X, 1, key, departing, err);
 }
 
-/* StaticBacklashLoop.CONTACTS and half_play: x drags y up / down; k / 2 */
-static int loop_contact(int key)
+/* StaticBacklashLoop.CONTACTS, wall and half_play: x reaches the upper / lower edge; k / 2 */
+static int loop_contact(int kind)
 {
-    return key == DFWB_LOOP_ENGAGED_UP ? 1 : key == DFWB_LOOP_ENGAGED_DOWN ? -1 : 0;
+    return kind == DFWB_EVENT_ENGAGE_UP ? 1 : kind == DFWB_EVENT_ENGAGE_DOWN ? -1 : 0;
+}
+
+static int loop_wall(const dfwb_loop *L, const double *X)
+{
+    const double play = X[0] - X[2] / L->par[1], edge = 0.5 * L->par[2] * (1.0 - 1e-12); /* as initial snaps */
+    return play >= edge ? 1 : -play >= edge ? -1 : 0;
 }
 
 static double loop_half_play(const dfwb_loop *L) { return 0.5 * L->par[1]; }
@@ -316,7 +322,8 @@ static const char *const LOOP_COORDINATES[] = {"x", "v", "y"};
 static const dfwb_loop_class LOOP = {3, 2, DFWB_LOOP_STATIC_BACKLASH_PARAMS, 3, "a static backlash",
                                                    LOOP_COORDINATES, "('x', 'v', 'y')", loop_check, loop_check_state,
                                                    loop_mode, loop_initial, loop_fire, 3, NULL, NULL, -1, NULL, 0,
-                                                   "StaticBacklashLoop", loop_contact, loop_half_play};
+                                                   "StaticBacklashLoop", loop_contact, loop_wall,
+                                                   loop_half_play};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* StaticBacklash.__init__, then PiecewisePlant's: the order of the Python constructor */

@@ -210,7 +210,7 @@ static const char *const LOOP_COORDINATES[] = {"x", "v"};
 static const dfwb_loop_class LOOP = {2, 0, DFWB_LOOP_STRIBECK_PARAMS, 7, "a Stribeck mass", LOOP_COORDINATES,
                                      "('x', 'v')", loop_check, NULL, loop_mode, dfwb_friction_loop_initial,
                                      dfwb_friction_loop_fire, 3, drop, drop_slope, 6, dfwb_friction_loop_slip,
-                                     DFWB_EVENT_BAND, "StribeckLoop", NULL, NULL};
+                                     DFWB_EVENT_BAND, "StribeckLoop", NULL, NULL, NULL};
 
 static const dfwb_stribeck zero_state; /* zeros (static): the state's size is counted on it */
 

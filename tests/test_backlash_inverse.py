@@ -1,0 +1,120 @@
+"""The backlash inverse in the exact loop (issue 33): the controller sees ``y + k h_hat/2 s``, s the side of the
+play's last contact.
+
+Checked against the independent reference (:func:`dfwb.plants.loop_reference.closed_loop_reference` with
+``inverse``: solve_ivp between events, the correction a number the reference's engagement sets, written apart
+from dfwb's coordinate of the loop state) on the static backlash under the lead ``20 (s + 2)/(s + 20)``, which
+hunts uncompensated (7.0 s, 0.107 m).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import dfwb
+from dfwb.fmus.backlash import BacklashLoop
+from dfwb.fmus.compensation import BacklashInverse
+from dfwb.fmus.static_backlash import StaticBacklashLoop
+from dfwb.plants.loop_reference import closed_loop_reference
+
+LEAD = ([20.0, 40.0], [20.0])  # 20 (s + 2)/(s + 20) in (b, a)
+H = 0.1  # the static backlash's play (its default)
+
+
+def reference(h_hat, t_end, **more):
+    return closed_loop_reference("static-backlash", *LEAD, t_end, inverse=h_hat, max_events=100_000, **more)
+
+
+# -- the loop ------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("h_hat, start", [(0.05, {"x0": 0.3}), (H, {"x0": 0.3}), (0.2, {"x0": -0.3}),
+                                          (H, {"state": [0.04, 0.5, 0.0, 0.0]})])
+def test_the_compensated_loop_fires_the_references_events(h_hat, start):
+    loop = StaticBacklashLoop(*LEAD, **start, compensation=BacklashInverse(h_hat))
+    loop.event_log = []
+    times = np.linspace(0.0, 60.0, 31)
+    states = loop.sample(list(times))
+    params = {"x0": start["x0"]} if "x0" in start else None
+    ref = reference(h_hat, 60.0, params=params, state=start.get("state"), t_eval=times)
+    assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
+    assert len(loop.event_log) > 20
+    assert max(abs(t - u) for (t, _), (u, _) in zip(loop.event_log, ref["events"])) < 1e-9
+    assert np.allclose(states, ref["samples"], rtol=0.0, atol=1e-9)  # the correction is not in the state
+
+
+@pytest.mark.parametrize("h_hat, eps, start", [(0.1, 0.8, {"x1_0": 0.03}), (0.05, 0.0, {"x1_0": 0.03}),
+                                               (0.2, 0.0, {"x1_0": 0.03, "gap0": 0.0})])
+def test_the_two_mass_backlash_fires_the_references_events(h_hat, eps, start):
+    """The two masses (impacts with restitution eps; plastic, eps = 0, with contact phases; a start on a wall):
+    the controller sees x1 + h_hat/2 s, s the wall of M2's last touch, set before the impact's logic (which
+    decides contact or flight with the force that follows)."""
+    G = ([200.0, 400.0], [20.0])  # 200 (s + 2)/(s + 20)
+    loop = BacklashLoop(*G, eps=eps, **start, compensation=BacklashInverse(h_hat))
+    loop.event_log = []
+    times = np.linspace(0.0, 5.0, 26)
+    states = loop.sample(list(times))
+    ref = closed_loop_reference("backlash", *G, 5.0, dict(start, eps=eps), inverse=h_hat, t_eval=times,
+                                max_events=100_000)
+    assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
+    assert len(loop.event_log) > 20
+    assert max(abs(t - u) for (t, _), (u, _) in zip(loop.event_log, ref["events"])) < 1e-9
+    assert np.allclose(states, ref["samples"], rtol=0.0, atol=1e-9)
+
+
+def test_with_the_true_play_the_controller_sees_the_mass_while_the_play_is_closed():
+    """h_hat = h: engaged, y + w = k x exactly (y = k (x - s h/2), w = k h s/2); inside the play it holds the
+    value of the last contact, and an inverse of 0 is no inverse, bit for bit."""
+    loop = StaticBacklashLoop(*LEAD, x0=0.3, compensation=BacklashInverse(H))
+    seen = {"engaged": 0, "free": 0}
+    for t in np.linspace(0.05, 30.0, 600):
+        loop.advance(float(t))
+        X = loop._integrated()
+        x, y, w = X[0], X[2], X[-1]
+        if loop.key[0] == "engaged":
+            seen["engaged"] += 1
+            assert abs(y + w - loop.k * x) < 1e-12 and w == 0.5 * H * loop.key[1]
+        else:
+            seen["free"] += 1
+            assert abs(w) == 0.5 * H or w == 0.0
+    assert min(seen.values()) > 50
+    plain, none = (StaticBacklashLoop(*LEAD, x0=0.3, compensation=c) for c in (None, BacklashInverse(0.0)))
+    plain.advance(30.0)
+    none.advance(30.0)
+    assert plain.state() == none.state() and plain.events == none.events
+
+
+# -- the truth: its hunting cycles, against long independent simulations --------------------------------------
+@pytest.fixture(scope="module")
+def found():
+    return {h_hat: dfwb.limit_cycles("static-backlash", "20*(s+2)/(s+20)", exact=True, compensate="backlash-inverse",
+                                     h_hat=h_hat) for h_hat in (H, 0.2)}
+
+
+@pytest.mark.parametrize("h_hat, omega, amplitude", [(H, 1.175402538, 0.0233804351), (0.2, 1.716257481, 0.0112846222)])
+def test_the_inverse_shrinks_the_hunting_but_does_not_stop_it(found, h_hat, omega, amplitude):
+    """One stable cycle, checked against the reference run 200 s from x0 = 0.3: its period from the late upward
+    engagements and its output's first harmonic over the last period (20000 samples) to 1e-6; its section
+    state (just after an upward engagement) to 1e-8. Uncompensated the loop hunts at 0.107 m."""
+    result = found[h_hat]
+    cycles = result.cycles
+    assert len(cycles) == 1 and cycles[0].stable and result.coverage.complete
+    cycle = cycles[0]
+    assert cycle.omega == pytest.approx(omega, rel=1e-8) and cycle.amplitude_x == pytest.approx(amplitude, rel=1e-8)
+    ups = [t for t, kind in reference(h_hat, 200.0, params={"x0": 0.3})["events"] if kind == "engage+"]
+    assert abs(ups[-1] - ups[-2] - cycle.period) < 1e-6 * cycle.period
+    t1 = ups[-1]
+    times = np.linspace(t1 - cycle.period, t1, 20001)
+    ref = reference(h_hat, float(t1), params={"x0": 0.3}, t_eval=np.append(times, t1))
+    y = ref["samples"][:-1, 2]
+    first = 2.0 * abs(np.mean(y[:-1] * np.exp(-1j * cycle.omega * times[:-1])))
+    assert abs(first - cycle.amplitude_x) < 1e-6 * cycle.amplitude_x
+    on_section = ref["samples"][-1]  # the state at the engagement (y on the edge, z, no correction)
+    assert np.allclose(on_section, cycle.state, rtol=0.0, atol=1e-8)
+
+
+def test_a_cycle_is_reached_from_every_start_and_costs_a_standing_oscillation(found):
+    result = found[H]
+    assert result.coverage.outcomes == {"cycle": result.coverage.starts}
+    assert result.cost.settling_time is None and result.cost.peak_force > 0.0
+    text = str(result)
+    assert "compensated by backlash-inverse (h_hat = 0.1)" in text and "1 true cycle" in text
