@@ -232,7 +232,7 @@ class BacklashLoop(FeedbackLoop):
     MODE_OUTPUT = TABLE.outputs[5]  # contact
     COUNTER = TABLE.outputs[6]  # impacts
     SECTION = (((FLIGHT, EventKind.WALL_LOWER),), ((FLIGHT, EventKind.WALL_UPPER),))  # an impact at 0, then at h
-    CONTACTS = {EventKind.WALL_UPPER: 1, EventKind.WALL_LOWER: -1}  # M2 reaches the upper wall (drags M1 up) / the lower
+    CONTACTS = {EventKind.WALL_UPPER: 1, EventKind.WALL_LOWER: -1}  # M2 reaches the upper wall (drags M1 up) / lower
     PIVOT = 2  # gap = h
 
     def pivot(self, X):

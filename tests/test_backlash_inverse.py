@@ -7,8 +7,6 @@ from dfwb's coordinate of the loop state) on the static backlash under the lead 
 hunts uncompensated (7.0 s, 0.107 m).
 """
 
-import math
-
 import numpy as np
 import pytest
 
