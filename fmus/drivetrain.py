@@ -330,6 +330,7 @@ class DrivetrainLoop(FeedbackLoop):
     fmu_values = staticmethod(BacklashLoop.fmu_values)
     coordinates_of = staticmethod(BacklashLoop.coordinates_of)
     check_coordinates, still = BacklashLoop.check_coordinates, BacklashLoop.still
+    CONTACTS, wall, half_play = BacklashLoop.CONTACTS, BacklashLoop.wall, BacklashLoop.half_play  # the inverse's
     plant = Drivetrain
     KEYS = tuple(_key(side, s) for side in (FREE, LOWER, UPPER) for s in (-1, 0, 1))
     MODE_VALUES = {_key(side, s): 10 * side + s for side in (FREE, LOWER, UPPER) for s in (-1, 0, 1)}

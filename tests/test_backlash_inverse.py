@@ -13,6 +13,7 @@ import pytest
 import dfwb
 from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.compensation import BacklashInverse
+from dfwb.fmus.drivetrain import DrivetrainLoop
 from dfwb.fmus.static_backlash import StaticBacklashLoop
 from dfwb.plants.loop_reference import closed_loop_reference
 
@@ -56,6 +57,21 @@ def test_the_two_mass_backlash_fires_the_references_events(h_hat, eps, start):
     assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
     assert len(loop.event_log) > 20
     assert max(abs(t - u) for (t, _), (u, _) in zip(loop.event_log, ref["events"])) < 1e-9
+    assert np.allclose(states, ref["samples"], rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("h_hat, eps", [(0.1, 0.8), (0.05, 0.0)])
+def test_the_drivetrain_without_load_friction_is_the_two_mass_backlash_with_its_inverse(h_hat, eps):
+    """The drivetrain's play is the two-mass backlash's (its inverse the same); with B = Fc = Fs = 0 it follows
+    the reference's two-mass backlash event for event (no reference has the load's friction)."""
+    G, p = ([200.0, 400.0], [20.0]), {"M1": 1.0, "M2": 1.0, "h": 0.1, "eps": eps, "x1_0": 0.03}
+    loop = DrivetrainLoop(*G, B=0.0, Fc=0.0, Fs=0.0, **p, compensation=BacklashInverse(h_hat))
+    loop.event_log = []
+    times = np.linspace(0.0, 5.0, 26)
+    states = loop.sample(list(times))
+    ref = closed_loop_reference("backlash", *G, 5.0, p, inverse=h_hat, t_eval=times, max_events=100_000)
+    assert [str(kind) for _t, kind in loop.event_log] == [kind for _t, kind in ref["events"]]
+    assert len(loop.event_log) > 20
     assert np.allclose(states, ref["samples"], rtol=0.0, atol=1e-9)
 
 

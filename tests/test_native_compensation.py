@@ -22,6 +22,7 @@ from dfwb.engine.dither import find_responses
 from dfwb.engine.periodic import LoopProblem
 from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.compensation import BacklashInverse, Coulomb, Deadband, Dither, Reset
+from dfwb.fmus.drivetrain import DrivetrainLoop
 from dfwb.fmus.exact import PlantError
 from dfwb.fmus.friction import FrictionLoop
 from dfwb.fmus.hybrid import Budget
@@ -36,9 +37,9 @@ HUNTS = ([10.0, 2.0], [0.0])  # 10 + 2/s: the friction mass hunts (period 57 s)
 LEAD_PI = ([20.0, 40.0, 10.0], [20.0, 0.0])  # (20 s^2 + 40 s + 10) / (s (s + 20))
 LEAD_20 = ([20.0, 40.0], [20.0])  # 20 (s + 2)/(s + 20): the static backlash hunts (period 7.0 s)
 PYTHON = {"friction": FrictionLoop, "backlash": BacklashLoop, "static-backlash": StaticBacklashLoop,
-          "stribeck": StribeckLoop}
+          "stribeck": StribeckLoop, "drivetrain": DrivetrainLoop}
 NATIVE = {"friction": "FrictionLoop", "backlash": "BacklashLoop", "static-backlash": "StaticBacklashLoop",
-          "stribeck": "StribeckLoop"}
+          "stribeck": "StribeckLoop", "drivetrain": "DrivetrainLoop"}
 
 CASES = {  # (plant, G, parameters, compensation, t_end): every compensator, each kind of event
     "deadband holds": ("friction", HUNTS, {"x0": 0.7}, Deadband(0.2), 200.0),
@@ -70,6 +71,7 @@ CASES = {  # (plant, G, parameters, compensation, t_end): every compensator, eac
     "backlash inverse, plastic": ("backlash", LEAD, {"eps": 0.0, "x1_0": 0.03}, BacklashInverse(0.05), 5.0),
     "backlash inverse on a wall at t = 0": ("backlash", PID, {"gap0": 0.1, "x1_0": 0.03},
                                             [BacklashInverse(0.1), Deadband(0.01)], 5.0),
+    "drivetrain backlash inverse": ("drivetrain", PID, {"x1_0": 0.03}, BacklashInverse(0.1), 5.0),
 }
 
 

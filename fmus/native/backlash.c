@@ -355,18 +355,19 @@ static int loop_at_wall(dfwb_loop *L, int sigma, double *X, int *key, int *depar
     return DFWB_OK;
 }
 
-/* BacklashLoop.CONTACTS, wall and half_play: M2 reaches the upper wall (drags M1 up) / the lower; 1/2 */
-static int loop_contact(int kind)
+/* BacklashLoop.CONTACTS, wall and half_play (the drivetrain's too): M2 reaches the upper wall (drags M1 up) / the
+ * lower; 1/2 */
+int dfwb_loop_gap_contact(int kind)
 {
     return kind == DFWB_EVENT_WALL_UPPER ? 1 : kind == DFWB_EVENT_WALL_LOWER ? -1 : 0;
 }
 
-static int loop_wall(const dfwb_loop *L, const double *X)
+int dfwb_loop_gap_wall(const dfwb_loop *L, const double *X)
 {
     return 0.0 < X[2] && X[2] < L->par[2] ? 0 : X[2] <= 0.0 ? -1 : 1; /* as initial puts it */
 }
 
-static double loop_half_play(const dfwb_loop *L)
+double dfwb_loop_gap_half_play(const dfwb_loop *L)
 {
     (void)L;
     return 0.5;
@@ -406,8 +407,8 @@ static const char *const LOOP_COORDINATES[] = {"x1", "v1", "gap", "w"};
 
 static const dfwb_loop_class LOOP = {4, 0, DFWB_LOOP_BACKLASH_PARAMS, 6, "a two-mass backlash", LOOP_COORDINATES,
                                             "('x1', 'v1', 'gap', 'w')", loop_check, loop_check_state, loop_mode,
-                                            loop_initial, loop_fire, 3, NULL, NULL, -1, NULL, 0, "BacklashLoop", loop_contact, loop_wall,
-                                            loop_half_play};
+                                            loop_initial, loop_fire, 3, NULL, NULL, -1, NULL, 0, "BacklashLoop", dfwb_loop_gap_contact,
+                                            dfwb_loop_gap_wall, dfwb_loop_gap_half_play};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* TwoMassBacklash.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */

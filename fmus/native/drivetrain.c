@@ -676,7 +676,8 @@ static const char *const LOOP_COORDINATES[] = {"x1", "v1", "gap", "w"};
 
 static const dfwb_loop_class LOOP = {4, 0, DFWB_LOOP_DRIVETRAIN_PARAMS, 9, "a drivetrain", LOOP_COORDINATES,
                                      "('x1', 'v1', 'gap', 'w')", loop_check, loop_check_state, loop_mode,
-                                     loop_initial, loop_fire, 9, NULL, NULL, -1, NULL, 0, "DrivetrainLoop", NULL, NULL, NULL};
+                                     loop_initial, loop_fire, 9, NULL, NULL, -1, NULL, 0, "DrivetrainLoop",
+                                     dfwb_loop_gap_contact, dfwb_loop_gap_wall, dfwb_loop_gap_half_play};
 
 /* -- the class ------------------------------------------------------------------------------------ */
 /* Drivetrain.__init__, then PiecewisePlant's: the order of the Python constructor (gap0 given: None is h/2) */

@@ -103,4 +103,10 @@ struct dfwb_loop_class {
     double (*half_play)(const dfwb_loop *L);
 };
 
+/* The contact, wall and half_play of a play between two masses, the gap g = q[2] in [0, h = par[2]] (the two-mass
+ * backlash's and the drivetrain's; backlash.c). */
+int dfwb_loop_gap_contact(int kind);
+int dfwb_loop_gap_wall(const dfwb_loop *L, const double *X);
+double dfwb_loop_gap_half_play(const dfwb_loop *L);
+
 #endif /* DFWB_LOOP_H */
