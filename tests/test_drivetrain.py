@@ -190,3 +190,24 @@ def test_a_state_beyond_the_resolution_of_time_is_refused_in_one_line(core):
         with pytest.raises(PlantError, match=r"^more than 1000 events within 64 ulp of each other at t = .*: the "
                                              r"motion chatters below the resolution of time$"):
             plant.advance(1e-6)
+
+
+def test_a_motion_that_never_crosses_the_section_is_not_called_rest():
+    """Without load friction the drivetrain is the two-mass backlash, which hunts under 200 (s + 2)/(s + 20) at
+    12.73 rad/s with impacts only: the load never stops, so the drivetrain's section (the load's stops) is never
+    hit. A wait without a hit whose last quarter fired events is no rest: every run moves on, the search proves no
+    absence (it said "36 rest", no cycle, before), where the two-mass backlash finds the cycle."""
+    from dfwb.engine.cycles import find_cycles
+    from dfwb.engine.periodic import LoopProblem
+
+    G = "200*(s+2)/(s+20)"
+    frictionless = find_cycles(LoopProblem("drivetrain", G, {"B": 0.0, "Fc": 0.0, "Fs": 0.0}), [],
+                               amplitudes=[0.01, 0.1])
+    assert frictionless.coverage.outcomes == {"moving": frictionless.coverage.starts}
+    assert not frictionless.coverage.settled and not frictionless.cycles
+    assert "INCOMPLETE: runs moved on without crossing the section" in frictionless.coverage.summary()
+    assert all("it moves without crossing the section" in fate.detail for fate in frictionless.fates)
+    backlash = find_cycles(LoopProblem("backlash", G), [], amplitudes=[0.01, 0.1])
+    assert [round(c.omega, 4) for c in backlash.cycles] == [12.7335]
+    stuck = find_cycles(LoopProblem("drivetrain", G), [], amplitudes=[0.01])  # the load sticks: at rest
+    assert stuck.coverage.outcomes == {"rest": stuck.coverage.starts}

@@ -59,7 +59,7 @@ MAX_BOUNDARIES = 4  # basin boundaries searched, at most
 SAME_CYCLE = 1e-6  # two cycles with w and X this close (relative) are one
 Z_CAP = 1e6  # a controller state is displaced at most this many times its size in a motion of the start amplitude
 LINK_FACTOR = 2.0  # a prediction and a true cycle within this factor in w and X may be linked
-OUTCOMES = ("cycle", "rest", "diverged", "unsettled", "failed")
+OUTCOMES = ("cycle", "rest", "diverged", "unsettled", "moving", "failed")
 
 
 @dataclass
@@ -144,8 +144,9 @@ class Coverage:
 
     @property
     def settled(self):
-        """Whether every start came to a verdict: the budget lasted and no run failed (else absence is unproven)."""
-        return self.complete and not self.outcomes.get("failed")
+        """Whether every start came to a verdict: the budget lasted, no run failed and none moved on without
+        crossing the section (else absence is unproven)."""
+        return self.complete and not self.outcomes.get("failed") and not self.outcomes.get("moving")
 
     def summary(self, unit="m"):
         """One line: what was searched."""
@@ -156,8 +157,19 @@ class Coverage:
         runs = self.runs_text or f"each up to {self.max_returns} section hits, at most {self.horizon:.4g} s apart"
         return (f"searched {self.starts} runs: {starts}" + (f", {self.predictions} DF predictions" if self.predictions
                                                          else "") +
-                f"; {runs} ({outcomes})" + ("" if self.complete else "; INCOMPLETE: " + (
-                    "runs did not settle" if self.outcomes.get("unsettled") else "the work budget ran out")))
+                f"; {runs} ({outcomes})" + self._incomplete())
+
+    def _incomplete(self):
+        """Why the search proves no absence ("; INCOMPLETE: ..."), or "" where it does."""
+        if self.complete and not self.outcomes.get("moving"):
+            return ""
+        if self.outcomes.get("moving"):
+            why = "runs moved on without crossing the section (a motion it cannot see)"
+        elif self.outcomes.get("unsettled"):
+            why = "runs did not settle"
+        else:
+            why = "the work budget ran out"
+        return "; INCOMPLETE: " + why
 
 
 @dataclass
@@ -297,13 +309,18 @@ class _Search:
         hits, tried = [], {}
         for count in range(1, self.max_returns + 1):
             try:
-                hit = problem.hit(solver, self.horizon)
+                waited = problem.wait(solver, self.horizon)
             except PlantError as error:
                 return refused(problem, solver, label, count - 1, error)
+            hit = waited == "hit"
             X = np.array(solver.state())
             if not abs(X[problem.output]) <= self.divergence:  # at a hit, or drifting away without one
                 return Fate(label, "diverged", hits=count - int(not hit), time=solver.t,
                             detail=f"the output reached {X[problem.output]:.3g}")
+            if waited == "moving":  # never "rest" (nor "no cycle") while it moves: the search is incomplete
+                return Fate(label, "moving", hits=count - 1, time=solver.t,
+                            detail=f"no section hit within {self.horizon:.4g} s, yet events still fire: it moves "
+                                   "without crossing the section")
             if not hit:
                 return Fate(label, "rest", hits=count - 1, time=solver.t,
                             detail=f"no section hit within {self.horizon:.4g} s")

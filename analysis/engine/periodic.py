@@ -57,6 +57,7 @@ MAX_NEWTON = 40
 FD_STEP = 1e-7  # relative to each coordinate's swing (forward differences during Newton)
 FD_STEP_FINAL = 1e-5  # central differences for the multipliers
 GAUSS_NODES = 16
+QUIET = 0.25  # a wait for the section without a hit is rest only if this last part of it fired no event
 MAX_CHUNKS = 10_000_000  # a problem's work (seconds in C): a search of a slow hunting loop needs 1e5 to 2e6
 
 
@@ -323,12 +324,24 @@ class LoopProblem:
     # -- the section ------------------------------------------------------------------------
     def hit(self, solver, horizon):
         """Advance ``solver`` to its next hit of the section within ``horizon`` s: True, or False (none in time)."""
+        return self.wait(solver, horizon) == "hit"
+
+    def wait(self, solver, horizon):
+        """Advance ``solver`` to its next hit of the section within ``horizon`` s: ``"hit"``; else ``"rest"``
+        where the last :data:`QUIET` of the wait fired no event, ``"moving"`` where it did (a motion that never
+        crosses the section, which no wait turns into rest)."""
         deadline = solver.t + horizon
+        quiet_from = deadline - QUIET * horizon
         for leg in self.legs:
+            if solver.t < quiet_from:
+                solver.advance(quiet_from, stop_at=leg)
+                if solver.stopped is not None:
+                    continue
+            events = solver.events
             solver.advance(deadline, stop_at=leg)
             if solver.stopped is None:
-                return False
-        return True
+                return "rest" if solver.events == events else "moving"
+        return "hit"
 
     def reduced(self, X):
         """The section's coordinates u of a state on it (the pivot left out)."""
