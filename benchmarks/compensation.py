@@ -15,6 +15,9 @@ The loop: the friction mass (default parameters) under PI. Reported, never asser
     compensate="dither", jobs=2, cache=False)``, M = 8 (``--quick``: 4): the stroboscopic search and the cost
     in every cell (no target in the issue); and one cell's search (a = 1 N, w_d = 5 rad/s, 20 starts) on the
     compiled loop and on the Python loop, side by side.
+(d) **a backlash inverse's map**: ``dfwb.hunting_map("static-backlash", "20*(s+a)/(s+20)", ("h_hat", 0, 0.3, M),
+    ("a", 0.5, 8, M), compensate="backlash-inverse", jobs=2, cache=False, curves=False)``: the truth and the cost
+    in every cell (no target in the issue).
 
 Usage: ``.venv/bin/python benchmarks/compensation.py [--quick] [--out out/bench_compensation]``; writes
 ``compensation.md`` and ``compensation.json`` there.
@@ -77,6 +80,9 @@ def main(argv=None):
         dithered, t_dithered = timed(lambda: dfwb.hunting_map(
             "friction", "10 + 2/s", ("a", 0.5, 10, m), ("w_d", 1, 9, m), compensate="dither", jobs=2, cache=False,
             out_dir=Path(folder) / "dithered"))
+        inverse, t_inverse = timed(lambda: dfwb.hunting_map(
+            "static-backlash", "20*(s+a)/(s+20)", ("h_hat", 0, 0.3, m), ("a", 0.5, 8, m),
+            compensate="backlash-inverse", jobs=2, cache=False, curves=False, out_dir=Path(folder) / "inverse"))
     (t_cell_c, outcomes_c), (t_cell_py, outcomes_py) = dither_cell(True), dither_cell(False)
     tuned, t_tune = timed(lambda: dfwb.tune("friction", "Kp + Ki/s", compensate="deadband",
                                             free={"Kp": (2, 50), "Ki": (0.2, 10), "d": (0.01, 0.5)}, tolerance=0.1,
@@ -93,6 +99,8 @@ def main(argv=None):
                  "target": TARGETS["tune"]},
         "dithered_map": {"seconds": t_dithered, "cells": m * m, "per_cell": t_dithered / (m * m),
                          "classes": dithered.classes("truth").ravel().tolist()},
+        "inverse_map": {"seconds": t_inverse, "cells": m * m, "per_cell": t_inverse / (m * m),
+                        "classes": inverse.classes("truth").ravel().tolist()},
         "dithered_cell": {"compiled": t_cell_c, "python": t_cell_py, "ratio": t_cell_py / t_cell_c,
                           "same_outcomes": outcomes_c == outcomes_py, "outcomes": outcomes_c},
     }
@@ -108,6 +116,8 @@ def main(argv=None):
              f"{'PASS' if t_tune <= TARGETS['tune'] else 'FAIL'} |",
              f"| dithered map {m} x {m} (a x w_d; the stroboscopic search and the cost) | {t_dithered:.1f} | "
              f"{t_dithered / (m * m) * 1e3:.0f} ms | |",
+             f"| backlash inverse's map {m} x {m} (static backlash, h_hat x a; truth and cost) | {t_inverse:.1f} | "
+             f"{t_inverse / (m * m) * 1e3:.0f} ms | |",
              f"| one dithered cell's search, compiled loop / Python loop | {t_cell_c:.2f} / {t_cell_py:.2f} | | "
              f"{t_cell_py / t_cell_c:.1f} x faster; same outcomes: {outcomes_c == outcomes_py} |", "",
              f"The compensated map takes {report['ratio']:.2f} times the uncompensated one. "

@@ -244,9 +244,10 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
         integrator holds while ``|y| < d``), ``"reset"`` (the integrator cleared when the mass comes
-        to rest) and ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
-        forced loop, :mod:`dfwb.engine.dither`); their parameters come with ``params`` like G's
-        (:mod:`dfwb.engine.compensators`).
+        to rest), ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
+        forced loop, :mod:`dfwb.engine.dither`) and ``"backlash-inverse"`` (the controller sees
+        ``y + k h_hat/2 s``, s the side of the play's last touch, ``h_hat`` [m]; plants with a play); their
+        parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`): ``exact`` is
         required; its DF is computed where the compensated plant is a plant (the feedforward of the velocity
         on the friction mass, ``F_hat <= Fc``: the mass with ``Fc - F_hat``).
@@ -349,9 +350,10 @@ def continuation(plant: Any, G: Any, parameter: str, start: float, stop: float, 
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
         integrator holds while ``|y| < d``), ``"reset"`` (the integrator cleared when the mass comes
-        to rest) and ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
-        forced loop, :mod:`dfwb.engine.dither`); their parameters come with ``params`` like G's
-        (:mod:`dfwb.engine.compensators`).
+        to rest), ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
+        forced loop, :mod:`dfwb.engine.dither`) and ``"backlash-inverse"`` (the controller sees
+        ``y + k h_hat/2 s``, s the side of the play's last touch, ``h_hat`` [m]; plants with a play); their
+        parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`), and its DF is
         followed where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
         ``F_hat <= Fc``); the parameter followed may be a compensator's.
@@ -433,9 +435,10 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
         Compensators between the controller and the plant: ``"coulomb"`` (Coulomb friction feedforward,
         parameters ``F_hat`` [N] and ``signal``, ``"velocity"`` or ``"control"``), ``"deadband"`` (the
         integrator holds while ``|y| < d``), ``"reset"`` (the integrator cleared when the mass comes
-        to rest) and ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
-        forced loop, :mod:`dfwb.engine.dither`); their parameters come with ``params`` like G's
-        (:mod:`dfwb.engine.compensators`).
+        to rest), ``"dither"`` (``a sin(w_d t)`` added to the force, ``a`` [N], ``w_d`` [rad/s]: a
+        forced loop, :mod:`dfwb.engine.dither`) and ``"backlash-inverse"`` (the controller sees
+        ``y + k h_hat/2 s``, s the side of the play's last touch, ``h_hat`` [m]; plants with a play); their
+        parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`) in every cell and
         its DF where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
         ``F_hat <= Fc``); an axis may be a compensator's parameter.

@@ -57,7 +57,9 @@ MAX_NEWTON = 40
 FD_STEP = 1e-7  # relative to each coordinate's swing (forward differences during Newton)
 FD_STEP_FINAL = 1e-5  # central differences for the multipliers
 GAUSS_NODES = 16
-QUIET = 0.25  # a wait for the section without a hit is rest only if this last part of it fired no event
+QUIET = 0.25  # a wait for the section without a hit is rest unless the output turns in this last part of it
+QUIET_SAMPLES = 8  # ... read at this many instants (a turn: changes of both signs, each beyond STILL)
+STILL = 1e-9  # of the loop's length scale: an output that moves less is still (a rest chattering at rounding)
 MAX_CHUNKS = 10_000_000  # a problem's work (seconds in C): a search of a slow hunting loop needs 1e5 to 2e6
 
 
@@ -227,6 +229,12 @@ def _loop_class(spec, fmu_dir):
     return spec.loop if core is None else getattr(core, spec.loop.__name__)
 
 
+def _turns(values, still):
+    """Whether ``values`` rise and fall (changes of both signs, each larger than ``still``)."""
+    changes = [b - a for a, b in zip(values, values[1:]) if abs(b - a) > still]
+    return any(c > 0.0 for c in changes) and any(c < 0.0 for c in changes)
+
+
 class LoopProblem:
     """A plant in feedback with G(s), f = -G(s) y: the exact loop's solvers, its return map and its cycles.
 
@@ -327,9 +335,10 @@ class LoopProblem:
         return self.wait(solver, horizon) == "hit"
 
     def wait(self, solver, horizon):
-        """Advance ``solver`` to its next hit of the section within ``horizon`` s: ``"hit"``; else ``"rest"``
-        where the last :data:`QUIET` of the wait fired no event, ``"moving"`` where it did (a motion that never
-        crosses the section, which no wait turns into rest)."""
+        """Advance ``solver`` to its next hit of the section within ``horizon`` s: ``"hit"``; else ``"moving"``
+        where, in the last :data:`QUIET` of the wait, events fired and the output turned (a motion that never
+        crosses the section, as an oscillation by impacts alone: no wait turns it into rest), ``"rest"``
+        otherwise (at rest, or creeping one way towards it, stick after stick)."""
         deadline = solver.t + horizon
         quiet_from = deadline - QUIET * horizon
         for leg in self.legs:
@@ -337,10 +346,15 @@ class LoopProblem:
                 solver.advance(quiet_from, stop_at=leg)
                 if solver.stopped is not None:
                     continue
-            events = solver.events
-            solver.advance(deadline, stop_at=leg)
-            if solver.stopped is None:
-                return "rest" if solver.events == events else "moving"
+            events, outputs = solver.events, [solver.output()]
+            for i in range(1, QUIET_SAMPLES + 1):
+                solver.advance(max(solver.t, quiet_from + (deadline - quiet_from) * i / QUIET_SAMPLES), stop_at=leg)
+                if solver.stopped is not None:
+                    break
+                outputs.append(solver.output())
+            else:
+                moved = solver.events > events and _turns(outputs, STILL * self.scales.length)
+                return "moving" if moved else "rest"
         return "hit"
 
     def reduced(self, X):
