@@ -7,10 +7,19 @@ from dfwb's coordinate of the loop state) on the static backlash under the lead 
 hunts uncompensated (7.0 s, 0.107 m).
 """
 
+import cmath
+import math
+
 import numpy as np
 import pytest
 
 import dfwb
+from dfwb.engine.inverse_df import InverseDFEngine
+from dfwb.fmus.contract import EventKind
+from dfwb.fmus.exact import PlantError
+from dfwb.fmus.static_backlash import StaticBacklash
+from dfwb.plants import plant
+from dfwb.plants.closed_forms import backlash_df
 from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.compensation import BacklashInverse
 from dfwb.fmus.drivetrain import DrivetrainLoop
@@ -132,3 +141,56 @@ def test_a_cycle_is_reached_from_every_start_and_costs_a_standing_oscillation(fo
     assert result.cost.settling_time is None and result.cost.peak_force > 0.0
     text = str(result)
     assert "compensated by backlash-inverse (h_hat = 0.1)" in text and "1 true cycle" in text
+
+
+# -- the DF: the static backlash seen through its inverse, in closed form -----------------------------------------
+def _sampled_df(F, omega, h_hat, M=2.0, k=1.0, h=0.1, periods=4):
+    """N of y + k h_hat/2 s from the exact plant's own harmonic integrals over its 4th period, the side s taken
+    from its engagement events: int (y + w) exp(-i w t) = I_1 + sum of the side's pieces, each in closed form."""
+    plant = StaticBacklash(M=M, k=k, h=h, F=F, omega=omega, harmonics=1)
+    plant.event_log = []
+    T = 2.0 * math.pi / omega
+    t0, t1 = (periods - 1) * T, periods * T
+    plant.advance(t0)
+    first = plant.integrals()[1]
+    plant.advance(t1)
+    total = plant.integrals()[1] - first
+    touches = [(t, 1 if kind is EventKind.ENGAGE_UP else -1) for t, kind in plant.event_log
+               if kind in (EventKind.ENGAGE_UP, EventKind.ENGAGE_DOWN)]
+    side = [s for t, s in touches if t <= t0][-1]
+    edges = [t0] + [t for t, _s in touches if t0 < t < t1] + [t1]
+    sides = [side] + [s for t, s in touches if t0 < t < t1]
+    for a, b, s in zip(edges, edges[1:], sides):
+        total += s * 0.5 * k * h_hat * 1j / omega * (cmath.exp(-1j * omega * b) - cmath.exp(-1j * omega * a))
+    return 2.0 * total / (T * F)
+
+
+@pytest.mark.parametrize("F, omega", [(50.0, 20.0), (1.0, 2.0), (3.0, 1.0), (0.3, 1.0)])
+def test_the_closed_form_df_is_the_exact_plants_seen_through_the_inverse(F, omega):
+    engine = InverseDFEngine(plant("static-backlash"))
+    for h_hat in (0.0, 0.05, 0.1, 0.2):
+        point = engine.point(F, omega, {"h_hat": h_hat})
+        assert abs(point.N - _sampled_df(F, omega, h_hat)) < 1e-12 * abs(point.N)
+    X = F / (2.0 * omega ** 2)  # without the inverse: the backlash's DF (Phillips and Harbor), the output's
+    assert engine.point(F, omega, {"h_hat": 0.0}).N == pytest.approx(-complex(backlash_df(X)) / (2.0 * omega ** 2),
+                                                                     rel=1e-14)
+    assert engine.point(F, omega, {"h_hat": 0.1}).amplitude_x == pytest.approx(abs(complex(backlash_df(X))) * X,
+                                                                              rel=1e-14)
+    assert engine.point(0.1, 10.0, {"h_hat": 0.1}).N == 0  # X = 5e-4 m < h/2: the play never closes
+    with pytest.raises(PlantError, match="h_hat = -1.0 is out of range"):
+        engine.point(1.0, 1.0, {"h_hat": -1.0})
+
+
+def test_the_df_of_the_compensated_loop_finds_its_frequency_not_its_force(found):
+    """At h_hat = h the DF's cycle is the true one's within 2 % in frequency (1.196 against 1.175 rad/s) and
+    30 % in amplitude; its force's first harmonic is 5 times smaller: the controller's force jumps by
+    D k h_hat = 2 N at each engagement, far from the DF's sine."""
+    result = found[H]
+    assert len(result.predictions) == 1 and result.links == [0]
+    prediction, cycle = result.predictions[0], result.cycles[0]
+    assert abs(prediction.omega / cycle.omega - 1.0) < 0.02 and prediction.stable
+    assert 0.2 < prediction.amplitude_x / cycle.amplitude_x - 1.0 < 0.4 and prediction.F < 0.25 * cycle.F
+    assert "the play seen through the inverse, in closed form" in str(result)
+    hunting = dfwb.hunting_map("static-backlash", "20*(s+a)/(s+20)", ("h_hat", 0.0, 0.2, 3), ("a", 1.0, 4.0, 2),
+                               compensate="backlash-inverse", jobs=1, cache=False, curves=False)
+    assert set(hunting.classes("truth").ravel()) == set(hunting.classes("df").ravel()) == {"stable"}

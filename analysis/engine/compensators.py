@@ -119,20 +119,34 @@ class Compensation:
             raise InputError(str(error)) from None
 
     def equivalent(self, spec, params, values):
-        """The parameters of the plant ``spec`` (a registered plant) whose uncompensated plant is the compensated
-        one exactly (its DF then the compensated loop's, computed as any plant's), or None where there is none.
+        """The parameters of the compensated plant's DF (its engine :meth:`df_engine`'s), or None where there is
+        none.
 
-        One case: the Coulomb feedforward of the velocity alone on the friction mass, at most its Coulomb level
-        (F_hat <= Fc). A slide then sees F_hat less friction and a stuck mass nothing (the velocity is 0): the
-        friction mass with Fc - F_hat, Fs kept. Over-compensation (a negative Coulomb level), the controller's
-        sign (a nonlinear controller) and the integrator's management (the controller's state) have none.
+        Two cases. The Coulomb feedforward of the velocity alone on the friction mass, at most its Coulomb level
+        (F_hat <= Fc): a slide then sees F_hat less friction and a stuck mass nothing (the velocity is 0), the
+        friction mass with Fc - F_hat, Fs kept, its DF computed as any plant's. The backlash inverse alone on the
+        static backlash: the plant's parameters and h_hat, its DF a closed form
+        (:mod:`dfwb.engine.inverse_df`). Over-compensation (a negative Coulomb level), the controller's sign (a
+        nonlinear controller), the integrator's management (the controller's state), a dither (a forced loop)
+        and the inverse of a play between two masses (impacts) have none.
         """
+        if self.kinds == ("backlash-inverse",) and spec.name == "static-backlash":
+            return dict(params, h_hat=dict(self.defaults, **values)["h_hat"])
         if self.kinds != ("coulomb",) or spec.name != "friction":
             return None
         merged, Fc = dict(self.defaults, **values), dict(spec.defaults(), **params)["Fc"]
         if merged["signal"] != "velocity" or not 0.0 <= merged["F_hat"] <= Fc:
             return None
         return dict(params, Fc=Fc - merged["F_hat"])
+
+    def df_engine(self, spec, engine):
+        """The engine of the compensated plant ``spec``'s DF: ``engine`` (the plant's), or the closed form of the
+        static backlash seen through its inverse."""
+        if self.kinds == ("backlash-inverse",) and spec.name == "static-backlash":
+            from dfwb.engine.inverse_df import InverseDFEngine
+
+            return InverseDFEngine(spec)
+        return engine
 
     def describe(self, values):
         """The compensators and their values as one short text: ``coulomb (F_hat = 3, signal = control), reset``."""

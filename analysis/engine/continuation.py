@@ -246,13 +246,13 @@ class PredictionSystem:
             return None, None
         try:
             G, params = self._at(value)
-            N = self.engine.point(math.exp(u), math.exp(v), params).N
+            point = self.engine.point(math.exp(u), math.exp(v), params)
         except (InputError, PlantError):
             return None, None
-        if N == 0:
+        if point.N == 0:
             return None, None  # the plant does not move: no balance
-        R = 1.0 + complex(G(1j * math.exp(v))) * N
-        return np.array([R.real, R.imag]), N
+        R = 1.0 + complex(G(1j * math.exp(v))) * point.N
+        return np.array([R.real, R.imag]), point
 
     def _at(self, value):
         """(G as a function of s, the plant's parameters) at a parameter value (a few kept)."""
@@ -266,11 +266,11 @@ class PredictionSystem:
             self._cache[value] = (lambda s: np.polyval(num, s) / np.polyval(den, s), params)
         return self._cache[value]
 
-    def describe(self, y, J, N):
+    def describe(self, y, J, point):
         self.parameter.seen(y[2], described=True)
         F, omega = math.exp(y[0]), math.exp(y[1])
         loeb = float(J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0])
-        return Point(parameter=float(y[2]), omega=omega, amplitude_x=abs(N) * F, F=F, stable=loeb > 0.0,
+        return Point(parameter=float(y[2]), omega=omega, amplitude_x=point.amplitude_x, F=F, stable=loeb > 0.0,
                      multipliers=[], period=2.0 * math.pi / omega, state=[F, omega]), loeb
 
 
@@ -343,7 +343,7 @@ class _Node:
     tangent: np.ndarray
     point: Point
     detail: object  # the system's: the spectrum (truth) or Loeb's value (DF)
-    info: object  # the residual's extra: (return time, events) (truth) or N (DF)
+    info: object  # the residual's extra: (return time, events) (truth) or the DF point (DF)
 
 
 def _node(system, y, r, extra, J, previous_tangent):

@@ -75,6 +75,13 @@ class DFResult:
     X: list = field(default_factory=list, repr=False)  # complex X_k, k = 0..10
     N_error: object = None  # estimated |error| of N [m/N]; None: exact (this engine, to its 1e-11 section); an
     # integrated plant's (PlantTable.integrated): a bound from its FMU's I_error
+    output: object = None  # the plant output's first harmonic where N is another signal's (what the controller
+    # of a compensated loop sees: dfwb.engine.inverse_df); None: N F
+
+    @property
+    def amplitude_x(self):
+        """The plant output's first-harmonic amplitude [m]: |N| F, or the output's where N is another signal's."""
+        return abs(self.N) * self.F if self.output is None else abs(self.output)
 
     @property
     def minus_inverse(self):

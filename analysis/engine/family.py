@@ -251,6 +251,11 @@ class LoopFamily:
             return params
         return self.compensation.equivalent(self.spec, params, self.merged(values))
 
+    def df_engine(self, engine):
+        """The engine of the loop's DF: ``engine`` (the plant's), or a compensated plant's own where its DF is a
+        closed form (the static backlash seen through its inverse, :mod:`dfwb.engine.inverse_df`)."""
+        return self.compensation.df_engine(self.spec, engine)
+
     def problem(self, values=None, fmu_dir=None, budget=None):
         """The :class:`~dfwb.engine.periodic.LoopProblem` at the values."""
         from dfwb.engine.periodic import LoopProblem

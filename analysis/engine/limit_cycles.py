@@ -289,7 +289,7 @@ def balance(engine, G, params, F_grid, omega_grid, N_grid):
             continue
         X = result.harmonics
         loeb = float(J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0])  # same sign in (ln F, ln w) as in (F, w)
-        cycles.append(Cycle(F=result.F, omega=result.omega, N=result.N, amplitude_x=abs(result.N) * result.F,
+        cycles.append(Cycle(F=result.F, omega=result.omega, N=result.N, amplitude_x=result.amplitude_x,
                             distortion=math.sqrt(sum(x * x for x in X[2:])) / X[1] if X[1] else math.inf,
                             stable=loeb > 0, loeb=loeb, residual=abs(residual), periodic=result.periodic))
     return Search(sorted(cycles, key=lambda c: c.F), F_grid, omega_grid, N_grid)

@@ -123,7 +123,8 @@ def follow(plant, G, parameter, start, stop, values=None, *, sources=SOURCES, ma
     else:
         no_fmu_options(F_range, omega_range, (n_F, n_omega), rtol, timeout, samples=(samples, SAMPLES),
                        own="dfwb's own plants derive their ranges, are computed exactly and continued")
-        engine = DFEngine(family.spec.name, fmu_dir=fmu_dir) if "df" in sources else None
+        # the plant's engine, or the compensated plant's own (a closed form: dfwb.engine.inverse_df)
+        engine = family.df_engine(DFEngine(family.spec.name, fmu_dir=fmu_dir)) if "df" in sources else None
     if foreign and "df" in sources:
         from dfwb.foreign.hunting import predictor
 

@@ -91,8 +91,8 @@ def compute_cells(chunk, fmu_data=None):
             amplitudes = problem.scales.amplitudes(chunk.amplitudes)
             # a compensated loop: its DF where the compensated plant is a plant (computed per cell), and its cost
             equivalent = family.df_params(values) if family.compensation else None
-            cell = classify(problem, engine, dfmap, amplitudes, df=not family.compensation or equivalent is not None,
-                            df_params=equivalent)
+            cell = classify(problem, family.df_engine(engine), dfmap, amplitudes,
+                            df=not family.compensation or equivalent is not None, df_params=equivalent)
             if family.compensation:
                 from dfwb.engine.cost import step_cost
 

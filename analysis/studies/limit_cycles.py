@@ -70,7 +70,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     if df_params is None:
         grids, predictions = (np.zeros(0), np.array(omega, dtype=float), np.zeros((0, 2), complex)), []
     else:
-        found = search(spec.name, controller, df_params, F, omega, n_F, n_omega, engine=engine,
+        found = search(spec.name, controller, df_params, F, omega, n_F, n_omega, engine=family.df_engine(engine),
                        progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
         grids, predictions = (found.F_grid, found.omega_grid, found.N_grid), found.cycles
     verification, runs = [], []

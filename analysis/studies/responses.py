@@ -314,11 +314,13 @@ class LimitCycleResponse(_Shown):
 
         u = self.unit
         equivalent = "" if not self.equivalent else ", ".join(
-            f"{k} = {v:.6g}" for k, v in self.equivalent.items() if v != self.params.get(k))
+            f"{k} = {v:.6g}" for k, v in self.equivalent.items() if v != self.params.get(k) and k != "h_hat")
+        shown = ("the play seen through the inverse, in closed form" if self.equivalent and "h_hat" in self.equivalent
+                 else f"as the plant with {equivalent}")
         lines = [f"{self.plant} compensated by {self.compensation}: judged by its exact loop (no DF of this "
                  "compensated loop)" if self.compensation and self.equivalent is None else
                  f"{len(self.predictions)} limit cycle(s) of {self.plant}"
-                 + (f" compensated by {self.compensation} (as the plant with {equivalent})" if self.compensation
+                 + (f" compensated by {self.compensation} ({shown})" if self.compensation
                     else "")
                  + f" predicted by the describing function in F {self.F_range[0]:.4g} to {self.F_range[1]:.4g} N, "
                  f"omega {self.omega_range[0]:.4g} to {self.omega_range[1]:.4g} rad/s"]
