@@ -15,15 +15,14 @@ import pytest
 
 import dfwb
 from dfwb.engine.inverse_df import InverseDFEngine
-from dfwb.fmus.contract import EventKind
-from dfwb.fmus.exact import PlantError
-from dfwb.fmus.static_backlash import StaticBacklash
-from dfwb.plants import plant
-from dfwb.plants.closed_forms import backlash_df
 from dfwb.fmus.backlash import BacklashLoop
 from dfwb.fmus.compensation import BacklashInverse
+from dfwb.fmus.contract import EventKind
 from dfwb.fmus.drivetrain import DrivetrainLoop
-from dfwb.fmus.static_backlash import StaticBacklashLoop
+from dfwb.fmus.exact import PlantError
+from dfwb.fmus.static_backlash import StaticBacklash, StaticBacklashLoop
+from dfwb.plants import plant
+from dfwb.plants.closed_forms import backlash_df
 from dfwb.plants.loop_reference import closed_loop_reference
 
 LEAD = ([20.0, 40.0], [20.0])  # 20 (s + 2)/(s + 20) in (b, a)
