@@ -1,10 +1,12 @@
 """The backlash inverse in the exact loop (issue 33): the controller sees ``y + k h_hat/2 s``, s the side of the
-play's last contact.
+play's last touch.
 
 Checked against the independent reference (:func:`dfwb.plants.loop_reference.closed_loop_reference` with
-``inverse``: solve_ivp between events, the correction a number the reference's engagement sets, written apart
-from dfwb's coordinate of the loop state) on the static backlash under the lead ``20 (s + 2)/(s + 20)``, which
-hunts uncompensated (7.0 s, 0.107 m).
+``inverse``: solve_ivp between events, the correction a number the reference's engagements and impacts set,
+written apart from dfwb's coordinate of the loop state) on the static backlash under the lead
+``20 (s + 2)/(s + 20)``, which hunts uncompensated (7.0 s, 0.107 m), on the two-mass backlash (impacts, plastic
+contact, a start on a wall) and on the drivetrain without load friction; its closed-form DF against the exact
+plant's own harmonic integrals.
 """
 
 import cmath
