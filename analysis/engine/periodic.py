@@ -540,10 +540,14 @@ class LoopProblem:
         half = 0.5 * np.diff(edges)
         times = (edges[:-1, None] + half[:, None] * (nodes + 1.0)).ravel()
         wsum = (half[:, None] * weights).ravel()
-        states = np.array(self._make(X).sample(times))
         m = len(self.probe.coordinates)
+        if self.compensation is None:
+            states = np.array(self._make(X).sample(times))
+            fs = self.probe.D * states[:, self.output] + states[:, m:] @ np.array(self.probe.C)  # f = D y + C z
+        else:  # the force on the plant, the compensators' included (a backlash inverse's correction, a dither)
+            states, forces = self._make(X).readings(times)
+            states, fs = np.array(states), np.array(forces)
         ys = states[:, self.output]
-        fs = self.probe.D * ys + states[:, m:] @ np.array(self.probe.C)  # f = D y + C z (FeedbackLoop.force)
         omega = 2.0 * math.pi / T
         harmonics = []
         for k in range(HARMONICS + 1):
