@@ -344,9 +344,15 @@ class DrivetrainLoop(FeedbackLoop):
     SECTION = (tuple((_key(side, -1), EventKind.BAND) for side in (FREE, LOWER, UPPER)),
                tuple((_key(side, 1), EventKind.BAND) for side in (FREE, LOWER, UPPER)))
     PIVOT = 1  # v1 = 0
+    # a load that never stops (a hunt by impacts alone): M2 at the lower wall, then at the upper (gap = h)
+    ALTERNATE = ((tuple((_key(FREE, s), EventKind.WALL_LOWER) for s in (-1, 0, 1)),
+                  tuple((_key(FREE, s), EventKind.WALL_UPPER) for s in (-1, 0, 1))), 2)
 
     def pivot(self, X):
         return 0.0
+
+    def alternate_pivot(self, X):
+        return self.h
 
     def linear(self):
         return [1.0], [self.M1 + self.M2, self.B, 0.0]

@@ -71,6 +71,9 @@ class FeedbackLoop(HybridSolver):
     # section is the state the last leg's event leaves; there coordinate PIVOT is fixed by the others (pivot()).
     SECTION = ()
     PIVOT = 0
+    # A second section, (legs, pivot) as SECTION and PIVOT, for motions that never cross the first (None: none);
+    # there coordinate pivot is alternate_pivot()
+    ALTERNATE = None
     # What the loop's FMU (:mod:`.loop_facade`) and the compiled twin (:mod:`.native_core`) read:
     MODE_VALUES = {}  # {mode key: the FMU's mode output}: every mode the loop can be in
     CONSTANTS = ()  # the constants a run never changes, in the C core's order (dfwb_loop_parameters)
@@ -101,6 +104,10 @@ class FeedbackLoop(HybridSolver):
 
     def pivot(self, X):
         """The value of coordinate PIVOT on the section, given the state's other coordinates."""
+        raise NotImplementedError
+
+    def alternate_pivot(self, X):
+        """The value of ALTERNATE's pivot coordinate on that section, given the state's other coordinates."""
         raise NotImplementedError
 
     def linear(self):

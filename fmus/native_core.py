@@ -621,7 +621,8 @@ class _NativeLoop(_Native):
         super().__init_subclass__(**kwargs)
         python = _LOOPS[cls._plant][2]
         for name in ("coordinates", "OUTPUT", "initial_parameters", "translate", "check_coordinates", "force",
-                     "applied", "feedforward", "slip", "KEYS", "SECTION", "PIVOT", "pivot", "linear", "nonlinearity",
+                     "applied", "feedforward", "slip", "KEYS", "SECTION", "PIVOT", "pivot", "ALTERNATE",
+                     "alternate_pivot", "linear", "nonlinearity",
                      "still", "CONSTANTS", "COUNTER", "MODE_VALUES"):
             setattr(cls, name, getattr(python, name))
         cls.coordinates_of = staticmethod(python.coordinates_of)

@@ -33,19 +33,23 @@ RTOL, ATOL = 1e-12, 1e-14
 
 
 def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0, omega=1.0, phi=0.0, f=0.0,
-             x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, times=None, max_events=100000, b=None, a=None, z0=None):
+             x1_0=0.0, v1_0=0.0, v2_0=0.0, gap0=None, times=None, max_events=100000, b=None, a=None, z0=None,
+             inverse=0.0):
     """(times, [[x1, v1, g, w, z...]] at times (g = x2 - x1, w = v2 - v1, z the controller's state when ``b, a``
     are given), [(t, event)]); at most ``max_events`` events (the accumulation of impacts ends; a run that needs
-    more stops there, its later rows NaN)."""
+    more stops there, its later rows NaN). ``inverse``: a backlash inverse's h_hat, the controller then seeing
+    x1 + h_hat/2 s, s the wall M2 last reached (set before that wall's logic; at t = 0 on a wall too)."""
     M = M1 + M2
     n = 0 if b is None else len(a)
     if n:
         Ac, Cz, b0 = canonical(b, a)
     excitation = lambda t: f + F * math.cos(omega * t + phi)  # noqa: E731
 
+    seen = [0.0]  # the backlash inverse's correction: the controller sees x1 + seen[0]
+
     def force(t, y):
         """u at (t, y): the excitation, less G(s) x1 under control."""
-        return excitation(t) - (float(Cz @ np.asarray(y[4:])) + b0 * y[0] if n else 0.0)
+        return excitation(t) - (float(Cz @ np.asarray(y[4:])) + b0 * (y[0] + seen[0]) if n else 0.0)
 
     times = np.linspace(0.0, t_end, 2001) if times is None else np.asarray(times, float)
     out = np.full((len(times), 4 + n), np.nan)
@@ -66,6 +70,7 @@ def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0
     def at_wall(t, y, sigma):
         """The mode after reaching wall sigma (after its impact): contact when the relative acceleration presses
         the masses together and the next bounce would rise less than 1e-12 h, else flight away from it."""
+        seen[0] = 0.5 * inverse * sigma  # the touch, before the wall's logic
         x1, v1, g, w = y[:4]
         z = list(y[4:])
         g = 0.0 if sigma < 0 else h
@@ -87,7 +92,7 @@ def simulate(t_end, M1=1.0, M2=1.0, h=0.1, eps=0.5, B=0.5, Fc=5.0, Fs=7.0, F=0.0
     t = 0.0
     g = 0.5 * h if gap0 is None else gap0
     y = [x1_0, v1_0, g, v2_0 - v1_0] + ([0.0] * n if z0 is None else list(z0))  # the gap g = x2 - x1, w = g'
-    controller = (lambda y: list(Ac @ np.asarray(y[4:]) + np.eye(n)[-1] * y[0])) if n else (lambda y: [])
+    controller = (lambda y: list(Ac @ np.asarray(y[4:]) + np.eye(n)[-1] * (y[0] + seen[0]))) if n else (lambda y: [])
     if 0.0 < g < h:
         mode = ("flight", sgn(v1_0), 0)
     else:

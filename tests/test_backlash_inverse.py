@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from drivetrain_reference import simulate
 
 import dfwb
 from dfwb.engine.inverse_df import InverseDFEngine
@@ -196,3 +197,39 @@ def test_the_df_of_the_compensated_loop_finds_its_frequency(found):
     hunting = dfwb.hunting_map("static-backlash", "20*(s+a)/(s+20)", ("h_hat", 0.0, 0.2, 3), ("a", 1.0, 4.0, 2),
                                compensate="backlash-inverse", jobs=1, cache=False, curves=False)
     assert set(hunting.classes("truth").ravel()) == set(hunting.classes("df").ravel()) == {"stable"}
+
+
+# -- the drivetrain: gear play with a sticking load ---------------------------------------------------------------
+NAMES = {"gap 0": "lower", "gap h": "upper", "band": "stop", "release": "release", "break+": "breakaway",
+         "break-": "breakaway"}  # dfwb's event kinds -> the drivetrain reference's
+
+
+@pytest.mark.parametrize("h_hat, x1_0", [(0.1, 0.1302), (0.05, 0.03)])
+def test_the_drivetrain_with_its_load_friction_follows_its_reference(h_hat, x1_0):
+    """With the load's friction (B, Fc, Fs of the defaults) against tests/drivetrain_reference.py (its own
+    scipy walk, the inverse's correction set at each wall): the same events, within 1e-9 s, and states."""
+    G = ([200.0, 400.0], [20.0])
+    loop = DrivetrainLoop(*G, x1_0=x1_0, compensation=BacklashInverse(h_hat))
+    loop.event_log = []
+    times = np.linspace(0.0, 10.0, 21)
+    states = loop.sample(list(times))
+    _t, ref, events = simulate(10.0, b=G[0], a=G[1], x1_0=x1_0, times=times, inverse=h_hat)
+    assert [NAMES[str(kind)] for _t, kind in loop.event_log] == [kind for _t, kind in events]
+    assert len(events) > 50 and max(abs(t - u) for (t, _), (u, _) in zip(loop.event_log, events)) < 1e-9
+    assert np.allclose(states, ref, rtol=0.0, atol=1e-9)
+
+
+def test_on_the_drivetrain_the_inverse_makes_the_hunting():
+    """Under 200 (s + 2)/(s + 20) the drivetrain rests from every start (standing error 0.027 m); with the
+    inverse at h_hat = h its motor rattles across the play and the load with it: a stable cycle of 0.246 s,
+    by impacts alone (the load never stops: found on the drivetrain's second section, M2's walls). The
+    reference, run 30 s from the step's start, has the same period between its last upward impacts."""
+    G = "200*(s+2)/(s+20)"
+    plain = dfwb.limit_cycles("drivetrain", G, exact=True, compensate="backlash-inverse", h_hat=0.0)
+    assert plain.coverage.outcomes == {"rest": plain.coverage.starts} and not plain.cycles
+    result = dfwb.limit_cycles("drivetrain", G, exact=True, compensate="backlash-inverse", h_hat=0.1)
+    [cycle] = result.cycles
+    assert cycle.stable and cycle.section == 1 and cycle.period == pytest.approx(0.2461558371, rel=1e-8)
+    _t, _ref, events = simulate(30.0, b=[200.0, 400.0], a=[20.0], x1_0=0.1302, times=[0.0], inverse=0.1)
+    ups = [t for t, kind in events if kind == "upper"]
+    assert abs(ups[-1] - ups[-2] - cycle.period) < 1e-6 * cycle.period

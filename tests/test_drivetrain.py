@@ -192,22 +192,29 @@ def test_a_state_beyond_the_resolution_of_time_is_refused_in_one_line(core):
             plant.advance(1e-6)
 
 
-def test_a_motion_that_never_crosses_the_section_is_not_called_rest():
+def test_a_motion_that_never_crosses_the_section_is_shot_on_the_second_one():
     """Without load friction the drivetrain is the two-mass backlash, which hunts under 200 (s + 2)/(s + 20) at
     12.73 rad/s with impacts only: the load never stops, so the drivetrain's section (the load's stops) is never
-    hit. A wait without a hit whose last quarter fired events is no rest: every run moves on, the search proves no
-    absence (it said "36 rest", no cycle, before), where the two-mass backlash finds the cycle."""
+    hit (its search said "36 rest", no cycle). A wait without a hit whose output still turns with events firing
+    moves on (never rest); such a run runs again on the drivetrain's second section, M2's walls, and finds the
+    two-mass backlash's cycle to the digits. Without a second section the search says it is incomplete."""
     from dfwb.engine.cycles import find_cycles
     from dfwb.engine.periodic import LoopProblem
 
     G = "200*(s+2)/(s+20)"
-    frictionless = find_cycles(LoopProblem("drivetrain", G, {"B": 0.0, "Fc": 0.0, "Fs": 0.0}), [],
-                               amplitudes=[0.01, 0.1])
-    assert frictionless.coverage.outcomes == {"moving": frictionless.coverage.starts}
-    assert not frictionless.coverage.settled and not frictionless.cycles
-    assert "INCOMPLETE: runs moved on without crossing the section" in frictionless.coverage.summary()
-    assert all("it moves without crossing the section" in fate.detail for fate in frictionless.fates)
+    problem = LoopProblem("drivetrain", G, {"B": 0.0, "Fc": 0.0, "Fs": 0.0})
+    frictionless = find_cycles(problem, [], amplitudes=[0.01, 0.1])
     backlash = find_cycles(LoopProblem("backlash", G), [], amplitudes=[0.01, 0.1])
-    assert [round(c.omega, 4) for c in backlash.cycles] == [12.7335]
+    assert frictionless.coverage.outcomes == {"cycle": frictionless.coverage.starts}
+    [cycle], [twin] = frictionless.cycles, backlash.cycles
+    assert cycle.section == 1 and twin.section == 0 and cycle.stable
+    assert cycle.omega == pytest.approx(twin.omega, rel=1e-9) and cycle.amplitude_x == pytest.approx(
+        twin.amplitude_x, rel=1e-9) and cycle.F == pytest.approx(twin.F, rel=1e-9)
+    assert "below the size at which the plant's output moves" in cycle.df  # no threshold of 0 N
+    alone = copy.copy(problem)
+    alone.alternate = lambda: None  # no second section: the runs move on, and the search proves no absence
+    unseen = find_cycles(alone, [], amplitudes=[0.01])
+    assert unseen.coverage.outcomes == {"moving": unseen.coverage.starts} and not unseen.coverage.settled
+    assert "INCOMPLETE: runs moved on without crossing the section" in unseen.coverage.summary()
     stuck = find_cycles(LoopProblem("drivetrain", G), [], amplitudes=[0.01])  # the load sticks: at rest
     assert stuck.coverage.outcomes == {"rest": stuck.coverage.starts}

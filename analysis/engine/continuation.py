@@ -152,8 +152,8 @@ class CycleSystem:
 
     source = "truth"
 
-    def __init__(self, family, name, span, returns, swing, period, fmu_dir=None, budget=None):
-        self.family, self.name, self.span, self.returns = family, name, span, returns
+    def __init__(self, family, name, span, returns, swing, period, fmu_dir=None, budget=None, section=0):
+        self.family, self.name, self.span, self.returns, self.section = family, name, span, returns, section
         self.parameter = _Parameter(span)
         self.swing = np.asarray(swing, dtype=float)  # of the section coordinates u
         self.period, self.fmu_dir, self.budget = period, fmu_dir, budget
@@ -166,7 +166,8 @@ class CycleSystem:
         if problem is None:
             if len(self._problems) > 8:
                 self._problems.clear()
-            problem = self._problems[value] = self.family.problem({self.name: value}, self.fmu_dir, self.budget)
+            problem = self.family.problem({self.name: value}, self.fmu_dir, self.budget)
+            problem = self._problems[value] = problem.alternate() if self.section else problem  # the cycle's section
             if self.budget is None:
                 self.budget = problem.budget  # every problem of the branch draws on the first one's budget
         return problem
@@ -782,11 +783,13 @@ def continue_cycles(family, name, bounds, starts, fmu_dir=None, max_points=BRANC
         if _known(branches, "truth", value, cycle):
             continue
         problem = family.problem({name: value}, fmu_dir)
+        problem = problem.alternate() if cycle.section else problem  # the section it was shot on
         swing = [v for i, v in enumerate(cycle.swing) if i != problem.pivot]
         y0 = problem.reduced(cycle.state) + [value]
 
         def system_of(cycle=cycle, swing=swing, budget=problem.budget):
-            return CycleSystem(family, name, span, cycle.returns, swing, cycle.period, fmu_dir, budget)
+            return CycleSystem(family, name, span, cycle.returns, swing, cycle.period, fmu_dir, budget,
+                               cycle.section)
 
         _nodes, halves = trace(system_of, y0, bounds, max_points, progress)
         branch, more = _assemble("truth", halves, span, family, name, bounds, fmu_dir, cycle.returns)

@@ -262,7 +262,8 @@ class _Search:
         """The cycle (stable or not) whose section passes through X, or None."""
         for j, cycle in enumerate(self.cycles):
             swing = np.array(cycle.swing)
-            if any(np.abs((X - np.array(S)) / swing).max() <= tolerance for S in cycle.sections):
+            if cycle.section == self.problem.section and any(np.abs((X - np.array(S)) / swing).max() <= tolerance
+                                                              for S in cycle.sections):
                 return j
         return None
 
@@ -274,7 +275,7 @@ class _Search:
         (a real one, within a factor RATIO): the run is in the cycle's linear neighbourhood.
         """
         for j, cycle in enumerate(self.cycles):
-            if not cycle.stable:
+            if not cycle.stable or cycle.section != self.problem.section:
                 continue
             recent = [self.distance(cycle, X) for X in hits[-4:]]
             if recent[-1] <= JOIN and (len(recent) == 1 or recent[-1] < recent[-2]):
@@ -294,9 +295,17 @@ class _Search:
         return min(float(np.abs((X - np.array(S)) / swing).max()) for S in cycle.sections)
 
     def run(self, start):
-        """Run from ``start`` until it reaches a cycle, rests, diverges or runs out of hits: its Fate."""
+        """Run from ``start`` until it reaches a cycle, rests, diverges or runs out of hits: its Fate. A run that
+        moves on without crossing the loop's section runs again on its second section, where it has one."""
         problem, label = self.problem, start.label
         fate = self._run(problem, start.state, label)
+        alternate = problem.alternate() if fate.outcome == "moving" else None
+        if alternate is not None:
+            self.problem = alternate  # its shooting and its cycles' distances are on that section
+            try:
+                fate = self._run(alternate, start.state, label)
+            finally:
+                self.problem = problem
         fate.start = label
         self.fates.append(fate)
         return fate

@@ -37,6 +37,7 @@ Examples
 (7.92883, 0.028911, True, 1)
 """
 
+import copy
 import functools
 import math
 from dataclasses import dataclass, field
@@ -145,6 +146,7 @@ class TrueCycle:
     df: str = ""
     errors: dict = field(default_factory=dict)  # estimated errors where the cycle is extrapolated (co-simulation)
     trace: dict = field(default=None, repr=False)  # one period: times, outputs, forces, events (plots)
+    section: int = 0  # the loop's section it is shot on: 0 its SECTION, 1 its ALTERNATE
 
     def as_dict(self):
         """Every field but the trace (JSON types; ``TrueCycle(**as_dict())`` rebuilds it)."""
@@ -285,6 +287,7 @@ class LoopProblem:
         self.output = self.cls.OUTPUT
         self.legs = tuple(frozenset(leg) for leg in self.cls.SECTION)
         self.pivot = self.cls.PIVOT
+        self.section = 0  # SECTION; 1: ALTERNATE (alternate())
         self._modes = {}  # the modes every solver of this problem shares (built once, not per run)
         if budget is None:
             whole = isinstance(max_chunks, int) and not isinstance(max_chunks, bool)
@@ -357,6 +360,16 @@ class LoopProblem:
                 return "moving" if moved else "rest"
         return "hit"
 
+    def alternate(self):
+        """The same problem on the loop's second section (``ALTERNATE``: for motions that never cross the first,
+        as a hunt of the drivetrain by impacts alone), sharing its modes and budget; None without one."""
+        if self.section or self.cls.ALTERNATE is None:
+            return None
+        other = copy.copy(self)
+        legs, other.pivot = self.cls.ALTERNATE
+        other.legs, other.section = tuple(frozenset(leg) for leg in legs), 1
+        return other
+
     def reduced(self, X):
         """The section's coordinates u of a state on it (the pivot left out)."""
         return [x for i, x in enumerate(X) if i != self.pivot]
@@ -365,7 +378,7 @@ class LoopProblem:
         """The state on the section with coordinates u."""
         X = list(u)
         X.insert(self.pivot, 0.0)
-        X[self.pivot] = self.probe.pivot(X)
+        X[self.pivot] = self.probe.alternate_pivot(X) if self.section else self.probe.pivot(X)
         return X
 
     def first_return(self, X, returns=1, horizon=None):
@@ -501,7 +514,7 @@ class LoopProblem:
                          harmonics=harmonics, counts=counts, signature=[str(k) for _t, k in trace["events"]],
                          spectrum=[[m.real, m.imag] for m in spectrum], sections=sections,
                          swing=[float(v) for v in self._swing(X, T)], df=self.df_note(F, 2.0 * math.pi / T),
-                         trace=trace)
+                         trace=trace, section=self.section)
 
     def df_note(self, F, omega):
         """Why no describing function represents a cycle of first-harmonic force F at omega ("" if one can; a
@@ -509,7 +522,8 @@ class LoopProblem:
         if self.compensation is not None or not self.probe.still(F, omega):
             return ""
         kind, size = self.probe.nonlinearity()
-        what = f"the threshold {size:.6g} N" if kind == "force" else "the size at which the plant's output moves"
+        what = (f"the threshold {size:.6g} N" if kind == "force" and F < size  # (a play's stillness is no threshold)
+                else "the size at which the plant's output moves")
         return (f"its first-harmonic force {F:.6g} N lies below {what}: there a sine leaves the plant still and "
                 "N(F, w) = 0, so no describing-function prediction can represent this cycle")
 
