@@ -689,7 +689,8 @@ def parser():
                                   "G = 'Kp + Ki/s', F_hat=3 signal=control)")
         command.add_argument("--compensate", nargs="+", action="extend", metavar="NAME",
                              help="compensators between G and the plant, judged by the exact loop with their "
-                                  "cost: coulomb (F_hat, signal = velocity or control), deadband (d), reset")
+                                  "cost: coulomb (F_hat, signal = velocity or control), deadband (d), reset, "
+                                  "dither (a, w_d), backlash-inverse (h_hat)")
 
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
     controller_options(cycle, own=True)

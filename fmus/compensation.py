@@ -62,6 +62,7 @@ __all__ = ["Coulomb", "Reset", "Deadband", "Dither", "BacklashInverse", "SIGNALS
            "inverse_of", "follows_control", "integrator"]
 
 SIGNALS = ("velocity", "control")
+MAX_PLAY = 1e3  # [m] a backlash inverse's h_hat at most (the largest play h of the plants)
 
 
 class Coulomb:
@@ -150,15 +151,16 @@ class BacklashInverse:
     name = "backlash-inverse"
 
     def __init__(self, h_hat):
-        check("h_hat", h_hat, lambda: h_hat >= 0.0,
-              "the backlash inverse's estimated play, a finite number of metres, at least 0")
-        self.h_hat = float(h_hat)
+        check("h_hat", h_hat, lambda: 0.0 <= h_hat <= MAX_PLAY,
+              "the backlash inverse's estimated play, a number of metres from 0 to 1000")
+        self.h_hat = float(h_hat) + 0.0  # (-0.0 is 0)
 
     def __repr__(self):
         return f"BacklashInverse(h_hat={self.h_hat!r})"
 
 
 _TYPES = (Coulomb, Reset, Deadband, Dither, BacklashInverse)
+MAX_ESTIMATE = 10.0  # a backlash inverse's h_hat at most this many times the plant's play (analysis refuses more)
 
 
 def _given(compensation):

@@ -11,6 +11,7 @@ plant's own harmonic integrals.
 
 import cmath
 import math
+import re
 
 import numpy as np
 import pytest
@@ -179,8 +180,13 @@ def test_the_closed_form_df_is_the_exact_plants_seen_through_the_inverse(F, omeg
     assert engine.point(F, omega, {"h_hat": 0.1}).amplitude_x == pytest.approx(abs(complex(backlash_df(X))) * X,
                                                                               rel=1e-14)
     assert engine.point(0.1, 10.0, {"h_hat": 0.1}).N == 0  # X = 5e-4 m < h/2: the play never closes
-    with pytest.raises(PlantError, match="h_hat = -1.0 is out of range"):
-        engine.point(1.0, 1.0, {"h_hat": -1.0})
+    for params, message in [({"h_hat": -1.0}, "h_hat = -1.0 is out of range"),
+                            ({"h_hat": 1.5}, "h_hat = 1.5 is out of range: the backlash inverse's estimate of the play "
+                                             "h = 0.1 m, at most 10 times it"),
+                            ({}, "h_hat: the backlash inverse's estimated play needs a value"),
+                            ("h_hat", "params = 'h_hat' is not a mapping")]:
+        with pytest.raises(PlantError, match=re.escape(message)):
+            engine.point(1.0, 1.0, params)
 
 
 def test_the_df_of_the_compensated_loop_finds_its_frequency(found):

@@ -8,6 +8,7 @@ PI, ``10 + 2/s``, which hunts uncompensated.
 
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -142,9 +143,9 @@ def test_a_compensated_margin_is_the_truths():
 @pytest.mark.parametrize("compensate, values, message", [
     ("dither", {"a": 1}, "the parameter w_d is given no value"),
     ("dither", {"a": 1, "w_d": 0}, "w_d = 0.0 is out of range"),
-    ("backlash-inverse", {}, "the parameter h_hat is given no value"),
-    ("backlash-inverse", {"h_hat": -0.1}, "h_hat = -0.1 is out of range"),
     ("backlash-inverse", {"h_hat": 0.1}, "the backlash inverse needs a plant with a play"),
+    ("backlash-inverse", {"h_hat": 0.0}, "the backlash inverse needs a plant with a play (backlash, static-backlash, "
+                                         "drivetrain); friction has none"),  # whatever h_hat, before its value
     ("friction", {}, "not a compensator"),
     (["reset", "reset"], {}, "named twice"),
     (3, {}, "give a compensator's name"),
@@ -156,8 +157,21 @@ def test_a_compensated_margin_is_the_truths():
     ("deadband", {"d": 0.1, "Kp": 1}, "unknown parameter 'Kp'"),
 ])
 def test_a_bad_compensation_is_one_line(compensate, values, message):
-    with pytest.raises(InputError, match=message.replace("(", r"\(")):
+    with pytest.raises(InputError, match=re.escape(message)):
         LoopFamily("friction", "10 + 2/s", values, compensate=compensate)
+
+
+@pytest.mark.parametrize("values, message", [
+    ({}, "the parameter h_hat is given no value"),
+    ({"h_hat": -0.1}, "h_hat = -0.1 is out of range"),
+    ({"h_hat": 1e308}, "h_hat = 1e+308 is out of range: the backlash inverse's estimated play, a number of metres "
+                       "from 0 to 1000"),
+    ({"h_hat": 1.01}, "h_hat = 1.01 is out of range: the backlash inverse's estimate of the play h = 0.1 m, at most "
+                      "10 times it"),
+])
+def test_a_bad_estimate_of_the_play_is_one_line(values, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        LoopFamily("static-backlash", "20*(s+2)/(s+20)", values, compensate="backlash-inverse")
 
 
 def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
@@ -174,7 +188,15 @@ def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
 
 @pytest.mark.parametrize("words, message", [
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "backlash-inverse", "--set",
-      "h_hat=0.1"], "the backlash inverse needs a plant with a play between the mass and the output; FrictionLoop"),
+      "h_hat=0"], "the backlash inverse needs a plant with a play (backlash, static-backlash, drivetrain); friction "
+                  "has none"),
+    (["tune", "stribeck", "--G", "Kp + 2/s", "--compensate", "backlash-inverse", "--free", "Kp=5:30",
+      "h_hat=0:0.2"], "stribeck has none"),
+    (["limit-cycle", "static-backlash", "--G", "20*(s+2)/(s+20)", "--exact", "--compensate", "backlash-inverse",
+      "--set", "h_hat=0.1", "h=1e-9"], "h_hat = 0.1 is out of range: the backlash inverse's estimate of the play "
+                                       "h = 1e-09 m, at most 10 times it"),
+    (["continue", "static-backlash", "--G", "20*(s+2)/(s+20)", "--compensate", "backlash-inverse", "--parameter",
+      "h_hat=0:1e308"], "h_hat = 0:1e+308: h_hat = 1e+308 is out of range"),
     (["map", "static-backlash", "--G", "20*(s+2)/(s+20)", "--compensate", "backlash-inverse", "--x",
       "h_hat=-0.1:0.2:3", "--y", "M=1:2:2"], "h_hat = -0.1:0.2: h_hat = -0.1 is out of range"),
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "dither", "--set", "a=1"],
@@ -259,7 +281,7 @@ def test_a_scene_compensates_as_the_api_does(tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
-    ('compensate = ["backlash-inverse"]\nparams = {d = 1}', "unknown parameter 'd'"),
+    ('compensate = ["backlash-inverse"]\nparams = {h_hat = 0}', "friction has none"),
     ('compensate = ["dither"]\nparams = {a = 1, w_d = -2}', "w_d = -2.0 is out of range"),
     ('compensate = ["deadband"]\nparams = {d = "wide"}', "d = 'wide' is not a number"),
     ('compensate = "deadband"\nparams = {d = 1}', "compensate: Input should be a valid list"),

@@ -219,6 +219,8 @@ def test_shared_modes_with_a_deadband_are_keyed_as_in_python(core):
     ("backlash", PID, {"M1": -1.0}, Coulomb(1.0), "M1 = -1.0 is out of range"),  # the plant's checks first
     ("friction", LEAD, {"Fs": 1.0}, Deadband(0.1), "Fs = 1.0 is out of range"),
     ("friction", PI, {"section": math.nan}, Coulomb(1.0), "section = nan"),
+    ("friction", PI, {}, BacklashInverse(0.1), "the backlash inverse needs a plant with a play between the mass and "
+                                               "the output; FrictionLoop has none"),
 ])
 def test_refusals_are_the_same_text(core, plant, G, params, compensation, text):
     py = refusal(lambda: PYTHON[plant](*G, **params, compensation=compensation))
@@ -288,6 +290,8 @@ def test_crafted_compensators_are_refused(core):
         (static, _field(inverted, last + 3, 0), "backlash inverse flag = 0 is out of range: must be 1 with an estimated"),
         (static, _field(inverted, last + 4, -0.1), "backlash inverse flag = 1 is out of range"),
         (static, _field(inverted, last + 4, math.nan), "backlash inverse flag = 1 is out of range"),
+        (static, _field(inverted, last + 4, 1e4), "compensators are refused: h_hat = 10000.0 is out of range: the "
+                                                   "backlash inverse's estimated play, a number of metres from 0 to"),
         (core.FrictionLoop, _field(_field(plain, last + 3, 1), last + 4, 0.1),
          "compensators are refused: the backlash inverse needs a plant with a play between the mass and the output; "
          "FrictionLoop has none"),

@@ -22,7 +22,7 @@ Examples
 from dataclasses import dataclass, field
 
 from dfwb.base.errors import InputError, PlantError
-from dfwb.fmus.compensation import SIGNALS, BacklashInverse, Coulomb, Deadband, Dither, Reset
+from dfwb.fmus.compensation import MAX_ESTIMATE, SIGNALS, BacklashInverse, Coulomb, Deadband, Dither, Reset
 
 __all__ = ["KINDS", "CHOICES", "Compensation", "choice", "check_judged"]
 
@@ -117,6 +117,26 @@ class Compensation:
             kind.build(dict(values, **{name: value}))
         except PlantError as error:
             raise InputError(str(error)) from None
+
+    def fit(self, spec):
+        """Refuse, in one line (InputError), a compensator that cannot act on the plant ``spec``: the backlash
+        inverse on a plant without a play (whatever h_hat, 0 included)."""
+        if "backlash-inverse" in self.kinds and not getattr(spec.loop, "CONTACTS", None):
+            from dfwb.plants import names, plant
+
+            played = [name for name in names() if getattr(plant(name).loop, "CONTACTS", None)]
+            raise InputError(f"compensate = 'backlash-inverse': the backlash inverse needs a plant with a play "
+                             f"({', '.join(played)}); {spec.name} has none")
+
+    def check_estimate(self, params, values):
+        """Refuse a backlash inverse's h_hat beyond MAX_ESTIMATE times the plant's play h (its ``params`` with
+        their defaults) in one line: an estimate that far off is no estimate."""
+        if "backlash-inverse" not in self.kinds:
+            return
+        h_hat, h = dict(self.defaults, **values)["h_hat"], params["h"]
+        if not h_hat <= MAX_ESTIMATE * h:
+            raise InputError(f"h_hat = {h_hat!r} is out of range: the backlash inverse's estimate of the play h = "
+                             f"{h!r} m, at most {MAX_ESTIMATE:g} times it")
 
     def equivalent(self, spec, params, values):
         """The parameters of the compensated plant's DF (its engine :meth:`df_engine`'s), or None where there is

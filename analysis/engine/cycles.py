@@ -144,9 +144,9 @@ class Coverage:
 
     @property
     def settled(self):
-        """Whether every start came to a verdict: the budget lasted, no run failed and none moved on without
-        crossing the section (else absence is unproven)."""
-        return self.complete and not self.outcomes.get("failed") and not self.outcomes.get("moving")
+        """Whether every start came to a verdict: the budget lasted, no run failed, none moved on without crossing
+        the section and none ran out of section hits unsettled (else absence is unproven)."""
+        return self.complete and not any(self.outcomes.get(name) for name in ("failed", "moving", "unsettled"))
 
     def summary(self, unit="m"):
         """One line: what was searched."""
@@ -161,7 +161,7 @@ class Coverage:
 
     def _incomplete(self):
         """Why the search proves no absence ("; INCOMPLETE: ..."), or "" where it does."""
-        if self.complete and not self.outcomes.get("moving"):
+        if self.complete and not self.outcomes.get("moving") and not self.outcomes.get("unsettled"):
             return ""
         if self.outcomes.get("moving"):
             why = "runs moved on without crossing the section (a motion it cannot see)"

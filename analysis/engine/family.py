@@ -148,6 +148,7 @@ class LoopFamily:
         self.compensation = Compensation(compensate)
         if self.compensation and spec.loop is None:
             raise InputError(f"compensate: plant {spec.name!r} has no exact closed loop, where compensators act")
+        self.compensation.fit(spec)
         clash = [name for name in self.compensation.names if name in self.controller.names + self.plant_names]
         if clash:
             raise InputError(f"{clash[0]} is both a parameter of a compensator and of G(s) or the {spec.name} "
@@ -264,11 +265,16 @@ class LoopFamily:
                            compensation=self.compensators(values))
 
     def compensators(self, values=None):
-        """The loop's compensators at the values (:mod:`dfwb.fmus.compensation`), or None without any."""
+        """The loop's compensators at the values (:mod:`dfwb.fmus.compensation`), or None without any; a value
+        a compensator refuses, alone or against the plant's (a backlash inverse's estimate), in one line."""
+        merged = self.merged(values)
         try:
-            return self.compensation.build(self.merged(values))
+            built = self.compensation.build(merged)
         except PlantError as error:
             raise InputError(str(error)) from None
+        if built is not None:
+            self.compensation.check_estimate(dict(self.spec.defaults(), **self.params(values)), merged)
+        return built
 
     def check_compensator(self, values):
         """Refuse a value of a compensator's parameter outside the compensator's range (whatever its other

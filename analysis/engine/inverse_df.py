@@ -25,10 +25,11 @@ study of the static backlash with its inverse.
 import cmath
 import math
 import time
+from collections.abc import Mapping
 
 from dfwb.base.errors import PlantError
 from dfwb.engine.describing import DFResult, check_point
-from dfwb.fmus.compensation import BacklashInverse
+from dfwb.fmus.compensation import MAX_ESTIMATE, BacklashInverse
 
 __all__ = ["harmonics", "InverseDFEngine"]
 
@@ -61,11 +62,17 @@ class _Plant:
         self.spec, self.name = spec, spec.name
 
     def check(self, params):
-        params = dict(params)
-        if "h_hat" not in params:
+        if not isinstance(params, Mapping) or "h_hat" not in params:
+            self.spec.check(params)  # not a mapping: refused as the plant refuses it
             raise PlantError("h_hat: the backlash inverse's estimated play needs a value")
+        params = dict(params)
         h_hat = BacklashInverse(params.pop("h_hat")).h_hat  # its check, its message
-        return dict(self.spec.check(params), h_hat=h_hat)
+        checked = self.spec.check(params)
+        h = dict(self.spec.defaults(), **checked)["h"]
+        if not h_hat <= MAX_ESTIMATE * h:
+            raise PlantError(f"h_hat = {h_hat!r} is out of range: the backlash inverse's estimate of the play h = "
+                             f"{h!r} m, at most {MAX_ESTIMATE:g} times it")
+        return dict(checked, h_hat=h_hat)
 
     checked = check
 

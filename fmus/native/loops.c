@@ -298,8 +298,8 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     if (L->a_d > 0.0 && (rc = dfwb_check(err, "w_d", L->w_d, L->w_d > 0.0,
                                          "the dither's angular frequency, a finite number of rad/s above 0")) != DFWB_OK)
         return rc;
-    if ((rc = dfwb_check(err, "h_hat", L->h_hat, L->h_hat >= 0.0,
-                         "the backlash inverse's estimated play, a finite number of metres, at least 0")) != DFWB_OK)
+    if ((rc = dfwb_check(err, "h_hat", L->h_hat, L->h_hat >= 0.0 && L->h_hat <= 1e3,
+                         "the backlash inverse's estimated play, a number of metres from 0 to 1000")) != DFWB_OK)
         return rc;
     L->has_dither = L->a_d > 0.0; /* a = 0: no dither (its w_d then 0, as a state holds it) */
     L->has_inverse = L->h_hat > 0.0;
