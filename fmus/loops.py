@@ -218,8 +218,8 @@ class FeedbackLoop(HybridSolver):
         return self.force(X) + self.feedforward(self.key, self.sigma if self._on_control else None) + dither
 
     def visible(self, X):
-        """The loop's state in the integrated state X: the plant's coordinates and z (a dither's oscillator left
-        out)."""
+        """The loop's state in the integrated state X: the plant's coordinates and z (a dither's oscillator and a
+        backlash inverse's correction left out)."""
         return X if self.dither is None and self.inverse is None else X[:len(self.coordinates) + self.order]
 
     def readings(self, times):
