@@ -197,6 +197,9 @@ def test_a_compensator_that_does_not_fit_is_refused_before_anything_runs():
                                        "h = 1e-09 m, at most 10 times it"),
     (["continue", "static-backlash", "--G", "20*(s+2)/(s+20)", "--compensate", "backlash-inverse", "--parameter",
       "h_hat=0:1e308"], "h_hat = 0:1e+308: h_hat = 1e+308 is out of range"),
+    (["map", "static-backlash", "--G", "20*(s+a)/(s+20)", "--compensate", "backlash-inverse", "--x", "h_hat=0:3:3",
+      "--y", "a=1:4:2"], "h_hat = 0:3: h_hat = 3.0 is out of range: the backlash inverse's estimate of the play "
+                         "h = 0.1 m, at most 10 times it"),  # (a map over h_hat and h checks its cells)
     (["map", "static-backlash", "--G", "20*(s+2)/(s+20)", "--compensate", "backlash-inverse", "--x",
       "h_hat=-0.1:0.2:3", "--y", "M=1:2:2"], "h_hat = -0.1:0.2: h_hat = -0.1 is out of range"),
     (["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "dither", "--set", "a=1"],

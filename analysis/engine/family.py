@@ -160,7 +160,7 @@ class LoopFamily:
         for name, value in values.items():
             self.check_name(name)
             self.values[name] = self._value(name, value)
-        free = tuple(free)
+        self.free = free = tuple(free)
         for name in free:
             self.check_name(name)
             if name in CHOICES:
@@ -278,9 +278,12 @@ class LoopFamily:
 
     def check_compensator(self, values):
         """Refuse a value of a compensator's parameter outside the compensator's range (whatever its other
-        parameters: a map may have two of one compensator's on its axes)."""
+        parameters: a map may have two of one compensator's on its axes), and a backlash inverse's estimate
+        beyond the plant's play allows where that play is fixed."""
         for name, value in values.items():
             self.compensation.check(name, number(name, value))
+        if "h_hat" in values and "h" not in self.free:
+            self.compensation.check_estimate(dict(self.spec.defaults(), **self.params()), self.merged(values))
 
     def scaled(self, name):
         """The family of ``name`` * G: the gain factor a free parameter (refused if G or the plant has it)."""
