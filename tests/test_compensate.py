@@ -285,8 +285,9 @@ def test_a_scene_compensates_as_the_api_does(tmp_path):
 
 @pytest.mark.parametrize("text, message", [
     ('compensate = ["backlash-inverse"]\nparams = {h_hat = 0}', "friction has none"),
+    ('compensate = ["deadband"]\nparams = {d = "0.2"}', "params.d = '0.2': text where a number belongs"),
     ('compensate = ["dither"]\nparams = {a = 1, w_d = -2}', "w_d = -2.0 is out of range"),
-    ('compensate = ["deadband"]\nparams = {d = "wide"}', "d = 'wide' is not a number"),
+    ('compensate = ["deadband"]\nparams = {d = "wide"}', "params.d = 'wide': text where a number belongs"),
     ('compensate = "deadband"\nparams = {d = 1}', "compensate: Input should be a valid list"),
     ('compensate = ["coulomb"]\nparams = {F_hat = 1, signal = "sign"}', "signal = 'sign': one of velocity"),
     ('compensate = ["deadband"]\nparams = {d = 0.2}\nverify = true', "verify co-simulates"),  # never dropped

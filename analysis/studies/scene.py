@@ -59,7 +59,7 @@ from dfwb.base.schema import (
     rule,
     shown,
 )
-from dfwb.engine.compensators import check_judged
+from dfwb.engine.compensators import CHOICES, check_judged
 from dfwb.engine.describing import F_RANGE, OMEGA_RANGE
 from dfwb.fmus.piecewise import PlantError
 from dfwb.foreign.description import KINDS
@@ -312,9 +312,14 @@ def _controller(section):
 
 
 def _family(section, free=()):
-    """The :class:`~dfwb.engine.family.LoopFamily` of a section's plant, G and params (checked)."""
+    """The :class:`~dfwb.engine.family.LoopFamily` of a section's plant, G and params (checked: text only for a
+    compensator's choice, never converted to a number)."""
     from dfwb.engine.family import LoopFamily
 
+    for name, value in section.params.items():
+        if isinstance(value, str) and name not in CHOICES:
+            raise InputError(f"params.{name} = {value!r:.60}: text where a number belongs (give a number; text is "
+                             f"only for a choice: {', '.join(CHOICES)})")
     try:
         plant = section_plant(section) if hasattr(section, "input") else section.plant
         return LoopFamily(plant, _controller(section), section.params, free=free, compensate=section.compensate)
