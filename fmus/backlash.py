@@ -284,12 +284,11 @@ class BacklashLoop(FeedbackLoop):
         return 0.5
 
     def wall(self, X):
-        return 0 if 0.0 < X[2] < self.h else -1 if X[2] <= 0.0 else 1  # as initial() puts it
+        return 0 if 0.0 < X[2] < self.h else -1 if X[2] <= 0.0 else 1
 
     def initial(self, X):
-        if 0.0 < X[2] < self.h:
-            return FLIGHT, X, None
-        return self._at_wall(-1 if X[2] <= 0.0 else 1, X)
+        side = self.wall(X)
+        return (FLIGHT, X, None) if not side else self._at_wall(side, X)
 
     def _at_wall(self, sigma, X):
         """At a wall after any impact: contact, or a flight away from it."""

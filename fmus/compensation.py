@@ -45,12 +45,13 @@ back into the signal, choosing the line by the direction of motion and
 holding it while the direction is unknown. Here the play sits between the
 mass and the sensor, so no command enters it: the inverse acts where the
 play is seen, on the measurement. The controller gets ``y + k h_hat/2 s``,
-``s`` the side of the play's last contact (+1 after the mass last dragged y
-up, -1 down, 0 before any): with ``h_hat = h`` that is ``k x`` whenever the
-play is closed. Equivalently the commanded position is moved by
-``-k h_hat/2 s``. The side changes where the mass engages, an event of the
-plant: the correction is a coordinate of the loop's state, constant between
-engagements and set at them, so the loop stays affine and exact.
+``s`` the side of the play's last touch (+1 after the mass last reached the
+play's upper edge, -1 the lower, 0 before any): with ``h_hat = h`` that is
+``k x`` whenever the play is closed. Equivalently the commanded position is
+moved by ``-k h_hat/2 s``. The side changes where the play is touched, an
+event of the plant (of the two-mass backlash and the drivetrain too, at M2's
+walls): the correction is a coordinate of the loop's state, constant between
+touches and set at them, so the loop stays affine and exact.
 
 Plain Python only: this module runs inside the FMUs.
 """
@@ -59,7 +60,7 @@ from .exact import PlantError
 from .piecewise import check
 
 __all__ = ["Coulomb", "Reset", "Deadband", "Dither", "BacklashInverse", "SIGNALS", "compensators", "dither_of",
-           "inverse_of", "follows_control", "integrator"]
+           "inverse_of", "check_estimate", "follows_control", "integrator"]
 
 SIGNALS = ("velocity", "control")
 MAX_PLAY = 1e3  # [m] a backlash inverse's h_hat at most (the largest play h of the plants)
@@ -140,7 +141,7 @@ class Dither:
 
 
 class BacklashInverse:
-    """The backlash inverse: the controller sees ``y + k h_hat/2 s``, s the side of the play's last contact.
+    """The backlash inverse: the controller sees ``y + k h_hat/2 s``, s the side of the play's last touch.
 
     Parameters
     ----------
@@ -161,6 +162,14 @@ class BacklashInverse:
 
 _TYPES = (Coulomb, Reset, Deadband, Dither, BacklashInverse)
 MAX_ESTIMATE = 10.0  # a backlash inverse's h_hat at most this many times the plant's play (analysis refuses more)
+
+
+def check_estimate(h_hat, h):
+    """Refuse a backlash inverse's ``h_hat`` beyond MAX_ESTIMATE times the plant's play ``h`` (PlantError, one
+    line): an estimate that far off is no estimate."""
+    if not h_hat <= MAX_ESTIMATE * h:
+        raise PlantError(f"h_hat = {h_hat!r} is out of range: the backlash inverse's estimate of the play h = "
+                         f"{h!r} m, at most {MAX_ESTIMATE:g} times it")
 
 
 def _given(compensation):

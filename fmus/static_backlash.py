@@ -179,8 +179,8 @@ class StaticBacklashLoop(FeedbackLoop):
         return 0.5 * self.k
 
     def wall(self, X):
-        play = X[0] - X[2] / self.k
-        return next((s for s in (1, -1) if s * play >= 0.5 * self.h * (1.0 - 1e-12)), 0)  # as initial() snaps
+        play = X[0] - X[2] / self.k  # on an edge to rounding (initial() snaps it there)
+        return next((s for s in (1, -1) if s * play >= 0.5 * self.h * (1.0 - 1e-12)), 0)
 
     def still(self, F, omega):
         return F <= 0.5 * self.h * self.M * omega * omega  # the mass swings inside the play: y never moves
@@ -218,12 +218,11 @@ class StaticBacklashLoop(FeedbackLoop):
                 [(EventKind.REVERSE, (0.0, float(s), 0.0), 0.0, 0.0)])  # s v > 0
 
     def initial(self, X):
-        play = X[0] - X[2] / self.k
-        for s in (1, -1):  # on an edge: engaged if moving on
-            if s * play >= 0.5 * self.h * (1.0 - 1e-12):
-                X[0] = X[2] / self.k + s * 0.5 * self.h  # on the edge, the given output kept
-                return self._engage(s, X, count=False)
-        return FREE, X, None
+        s = self.wall(X)  # on an edge: engaged if moving on
+        if not s:
+            return FREE, X, None
+        X[0] = X[2] / self.k + s * 0.5 * self.h  # on the edge, the given output kept
+        return self._engage(s, X, count=False)
 
     def _engage(self, s, X, count=True):
         if count:  # reached the edge: y takes up from x (within rounding of the edge already)

@@ -22,7 +22,7 @@ Examples
 from dataclasses import dataclass, field
 
 from dfwb.base.errors import InputError, PlantError
-from dfwb.fmus.compensation import MAX_ESTIMATE, SIGNALS, BacklashInverse, Coulomb, Deadband, Dither, Reset
+from dfwb.fmus.compensation import SIGNALS, BacklashInverse, Coulomb, Deadband, Dither, Reset, check_estimate
 
 __all__ = ["KINDS", "CHOICES", "Compensation", "choice", "check_judged"]
 
@@ -128,15 +128,19 @@ class Compensation:
             raise InputError(f"compensate = 'backlash-inverse': the backlash inverse needs a plant with a play "
                              f"({', '.join(played)}); {spec.name} has none")
 
-    def check_estimate(self, params, values):
-        """Refuse a backlash inverse's h_hat beyond MAX_ESTIMATE times the plant's play h (its ``params`` with
-        their defaults) in one line: an estimate that far off is no estimate."""
-        if "backlash-inverse" not in self.kinds:
-            return
-        h_hat, h = dict(self.defaults, **values)["h_hat"], params["h"]
-        if not h_hat <= MAX_ESTIMATE * h:
-            raise InputError(f"h_hat = {h_hat!r} is out of range: the backlash inverse's estimate of the play h = "
-                             f"{h!r} m, at most {MAX_ESTIMATE:g} times it")
+    def check_estimate(self, spec, params, values):
+        """Refuse a backlash inverse's h_hat too far from the play h of the plant ``spec`` at ``params`` (its
+        defaults for the others) in one line (:func:`dfwb.fmus.compensation.check_estimate`)."""
+        if "backlash-inverse" in self.kinds:
+            try:
+                check_estimate(dict(self.defaults, **values)["h_hat"], dict(spec.defaults(), **params)["h"])
+            except PlantError as error:
+                raise InputError(str(error)) from None
+
+    def _closed_form(self, spec):
+        """Whether the compensated plant's DF is a closed form of its own: the static backlash with the backlash
+        inverse alone (:mod:`dfwb.engine.inverse_df`)."""
+        return self.kinds == ("backlash-inverse",) and spec.name == "static-backlash"
 
     def equivalent(self, spec, params, values):
         """The parameters of the compensated plant's DF (its engine :meth:`df_engine`'s), or None where there is
@@ -150,7 +154,7 @@ class Compensation:
         nonlinear controller), the integrator's management (the controller's state), a dither (a forced loop)
         and the inverse of a play between two masses (impacts) have none.
         """
-        if self.kinds == ("backlash-inverse",) and spec.name == "static-backlash":
+        if self._closed_form(spec):
             return dict(params, h_hat=dict(self.defaults, **values)["h_hat"])
         if self.kinds != ("coulomb",) or spec.name != "friction":
             return None
@@ -162,7 +166,7 @@ class Compensation:
     def df_engine(self, spec, engine):
         """The engine of the compensated plant ``spec``'s DF: ``engine`` (the plant's), or the closed form of the
         static backlash seen through its inverse."""
-        if self.kinds == ("backlash-inverse",) and spec.name == "static-backlash":
+        if self._closed_form(spec):
             from dfwb.engine.inverse_df import InverseDFEngine
 
             return InverseDFEngine(spec)

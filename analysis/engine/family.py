@@ -273,7 +273,7 @@ class LoopFamily:
         except PlantError as error:
             raise InputError(str(error)) from None
         if built is not None:
-            self.compensation.check_estimate(dict(self.spec.defaults(), **self.params(values)), merged)
+            self.compensation.check_estimate(self.spec, self.params(values), merged)
         return built
 
     def check_compensator(self, values):
@@ -283,7 +283,7 @@ class LoopFamily:
         for name, value in values.items():
             self.compensation.check(name, number(name, value))
         if "h_hat" in values and "h" not in self.free:
-            self.compensation.check_estimate(dict(self.spec.defaults(), **self.params()), self.merged(values))
+            self.compensation.check_estimate(self.spec, self.params(), self.merged(values))
 
     def scaled(self, name):
         """The family of ``name`` * G: the gain factor a free parameter (refused if G or the plant has it)."""

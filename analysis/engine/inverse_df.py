@@ -15,7 +15,7 @@ Its k-th harmonic (odd k; even ones vanish) is ``(2 k_s / pi) [(X + d) E_k(0, th
 (theta_1, pi) - d E_k(theta_1, pi)]``, ``E_m(a, b) = int_a^b exp(-i m theta) d theta``, k_s the slope. Without
 the inverse (h_hat = 0, d = -h/2) it is the backlash's own DF (Phillips and Harbor; ``closed_forms.backlash_df``),
 and for X <= h/2 the mass swings inside the play: nothing moves, N = 0. ``tests/test_backlash_inverse.py``
-checks it against the exact loop's own plant, sampled.
+checks it against the exact plant's own harmonic integrals, the side taken from its engagements.
 
 :class:`InverseDFEngine` serves it as a DF engine serves a plant (``point(F, omega, params)`` gives a
 :class:`~dfwb.engine.describing.DFResult`), its parameters the static backlash's and ``h_hat``: the DF side of a
@@ -29,7 +29,7 @@ from collections.abc import Mapping
 
 from dfwb.base.errors import PlantError
 from dfwb.engine.describing import DFResult, check_point
-from dfwb.fmus.compensation import MAX_ESTIMATE, BacklashInverse
+from dfwb.fmus.compensation import BacklashInverse, check_estimate
 
 __all__ = ["harmonics", "InverseDFEngine"]
 
@@ -66,12 +66,9 @@ class _Plant:
             self.spec.check(params)  # not a mapping: refused as the plant refuses it
             raise PlantError("h_hat: the backlash inverse's estimated play needs a value")
         params = dict(params)
-        h_hat = BacklashInverse(params.pop("h_hat")).h_hat  # its check, its message
+        h_hat = BacklashInverse(params.pop("h_hat")).h_hat  # its checks, their messages
         checked = self.spec.check(params)
-        h = dict(self.spec.defaults(), **checked)["h"]
-        if not h_hat <= MAX_ESTIMATE * h:
-            raise PlantError(f"h_hat = {h_hat!r} is out of range: the backlash inverse's estimate of the play h = "
-                             f"{h!r} m, at most {MAX_ESTIMATE:g} times it")
+        check_estimate(h_hat, dict(self.spec.defaults(), **checked)["h"])
         return dict(checked, h_hat=h_hat)
 
     checked = check

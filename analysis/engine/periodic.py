@@ -261,10 +261,10 @@ class LoopProblem:
     budget : dfwb.fmus.hybrid.Budget, optional
         A budget shared with other problems (a continuation's), instead of one of ``max_chunks``.
     compensation : compensator or list of them, optional
-        ``Coulomb``, ``Reset``, ``Deadband``, ``Dither`` of :mod:`dfwb.fmus.compensation`, between the
-        controller and the plant. The compiled core runs them, bit for bit, but for the Coulomb feedforward of
-        the controller's sign: with it, the Python loop runs. With a dither the loop is forced (``dither``):
-        its truth is :mod:`dfwb.engine.dither`'s.
+        ``Coulomb``, ``Reset``, ``Deadband``, ``Dither``, ``BacklashInverse`` of :mod:`dfwb.fmus.compensation`,
+        between the controller and the plant. The compiled core runs them, bit for bit, but for the Coulomb
+        feedforward of the controller's sign: with it, the Python loop runs. With a dither the loop is forced
+        (``dither``): its truth is :mod:`dfwb.engine.dither`'s.
     """
 
     def __init__(self, plant, G, params=None, max_chunks=MAX_CHUNKS, fmu_dir=None, budget=None, compensation=None):

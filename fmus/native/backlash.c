@@ -364,7 +364,7 @@ int dfwb_loop_gap_contact(int kind)
 
 int dfwb_loop_gap_wall(const dfwb_loop *L, const double *X)
 {
-    return 0.0 < X[2] && X[2] < L->par[2] ? 0 : X[2] <= 0.0 ? -1 : 1; /* as initial puts it */
+    return 0.0 < X[2] && X[2] < L->par[2] ? 0 : X[2] <= 0.0 ? -1 : 1;
 }
 
 double dfwb_loop_gap_half_play(const dfwb_loop *L)
@@ -375,11 +375,12 @@ double dfwb_loop_gap_half_play(const dfwb_loop *L)
 
 static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
 {
-    if (0.0 < X[2] && X[2] < L->par[2]) {
+    const int side = dfwb_loop_gap_wall(L, X);
+    if (!side) {
         *key = DFWB_LOOP_FREE;
         return DFWB_OK;
     }
-    return loop_at_wall(L, X[2] <= 0.0 ? -1 : 1, X, key, departing, err);
+    return loop_at_wall(L, side, X, key, departing, err);
 }
 
 static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)

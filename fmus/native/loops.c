@@ -22,6 +22,7 @@
 
 #define MAX_ORDER DFWB_LOOP_MAX_ORDER
 #define MAX_PLANT DFWB_LOOP_PLANT_MAX
+#define MAX_PLAY 1e3 /* a backlash inverse's h_hat at most [m] (compensation.MAX_PLAY) */
 
 void dfwb_loop_add_event(dfwb_plant_mode *pm, int kind, double l1, double l2, double l3, double l4, double Lf,
                          double l0)
@@ -298,7 +299,7 @@ static int compensators(dfwb_loop *L, const double *compensation, const double *
     if (L->a_d > 0.0 && (rc = dfwb_check(err, "w_d", L->w_d, L->w_d > 0.0,
                                          "the dither's angular frequency, a finite number of rad/s above 0")) != DFWB_OK)
         return rc;
-    if ((rc = dfwb_check(err, "h_hat", L->h_hat, L->h_hat >= 0.0 && L->h_hat <= 1e3,
+    if ((rc = dfwb_check(err, "h_hat", L->h_hat, L->h_hat >= 0.0 && L->h_hat <= MAX_PLAY,
                          "the backlash inverse's estimated play, a number of metres from 0 to 1000")) != DFWB_OK)
         return rc;
     L->has_dither = L->a_d > 0.0; /* a = 0: no dither (its w_d then 0, as a state holds it) */
@@ -626,13 +627,13 @@ int dfwb_loop_band(const dfwb_loop *p) { return p == NULL ? 0 : p->band; }
 
 void dfwb_loop_compensation(const dfwb_loop *p, double out[7])
 {
-    out[6] = p == NULL ? NAN : p->h_hat;
     out[0] = p == NULL ? NAN : (double)p->has_coulomb;
     out[1] = p == NULL ? NAN : p->F_hat;
     out[2] = p == NULL ? NAN : (double)p->reset;
     out[3] = p == NULL ? NAN : p->d;
     out[4] = p == NULL ? NAN : p->a_d;
     out[5] = p == NULL ? NAN : p->w_d;
+    out[6] = p == NULL ? NAN : p->h_hat;
 }
 
 int dfwb_loop_modes_built(const dfwb_loop *p)
@@ -727,7 +728,8 @@ int dfwb_loop_same_parameters(const dfwb_loop *a, const dfwb_loop *b)
         || a->hy.has_section != b->hy.has_section || !dfwb_same_double(a->section, b->section)
         || a->has_coulomb != b->has_coulomb || a->reset != b->reset || !dfwb_same_double(a->F_hat, b->F_hat)
         || !dfwb_same_double(a->d, b->d) || a->has_dither != b->has_dither || !dfwb_same_double(a->a_d, b->a_d)
-        || !dfwb_same_double(a->w_d, b->w_d) || a->has_inverse != b->has_inverse || !dfwb_same_double(a->h_hat, b->h_hat))
+        || !dfwb_same_double(a->w_d, b->w_d) || a->has_inverse != b->has_inverse
+        || !dfwb_same_double(a->h_hat, b->h_hat))
         return 0;
     for (i = 0; i < DFWB_LOOP_PAR; i++)
         if (!dfwb_same_double(a->par[i], b->par[i]))

@@ -278,17 +278,22 @@ static int loop_engage(dfwb_loop *L, int s, double *X, int count, int *key, int 
     return DFWB_OK;
 }
 
+/* StaticBacklashLoop.wall: the edge of the play X sits on to rounding (initial snaps it there), else 0 */
+static int loop_wall(const dfwb_loop *L, const double *X)
+{
+    const double play = X[0] - X[2] / L->par[1], edge = 0.5 * L->par[2] * (1.0 - 1e-12);
+    return play >= edge ? 1 : -play >= edge ? -1 : 0;
+}
+
 static int loop_initial(dfwb_loop *L, double *X, int *key, int *departing, dfwb_err *err)
 {
-    const double k = L->par[1], h = L->par[2], play = X[0] - X[2] / k;
-    int s;
-    for (s = 1; s >= -1; s -= 2) /* on an edge: engaged if moving on */
-        if ((double)s * play >= 0.5 * h * (1.0 - 1e-12)) {
-            X[0] = X[2] / k + (double)s * 0.5 * h; /* on the edge, the given output kept */
-            return loop_engage(L, s, X, 0, key, departing, err);
-        }
-    *key = DFWB_LOOP_FREE;
-    return DFWB_OK;
+    const int s = loop_wall(L, X); /* on an edge: engaged if moving on */
+    if (!s) {
+        *key = DFWB_LOOP_FREE;
+        return DFWB_OK;
+    }
+    X[0] = X[2] / L->par[1] + (double)s * 0.5 * L->par[2]; /* on the edge, the given output kept */
+    return loop_engage(L, s, X, 0, key, departing, err);
 }
 
 static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing, dfwb_err *err)
@@ -303,16 +308,10 @@ static int loop_fire(dfwb_loop *L, int kind, double *X, int *key, int *departing
     return loop_engage(L, kind == DFWB_EVENT_ENGAGE_UP ? 1 : -1, X, 1, key, departing, err);
 }
 
-/* StaticBacklashLoop.CONTACTS, wall and half_play: x reaches the upper / lower edge; k / 2 */
+/* StaticBacklashLoop.CONTACTS and half_play: x reaches the upper / lower edge; k / 2 */
 static int loop_contact(int kind)
 {
     return kind == DFWB_EVENT_ENGAGE_UP ? 1 : kind == DFWB_EVENT_ENGAGE_DOWN ? -1 : 0;
-}
-
-static int loop_wall(const dfwb_loop *L, const double *X)
-{
-    const double play = X[0] - X[2] / L->par[1], edge = 0.5 * L->par[2] * (1.0 - 1e-12); /* as initial snaps */
-    return play >= edge ? 1 : -play >= edge ? -1 : 0;
 }
 
 static double loop_half_play(const dfwb_loop *L) { return 0.5 * L->par[1]; }
