@@ -116,11 +116,12 @@ class Mode:
     """
 
     __slots__ = ("key", "A", "c", "events", "h", "resolution", "terms", "psi", "rows", "abs_rows", "absA", "scale",
-                 "reach", "norms", "tail", "curvature_tail")
+                 "reach", "norms", "tail", "curvature_tail", "_series")
     integrated = False  # a closed-form mode (IntegratedMode: one integrated by .integrated)
 
     def __init__(self, key, A, c, events):
         self.key, self.A, self.c, self.events = key, A, c, tuple(events)
+        self._series = {}  # {row L: its rows L A^(k-1) / k!} (series())
         n = len(A)
         d = balance(A)
         rho = max(sum(abs(A[i][j]) * d[j] / d[i] for j in range(n)) for i in range(n))
@@ -190,6 +191,18 @@ class Mode:
             f = tau / (k + 1)
             acc = [kv + f * a for kv, a in zip(krylov[k - 1], acc)]
         return [x + tau * a for x, a in zip(X, acc)]
+
+    def series(self, L, X, dX):
+        """Taylor coefficients [L.X, (L.X)'/1!, (L.X)''/2!, ...] at X (X' = dX) of the linear function L.X, as
+        :meth:`coefficients` gives an event function's (the rows L A^(k-1) / k! kept per row)."""
+        rows = self._series.get(tuple(L))
+        if rows is None:
+            n, rows, r = len(self.A), [], list(L)
+            for k in range(1, self.terms + 1):
+                rows.append([v / math.factorial(k) for v in r])
+                r = [_dot(r, [self.A[m][j] for m in range(n)]) for j in range(n)]
+            self._series[tuple(L)] = rows
+        return [_dot(L, X)] + [_dot(row, dX) for row in rows]
 
     def step(self, X, dX):
         """X(a + h)."""
@@ -481,6 +494,19 @@ class HybridSolver:
             end = list(self._step[3]) if self._mode.integrated else self._mode.step(self._X, self._dX)
             self._chunk_start(self._b, end)
         self.t = t_end
+
+    def expansion(self, L):
+        """(t_end, coefficients): ``L.X(self.t + tau) = sum_k c_k tau^k`` for 0 <= tau <= t_end - self.t, t_end
+        the current chunk's end or its next event, whichever comes first: the exact motion's Taylor series
+        (remainder below 2^-60 of its first term), for integrals over the motion with no sampling error."""
+        if self._mode.integrated:
+            raise PlantError("an integrated mode has no Taylor series of its motion (expansion)")
+        if not self._searched:
+            self._event = self._search()
+            self._searched = True
+        end = self._b if self._event is None else min(self._b, self._a + self._event[0])
+        X = self._integrated()
+        return end, self._mode.series(L, X, self._mode.derivative(X))
 
     def sample(self, times):
         """The states at each of ``times`` (non-decreasing, from self.t), advancing to them in turn."""

@@ -137,7 +137,7 @@ class FeedbackLoop(HybridSolver):
         coulomb = self.coulomb
         # the Coulomb feedforward of the controller's sign: its current sign, a discrete state of the loop
         self._on_control = follows_control(coulomb)
-        self.Ac, self.Bc, self.C, self.D = _controller(b, a)
+        self.Ac, self.Bc, self.C, self.D = self.controller(b, a)
         # the integrator's coordinate xi = w . z: reset when the mass comes to rest, held within the deadband
         self._integrator = integrator(a) if reset or self.deadband is not None else None
         self._reset_at_rest = reset
@@ -191,6 +191,11 @@ class FeedbackLoop(HybridSolver):
         self.start(0.0, X0, key, departing)
 
     # -- the loop's equations --------------------------------------------------------
+    def controller(self, b, a):
+        """(Ac, Bc, C, D) of what drives the plant, z' = Ac z + Bc y and f = C z + D y: the controller -G(s)
+        (a forced open loop, dfwb.engine.dither_df, drives it with an autonomous generator instead)."""
+        return _controller(b, a)
+
     def force(self, X):
         """f = -G(s) y: D y + C z at the state X (y corrected by the backlash inverse in an integrated state)."""
         m, n = len(self.coordinates), self.order
