@@ -349,7 +349,8 @@ def cmd_limit_cycle(args):
 
     plot = _plot_path(args.plot) if args.plot else None
     response = limit_cycles(_plant(args), _controller(args), F_range=args.F_range, omega_range=args.omega_range,
-                            n_F=args.map_size[0], n_omega=args.map_size[1], exact=args.exact, verify=args.verify,
+                            n_F=(args.map_size or [None])[0], n_omega=(args.map_size or [None, None])[1],
+                            exact=args.exact, verify=args.verify,
                             samples_per_period=args.samples_per_period, fmu_dir=args.fmus, progress=not args.json,
                             rtol=args.rtol, timeout=args.timeout, compensate=args.compensate,
                             **_params(args, limit_cycles))
@@ -698,9 +699,10 @@ def parser():
                        help="force amplitudes searched [N] (default: derived from the plant and G)")
     cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
                        help="frequencies searched [rad/s] (default: derived from the plant and G)")
-    cycle.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=list(DF_MAP_SIZE),
+    cycle.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
                        metavar=("N_F", "N_OMEGA"), help="the DF map's points in F and in omega, where the candidates "
-                                                        f"are located (default: {DF_MAP_SIZE[0]} {DF_MAP_SIZE[1]})")
+                                                        f"are located (default: {DF_MAP_SIZE[0]} {DF_MAP_SIZE[1]}; "
+                                                        "4 12 for the dither's DF, whose points cost)")
     cycle.add_argument("--verify", action="store_true", help="check each cycle by closed-loop co-simulation")
     cycle.add_argument("--exact", action="store_true",
                        help="find the true cycles of the exact closed loop (shooting, Floquet stability) and the "

@@ -94,7 +94,7 @@ def test_a_strong_dither_settles_on_its_own_response_as_the_reference_does():
     (the integrator), residual oscillation 0.4026 m; it is a fixed point of the reference's stroboscopic map to
     1e-9, the reference reaches it from rest, and the cost's residual oscillation is the reference's."""
     response = dfwb.limit_cycles("friction", "10 + 2/s", exact=True, compensate="dither", a=10, w_d=5,
-                                 amplitudes=[0.7])
+                                 amplitudes=[0.7], n_F=2, n_omega=2)  # the truth's test: a DF map of 4 points
     assert response.cycles == [] and response.coverage.outcomes == {"dithered": 4}
     (r,) = response.responses
     assert r.stable and r.returns == 1 and abs(r.period - 2 * math.pi / 5) < 1e-15 and abs(r.harmonics[0]) < 1e-9
@@ -116,7 +116,7 @@ def test_a_hunting_cycle_locked_to_the_dither_is_the_references():
     """a = 2 N at 0.5 rad/s: the hunting locks to the dither, one stable cycle of three dither periods
     (37.7 s); the reference returns to it after three periods to 1e-9 and reaches it from rest."""
     response = dfwb.limit_cycles("friction", "10 + 2/s", exact=True, compensate="dither", a=2, w_d=0.5,
-                                 amplitudes=[0.7])
+                                 amplitudes=[0.7], n_F=2, n_omega=2)
     assert response.coverage.outcomes == {"cycle": 4} and response.responses == []
     (c,) = response.cycles
     assert c.stable and c.returns == 3 and abs(c.period - 6 * math.pi / 0.5) < 1e-12
@@ -178,7 +178,7 @@ def test_a_bad_dither_is_one_line(values, message):
 
 def test_the_command_line_prints_the_dithers_responses_and_cost_in_json(tmp_path):
     done = subprocess.run(DFWB + ["limit-cycle", "friction", "--G", "10 + 2/s", "--exact", "--compensate", "dither",
-                                  "--set", "a=10", "w_d=5", "--json"], capture_output=True, text=True, cwd=tmp_path,
+                                  "--set", "a=10", "w_d=5", "--map-size", "2", "2", "--json"], capture_output=True, text=True, cwd=tmp_path,
                           timeout=600)
     assert done.returncode == 0, done.stderr
     document = json.loads(done.stdout)

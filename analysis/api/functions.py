@@ -192,7 +192,7 @@ def transfer_function(G: Any):
 
 
 def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_range: Optional[tuple] = None,
-                 n_F: int = DF_MAP_SIZE[0], n_omega: int = DF_MAP_SIZE[1], exact: bool = False, verify: bool = False,
+                 n_F: Optional[int] = None, n_omega: Optional[int] = None, exact: bool = False, verify: bool = False,
                  samples_per_period: int = JUDGE_SAMPLES, amplitudes: Optional[Sequence[float]] = None,
                  fmu_dir: Optional[Union[str, Path]] = None, progress: bool = False,
                  rtol: Optional[float] = None, timeout: Optional[float] = None,
@@ -220,7 +220,8 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     omega_range : (float, float), optional, keyword-only
         Frequencies searched [rad/s] (default: derived).
     n_F, n_omega : int, keyword-only
-        The DF map's size (2 to 1000 each).
+        The DF map's size (2 to 1000 each; default 16 x 48, and 4 x 12 for the dither's DF, whose points cost
+        0.01 to 2 s each).
     exact : bool, keyword-only
         Also find the true cycles of the exact closed loop (a systematic search of
         starts and section hits, Floquet stability; :mod:`dfwb.engine.cycles`), link
@@ -250,7 +251,9 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
         parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`): ``exact`` is
         required; its DF is computed where the compensated plant is a plant (the feedforward of the velocity
-        on the friction mass, ``F_hat <= Fc``: the mass with ``Fc - F_hat``).
+        on the friction mass, ``F_hat <= Fc``: the mass with ``Fc - F_hat``) or has a DF of its own (the
+        backlash inverse on the static backlash, in closed form; a dither alone on the friction mass, the
+        dual-input DF averaged over the dither's phase, :mod:`dfwb.engine.dither_df`).
     **params : float
         Plant parameters (``eps=0.2``), G's (``Kp=10``) and the compensators' (``F_hat=3``).
 
@@ -286,7 +289,7 @@ def limit_cycles(plant: str, G: Any, *, F_range: Optional[tuple] = None, omega_r
     from dfwb.foreign.engine import engine_for
     from dfwb.studies.limit_cycles import analyse
 
-    n_F, n_omega = _integer("n_F", n_F), _integer("n_omega", n_omega)
+    n_F, n_omega = (None if n is None else _integer(name, n) for name, n in (("n_F", n_F), ("n_omega", n_omega)))
     samples_per_period = _integer("samples_per_period", samples_per_period)
     flags(exact=exact, verify=verify, progress=progress)
     spec = resolve_plant(plant)
@@ -441,7 +444,8 @@ def hunting_map(plant: Any, G: Any, x: tuple, y: tuple, *, out_dir: Optional[Uni
         parameters come with ``params`` like G's (:mod:`dfwb.engine.compensators`).
         A compensated loop is judged by its truth, with its cost (:mod:`dfwb.engine.cost`) in every cell and
         its DF where the compensated plant is a plant (the feedforward of the velocity on the friction mass,
-        ``F_hat <= Fc``); an axis may be a compensator's parameter.
+        ``F_hat <= Fc``) or has a closed-form DF (the static backlash's inverse); a dither's DF is not mapped
+        (``limit_cycles`` shows it); an axis may be a compensator's parameter.
     **params : float
         The other parameters of G and of the plant.
 

@@ -137,25 +137,36 @@ class Compensation:
             except PlantError as error:
                 raise InputError(str(error)) from None
 
-    def _closed_form(self, spec):
-        """Whether the compensated plant's DF is a closed form of its own: the static backlash with the backlash
-        inverse alone (:mod:`dfwb.engine.inverse_df`)."""
-        return self.kinds == ("backlash-inverse",) and spec.name == "static-backlash"
+    def _own_df(self, spec):
+        """The engine class of the compensated plant's DF where it is one of its own, else None: the static
+        backlash seen through its inverse (a closed form, :mod:`dfwb.engine.inverse_df`), the friction mass with a
+        dither alone (the dual-input DF, :mod:`dfwb.engine.dither_df`)."""
+        if self.kinds == ("backlash-inverse",) and spec.name == "static-backlash":
+            from dfwb.engine.inverse_df import InverseDFEngine
+
+            return InverseDFEngine
+        if self.kinds == ("dither",):
+            from dfwb.engine.dither_df import PLANTS, DitherDFEngine
+
+            return DitherDFEngine if spec.name in PLANTS else None
+        return None
 
     def equivalent(self, spec, params, values):
         """The parameters of the compensated plant's DF (its engine :meth:`df_engine`'s), or None where there is
         none.
 
-        Two cases. The Coulomb feedforward of the velocity alone on the friction mass, at most its Coulomb level
+        Three cases. The Coulomb feedforward of the velocity alone on the friction mass, at most its Coulomb level
         (F_hat <= Fc): a slide then sees F_hat less friction and a stuck mass nothing (the velocity is 0), the
         friction mass with Fc - F_hat, Fs kept, its DF computed as any plant's. The backlash inverse alone on the
-        static backlash: the plant's parameters and h_hat, its DF a closed form
-        (:mod:`dfwb.engine.inverse_df`). Over-compensation (a negative Coulomb level), the controller's sign (a
-        nonlinear controller), the integrator's management (the controller's state), a dither (a forced loop)
-        and the inverse of a play between two masses (impacts) have none.
+        static backlash: the plant's parameters and h_hat, its DF a closed form (:mod:`dfwb.engine.inverse_df`).
+        The dither alone on the friction mass: the plant's parameters with a and w_d, its DF the dual-input DF
+        (:mod:`dfwb.engine.dither_df`). Over-compensation (a negative Coulomb level), the controller's sign (a
+        nonlinear controller), the integrator's management (the controller's state), compensators together, a
+        dither on a free mass (it drifts) and the inverse of a play between two masses (impacts) have none.
         """
-        if self._closed_form(spec):
-            return dict(params, h_hat=dict(self.defaults, **values)["h_hat"])
+        if self._own_df(spec) is not None:
+            merged = dict(self.defaults, **values)
+            return dict(params, **{name: merged[name] for kind in self.kinds for name in KINDS[kind].parameters})
         if self.kinds != ("coulomb",) or spec.name != "friction":
             return None
         merged, Fc = dict(self.defaults, **values), dict(spec.defaults(), **params)["Fc"]
@@ -164,13 +175,16 @@ class Compensation:
         return dict(params, Fc=Fc - merged["F_hat"])
 
     def df_engine(self, spec, engine):
-        """The engine of the compensated plant ``spec``'s DF: ``engine`` (the plant's), or the closed form of the
-        static backlash seen through its inverse."""
-        if self._closed_form(spec):
-            from dfwb.engine.inverse_df import InverseDFEngine
+        """The engine of the compensated plant ``spec``'s DF: ``engine`` (the plant's), or the compensated
+        plant's own (:meth:`_own_df`)."""
+        own = self._own_df(spec)
+        return engine if own is None else own(spec)
 
-            return InverseDFEngine(spec)
-        return engine
+    def df_text(self, spec):
+        """What the compensated plant's own DF is, in words (a summary's), or None where it is the plant's with
+        other parameters."""
+        own = self._own_df(spec)
+        return None if own is None else own.described
 
     def describe(self, values):
         """The compensators and their values as one short text: ``coulomb (F_hat = 3, signal = control), reset``."""

@@ -51,11 +51,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dfwb.base.errors import InputError
-from dfwb.engine.cycles import DIVERGED, Coverage, CycleSearch, Fate, refused, starts, tally
+from dfwb.engine.cycles import DIVERGED, Coverage, CycleSearch, Fate, link, refused, starts, tally
 from dfwb.engine.periodic import FD_STEP, FD_STEP_FINAL, MAX_NEWTON, RESIDUAL_TOL, TrueCycle, jacobian, newton_step
 from dfwb.fmus.exact import PlantError
 
-__all__ = ["DitherSearch", "find_responses", "OUTCOMES", "P_MAX", "MAX_PERIODS", "RUN_HORIZONS", "SLOW_CYCLES", "DECAY"]
+__all__ = ["DitherSearch", "find_responses", "check_dither", "OUTCOMES", "P_MAX", "MAX_PERIODS", "RUN_HORIZONS",
+           "SLOW_CYCLES", "DECAY"]
 
 OUTCOMES = ("cycle", "hunting", "dithered", "rest", "diverged", "unsettled", "failed")
 P_MAX = 8  # a run recognises samples that repeat every 1..P_MAX dither periods
@@ -260,7 +261,28 @@ class _Swings:
                 f"(the later half {later / earlier:.3f} of the earlier)")
 
 
-def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIODS, progress=None):
+def check_dither(problem, amplitudes=None, horizon=None):
+    """The horizon of a dithered loop's runs [s] (default: the loop's, for the smallest start amplitude), once
+    its dither is checked against it: InputError where the dither's period is longer than the horizon, or one
+    run over the horizon would take more steps of the exact loop (at most 1/w_d s each) than the problem's
+    budget. A study calls it before anything runs."""
+    scales = problem.scales
+    amplitudes = scales.amplitudes() if amplitudes is None else amplitudes
+    horizon = scales.horizon(min(amplitudes)) if horizon is None else float(horizon)
+    w_d = problem.dither.w_d
+    T = 2.0 * math.pi / w_d
+    if T > horizon:
+        raise InputError(f"w_d = {w_d:.6g} rad/s is out of range for this loop: its period {T:.4g} s is longer than "
+                         f"the loop's horizon {horizon:.4g} s (a dither is faster than the motion it smooths)")
+    if w_d * horizon > problem.budget.total:
+        raise InputError(f"w_d = {w_d:.6g} rad/s is out of range for this loop: the exact loop's steps are at most "
+                         f"1/w_d long, so one run over its horizon ({horizon:.4g} s) would take more than the "
+                         f"study's {problem.budget.total} of them (at most {problem.budget.total / horizon:.4g} "
+                         "rad/s)")
+    return horizon
+
+
+def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIODS, progress=None, predictions=()):
     """Every periodic response of a dithered loop that a run reaches, and the runs that hunt unlocked.
 
     Parameters
@@ -276,6 +298,9 @@ def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIO
         Dither periods a run may take (and no more than RUN_HORIZONS horizons' worth).
     progress : callable, optional
         ``progress(done, total, label)`` after each run.
+    predictions : list of dfwb.engine.limit_cycles.Cycle, optional
+        The dither's DF predictions (:mod:`dfwb.engine.dither_df`), each linked to its nearest locked cycle
+        (``links``, as :func:`~dfwb.engine.cycles.find_cycles` links them; they start no run).
 
     Returns
     -------
@@ -291,17 +316,8 @@ def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIO
         raise ValueError("find_responses needs a loop with a dither (compensation=Dither(a, w_d))")
     scales = problem.scales
     amplitudes = scales.amplitudes() if amplitudes is None else [float(a) for a in amplitudes]
-    horizon = scales.horizon(min(amplitudes)) if horizon is None else float(horizon)
-    w_d = problem.dither.w_d
-    T = 2.0 * math.pi / w_d
-    if T > horizon:
-        raise InputError(f"w_d = {w_d:.6g} rad/s is out of range for this loop: its period {T:.4g} s is longer than "
-                         f"the loop's horizon {horizon:.4g} s (a dither is faster than the motion it smooths)")
-    if w_d * horizon > problem.budget.total:
-        raise InputError(f"w_d = {w_d:.6g} rad/s is out of range for this loop: the exact loop's steps are at most "
-                         f"1/w_d long, so one run over its horizon ({horizon:.4g} s) would take more than the "
-                         f"study's {problem.budget.total} of them (at most {problem.budget.total / horizon:.4g} "
-                         "rad/s)")
+    horizon = check_dither(problem, amplitudes, horizon)
+    T = 2.0 * math.pi / problem.dither.w_d
     max_periods = max(1, min(int(max_periods), math.ceil(RUN_HORIZONS * horizon / T)))
     runs = _Runs(problem, horizon, max_periods, DIVERGED * max(amplitudes))
     plan = starts(problem, amplitudes)
@@ -328,4 +344,8 @@ def find_responses(problem, amplitudes=None, horizon=None, max_periods=MAX_PERIO
     for fate in runs.fates:
         if fate.cycle is not None:
             fate.cycle = order[id(runs.found[fate.cycle])]
-    return DitherSearch(cycles, [], coverage, runs.fates, responses=responses)
+    links = link(predictions, cycles)
+    for i, j in enumerate(links):
+        if j is not None:
+            cycles[j].prediction = i
+    return DitherSearch(cycles, links, coverage, runs.fates, responses=responses)

@@ -25,7 +25,7 @@ LABELS = {"stable": "hunts (a stable cycle)", "hunts": "hunts, not locked to the
           "unstable": "only unstable cycles",
           "diverges": "diverges (from some starts)", "none": "no cycle in the range searched",
           "incomplete": "not settled (the work budget ran out, or runs failed)",
-          "uncomputed": "no DF (the compensated plant is no plant)"}
+          "uncomputed": "no DF (the compensated plant is no plant, or its DF is not mapped: the dither's)"}
 HUNTS = ("stable", "hunts")  # the classes that hunt: a stable cycle, or (dithered) hunting not locked to the dither
 UNCOMPUTED = {"class": "uncomputed", "predictions": []}  # a compensated loop's DF verdict
 MAP_AMPLITUDES = 5  # start amplitudes per cell (1 per decade over the default span)

@@ -94,6 +94,7 @@ class InverseDFEngine:
     """
 
     drive = "closed form"
+    described = "the play seen through the inverse, in closed form"
 
     def __init__(self, spec):
         if spec.name != "static-backlash":

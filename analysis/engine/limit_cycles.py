@@ -238,7 +238,8 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
     engine : DFEngine, optional
         The engine to use (default: a new one of ``plant``). One with a ``coarse()`` method (a
         user's FMU's, :class:`dfwb.foreign.engine.FMUEngine`) computes the map on that looser
-        engine and refines on itself.
+        engine and refines on itself; one with a ``domain(F_range, omega_range, params)`` method (the
+        dither's, :class:`dfwb.engine.dither_df.DitherDFEngine`) maps the ranges it gives.
     progress : callable, optional
         ``progress(done, total)`` as the map's points are computed.
 
@@ -255,6 +256,12 @@ def search(plant, G, params=None, F_range=(1.0, 100.0), omega_range=(0.1, 100.0)
         raise PlantError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
     engine = engine or DFEngine(plant)
     params = engine.plant.check(params or {})
+    domain = getattr(engine, "domain", None)  # an engine with ranges of its own (the dither's DF)
+    if domain is not None:
+        ranges = domain((F_lo, F_hi), (w_lo, w_hi), params)
+        if ranges is None:
+            return Search([], np.geomspace(F_lo, F_hi, n_F), np.zeros(0), np.zeros((n_F, 0), complex))
+        (F_lo, F_hi), (w_lo, w_hi) = ranges
     F_grid, omega_grid = np.geomspace(F_lo, F_hi, n_F), np.geomspace(w_lo, w_hi, n_omega)
     coarse = getattr(engine, "coarse", None)  # an engine whose points cost: the map only locates, looser
     N_grid = df_map(coarse() if coarse is not None else engine, params, F_grid, omega_grid, progress)

@@ -14,8 +14,9 @@ __all__ = ["search"]
 
 def search(problem, predictions=(), amplitudes=None, boundaries=True, progress=None):
     """The :class:`~dfwb.engine.cycles.CycleSearch` of ``problem`` (a
-    :class:`~dfwb.engine.dither.DitherSearch` where it has a dither, whose search takes no ``predictions`` and
-    no ``boundaries``); the arguments as :func:`~dfwb.engine.cycles.find_cycles` takes them."""
+    :class:`~dfwb.engine.dither.DitherSearch` where it has a dither, whose search links ``predictions`` but
+    starts no run from them, and takes no ``boundaries``); the arguments as
+    :func:`~dfwb.engine.cycles.find_cycles` takes them."""
     if problem.dither is not None:
-        return find_responses(problem, amplitudes, progress=progress)
+        return find_responses(problem, amplitudes, progress=progress, predictions=predictions)
     return find_cycles(problem, predictions, amplitudes, boundaries=boundaries, progress=progress)

@@ -91,7 +91,10 @@ def compute_cells(chunk, fmu_data=None):
             amplitudes = problem.scales.amplitudes(chunk.amplitudes)
             # a compensated loop: its DF where the compensated plant is a plant (computed per cell), and its cost
             equivalent = family.df_params(values) if family.compensation else None
-            cell = classify(problem, family.df_engine(engine), dfmap, amplitudes,
+            df_engine = family.df_engine(engine)
+            if not getattr(df_engine, "mapped", True):  # a DF whose map costs minutes a cell (the dither's)
+                equivalent = None
+            cell = classify(problem, df_engine, dfmap, amplitudes,
                             df=not family.compensation or equivalent is not None, df_params=equivalent)
             if family.compensation:
                 from dfwb.engine.cost import step_cost

@@ -33,7 +33,7 @@ from dfwb.studies.cache import code_revision, finite, fmu_revision, solver_revis
 from dfwb.studies.responses import LimitCycleResponse
 
 
-def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP_SIZE[0], n_omega=DF_MAP_SIZE[1],
+def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=None, n_omega=None,
             exact=False, verify=False,
             samples_per_period=JUDGE_SAMPLES, amplitudes=None, fmu_dir=None, engine=None, cache=None, progress=None,
             compensate=None):
@@ -51,6 +51,10 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     compensated = bool(family.compensation)
     check_judged(family.compensation, exact, verify)
     spec, controller, params = family.spec, family.G(), family.params()
+    engine = engine or engine_for(spec, fmu_dir=fmu_dir)
+    df_engine = family.df_engine(engine)
+    size = getattr(df_engine, "map_size", DF_MAP_SIZE)  # the dither's DF, whose points cost, maps fewer
+    n_F, n_omega = size[0] if n_F is None else n_F, size[1] if n_omega is None else n_omega
     if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
         raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
     foreign = getattr(spec, "foreign", False)
@@ -63,14 +67,17 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
     F, omega = search_ranges(problem, F_range, omega_range)
     if amplitudes is not None:
         amplitudes = _amplitudes(amplitudes)
-    engine = engine or engine_for(spec, fmu_dir=fmu_dir)
+    if exact and problem is not None and problem.dither is not None:  # refused before its DF map, if at all
+        from dfwb.engine.dither import check_dither
+
+        check_dither(problem, amplitudes)
     # the plant's DF, or a compensated loop's equivalent plant's; None: it has none (the plant's would predict the
     # uncompensated loop's cycles)
     df_params = family.df_params()
     if df_params is None:
         grids, predictions = (np.zeros(0), np.array(omega, dtype=float), np.zeros((0, 2), complex)), []
     else:
-        found = search(spec.name, controller, df_params, F, omega, n_F, n_omega, engine=family.df_engine(engine),
+        found = search(spec.name, controller, df_params, F, omega, n_F, n_omega, engine=df_engine,
                        progress=None if progress is None else (lambda done, total: progress("DF map", done, total)))
         grids, predictions = (found.F_grid, found.omega_grid, found.N_grid), found.cycles
     verification, runs = [], []
@@ -91,13 +98,16 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=DF_MAP
                               F_grid=grids[0], omega_grid=grids[1], N_grid=grids[2],
                               compensation=family.compensation.describe(family.merged()), cost=cost,
                               equivalent=df_params if compensated else None,
+                              df_described=family.compensation.df_text(spec) if compensated else None,
                               cycles=search_result.cycles if search_result else [],
                               responses=getattr(search_result, "responses", None),
                               hunting=[{"start": f.start, "detail": f.detail} for f in search_result.fates
                                        if f.outcome == "hunting"] if search_result else [],
                               links=search_result.links if search_result else [],
                               coverage=search_result.coverage if search_result else None,
-                              verification=verification, runs=runs, F_range=list(F), omega_range=list(omega),
+                              verification=verification, runs=runs,
+                              F_range=[float(grids[0][0]), float(grids[0][-1])] if len(grids[0]) else list(F),
+                              omega_range=[float(grids[1][0]), float(grids[1][-1])] if len(grids[1]) else list(omega),
                               values=family.merged(), unit=spec.unit)
 
 

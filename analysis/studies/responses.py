@@ -262,6 +262,7 @@ class LimitCycleResponse(_Shown):
     compensation: str = ""
     cost: Any = None
     equivalent: Any = None  # the plant parameters whose DF the compensated loop's is (Compensation.equivalent)
+    df_described: Any = None  # what that DF is where it is the compensated plant's own (Compensation.df_text)
     responses: Any = None  # a dithered loop's own responses (period T_d), TrueCycles; None without a dither
     hunting: list = field(default_factory=list)  # a dithered loop's runs that hunt unlocked: {start, detail}
 
@@ -314,9 +315,8 @@ class LimitCycleResponse(_Shown):
 
         u = self.unit
         equivalent = "" if not self.equivalent else ", ".join(
-            f"{k} = {v:.6g}" for k, v in self.equivalent.items() if v != self.params.get(k) and k != "h_hat")
-        shown = ("the play seen through the inverse, in closed form" if self.equivalent and "h_hat" in self.equivalent
-                 else f"as the plant with {equivalent}")
+            f"{k} = {v:.6g}" for k, v in self.equivalent.items() if v != self.params.get(k))
+        shown = self.df_described or f"as the plant with {equivalent}"
         lines = [f"{self.plant} compensated by {self.compensation}: judged by its exact loop (no DF of this "
                  "compensated loop)" if self.compensation and self.equivalent is None else
                  f"{len(self.predictions)} limit cycle(s) of {self.plant}"
@@ -336,6 +336,8 @@ class LimitCycleResponse(_Shown):
                 j = self.links[i]
                 line += (("\n    no true cycle found near it (the search reaches stable cycles only)"
                           if self.coverage.stable_only and not c.stable else
+                          "\n    no locked cycle near it (a dithered loop's search finds the stable cycles "
+                          "locked to its dither)" if self.responses is not None else
                           "\n    no true cycle near it: a false alarm") if j is None else
                          "\n    true cycle [{}]: DF error omega {omega:+.2%}, amplitude {amplitude_x:+.2%}, F {F:+.2%}"
                          .format(j, **relative_errors(c, self.cycles[j])))
