@@ -19,6 +19,11 @@ The loop: the friction mass (default parameters) under PI. Reported, never asser
     ("a", 0.5, 8, M), compensate="backlash-inverse", jobs=2, cache=False, curves=False)``: the truth and the cost
     in every cell (no target in the issue).
 
+(e) **the dither's DF**: a point of ``dfwb.engine.dither_df.DitherDFEngine`` on the friction mass (F = 10 N,
+    a = 10 N, w_d = 5 rad/s) at w = w_d / r for r = 0.1, 1.3, 5.3, 20.3 and 50.3 dither periods a forcing period,
+    the map's coarse twin and the precise engine, side by side (no target in the issue: what a study's DF map
+    and its Newton steps cost).
+
 Usage: ``.venv/bin/python benchmarks/compensation.py [--quick] [--out out/bench_compensation]``; writes
 ``compensation.md`` and ``compensation.json`` there.
 """
@@ -53,6 +58,21 @@ def dither_cell(native):
     return seconds, found.coverage.outcomes
 
 
+def dither_df_points():
+    """[(r, seconds of the coarse twin, seconds of the precise engine, its N_error / |N|)] at w = w_d / r."""
+    from dfwb.engine.dither_df import DitherDFEngine
+    from dfwb.plants import plant
+
+    engine = DitherDFEngine(plant("friction"))
+    coarse, rows = engine.coarse(), []
+    for r in (0.1, 1.3, 5.3, 20.3, 50.3):
+        values = {"a": 10.0, "w_d": 5.0}
+        _, t_coarse = timed(lambda: coarse.point(10.0, 5.0 / r, values))
+        point, t_fine = timed(lambda: engine.point(10.0, 5.0 / r, values))
+        rows.append((r, t_coarse, t_fine, point.N_error / abs(point.N)))
+    return rows
+
+
 def timed(call):
     started = time.perf_counter()
     value = call()
@@ -84,6 +104,7 @@ def main(argv=None):
             "static-backlash", "20*(s+a)/(s+20)", ("h_hat", 0, 0.3, m), ("a", 0.5, 8, m),
             compensate="backlash-inverse", jobs=2, cache=False, curves=False, out_dir=Path(folder) / "inverse"))
     (t_cell_c, outcomes_c), (t_cell_py, outcomes_py) = dither_cell(True), dither_cell(False)
+    didf = dither_df_points()
     tuned, t_tune = timed(lambda: dfwb.tune("friction", "Kp + Ki/s", compensate="deadband",
                                             free={"Kp": (2, 50), "Ki": (0.2, 10), "d": (0.01, 0.5)}, tolerance=0.1,
                                             robust={"Fc": 0.2, "Fs": 0.1}))
@@ -101,6 +122,7 @@ def main(argv=None):
                          "classes": dithered.classes("truth").ravel().tolist()},
         "inverse_map": {"seconds": t_inverse, "cells": m * m, "per_cell": t_inverse / (m * m),
                         "classes": inverse.classes("truth").ravel().tolist()},
+        "dither_df": [{"r": r, "coarse": tc, "precise": tf, "relative_error": e} for r, tc, tf, e in didf],
         "dithered_cell": {"compiled": t_cell_c, "python": t_cell_py, "ratio": t_cell_py / t_cell_c,
                           "same_outcomes": outcomes_c == outcomes_py, "outcomes": outcomes_c},
     }
@@ -119,7 +141,10 @@ def main(argv=None):
              f"| backlash inverse's map {m} x {m} (static backlash, h_hat x a; truth and cost) | {t_inverse:.1f} | "
              f"{t_inverse / (m * m) * 1e3:.0f} ms | |",
              f"| one dithered cell's search, compiled loop / Python loop | {t_cell_c:.2f} / {t_cell_py:.2f} | | "
-             f"{t_cell_py / t_cell_c:.1f} x faster; same outcomes: {outcomes_c == outcomes_py} |", "",
+             f"{t_cell_py / t_cell_c:.1f} x faster; same outcomes: {outcomes_c == outcomes_py} |"]
+    lines += [f"| the dither's DF, a point at {r:g} dither periods a period: coarse / precise "
+              f"(N_error {e:.1e} of N) | {tc:.2f} / {tf:.2f} | | |" for r, tc, tf, e in didf]
+    lines += ["",
              f"The compensated map takes {report['ratio']:.2f} times the uncompensated one. "
              f"Tune chose {tuned.settings}, confirmed: {tuned.confirmed}."]
     (args.out / "compensation.md").write_text("\n".join(lines) + "\n")
