@@ -19,10 +19,11 @@ exactly with every event located. Runs start from rest at dither phases spread o
 its start (the friction mass's velocity is the forcing's alone after it sticks, and Coulomb friction contracts
 two slides), and the run of pullback periods is taken long enough that a second run, started from rest one
 period later at the first run's phase, agrees with it to TRANSIENT_TOL. Then each run's next SEGMENTS periods
-give segment harmonics, exactly (Gauss-Legendre sums on the smooth pieces between events, as a true cycle's),
-at the dither phases where they start. The phase integral is the trapezoidal rule on those phases sorted around
-the circle; the runs double (up to MAX_RUNS) until it moves less than RTOL, and ``N_error`` is that last move
-with the transient left. So N is a quadrature, not a closed form: its error is estimated, not nil.
+give segment harmonics, exactly (Gauss-Legendre sums of the motion's own Taylor series, chunk by chunk and event
+by event). For each measured period the runs' dither phases are uniform, so the mean of the segment harmonics is
+the trapezoidal rule of the phase integral; the runs double (RUNS) until that mean moves less than RTOL, and
+``N_error`` is the last two moves with the transient left. So N is a quadrature, not a closed form: its error is
+estimated, not nil.
 
 The response's mean is not reported (a free position drifts by the start's history: ``harmonics[0]`` is 0).
 Its amplitude at the loop's dither is the dither's own at the plant: the loop's feedback of it, which the
@@ -54,6 +55,7 @@ import numpy as np
 
 from dfwb.base.errors import PlantError
 from dfwb.engine.describing import DFResult, check_point
+from dfwb.engine.periodic import GAUSS_NODES
 from dfwb.fmus.compensation import Dither
 from dfwb.fmus.hybrid import Budget
 
@@ -63,16 +65,17 @@ HARMONICS = 10  # |X_k|, k = 0..10, as the DF engine gives them
 PLANTS = ("friction",)  # plants whose forced response forgets its start (a free mass drifts by its start's)
 R_MAX = 100.0  # dither periods per forcing period, at most: a point's runs cost that many dither periods each
 RTOL = 1e-4  # the phase integral's last move, relative to |X_1|, that ends the doubling of the runs
-RUNS = (4, 64)  # runs at dither phases 2 pi i / n: first, and at most (doubling)
+RUNS = (4, 64)  # runs at dither phases 2 pi i / n + OFFSET: first, and at most (doubling)
 SEGMENTS = 4  # forcing periods a run measures after its pullback
 COARSE = (2, 2, 1e-2)  # the looser twin's runs (one level), segments, and the accuracy it is taken to have
 TRANSIENT_TOL = 1e-10  # two runs' states at one torus point, relative to the motion's size: both forgot
 MAX_PULLBACK = 512  # forcing periods a run may wait before it measures (the difference left enters N_error)
 MAX_CHUNKS = 300_000  # Taylor chunks a point may integrate, all its runs (10 to 30 us each): beyond, N is nan
-GAUSS_NODES = 16
 # The runs' dither phases are 2 pi i / n + OFFSET: uniform at every n, and a start where the two sines cancel
 # (F = a at the phase 3 pi / 2, a stuck start on a boundary of the stick band) improbable
 OFFSET = 0.5 * (3.0 - math.sqrt(5.0))
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(GAUSS_NODES)  # on [-1, 1], for every segment
+_K = np.arange(HARMONICS + 1)
 
 
 def _generator(F, omega, a, w_d):
@@ -183,7 +186,7 @@ class DitherDFEngine:
         try:
             pullback, transient = measure.pullback()
             if a == 0.0:  # no dither: every phase is the same, the plain DF's orbit
-                values, moves = measure.runs(range(1), 1, pullback)[:1], [0.0]
+                values, moves = measure.runs(range(1), 1, pullback), [0.0]
             else:
                 values, moves = self._average(measure, pullback)
         except PlantError as error:  # its work ran out: this point is lost (N is nan), not the study
@@ -249,7 +252,8 @@ class _Measure:
         """The dither's phase at the start of run i of n."""
         return 2.0 * math.pi * i / n + OFFSET
 
-    def _phase(self, theta, periods):
+    def _turned(self, theta, periods):
+        """The dither's phase ``periods`` forcing periods after it was theta."""
         return (theta + 2.0 * math.pi * math.fmod(self.ratio * periods, 1.0)) % (2.0 * math.pi)
 
     def _plant_state(self, solver):
@@ -267,7 +271,7 @@ class _Measure:
         """(forcing periods a run waits before it measures, the relative difference left): two runs from rest
         that meet at one torus point, one a period later, agree there."""
         a = self._solver(0.0, None)
-        b = self._solver(self._phase(0.0, 1), None)
+        b = self._solver(self._turned(0.0, 1), None)
         a.advance(self.T)
         k, difference = 1, math.inf
         previous = self._plant_state(a)
@@ -300,16 +304,14 @@ class _Measure:
         """X_0..X_10 of the output over [start, start + T] (``solver`` at start, left at its end): exact, from
         Gauss-Legendre sums of the motion's own Taylor series, chunk by chunk and event by event."""
         T, omega, end = self.T, 2.0 * math.pi / self.T, start + self.T
-        nodes, weights = np.polynomial.legendre.leggauss(GAUSS_NODES)
-        k = np.arange(HARMONICS + 1)
         total = np.zeros(HARMONICS + 1, dtype=complex)
         while solver.t < end:
             a = solver.t
             b, coefficients = solver.expansion(self.row)
             b = min(b, end)
             half = 0.5 * (b - a)
-            tau = half * (nodes + 1.0)
+            tau = half * (_NODES + 1.0)
             ys = np.polynomial.polynomial.polyval(tau, coefficients)
-            total += np.exp(-1j * omega * np.outer(k, a - start + tau)) @ (half * weights * ys)
+            total += np.exp(-1j * omega * np.outer(_K, a - start + tau)) @ (half * _WEIGHTS * ys)
             solver.advance(b)
-        return total * np.where(k == 0, 1.0, 2.0) / T
+        return total * np.where(_K == 0, 1.0, 2.0) / T
