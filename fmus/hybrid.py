@@ -107,6 +107,16 @@ def balance(A):
     return d
 
 
+def _taylor_rows(L, A, terms):
+    """The rows L A^(k-1) / k!, k = 1..terms: a linear function's Taylor coefficients are their dot products
+    with X'."""
+    n, rows, r = len(A), [], list(L)
+    for k in range(1, terms + 1):
+        rows.append([v / math.factorial(k) for v in r])
+        r = [_dot(r, [A[m][j] for m in range(n)]) for j in range(n)]
+    return rows
+
+
 class Mode:
     """One mode: X' = A X + c, and its event functions ``(kind, L, l0)``: events where L.X + l0 falls to zero.
 
@@ -146,16 +156,8 @@ class Mode:
             AP = [[_dot(A[i], [P[m][j] for m in range(n)]) for j in range(n)] for i in range(n)]
             P = [[(1.0 if i == j else 0.0) + AP[i][j] * h / k for j in range(n)] for i in range(n)]
         self.psi = [[value * h for value in row] for row in P]
-        self.rows, self.abs_rows = [], []
-        for _kind, L, _l0 in self.events:
-            rows, abs_rows, r, ra = [], [], list(L), [abs(v) for v in L]
-            for k in range(1, self.terms + 1):
-                rows.append([v / math.factorial(k) for v in r])
-                abs_rows.append([v / math.factorial(k) for v in ra])
-                r = [_dot(r, [A[m][j] for m in range(n)]) for j in range(n)]
-                ra = [_dot(ra, [self.absA[m][j] for m in range(n)]) for j in range(n)]
-            self.rows.append(rows)
-            self.abs_rows.append(abs_rows)
+        self.rows = [_taylor_rows(L, A, self.terms) for _kind, L, _l0 in self.events]
+        self.abs_rows = [_taylor_rows([abs(v) for v in L], self.absA, self.terms) for _kind, L, _l0 in self.events]
         # What a chunk can change: |g(a + tau) - g(a)| <= reach . |X'(a)| + |L D|_1 |D^-1 X'(a)|_inf tail
         # (the series' truncated terms, bounded in the balanced norm, rho h <= 1)
         self.reach = [[sum(row[j] * h ** k for k, row in enumerate(abs_rows, start=1)) for j in range(n)]
@@ -197,11 +199,7 @@ class Mode:
         :meth:`coefficients` gives an event function's (the rows L A^(k-1) / k! kept per row)."""
         rows = self._series.get(tuple(L))
         if rows is None:
-            n, rows, r = len(self.A), [], list(L)
-            for k in range(1, self.terms + 1):
-                rows.append([v / math.factorial(k) for v in r])
-                r = [_dot(r, [self.A[m][j] for m in range(n)]) for j in range(n)]
-            self._series[tuple(L)] = rows
+            rows = self._series[tuple(L)] = _taylor_rows(L, self.A, self.terms)
         return [_dot(L, X)] + [_dot(row, dX) for row in rows]
 
     def step(self, X, dX):
