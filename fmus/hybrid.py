@@ -41,6 +41,7 @@ Plain Python (``math``) only: this module runs inside the FMUs.
 """
 
 import math
+from operator import mul
 
 from .exact import EPS, MAX_EVENTS_PER_STEP, Diverged, PlantError, first_root, too_many_events
 from .integrated import TREND_ROUNDING, IntegratedMode
@@ -58,11 +59,11 @@ SECTION = (SECTION_UP, SECTION_DOWN)
 
 
 def _matvec(A, x):
-    return [sum(a * b for a, b in zip(row, x)) for row in A]
+    return [sum(map(mul, row, x)) for row in A]
 
 
 def _dot(a, b):
-    return sum(x * y for x, y in zip(a, b))
+    return sum(map(mul, a, b))  # the products summed in order, as a generator would (without its frames)
 
 
 def nilpotency(A):
