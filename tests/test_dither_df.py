@@ -11,7 +11,7 @@ from scipy.optimize import brentq
 
 from dfwb.base.errors import PlantError
 from dfwb.engine.describing import DFEngine
-from dfwb.engine.dither_df import R_MAX, DitherDFEngine, _Measure
+from dfwb.engine.dither_df import R_MAX, TRANSIENT_TOL, DitherDFEngine, _Measure
 from dfwb.plants import plant
 
 FRICTION = plant("friction")
@@ -103,7 +103,7 @@ def _reference_segment(F, omega, a, w_d, theta, periods, M, B, Fc, Fs):
 
 @pytest.mark.parametrize("F, omega, a, w_d", [(10.0, 1.0, 10.0, 5.0), (10.0, 1.0, 3.0, 5.37), (20.0, 3.0, 10.0, 5.0)])
 def test_a_segment_is_the_independent_simulations(F, omega, a, w_d):
-    measure = _Measure(DitherDFEngine(FRICTION).cls, DEFAULTS, F, omega, a, w_d, 1)
+    measure = _Measure(DitherDFEngine(FRICTION).cls, DEFAULTS, F, omega, a, w_d, 1, TRANSIENT_TOL)
     pullback, _ = measure.pullback()
     for i in (1, 2):
         ours = measure.runs([i], 4, pullback)[0][1]
@@ -134,7 +134,7 @@ def test_the_phase_average_is_the_long_time_average(engine):
     # (at w_d / w = 5/3 the long run repeats every 3 periods and sees 3 phases: 0.8 % off, as it should be)
     F, omega, a, w_d = 20.0, 3.0, 10.0, 5.0 * (1.0 + math.sqrt(5.0)) / 3.0
     point = engine.point(F, omega, {"a": a, "w_d": w_d})
-    measure = _Measure(engine.cls, DEFAULTS, F, omega, a, w_d, 400)
+    measure = _Measure(engine.cls, DEFAULTS, F, omega, a, w_d, 400, TRANSIENT_TOL)
     pullback, _ = measure.pullback()
     long = np.mean([segment[1] for segment in measure.runs([0], 1, pullback)]) / F
     assert abs(long - point.N) <= 1e-3 * abs(point.N)  # 1.4e-4 measured after 400 periods, 4.6e-6 after 3200

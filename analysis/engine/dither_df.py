@@ -18,12 +18,13 @@ controller: two autonomous oscillators, so the forced plant is one more piecewis
 exactly with every event located. Runs start from rest at dither phases spread over the circle; each forgets
 its start (the friction mass's velocity is the forcing's alone after it sticks, and Coulomb friction contracts
 two slides), and the run of pullback periods is taken long enough that a second run, started from rest one
-period later at the first run's phase, agrees with it to TRANSIENT_TOL. Then each run's next SEGMENTS periods
+period later at the first run's phase, agrees with it to TRANSIENT_TOL (that first run goes on as run 0; the
+DF map's coarse twin asks less, COARSE). Then each run's next SEGMENTS periods
 give segment harmonics, exactly (Gauss-Legendre sums of the motion's own Taylor series, chunk by chunk and event
 by event). For each measured period the runs' dither phases are uniform, so the mean of the segment harmonics is
-the trapezoidal rule of the phase integral; the runs double (RUNS) until that mean moves less than RTOL, and
-``N_error`` is the last two moves with the transient left. So N is a quadrature, not a closed form: its error is
-estimated, not nil.
+the trapezoidal rule of the phase integral; the runs double (RUNS) until that mean's last two moves are less
+than RTOL, and ``N_error`` is those two moves with the transient left. So N is a quadrature, not a closed form:
+its error is estimated, not nil.
 
 The response's mean is not reported (a free position drifts by the start's history: ``harmonics[0]`` is 0).
 Its amplitude at the loop's dither is the dither's own at the plant: the loop's feedback of it, which the
@@ -64,11 +65,13 @@ __all__ = ["DitherDFEngine", "forced_loop", "PLANTS", "R_MAX"]
 HARMONICS = 10  # |X_k|, k = 0..10, as the DF engine gives them
 PLANTS = ("friction",)  # plants whose forced response forgets its start (a free mass drifts by its start's)
 R_MAX = 100.0  # dither periods per forcing period, at most: a point's runs cost that many dither periods each
-RTOL = 1e-4  # the phase integral's last move, relative to |X_1|, that ends the doubling of the runs
+RTOL = 1e-4  # the phase integral's last two moves, relative to |X_1|, that end the doubling of the runs
 RUNS = (4, 64)  # runs at dither phases 2 pi i / n + OFFSET: first, and at most (doubling)
 SEGMENTS = 4  # forcing periods a run measures after its pullback
-COARSE = (2, 2, 1e-2)  # the looser twin's runs (one level), segments, and the accuracy it is taken to have
 TRANSIENT_TOL = 1e-10  # two runs' states at one torus point, relative to the motion's size: both forgot
+# the looser twin's runs (one level), segments, the accuracy it is taken to have, and its transient tolerance
+# (far below that accuracy: where the mass never sticks, its damping alone forgets, e^(-B t / M))
+COARSE = (2, 2, 1e-2, 1e-6)
 MAX_PULLBACK = 512  # forcing periods a run may wait before it measures (the difference left enters N_error)
 MAX_CHUNKS = 300_000  # Taylor chunks a point may integrate, all its runs (10 to 30 us each): beyond, N is nan
 # The runs' dither phases are 2 pi i / n + OFFSET: uniform at every n, and a start where the two sines cancel
@@ -129,11 +132,14 @@ class DitherDFEngine:
     spec : PlantSpec
         The plant's (one of :data:`PLANTS`, ``dfwb.plants.plant("friction")``).
     rtol : float, optional
-        The phase integral's accuracy asked, relative to |X_1| (the runs double until their last move is below).
+        The phase integral's accuracy asked, relative to |X_1| (the runs double until their last two moves are below).
     runs : (int, int), optional
         The runs at the first level, and at most.
     segments : int, optional
         Forcing periods each run measures.
+    transient : float, optional
+        How close two runs from rest must come at one torus point, relative to the motion's size, before the
+        runs measure (the difference left enters ``N_error``).
 
     Examples
     --------
@@ -148,19 +154,19 @@ class DitherDFEngine:
     map_size = (4, 12)  # the DF map a study makes by default: it only locates (its points cost 0.01 to 2 s each)
     mapped = False  # a map of settings leaves its DF out (a DF map per cell would cost minutes)
 
-    def __init__(self, spec, rtol=RTOL, runs=RUNS, segments=SEGMENTS):
+    def __init__(self, spec, rtol=RTOL, runs=RUNS, segments=SEGMENTS, transient=TRANSIENT_TOL):
         if spec.name not in PLANTS or spec.loop is None:
             raise PlantError(f"the dither's DF is computed for {', '.join(PLANTS)}, whose response forgets its "
                              f"start; {spec.name} has none (a free mass drifts under a dither)")
-        self.plant, self.rtol, self.runs, self.segments = _Plant(spec), rtol, runs, segments
+        self.plant, self.rtol, self.runs, self.segments, self.transient = _Plant(spec), rtol, runs, segments, transient
         self.cls = forced_loop(spec.loop)
 
     def coarse(self):
         """A looser twin for the DF map, which only locates cycles (COARSE: a few runs, no doubling, no error
         claimed: N_error is inf); Newton then refines on this engine. Its ``rtol`` sizes the differences taken
         on it."""
-        runs, segments, rtol = COARSE
-        return DitherDFEngine(self.plant.spec, rtol, (runs, runs), segments)
+        runs, segments, rtol, transient = COARSE
+        return DitherDFEngine(self.plant.spec, rtol, (runs, runs), segments, transient)
 
     def domain(self, F_range, omega_range, params):
         """(F range, omega range) of a DF map: forces from max(0.01, 1 - a / Fs) of the range's lower end (a
@@ -182,7 +188,7 @@ class DitherDFEngine:
         if w_d > R_MAX * omega:
             raise PlantError(f"omega = {omega!r} rad/s: the dither's DF is computed where a forcing period spans at "
                              f"most {R_MAX:g} dither periods, omega >= w_d / {R_MAX:g} = {w_d / R_MAX:.6g} rad/s")
-        measure = _Measure(self.cls, plant, F, omega, a, w_d, self.segments)
+        measure = _Measure(self.cls, plant, F, omega, a, w_d, self.segments, self.transient)
         try:
             pullback, transient = measure.pullback()
             if a == 0.0:  # no dither: every phase is the same, the plain DF's orbit
@@ -213,7 +219,8 @@ class DitherDFEngine:
 
     def _average(self, measure, pullback):
         """(segment harmonics, the moves of X_1's mean): runs at n uniform phases, then the odd ones of 2n (so
-        uniform again), until the mean moves less than rtol of itself or the runs reach their most."""
+        uniform again), until the mean's last two moves are less than rtol of itself (the error it then claims)
+        or the runs reach their most."""
         values, moves, runs = [], [], 0
         while runs < self.runs[1]:
             more = range(self.runs[0]) if runs == 0 else range(1, 2 * runs, 2)
@@ -223,7 +230,7 @@ class DitherDFEngine:
             X1 = np.mean(values, axis=0)[1]
             if before is not None:
                 moves.append(abs(X1 - before))
-                if moves[-1] <= self.rtol * abs(X1):
+                if max(moves[-2:]) <= self.rtol * abs(X1) and len(moves) >= 2:
                     break
         return values, moves
 
@@ -231,8 +238,9 @@ class DitherDFEngine:
 class _Measure:
     """The forced plant at one point: its runs, their pullback and their segments' harmonics."""
 
-    def __init__(self, cls, plant, F, omega, a, w_d, segments):
+    def __init__(self, cls, plant, F, omega, a, w_d, segments, transient):
         self.cls, self.plant, self.drive, self.segments = cls, plant, (F, omega, a, w_d), segments
+        self.transient, self._first = transient, None  # (pullback: its tolerance, and its run kept for run 0)
         self.T = 2.0 * math.pi / omega
         self.ratio = w_d / omega  # the dither's phase turns by 2 pi ratio per forcing period
         self.periods = 0
@@ -269,9 +277,11 @@ class _Measure:
 
     def pullback(self):
         """(forcing periods a run waits before it measures, the relative difference left): two runs from rest
-        that meet at one torus point, one a period later, agree there."""
-        a = self._solver(0.0, None)
-        b = self._solver(self._turned(0.0, 1), None)
+        that meet at one torus point, one a period later, agree there. The first is run 0 of every level (its
+        phase is :meth:`phase` (0, n)), kept at the end of its pullback for :meth:`runs`."""
+        theta = self.phase(0, 1)
+        a = self._solver(theta, None)
+        b = self._solver(self._turned(theta, 1), None)
         a.advance(self.T)
         k, difference = 1, math.inf
         previous = self._plant_state(a)
@@ -283,7 +293,8 @@ class _Measure:
             previous = qa
             k += 1
             self.periods += 2
-            if difference <= TRANSIENT_TOL or k >= MAX_PULLBACK:
+            if difference <= self.transient or k >= MAX_PULLBACK:
+                self._first = a
                 return k, difference
 
     def runs(self, indices, n, pullback):
@@ -291,13 +302,15 @@ class _Measure:
         each segment j, phases spread uniformly (their mean the trapezoidal rule of the phase integral)."""
         values = []
         for i in indices:
-            theta = self.phase(i, n)
-            solver = self._solver(theta, None)
-            solver.advance(pullback * self.T)
+            solver, self._first = (self._first, None) if i == 0 and self._first is not None else (None, None)
+            if solver is None:
+                solver = self._solver(self.phase(i, n), None)
+                solver.advance(pullback * self.T)
+                self.periods += pullback
             for j in range(self.segments):
                 start = (pullback + j) * self.T
                 values.append(self._segment(solver, start))
-            self.periods += pullback + self.segments
+            self.periods += self.segments
         return values
 
     def _segment(self, solver, start):
