@@ -153,3 +153,22 @@ def test_a_dithered_study_shows_the_dual_input_df_beside_the_truth():
     assert not cycle.stable and abs(cycle.omega - 4.7292) < 0.01 and abs(cycle.F - 15.56) < 0.05
     assert response.links == [None] and response.as_dict()["df_params"] == dict(response.params, a=2.0, w_d=50.0)
     assert "compensated by dither (a = 2, w_d = 50) (its dual-input DF" in response.summary()
+
+
+def test_a_scene_maps_the_dithers_df_at_its_own_size_as_the_api_does(tmp_path, monkeypatch):
+    # a scene's [[limit_cycle]] without n_F / n_omega takes the DF's own map size, as the API and the CLI do:
+    # 4 x 12 for the dither's DF (16 x 48 without a dither)
+    import dfwb
+    from dfwb.studies import limit_cycles
+    from dfwb.studies.scene import parse_scene
+
+    seen, analyse = [], limit_cycles.analyse
+    monkeypatch.setattr(limit_cycles, "analyse", lambda *args, **kwargs: seen.append(analyse(*args, **kwargs)) or
+                        seen[-1])
+    scene = parse_scene('title = "t"\n[[limit_cycle]]\nname = "d"\nplant = "friction"\nG = "10 + 2/s"\n'
+                        'params = {a = 1, w_d = 5}\ncompensate = ["dither"]\nexact = true\nF_range = [1, 10]\n'
+                        'omega_range = [5, 50]\n', "d.toml")
+    assert scene.limit_cycle[0].map_size() == (16, 48)  # (the bound a scene's size is checked against)
+    dfwb.run_scene(scene, tmp_path / "out", jobs=1, cache=False, progress=False)
+    [response] = seen
+    assert response.N_grid.shape == DitherDFEngine.map_size == (4, 12)

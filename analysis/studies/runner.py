@@ -327,15 +327,16 @@ class SceneRun:
             problem = family.problem(fmu_dir=self.fmu_dir)
             F_range, omega_range = search_ranges(problem, lc.F_range, lc.omega_range)
             params = family.params()
-            grid = [(lc.plant, F, w, params) for F in np.geomspace(*F_range, lc.n_F)
-                    for w in np.geomspace(*omega_range, lc.n_omega)]
+            n_F, n_omega = lc.map_size()
+            grid = [(lc.plant, F, w, params) for F in np.geomspace(*F_range, n_F)
+                    for w in np.geomspace(*omega_range, n_omega)]
             keys = self.compute_points(grid, table, display, f"{lc.name}: DF map")
             self.map_rows += [dict(to_row(self.values[name]), series=lc.name, key=name) for name in keys]
             engine = _CachedEngine(self, table, lc.plant)
             progress = _staged(display, lc.name, skip="DF map")  # the map's points are shown above
             hits = self.cache.hits
             results[lc.name] = analyse(lc.plant, lc.controller(), lc.params, F_range=F_range,
-                                       omega_range=omega_range, n_F=lc.n_F, n_omega=lc.n_omega, exact=lc.exact,
+                                       omega_range=omega_range, n_F=n_F, n_omega=n_omega, exact=lc.exact,
                                        verify=lc.verify, samples_per_period=lc.samples_per_period,
                                        fmu_dir=self.fmu_dir, engine=engine, cache=self.cache, progress=progress)
             self.outcome.computed += engine.computed
@@ -590,7 +591,7 @@ class SceneRun:
         if not getattr(spec, "foreign", False):
             return spec, {}
         return spec, {"F_range": tuple(section.F_range), "omega_range": tuple(section.omega_range),
-                      "n_F": section.n_F, "n_omega": section.n_omega, "rtol": self.scene.engine.rtol}
+                      "n_F": section.map_size()[0], "n_omega": section.map_size()[1], "rtol": self.scene.engine.rtol}
 
     def write_results(self, data, csv_rows, traces, cycles, studies=None):
         self.write("results.csv", self.log.text(csv_rows + self.map_rows))

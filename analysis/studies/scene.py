@@ -344,8 +344,13 @@ class _Loop:
     den: Optional[list] = rule(ListOf(Finite), None)
     F_range: Optional[list] = rule(ForceRange, None)  # None: derived (a user's FMU: required)
     omega_range: Optional[list] = rule(FrequencyRange, None)
-    n_F: int = rule(MapSide, DF_MAP_SIZE[0])
-    n_omega: int = rule(MapSide, DF_MAP_SIZE[1])
+    n_F: Optional[int] = rule(MapSide, None)  # None: the DF's own size (DF_MAP_SIZE, or its engine's map_size)
+    n_omega: Optional[int] = rule(MapSide, None)
+
+    def map_size(self):
+        """(n_F, n_omega) of a DF map computed here, before its engine is known: as given, else DF_MAP_SIZE
+        (the largest default: a dithered loop's DF maps fewer)."""
+        return self.n_F or DF_MAP_SIZE[0], self.n_omega or DF_MAP_SIZE[1]
 
     def controller(self):
         """G as given: the expression (with parameters), or (num, den)."""
@@ -537,7 +542,7 @@ class Scene:
             cells = sum(m.x.n * m.y.n for m in self.map)
             if cells > MAX_CELLS:
                 raise InputError(f"{cells} map cells in all: at most {MAX_CELLS} in one scene (split it)")
-        size = sum(s.size() for s in self.series) + sum(lc.n_F * lc.n_omega for lc in self.limit_cycle)
+        size = sum(s.size() for s in self.series) + sum(math.prod(lc.map_size()) for lc in self.limit_cycle)
         if size > MAX_POINTS:
             raise InputError(f"{size} DF points (series and limit-cycle maps): at most {MAX_POINTS} in one scene "
                              "(split it)")
