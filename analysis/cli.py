@@ -18,6 +18,7 @@ from pathlib import Path
 
 from dfwb.base.defaults import BRANCH_POINTS, DF_MAP_SIZE, JUDGE_SAMPLES, K_COUNT, K_RANGE, SAMPLES_PER_PERIOD
 from dfwb.base.errors import InputError, RunError
+from dfwb.base.values import decimal, whole
 
 EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --help
     "build": "dfwb build --native --fmi-version 3 --out out/fmus",
@@ -96,7 +97,7 @@ def _integer(lo, hi):
 
     def convert(text):
         try:
-            value = int(text)
+            value = whole(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
         if not lo <= value <= hi:
@@ -104,6 +105,14 @@ def _integer(lo, hi):
         return value
 
     return convert
+
+
+def _real(text):
+    """An argparse type: a number in its plain decimal form (not '1_0', which Python's float reads as 10)."""
+    try:
+        return decimal(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
 def _named(what):
@@ -148,7 +157,7 @@ def _assignments(items, option):
 
 def _number(text, what):
     try:
-        return float(text)
+        return decimal(text)
     except ValueError:
         raise InputError(f"{what} = {text!r} is not a number") from None
 
@@ -628,20 +637,20 @@ def parser():
                              help="your FMU's Real output whose DF is taken (default: its only one)")
         command.add_argument("--kind", action=_Once, choices=("model-exchange", "co-simulation"), default=None,
                              help="which interface of your FMU runs (default: model exchange if it has it)")
-        command.add_argument("--rtol", action=_Once, type=float, default=None,
+        command.add_argument("--rtol", action=_Once, type=_real, default=None,
                              help="accuracy aimed at with your FMU: the integrator's tolerance for model exchange "
                                   "(default 1e-10), the extrapolated DF's for co-simulation (default 1e-6); with an "
                                   "integrated plant of dfwb's (stribeck), its parameter rtol")
-        command.add_argument("--timeout", action=_Once, type=float, default=None,
+        command.add_argument("--timeout", action=_Once, type=_real, default=None,
                              help="seconds one point of your FMU may take; a point cut is tried once more with twice "
                                   "the limit, then skipped (default: 120 s per 150 periods allowed, and at least 10 "
                                   "times the slowest point so far)")
 
     def point_options(command):
         command.add_argument("plant", type=plant_argument, metavar="PLANT", help=plant_help)
-        command.add_argument("--F", type=float, nargs="+", action="extend", required=True, help="force amplitudes [N]")
-        command.add_argument("--omega", type=float, nargs="+", action="extend", help="frequencies [rad/s]")
-        command.add_argument("--omega-log", action=_Once, type=float, nargs=3, metavar=("LO", "HI", "N"),
+        command.add_argument("--F", type=_real, nargs="+", action="extend", required=True, help="force amplitudes [N]")
+        command.add_argument("--omega", type=_real, nargs="+", action="extend", help="frequencies [rad/s]")
+        command.add_argument("--omega-log", action=_Once, type=_real, nargs=3, metavar=("LO", "HI", "N"),
                              help="N log-spaced frequencies from LO to HI")
         command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
                              help="plant parameters (e.g. eps=0.2)")
@@ -681,9 +690,9 @@ def parser():
         controller = command.add_mutually_exclusive_group(required=True)
         controller.add_argument("--G", action=_Once, help="controller as an expression in s, its parameters named, "
                                                           "e.g. 'Kp + Ki/s'")
-        controller.add_argument("--num", type=float, nargs="+", action="extend",
+        controller.add_argument("--num", type=_real, nargs="+", action="extend",
                                 help="controller numerator coefficients, highest power first (with --den)")
-        command.add_argument("--den", type=float, nargs="+", action="extend",
+        command.add_argument("--den", type=_real, nargs="+", action="extend",
                              help="controller denominator coefficients")
         command.add_argument("--set", nargs="+", action="extend", metavar="NAME=VALUE",
                              help="parameters of G, of the plant and of the compensators (e.g. Fs=8 Kp=10 for "
@@ -695,9 +704,9 @@ def parser():
 
     cycle = commands.add_parser("limit-cycle", help="predict (and verify) limit cycles under a controller G(s)")
     controller_options(cycle, own=True)
-    cycle.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+    cycle.add_argument("--F-range", action=_Once, type=_real, nargs=2, default=None, metavar=("LO", "HI"),
                        help="force amplitudes searched [N] (default: derived from the plant and G)")
-    cycle.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+    cycle.add_argument("--omega-range", action=_Once, type=_real, nargs=2, default=None, metavar=("LO", "HI"),
                        help="frequencies searched [rad/s] (default: derived from the plant and G)")
     cycle.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
                        metavar=("N_F", "N_OMEGA"), help="the DF map's points in F and in omega, where the candidates "
@@ -726,9 +735,9 @@ def parser():
         command.add_argument("--quiet", action="store_true", help="no progress display")
 
     def own_map_options(command):
-        command.add_argument("--F-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+        command.add_argument("--F-range", action=_Once, type=_real, nargs=2, default=None, metavar=("LO", "HI"),
                              help="your FMU only: the force amplitudes of its DF map [N]")
-        command.add_argument("--omega-range", action=_Once, type=float, nargs=2, default=None, metavar=("LO", "HI"),
+        command.add_argument("--omega-range", action=_Once, type=_real, nargs=2, default=None, metavar=("LO", "HI"),
                              help="your FMU only: the frequencies of its DF map [rad/s]")
         command.add_argument("--map-size", action=_Once, type=_integer(2, 1000), nargs=2, default=None,
                              metavar=("N_F", "N_OMEGA"), help="your FMU only: its DF map's points in F and in omega "
@@ -772,7 +781,7 @@ def parser():
                                                 "more gain before it hunts")
     controller_options(margin, own=True)
     own_map_options(margin)
-    margin.add_argument("--k-range", action=_Once, type=float, nargs=2, default=K_RANGE, metavar=("LO", "HI"),
+    margin.add_argument("--k-range", action=_Once, type=_real, nargs=2, default=K_RANGE, metavar=("LO", "HI"),
                         help=f"gain factors searched, LO < 1 < HI (default: {K_RANGE[0]:g} {K_RANGE[1]:g})")
     margin.add_argument("--count", action=_Once, type=_integer(3, 1000), default=K_COUNT,
                         help="gain factors scanned, log-spaced (default: %(default)s)")
@@ -786,7 +795,7 @@ def parser():
     controller_options(tuning)
     tuning.add_argument("--free", nargs="+", action="extend", metavar="NAME=LO:HI", required=True,
                         help="the parameters searched, G's and the compensators' (e.g. Kp=2:50 Ki=0.2:10 d=0:0.5)")
-    tuning.add_argument("--tolerance", action=_Once, type=float,
+    tuning.add_argument("--tolerance", action=_Once, type=_real,
                         help="the largest standing error allowed after a step [the output's unit]")
     tuning.add_argument("--robust", nargs="+", action="extend", metavar="NAME=REL",
                         help="relative errors of the plant's parameters, each corner checked (e.g. Fc=0.2)")

@@ -60,9 +60,21 @@ def test_a_numpy_integer_option_is_an_integer(fmus):
 
 
 @pytest.mark.parametrize("value", [[1, 2], np.array([1.0, 2.0]), {"a": 1}, np.complex128(2 + 1j), 2 + 1j, True,
-                                   np.bool_(True)])
+                                   np.bool_(True), b"2", bytearray(b"2"), "1_0", "\uff12", " 2", "0x2"])
 def test_a_parameter_that_is_not_one_real_number_is_refused(value):
     refused(lambda: dfwb.describing_function("friction", 10.0, 1.0, M=value), "M")
+    refused(lambda: dfwb.limit_cycles("friction", "Kp + 2/s", Kp=value), "Kp")
+
+
+def test_a_real_number_of_any_kind_is_taken_and_a_huge_integer_is_out_of_range():
+    from decimal import Decimal
+    from fractions import Fraction
+
+    expected = dfwb.describing_function("friction", 10.0, 1.0, M=1.5).N
+    for value in (Fraction(3, 2), Decimal("1.5"), "1.5", np.float32(1.5), "15e-1"):
+        assert dfwb.describing_function("friction", 10.0, 1.0, M=value).N == expected
+    refused(lambda: dfwb.describing_function("friction", 10.0, 1.0, M=10 ** 400), "M = inf is out of range")
+    refused(lambda: dfwb.limit_cycles("friction", "Kp + 2/s", Kp=-10 ** 400), "give a finite number")
 
 
 # -- transfer_function and limit_cycles ---------------------------------------------------------------------------

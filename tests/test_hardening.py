@@ -377,6 +377,12 @@ def test_files_are_hashed_in_pieces(tmp_path):
     (["df", "friction", "--F", "1", "--omega-log", "1", "5", "inf"], "--omega-log 1 5 inf"),
     (["limit-cycle", "friction", "--G", "10/s", "--plot", "out/"], "expected a file name ending in .png"),
     (["limit-cycle", "friction", "--G", "10/s", "--plot", "missing/cycle.png"], "the folder missing does not exist"),
+    # numbers in their plain forms only: Python reads '1_0' as 10 and other scripts' digits as digits
+    (["df", "friction", "--F", "1_0", "--omega", "1"], "argument --F: '1_0' is not a number"),
+    (["df", "friction", "--F", "\u0661\u0660", "--omega", "1"], "is not a number"),
+    (["limit-cycle", "friction", "--G", "Kp/s", "--set", "Kp=1_0"], "Kp = '1_0' is not a number"),
+    (["limit-cycle", "friction", "--G", "10/s", "--map-size", "1_6", "48"], "'1_6' is not an integer"),
+    (["df", "friction", "--F", "10", "--omega", "1", "--samples-per-period", " 64"], "' 64' is not an integer"),
 ])
 def test_bad_values_are_one_line_not_a_traceback(capsys, tmp_path, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)

@@ -8,10 +8,15 @@ back from a cache or a log (which anyone can write) is used only if it
 """
 
 import math
+import numbers
+import re
 
 from dfwb.base.errors import InputError
 
-__all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive"]
+__all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive", "decimal", "whole", "real"]
+
+_DECIMAL = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE | re.ASCII)
+_WHOLE = re.compile(r"[+-]?\d+", re.ASCII)
 
 
 def short(value, width=80):
@@ -54,6 +59,55 @@ def reals(name, value, limit, advice=""):
     if array.size > limit:
         raise InputError(f"{name} has {array.size} numbers: at most {limit}{advice}")
     return array.astype(float)
+
+
+def decimal(text):
+    """The float that a number's text names in its plain forms ('10', '-1.5e3', '.5', 'inf'), else ValueError.
+
+    Python's ``float`` also reads '1_0' as 10, ' 1 ' as 1 and digits other than 0-9: typos, not numbers.
+
+    >>> decimal("-1.5e3"), decimal("inf")
+    (-1500.0, inf)
+    >>> decimal("1_0")
+    Traceback (most recent call last):
+    ...
+    ValueError: '1_0' is not a number
+    """
+    if not (isinstance(text, str) and _DECIMAL.fullmatch(text)):
+        raise ValueError(f"{text!r} is not a number")
+    return float(text)
+
+
+def real(value):
+    """The float of one real number as a program or a user gives it, else None: a real of Python or numpy (a
+    Fraction, a Decimal), or its text in a plain form (:func:`decimal`); never a bool, complex, bytes or a
+    container (``float`` reads b'0.1' and '1_0').
+
+    >>> real(3), real("2.5e1"), real("1_0"), real(b"1"), real(True), real(2 + 0j)
+    (3.0, 25.0, None, None, None, None)
+    """
+    if isinstance(value, str):
+        try:
+            return decimal(value)
+        except ValueError:
+            return None
+    number = isinstance(value, numbers.Number) and (isinstance(value, numbers.Real)
+                                                     or not isinstance(value, numbers.Complex))  # (Decimal)
+    if not number or isinstance(value, bool):
+        return None
+    try:
+        return float(value)
+    except OverflowError:  # an integer beyond a float's range: an infinity, refused as out of range
+        return math.inf if value > 0 else -math.inf
+    except (TypeError, ValueError):  # a signalling NaN
+        return None
+
+
+def whole(text):
+    """The int that an integer's text names in its plain form ('12', '-3'), else ValueError ('1_0', ' 12')."""
+    if not (isinstance(text, str) and _WHOLE.fullmatch(text)):
+        raise ValueError(f"{text!r} is not an integer")
+    return int(text)
 
 
 def integer(name, value):

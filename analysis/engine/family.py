@@ -22,6 +22,7 @@ import inspect
 import math
 
 from dfwb.base.errors import InputError, PlantError
+from dfwb.base.values import real
 from dfwb.engine.compensators import CHOICES, Compensation, choice
 from dfwb.plants import plant as find_plant
 
@@ -29,12 +30,9 @@ from dfwb.plants import plant as find_plant
 def number(name, value, finite="give a finite number"):
     """A finite float of a value given for a parameter (text from the command line too); ``finite`` says
     what is allowed when it is not."""
-    if isinstance(value, bool):
-        raise InputError(f"{name} = {value!r} is not a number")
-    try:
-        value_ = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{name} = {value!r:.60} is not a number") from None
+    value_ = real(value)
+    if value_ is None:
+        raise InputError(f"{name} = {value!r:.60} is not a number")
     if not math.isfinite(value_):
         raise InputError(f"{name} = {value!r:.60}: {finite}")
     return value_

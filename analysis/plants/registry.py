@@ -24,11 +24,11 @@ Examples
 {'M': 2.0}
 """
 
-import numbers
 import re
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional
 
+from dfwb.base.values import real
 from dfwb.fmus.piecewise import PlantError, check
 from dfwb.fmus.plants import TABLES
 
@@ -275,12 +275,9 @@ class Plant:
                                  f"(its parameters: {', '.join(allowed)})")
             if name not in allowed:
                 raise PlantError(f"unknown parameter {name!r} for plant {self.name} (allowed: {', '.join(allowed)})")
-            if isinstance(value, bool) or not isinstance(value, (str, numbers.Real)):  # not 1 for True, no j dropped
+            values[name] = real(value)  # not 1 for True, no j dropped, not b'1' nor '1_0'
+            if values[name] is None:
                 raise PlantError(f"{name} = {value!r:.80} is not a number")
-            try:
-                values[name] = float(value)
-            except (TypeError, ValueError, OverflowError):
-                raise PlantError(f"{name} = {value!r} is not a number") from None
             limits = self.limits(name)
             if limits is not None:
                 check_range(name, values[name], *limits)
