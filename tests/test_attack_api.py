@@ -187,3 +187,12 @@ def test_the_parameter_check_cache_is_bounded():
     for k in range(registry.MAX_CHECKED + 10):
         friction.checked({"M": 1.0 + k * 1e-6})
     assert len(registry._CHECKED) <= registry.MAX_CHECKED
+
+
+def test_an_engines_point_takes_numpy_scalars_and_refuses_what_is_not_a_real_number():
+    from dfwb.engine.describing import DFEngine
+
+    engine = DFEngine("friction")
+    assert engine.point(np.float32(10.0), np.float32(1.0)).N == engine.point(10.0, 1.0).N  # (was "out of range")
+    for F in ("10", None, 10 + 0j, True):
+        refused(lambda: engine.point(F, 1.0), f"F = {F!r} is not a real number")

@@ -37,6 +37,7 @@ import time
 from dataclasses import dataclass, field
 
 from dfwb.base.defaults import DF_PERIODS, HARMONICS, SAMPLES_PER_PERIOD
+from dfwb.base.values import real
 from dfwb.fmi.location import fmu_path
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import check_range
@@ -202,9 +203,16 @@ def check_frequency(omega):
 
 
 def check_point(F, omega):
-    """Raise PlantError naming the value unless F is in F_RANGE and omega in OMEGA_RANGE."""
-    check_force(F)
-    check_frequency(omega)
+    """(F, omega) as floats: PlantError naming the value unless each is a real number (a numpy scalar too; no
+    text) and F is in F_RANGE and omega in OMEGA_RANGE."""
+    numbers = []
+    for name, value, check in (("F", F, check_force), ("omega", omega, check_frequency)):
+        number = None if isinstance(value, str) else real(value)
+        if number is None:
+            raise PlantError(f"{name} = {value!r:.80} is not a real number")
+        check(number)
+        numbers.append(number)
+    return tuple(numbers)
 
 
 class DFEngine:
@@ -277,7 +285,7 @@ class DFEngine:
         the translation is added to the mean X_0 (harmonics[0]) only.
         """
         started = time.perf_counter()
-        check_point(F, omega)
+        F, omega = check_point(F, omega)
         params = self.plant.checked(params or {})
         at_origin, offset, mass, h, shifts = self._setup(params)
         scales = [F / (mass * omega) if name.startswith("v") else F / (mass * omega ** 2) + h

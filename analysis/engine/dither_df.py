@@ -22,9 +22,9 @@ period later at the first run's phase, agrees with it to TRANSIENT_TOL (that fir
 DF map's coarse twin asks less, COARSE). Then each run's next SEGMENTS periods
 give segment harmonics, exactly (Gauss-Legendre sums of the motion's own Taylor series, chunk by chunk and event
 by event). For each measured period the runs' dither phases are uniform, so the mean of the segment harmonics is
-the trapezoidal rule of the phase integral; the runs double (RUNS) until that mean's last two moves are less
-than RTOL, and ``N_error`` is those two moves with the transient left. So N is a quadrature, not a closed form:
-its error is estimated, not nil.
+the trapezoidal rule of the phase integral; the runs double (RUNS) until that mean moves less than RTOL and
+its last two moves less than ACCEPTED RTOL, and ``N_error`` is those two moves with the transient left. So N is
+a quadrature, not a closed form: its error is estimated, not nil.
 
 The response's mean is not reported (a free position drifts by the start's history: ``harmonics[0]`` is 0).
 Its amplitude at the loop's dither is the dither's own at the plant: the loop's feedback of it, which the
@@ -65,7 +65,8 @@ __all__ = ["DitherDFEngine", "forced_loop", "PLANTS", "R_MAX"]
 HARMONICS = 10  # |X_k|, k = 0..10, as the DF engine gives them
 PLANTS = ("friction",)  # plants whose forced response forgets its start (a free mass drifts by its start's)
 R_MAX = 100.0  # dither periods per forcing period, at most: a point's runs cost that many dither periods each
-RTOL = 1e-4  # the phase integral's last two moves, relative to |X_1|, that end the doubling of the runs
+RTOL = 1e-4  # the phase integral's last move, relative to |X_1|, that ends the doubling of the runs
+ACCEPTED = 10.0  # ... if its last two moves (the error claimed) are within ACCEPTED RTOL: else it is not converged
 RUNS = (4, 64)  # runs at dither phases 2 pi i / n + OFFSET: first, and at most (doubling)
 SEGMENTS = 4  # forcing periods a run measures after its pullback
 TRANSIENT_TOL = 1e-10  # two runs' states at one torus point, relative to the motion's size: both forgot
@@ -132,7 +133,8 @@ class DitherDFEngine:
     spec : PlantSpec
         The plant's (one of :data:`PLANTS`, ``dfwb.plants.plant("friction")``).
     rtol : float, optional
-        The phase integral's accuracy asked, relative to |X_1| (the runs double until their last two moves are below).
+        The phase integral's accuracy asked, relative to |X_1| (the runs double until their last move is below, and the
+        last two below ten times it).
     runs : (int, int), optional
         The runs at the first level, and at most.
     segments : int, optional
@@ -180,7 +182,7 @@ class DitherDFEngine:
     def point(self, F, omega, params=None):
         """The :class:`~dfwb.engine.describing.DFResult` at force amplitude F [N] and frequency omega [rad/s]."""
         started = time.perf_counter()
-        check_point(F, omega)
+        F, omega = check_point(F, omega)
         params = self.plant.checked(params or {})
         plant = {k: v for k, v in params.items() if k not in ("a", "w_d")
                  and k not in self.cls.initial_parameters}
@@ -208,7 +210,7 @@ class DitherDFEngine:
         moved = max(moves[-2:]) if moves else math.inf
         X = [0j] + [complex(x) for x in X[1:]]  # the mean: a free position's, not the response's (see module)
         error = float(moved + transient * abs(X[1]))
-        converged = bool(error <= 10.0 * self.rtol * abs(X[1]) or abs(X[1]) == 0.0)
+        converged = bool(self._accepted(error, X[1]) or abs(X[1]) == 0.0)
         note = "" if converged else (f"the phase average did not converge within {self.runs[1]} runs "
                                      f"({error:.3g} m of |X1| = {abs(X[1]):.3g} m)")
         return DFResult(plant=self.plant.name, F=F, omega=omega, params=params, N=X[1] / F,
@@ -217,10 +219,14 @@ class DitherDFEngine:
                         N_error=error / F)
 
 
+    def _accepted(self, error, X1):
+        """Whether an error estimate of X_1 is within what a converged point may claim (ACCEPTED rtol)."""
+        return error <= ACCEPTED * self.rtol * abs(X1)
+
     def _average(self, measure, pullback):
         """(segment harmonics, the moves of X_1's mean): runs at n uniform phases, then the odd ones of 2n (so
-        uniform again), until the mean's last two moves are less than rtol of itself (the error it then claims)
-        or the runs reach their most."""
+        uniform again), until the mean's last move is less than rtol of itself and the last two (the error it
+        then claims) less than ACCEPTED rtol, or the runs reach their most."""
         values, moves, runs = [], [], 0
         while runs < self.runs[1]:
             more = range(self.runs[0]) if runs == 0 else range(1, 2 * runs, 2)
@@ -230,7 +236,7 @@ class DitherDFEngine:
             X1 = np.mean(values, axis=0)[1]
             if before is not None:
                 moves.append(abs(X1 - before))
-                if max(moves[-2:]) <= self.rtol * abs(X1) and len(moves) >= 2:
+                if moves[-1] <= self.rtol * abs(X1) and self._accepted(max(moves[-2:]), X1):
                     break
         return values, moves
 

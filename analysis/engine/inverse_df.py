@@ -104,7 +104,7 @@ class InverseDFEngine:
     def point(self, F, omega, params=None):
         """The :class:`~dfwb.engine.describing.DFResult` at force amplitude F [N] and frequency omega [rad/s]."""
         started = time.perf_counter()
-        check_point(F, omega)
+        F, omega = check_point(F, omega)
         params = self.plant.checked(params or {})
         values = dict(self.plant.spec.defaults(), **params)
         M, k, h, h_hat = (values[name] for name in ("M", "k", "h", "h_hat"))

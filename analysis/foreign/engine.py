@@ -92,7 +92,7 @@ class FMUEngine:
     def point(self, F, omega, params=None):
         """The DFResult at force amplitude F and frequency omega (N NaN and a note if the FMU failed)."""
         started = time.perf_counter()
-        check_point(F, omega)
+        F, omega = check_point(F, omega)
         params = self.plant.check(params or {})
         request = {"info": self.plant.info, "kind": self.plant.kind, "input": self.plant.input,
                    "output": self.plant.output, "F": float(F), "omega": float(omega), "params": params,
@@ -148,7 +148,7 @@ class FMUEngine:
     def trace(self, F, omega, params, stop, step, outputs):
         """{"time": [...], output: [...]}: the response to F cos(omega t) from rest, sampled every ``step`` up
         to ``stop`` (:mod:`dfwb.foreign.trace`); one worker call under the engine's time limit."""
-        check_point(F, omega)
+        F, omega = check_point(F, omega)
         request = {"task": "trace", "info": self.plant.info, "kind": self.plant.kind, "input": self.plant.input,
                    "output": self.plant.output, "params": self.plant.check(params or {}), "F": float(F),
                    "omega": float(omega), "stop": float(stop), "step": float(step), "outputs": list(outputs)}

@@ -76,13 +76,6 @@ def _mapping(what, value):
     return dict(value or {})
 
 
-def _real(what, value):
-    """A real number (int, float, numpy's), as float: not a bool, complex or text."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise PlantError(f"{what} = {value!r:.80} is not a real number")
-    return float(value)
-
-
 def grid(Fs, omegas, params=None, grid_params=None):
     """The sweep's points, F the outer loop: [(F, omega, {name: value})]; refused beyond MAX_POINTS."""
     Fs, omegas, params = _values("F", Fs), _values("omega", omegas), _mapping("params", params)
@@ -210,8 +203,7 @@ def run_sweep(plant, points, out_dir, jobs=None, drive="internal", samples_per_p
     for point in points:  # everything is checked before anything runs or is written
         if not (isinstance(point, (tuple, list)) and len(point) == 3):
             raise PlantError(f"point {point!r:.80} is not (F, omega, params)")
-        F, omega = _real("F", point[0]), _real("omega", point[1])
-        check_point(F, omega)
+        F, omega = check_point(point[0], point[1])
         checked.append((F, omega, spec.checked(_mapping("params", point[2]))))
     points = checked
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral) or jobs < 1):
