@@ -21,8 +21,8 @@ The script judges the classic remedies on the exact loop, each with its cost
    20 (s + 2)/(s + 20) with a backlash inverse of h_hat = 0, h/2, h and 2h
    (it shrinks the hunting, never stops it).
 
-Run it as ``python examples/compensation_study.py [OUT_DIR]`` (about a minute
-on two cores: the two dithers' dual-input DFs take most of it). It writes
+Run it as ``python examples/compensation_study.py [OUT_DIR]`` (about half a
+minute: the two dithers' dual-input DFs take most of it). It writes
 ``compensation_study.png`` into OUT_DIR (default: the current folder).
 """
 

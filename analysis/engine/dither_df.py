@@ -74,7 +74,9 @@ TRANSIENT_TOL = 1e-10  # two runs' states at one torus point, relative to the mo
 # (far below that accuracy: where the mass never sticks, its damping alone forgets, e^(-B t / M))
 COARSE = (2, 2, 1e-2, 1e-6)
 MAX_PULLBACK = 512  # forcing periods a run may wait before it measures (the difference left enters N_error)
-MAX_CHUNKS = 300_000  # Taylor chunks a point may integrate, all its runs (10 to 30 us each): beyond, N is nan
+# Taylor chunks a point may integrate, all its runs: beyond, N is nan. A chunk costs 30 to 250 us with its events
+# and integrals, so a point at most about 20 s; the slowest converged points measured need 30,000
+MAX_CHUNKS = 100_000
 # The runs' dither phases are 2 pi i / n + OFFSET: uniform at every n, and a start where the two sines cancel
 # (F = a at the phase 3 pi / 2, a stuck start on a boundary of the stick band) improbable
 OFFSET = 0.5 * (3.0 - math.sqrt(5.0))
@@ -153,7 +155,7 @@ class DitherDFEngine:
 
     drive = "dither average"
     described = "its dual-input DF, averaged over the dither's phase"
-    map_size = (4, 12)  # the DF map a study makes by default: it only locates (its points cost 0.01 to 2 s each)
+    map_size = (4, 12)  # the DF map a study makes by default: it only locates (its points cost 0.01 to 1 s each)
     mapped = False  # a map of settings leaves its DF out (a DF map per cell would cost minutes)
 
     def __init__(self, spec, rtol=RTOL, runs=RUNS, segments=SEGMENTS, transient=TRANSIENT_TOL):
