@@ -220,7 +220,6 @@ class DitherDFEngine:
                         seconds=time.perf_counter() - started, drive=self.drive, note=note, X=X,
                         N_error=error / F)
 
-
     def _accepted(self, error, X1):
         """Whether an error estimate of X_1 is within what a converged point may claim (ACCEPTED rtol)."""
         return error <= ACCEPTED * self.rtol * abs(X1)
@@ -310,8 +309,9 @@ class _Measure:
         each segment j, phases spread uniformly (their mean the trapezoidal rule of the phase integral)."""
         values = []
         for i in indices:
-            solver, self._first = (self._first, None) if i == 0 and self._first is not None else (None, None)
-            if solver is None:
+            if i == 0 and self._first is not None:  # the pullback's first run, at phase(0, n) and its end already
+                solver, self._first = self._first, None
+            else:
                 solver = self._solver(self.phase(i, n), None)
                 solver.advance(pullback * self.T)
                 self.periods += pullback
