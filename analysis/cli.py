@@ -18,7 +18,7 @@ from pathlib import Path
 
 from dfwb.base.defaults import BRANCH_POINTS, DF_MAP_SIZE, JUDGE_SAMPLES, K_COUNT, K_RANGE, SAMPLES_PER_PERIOD
 from dfwb.base.errors import InputError, RunError
-from dfwb.base.values import decimal, whole
+from dfwb.base.values import decimal, short, whole
 
 EXAMPLES = {  # one runnable example per subcommand, shown at the end of its --help
     "build": "dfwb build --native --fmi-version 3 --out out/fmus",
@@ -99,7 +99,9 @@ def _integer(lo, hi):
         try:
             value = whole(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+            raise argparse.ArgumentTypeError(f"{short(text)} is not an integer") from None
+        except OverflowError:
+            raise argparse.ArgumentTypeError(f"{short(text)} is out of range: an integer from {lo} to {hi}") from None
         if not lo <= value <= hi:
             raise argparse.ArgumentTypeError(f"{value} is out of range: an integer from {lo} to {hi}")
         return value
@@ -111,8 +113,8 @@ def _real(text):
     """An argparse type: a number in its plain decimal form (not '1_0', which Python's float reads as 10)."""
     try:
         return decimal(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def _named(what):
@@ -158,8 +160,8 @@ def _assignments(items, option):
 def _number(text, what):
     try:
         return decimal(text)
-    except ValueError:
-        raise InputError(f"{what} = {text!r} is not a number") from None
+    except ValueError as error:
+        raise InputError(f"{what} = {error}") from None
 
 
 def _grid_values(items):

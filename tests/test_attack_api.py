@@ -7,6 +7,7 @@ complex number dropped, True taken as 1), or a write outside the place asked for
 
 import dataclasses
 import os
+import time
 import warnings
 
 import control as ct
@@ -33,7 +34,7 @@ def refused(call, *words):
 
 # -- describing_function -------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("F", [np.array([10 + 5j]), True, np.array([True, False]), "10", np.array(["10"]),
-                               [10, None], np.array([10.0], dtype=object)])
+                               [10, None], np.array([10.0, "x"], dtype=object), np.array([None], dtype=object)])
 def test_F_that_is_not_real_numbers_is_refused_not_coerced(F):
     refused(lambda: dfwb.describing_function("friction", F, 1.0), "F")
 
@@ -196,3 +197,36 @@ def test_an_engines_point_takes_numpy_scalars_and_refuses_what_is_not_a_real_num
     assert engine.point(np.float32(10.0), np.float32(1.0)).N == engine.point(10.0, 1.0).N  # (was "out of range")
     for F in ("10", None, 10 + 0j, True):
         refused(lambda: engine.point(F, 1.0), f"F = {F!r} is not a real number")
+
+
+@pytest.mark.parametrize("call, words", [
+    # ranges and start amplitudes by the same rule as a parameter (float() read '1_0', bytes and True)
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", F_range=("1_0", 100)), ["F_range", "pair of numbers"]),
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", omega_range=(True, 50)), ["omega_range", "pair of numbers"]),
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", F_range=(10 ** 400, 10)), ["F range = [inf, 10.0]"]),
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", exact=True, amplitudes=["1_0", b"3", True]), ["amplitudes"]),
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", exact=True, amplitudes="123"), ["amplitudes"]),
+    # numpy reads a bytearray's bytes and a bool in a list as numbers
+    (lambda: dfwb.describing_function("friction", bytearray(b"2"), 10.0), ["F = bytearray"]),
+    (lambda: dfwb.describing_function("friction", [True, 2.0], 10.0), ["F = [True, 2.0]"]),
+    (lambda: dfwb.limit_cycles("friction", ([True, 2], [1, 0])), ["num = [True, 2]"]),
+    # an integer Python will not print is named by its size; a long text is refused at once
+    (lambda: dfwb.describing_function("friction", 10 ** 5000, 10.0), ["F = inf is out of range"]),
+    (lambda: dfwb.limit_cycles("friction", "Kp + 2/s", Kp=10 ** 5000), ["Kp = an integer of 16610 bits"]),
+    (lambda: dfwb.limit_cycles("friction", "10 + 2/s", n_F=10 ** 5000), ["an integer of 16610 bits x"]),
+    (lambda: dfwb.limit_cycles("friction", "Kp + 2/s", Kp="1" * 100_000 + "x"), ["Kp = '111", "is not a number"]),
+])
+def test_every_number_is_read_by_one_rule_and_refused_in_one_short_line(call, words):
+    started = time.perf_counter()
+    refused(call, *words)
+    assert time.perf_counter() - started < 5.0  # (the first pattern took minutes on 100,000 digits and a letter)
+
+
+def test_fractions_and_decimals_are_numbers_wherever_numbers_are_given():
+    from decimal import Decimal
+    from fractions import Fraction
+
+    assert dfwb.describing_function("friction", Fraction(5, 2), 10.0).N == \
+        dfwb.describing_function("friction", [Decimal("2.5")], 10.0).N[0] == \
+        dfwb.describing_function("friction", 2.5, 10.0).N == \
+        dfwb.describing_function("friction", np.array([2.5], dtype=object), 10.0).N[0]  # (an object array's reals)

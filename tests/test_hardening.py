@@ -383,6 +383,8 @@ def test_files_are_hashed_in_pieces(tmp_path):
     (["limit-cycle", "friction", "--G", "Kp/s", "--set", "Kp=1_0"], "Kp = '1_0' is not a number"),
     (["limit-cycle", "friction", "--G", "10/s", "--map-size", "1_6", "48"], "'1_6' is not an integer"),
     (["df", "friction", "--F", "10", "--omega", "1", "--samples-per-period", " 64"], "' 64' is not an integer"),
+    (["df", "friction", "--F", "10", "--omega", "1", "--samples-per-period", "9" * 5000], "is out of range: an integer"),
+    (["df", "friction", "--F", "1" * 100_000 + "x", "--omega", "1"], "... is not a number (a plain decimal"),
 ])
 def test_bad_values_are_one_line_not_a_traceback(capsys, tmp_path, monkeypatch, argv, message):
     monkeypatch.chdir(tmp_path)

@@ -15,18 +15,25 @@ from dfwb.base.errors import InputError
 
 __all__ = ["short", "leaves", "reals", "integer", "flags", "conforms", "positive", "decimal", "whole", "real"]
 
-_DECIMAL = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE | re.ASCII)
+# (each digit has one place in a match: a long run of digits fails in linear time)
+_DECIMAL = re.compile(r"[+-]?(?:(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE | re.ASCII)
 _WHOLE = re.compile(r"[+-]?\d+", re.ASCII)
+NUMBER_FORMS = "a plain decimal number such as 10, -1.5e3 or inf"  # what a number's text may be
+MAX_WHOLE_DIGITS = 18  # an integer option's digits: beyond, out of every range (int() refuses 4300)
 
 
 def short(value, width=80):
-    """``repr(value)`` on one line, cut to ``width`` characters."""
-    text = " ".join(repr(value).split())
+    """``repr(value)`` on one line, cut to ``width`` characters (an integer too long to print by its size)."""
+    try:
+        text = " ".join(repr(value).split())
+    except ValueError:  # Python prints no integer of over 4300 digits
+        text = f"an integer of {value.bit_length()} bits" if isinstance(value, int) else "a value that cannot print"
     return text if len(text) <= width else text[:width - 3] + "..."
 
 
-def leaves(value, limit):
-    """The numbers in a nested list/tuple/range, counted without building them (stops past ``limit``)."""
+def leaves(value, limit, odd=None):
+    """The numbers in a nested list/tuple/range, counted without building them (stops past ``limit``); ``odd``,
+    a list, gets each item that numpy would read as a number though it is none (a bool, bytes)."""
     import numpy as np  # here, not at the top: a message or a schema check needs no numpy
 
     total, stack = 0, [value]
@@ -40,6 +47,8 @@ def leaves(value, limit):
             stack.extend(item)
         else:
             total += 1
+            if odd is not None and isinstance(item, (bool, np.bool_, bytes, bytearray, memoryview)):
+                odd.append(item)
     return total
 
 
@@ -47,15 +56,19 @@ def reals(name, value, limit, advice=""):
     """``value`` as a float array: real numbers only (no bool, complex, text or objects), at most ``limit``."""
     import numpy as np
 
-    if leaves(value, limit) > limit:
+    odd = []
+    if leaves(value, limit, odd) > limit:
         raise InputError(f"{name} has more than {limit} numbers: at most {limit}{advice}")
     try:
-        array = np.asarray(value)
+        array = None if odd else np.asarray(value)  # (numpy reads [True, 2] as [1, 2] and a bytearray's bytes)
     except (TypeError, ValueError):
         array = None
+    if array is not None and array.dtype == object:  # Fractions, Decimals, integers beyond 64 bits: each by real()
+        flat = [real(item) for item in array.ravel()]
+        array = None if None in flat else np.array(flat, dtype=float).reshape(array.shape)
     if array is None or array.dtype.kind not in "iuf":
         raise InputError(f"{name} = {short(value)} is not a number or an array of numbers "
-                         "(real ones: no bool, complex, text or None)")
+                         "(real ones: no bool, complex, text, bytes or None)")
     if array.size > limit:
         raise InputError(f"{name} has {array.size} numbers: at most {limit}{advice}")
     return array.astype(float)
@@ -71,10 +84,10 @@ def decimal(text):
     >>> decimal("1_0")
     Traceback (most recent call last):
     ...
-    ValueError: '1_0' is not a number
+    ValueError: '1_0' is not a number (a plain decimal number such as 10, -1.5e3 or inf)
     """
     if not (isinstance(text, str) and _DECIMAL.fullmatch(text)):
-        raise ValueError(f"{text!r} is not a number")
+        raise ValueError(f"{short(text)} is not a number ({NUMBER_FORMS})")
     return float(text)
 
 
@@ -99,14 +112,17 @@ def real(value):
         return float(value)
     except OverflowError:  # an integer beyond a float's range: an infinity, refused as out of range
         return math.inf if value > 0 else -math.inf
-    except (TypeError, ValueError):  # a signalling NaN
+    except Exception:  # noqa: BLE001 - a signalling NaN, or a hostile __float__: no number
         return None
 
 
 def whole(text):
-    """The int that an integer's text names in its plain form ('12', '-3'), else ValueError ('1_0', ' 12')."""
+    """The int that an integer's text names in its plain form ('12', '-3'), else ValueError ('1_0', ' 12');
+    OverflowError beyond MAX_WHOLE_DIGITS digits (out of any range an option has)."""
     if not (isinstance(text, str) and _WHOLE.fullmatch(text)):
-        raise ValueError(f"{text!r} is not an integer")
+        raise ValueError(f"{short(text)} is not an integer")
+    if len(text.lstrip("+-")) > MAX_WHOLE_DIGITS:
+        raise OverflowError(f"{short(text)} is out of range")
     return int(text)
 
 

@@ -22,7 +22,7 @@ import inspect
 import math
 
 from dfwb.base.errors import InputError, PlantError
-from dfwb.base.values import real
+from dfwb.base.values import NUMBER_FORMS, real, short
 from dfwb.engine.compensators import CHOICES, Compensation, choice
 from dfwb.plants import plant as find_plant
 
@@ -32,9 +32,9 @@ def number(name, value, finite="give a finite number"):
     what is allowed when it is not."""
     value_ = real(value)
     if value_ is None:
-        raise InputError(f"{name} = {value!r:.60} is not a number")
+        raise InputError(f"{name} = {short(value, 60)} is not a number ({NUMBER_FORMS}, or a real number)")
     if not math.isfinite(value_):
-        raise InputError(f"{name} = {value!r:.60}: {finite}")
+        raise InputError(f"{name} = {short(value, 60)}: {finite}")
     return value_
 
 

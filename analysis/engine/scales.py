@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dfwb.base.errors import InputError
+from dfwb.base.values import real, short
 
 OMEGA_SPAN = (1e-3, 1e2)  # the DF's frequencies, relative to the crossover
 F_SAFETY = 100.0  # the DF's largest force: this many times what the linear loop allows
@@ -283,7 +284,9 @@ def search_ranges(problem, F_range=None, omega_range=None):
 
 def _pair(name, value):
     try:
-        lo, hi = value
-        return float(lo), float(hi)
+        lo, hi = (real(v) for v in value)
     except (TypeError, ValueError):
-        raise InputError(f"{name} = {value!r:.60} must be a (low, high) pair of numbers") from None
+        lo = hi = None
+    if lo is None or hi is None:
+        raise InputError(f"{name} = {short(value, 60)} must be a (low, high) pair of numbers") from None
+    return lo, hi

@@ -28,7 +28,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional
 
-from dfwb.base.values import real
+from dfwb.base.values import NUMBER_FORMS, real, short
 from dfwb.fmus.piecewise import PlantError, check
 from dfwb.fmus.plants import TABLES
 
@@ -277,7 +277,7 @@ class Plant:
                 raise PlantError(f"unknown parameter {name!r} for plant {self.name} (allowed: {', '.join(allowed)})")
             values[name] = real(value)  # not 1 for True, no j dropped, not b'1' nor '1_0'
             if values[name] is None:
-                raise PlantError(f"{name} = {value!r:.80} is not a number")
+                raise PlantError(f"{name} = {short(value)} is not a number ({NUMBER_FORMS}, or a real number)")
             limits = self.limits(name)
             if limits is not None:
                 check_range(name, values[name], *limits)

@@ -23,6 +23,7 @@ import numpy as np
 
 from dfwb.base.defaults import DF_MAP_SIZE, JUDGE_SAMPLES
 from dfwb.base.errors import InputError
+from dfwb.base.values import leaves, real, short
 from dfwb.engine.compensators import check_judged
 from dfwb.engine.family import LoopFamily
 from dfwb.engine.scales import search_ranges
@@ -56,7 +57,7 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=None, 
     size = getattr(df_engine, "map_size", DF_MAP_SIZE)  # the dither's DF, whose points cost, maps fewer
     n_F, n_omega = size[0] if n_F is None else n_F, size[1] if n_omega is None else n_omega
     if not (2 <= n_F <= 1000 and 2 <= n_omega <= 1000):
-        raise InputError(f"a DF map of {n_F} x {n_omega} points: each side must have 2 to 1000")
+        raise InputError(f"a DF map of {short(n_F, 30)} x {short(n_omega, 30)} points: each side must have 2 to 1000")
     foreign = getattr(spec, "foreign", False)
     problem = family.problem(fmu_dir=fmu_dir) if spec.loop is not None else None
     if exact and problem is None and not foreign:
@@ -114,11 +115,14 @@ def analyse(plant, G, values=None, *, F_range=None, omega_range=None, n_F=None, 
 def _amplitudes(amplitudes):
     """Start amplitudes: 1 to 100 positive finite numbers."""
     try:
-        values = [float(a) for a in amplitudes]
-    except (TypeError, ValueError):
-        raise InputError(f"amplitudes = {amplitudes!r:.60}: expected a list of positive numbers") from None
+        values = ([None] if isinstance(amplitudes, (str, bytes, bytearray, memoryview))
+                  else [real(a) for a in amplitudes] if leaves(amplitudes, 100) <= 100 else [])
+    except TypeError:  # not a list
+        values = [None]
+    if None in values:
+        raise InputError(f"amplitudes = {short(amplitudes, 60)}: expected a list of positive numbers")
     if not 1 <= len(values) <= 100 or not all(math.isfinite(a) and a > 0.0 for a in values):
-        raise InputError(f"amplitudes = {amplitudes!r:.60}: expected 1 to 100 positive, finite numbers")
+        raise InputError(f"amplitudes = {short(amplitudes, 60)}: expected 1 to 100 positive, finite numbers")
     return sorted(values)
 
 
