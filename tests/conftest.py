@@ -41,13 +41,6 @@ settings.register_profile("stress", max_examples=1000, deadline=None)
 settings.load_profile(os.environ.get("DFWB_HYPOTHESIS", "default"))
 
 
-def pytest_collection_modifyitems(config, items):
-    """The tests marked slow first, in their order, then the others: xdist's workers then end on quick tests
-    they share by stealing, instead of one waiting on a long test met last (the stress suite's set-up alone
-    takes 80 s)."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
-
-
 @contextlib.contextmanager
 def _one_builder(name):
     """Hold build/.NAME.lock while building: one worker builds, the others wait and then find it up to date."""
