@@ -359,9 +359,9 @@ def cmd_limit_cycle(args):
     from dfwb.api.functions import limit_cycles
 
     plot = _plot_path(args.plot) if args.plot else None
+    n_F, n_omega = args.map_size or (None, None)  # None: the DF's own size
     response = limit_cycles(_plant(args), _controller(args), F_range=args.F_range, omega_range=args.omega_range,
-                            n_F=(args.map_size or [None])[0], n_omega=(args.map_size or [None, None])[1],
-                            exact=args.exact, verify=args.verify,
+                            n_F=n_F, n_omega=n_omega, exact=args.exact, verify=args.verify,
                             samples_per_period=args.samples_per_period, fmu_dir=args.fmus, progress=not args.json,
                             rtol=args.rtol, timeout=args.timeout, compensate=args.compensate,
                             **_params(args, limit_cycles))

@@ -37,7 +37,7 @@ import time
 from dataclasses import dataclass, field
 
 from dfwb.base.defaults import DF_PERIODS, HARMONICS, SAMPLES_PER_PERIOD
-from dfwb.base.values import real
+from dfwb.base.values import real, short
 from dfwb.fmi.location import fmu_path
 from dfwb.fmus.piecewise import PlantError
 from dfwb.plants import check_range
@@ -209,7 +209,7 @@ def check_point(F, omega):
     for name, value, check in (("F", F, check_force), ("omega", omega, check_frequency)):
         number = None if isinstance(value, str) else real(value)
         if number is None:
-            raise PlantError(f"{name} = {value!r:.80} is not a real number")
+            raise PlantError(f"{name} = {short(value)} is not a real number")
         check(number)
         numbers.append(number)
     return tuple(numbers)

@@ -288,5 +288,5 @@ def _pair(name, value):
     except (TypeError, ValueError):
         lo = hi = None
     if lo is None or hi is None:
-        raise InputError(f"{name} = {short(value, 60)} must be a (low, high) pair of numbers") from None
+        raise InputError(f"{name} = {short(value, 60)} must be a (low, high) pair of numbers")
     return lo, hi
